@@ -1,0 +1,243 @@
+"""Entities, agents, ontology, properties, areas and settings: the small tables around facts.
+
+Functions here take a connection inside the caller's transaction; :class:`toaster.db.Store`
+wraps them in one transaction per call.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from sqlalchemy import Connection, bindparam, delete, func, insert, select, update
+
+from toaster.db import schema as s
+from toaster.db.views import create_agent_views, drop_agent_views
+from toaster.errors import InvalidInputError, UnknownEntityError
+from toaster.model import AGENT_KINDS, Fact, check_id
+from toaster.timeutil import now_ns
+
+_PLURALS = {"humans": "human", "robots": "robot", "objects": "object", "joints": "joint",
+            "areas": "area", "agents": "agent"}
+
+
+def normalise_kind(kind: object) -> str:
+    """Lower-case, singular kind (``'Object'`` and ``'objects'`` both give ``'object'``)."""
+    if not isinstance(kind, str):
+        msg = f"invalid entity kind {kind!r}: give a word such as human, robot, object, joint"
+        raise InvalidInputError(msg)
+    word = kind.strip().strip("'").lower()
+    return _PLURALS.get(word, word)
+
+
+def upsert_entity(conn: Connection, entity_id: str, kind: str, name: str, owner_id: str, *,
+                  is_self: bool | None, agent: bool | None, t_ns: int | None) -> None:
+    """Insert or update an entity; register it as an agent when it is one."""
+    check_id(entity_id, "entity id")
+    kind = normalise_kind(kind)
+    for value, what in ((name, "name"), (owner_id, "owner id")):
+        if not isinstance(value, str):
+            msg = f"invalid {what} {value!r} for entity {entity_id!r}: must be text"
+            raise InvalidInputError(msg)
+    stamp = now_ns() if t_ns is None else t_ns
+    exists = conn.execute(select(s.entities.c.id).where(s.entities.c.id == entity_id)).first()
+    values = {"name": name or entity_id, "kind": kind, "owner_id": owner_id}
+    if exists:
+        conn.execute(update(s.entities).where(s.entities.c.id == entity_id).values(**values))
+    else:
+        conn.execute(insert(s.entities).values(id=entity_id, created_ns=stamp, **values))
+    wants_agent = agent if agent is not None else (kind in AGENT_KINDS or kind == "agent"
+                                                   or bool(is_self))
+    if wants_agent or is_self:
+        register_agent(conn, entity_id, is_self=is_self, t_ns=stamp)
+
+
+def register_agent(conn: Connection, agent_id: str, *, is_self: bool | None,
+                   t_ns: int) -> None:
+    """Make an entity an agent (idempotent) and create its per-agent views."""
+    row = conn.execute(select(s.agents.c.num).where(s.agents.c.id == agent_id)).first()
+    if row is None:
+        num = conn.execute(select(func.coalesce(func.max(s.agents.c.num), 0))).scalar_one() + 1
+        conn.execute(insert(s.agents).values(id=agent_id, num=num, is_self=bool(is_self),
+                                             registered_ns=t_ns))
+        create_agent_views(conn, agent_id, num)
+    elif is_self is not None:
+        conn.execute(update(s.agents).where(s.agents.c.id == agent_id).values(is_self=is_self))
+
+
+def remove_entity(conn: Connection, entity_id: str) -> None:
+    """Delete an entity; an agent's views, keys, facts and events go with it."""
+    check_entities(conn, [entity_id])
+    if conn.execute(select(s.agents.c.id).where(s.agents.c.id == entity_id)).first():
+        drop_agent_views(conn, entity_id)
+        empty_facts(conn, entity_id)
+        conn.execute(delete(s.agents).where(s.agents.c.id == entity_id))
+    conn.execute(delete(s.properties).where(s.properties.c.entity_id == entity_id))
+    conn.execute(delete(s.entities).where(s.entities.c.id == entity_id))
+
+
+def insert_missing_entities(conn: Connection, rows: list[dict[str, str]], t_ns: int) -> None:
+    """Register entities that facts mention but nobody declared (kind '')."""
+    ids = [row["id"] for row in rows]
+    existing = set(conn.execute(select(s.entities.c.id).where(
+        s.entities.c.id.in_(bindparam("ids", expanding=True))), {"ids": ids}).scalars())
+    new = [{"id": r["id"], "name": r["id"], "kind": "", "owner_id": r["owner"], "created_ns": t_ns}
+           for r in rows if r["id"] not in existing]
+    if new:
+        conn.execute(insert(s.entities), new)
+
+
+def check_entities(conn: Connection, ids: list[str]) -> None:
+    """Raise :class:`UnknownEntityError` for the first id (non-empty) not registered."""
+    wanted = [i for i in ids if i]
+    if not wanted:
+        return
+    found = set(conn.execute(select(s.entities.c.id).where(
+        s.entities.c.id.in_(bindparam("ids", expanding=True))), {"ids": wanted}).scalars())
+    for entity_id in wanted:
+        if entity_id not in found:
+            msg = (f"unknown entity {entity_id!r}: register it first with "
+                   f"`toaster set-info ENTITY --id {entity_id} --type object` (or human, robot...)")
+            raise UnknownEntityError(msg)
+
+
+def open_facts_matching(conn: Connection, agent_id: str, prop: str,
+                        filters: dict[str, str | None]) -> list[tuple[int, Fact, int]]:
+    """Current facts of an agent with this property and the non-wildcard key fields."""
+    k, f = s.fact_keys.c, s.facts.c
+    query = (
+        select(k.id, k.subject_id, k.property, k.target_id, f.value_text, f.value_num,
+               f.confidence, f.observability, k.property_type, k.sub_property,
+               k.subject_owner_id, k.target_owner_id, f.valid_from_ns)
+        .select_from(s.fact_keys.join(s.facts, s.facts.c.key_id == k.id))
+        .where(k.agent_id == agent_id, k.property == prop, f.valid_to_ns.is_(None))
+    )
+    for column, value in filters.items():
+        if value is not None and value != "NULL":
+            query = query.where(k[column] == value)
+    return [(row[0], Fact(*row[1:12]), row[12]) for row in conn.execute(query.order_by(k.id))]
+
+
+def empty_facts(conn: Connection, agent_id: str | None) -> None:
+    """Delete facts, memory and events of one agent or of all (keys included)."""
+    if agent_id is None:
+        for table in (s.events, s.facts, s.fact_keys):
+            conn.execute(delete(table))
+        return
+    keys = select(s.fact_keys.c.id).where(s.fact_keys.c.agent_id == agent_id)
+    conn.execute(delete(s.events).where(s.events.c.agent_id == agent_id))
+    conn.execute(delete(s.facts).where(s.facts.c.key_id.in_(keys)))
+    conn.execute(delete(s.fact_keys).where(s.fact_keys.c.agent_id == agent_id))
+
+
+def _as_bool(value: object, what: str) -> bool:
+    if isinstance(value, bool):
+        return value
+    word = str(value).strip().strip("'").lower()
+    if word in {"true", "1", "yes"}:
+        return True
+    if word in {"false", "0", "no", ""}:
+        return False
+    msg = f"invalid {what} {value!r}: use true or false"
+    raise InvalidInputError(msg)
+
+
+def upsert_ontology(conn: Connection, entity_class: str, individual: str,
+                    instantiated: object) -> None:
+    """Insert or update one class-tree edge."""
+    check_id(entity_class, "ontology class")
+    check_id(individual, "ontology individual")
+    flag = _as_bool(instantiated, "instantiated flag")
+    table = s.ontology
+    where = (table.c.entity_class == entity_class, table.c.individual == individual)
+    if conn.execute(select(table.c.individual).where(*where)).first():
+        conn.execute(update(table).where(*where).values(instantiated=flag))
+    else:
+        conn.execute(insert(table).values(entity_class=entity_class, individual=individual,
+                                          instantiated=flag))
+
+
+def delete_ontology(conn: Connection, entity_class: str, individual: str | None) -> int:
+    """Delete one edge or all edges of a class."""
+    query = delete(s.ontology).where(s.ontology.c.entity_class == entity_class)
+    if individual is not None:
+        query = query.where(s.ontology.c.individual == individual)
+    return conn.execute(query).rowcount
+
+
+def upsert_property(conn: Connection, entity_id: str, key: str, value: object) -> None:
+    """Set one static property of a registered entity."""
+    check_id(key, "property key")
+    check_entities(conn, [check_id(entity_id, "entity id")])
+    if value is None or isinstance(value, dict | list):
+        msg = f"invalid value {value!r} for property {key!r} of {entity_id!r}: give text or a number"
+        raise InvalidInputError(msg)
+    table = s.properties
+    where = (table.c.entity_id == entity_id, table.c.key == key)
+    stored = str(value).lower() if isinstance(value, bool) else str(value)
+    if conn.execute(select(table.c.key).where(*where)).first():
+        conn.execute(update(table).where(*where).values(value=stored))
+    else:
+        conn.execute(insert(table).values(entity_id=entity_id, key=key, value=stored))
+
+
+def delete_property(conn: Connection, entity_id: str, key: str | None) -> int:
+    """Delete one property or all properties of an entity."""
+    query = delete(s.properties).where(s.properties.c.entity_id == entity_id)
+    if key is not None:
+        query = query.where(s.properties.c.key == key)
+    return conn.execute(query).rowcount
+
+
+def put_area(conn: Connection, area_id: str, spec: dict[str, Any], owner_id: str) -> None:
+    """Insert or replace an area definition."""
+    check_id(area_id, "area id")
+    try:
+        body = json.dumps(spec, sort_keys=True)
+    except (TypeError, ValueError) as exc:
+        msg = f"invalid spec for area {area_id!r}: {exc}"
+        raise InvalidInputError(msg) from None
+    conn.execute(delete(s.areas).where(s.areas.c.id == area_id))
+    conn.execute(insert(s.areas).values(id=area_id, owner_id=owner_id or "", spec_json=body,
+                                        updated_ns=now_ns()))
+
+
+def remove_area(conn: Connection, area_id: str) -> bool:
+    """Delete an area; False when it did not exist."""
+    return bool(conn.execute(delete(s.areas).where(s.areas.c.id == area_id)).rowcount)
+
+
+def areas(conn: Connection) -> dict[str, dict[str, Any]]:
+    """Every stored area spec by id."""
+    rows = conn.execute(select(s.areas.c.id, s.areas.c.spec_json).order_by(s.areas.c.id))
+    return {row[0]: json.loads(row[1]) for row in rows}
+
+
+def put_setting(conn: Connection, scope: str, key: str, value: object) -> None:
+    """Insert or replace one JSON-able setting."""
+    check_id(scope, "setting scope")
+    check_id(key, "setting key")
+    try:
+        body = json.dumps(value)
+    except (TypeError, ValueError) as exc:
+        msg = f"invalid value for setting {scope}.{key}: {exc}"
+        raise InvalidInputError(msg) from None
+    table = s.settings
+    conn.execute(delete(table).where(table.c.scope == scope, table.c.key == key))
+    conn.execute(insert(table).values(scope=scope, key=key, value_json=body))
+
+
+def get_setting(conn: Connection, scope: str, key: str, default: object) -> Any:
+    """One setting's value, or ``default``."""
+    table = s.settings
+    row = conn.execute(select(table.c.value_json).where(table.c.scope == scope,
+                                                        table.c.key == key)).first()
+    return default if row is None else json.loads(row[0])
+
+
+def settings(conn: Connection, scope: str) -> dict[str, Any]:
+    """Every setting of a scope."""
+    table = s.settings
+    rows = conn.execute(select(table.c.key, table.c.value_json).where(table.c.scope == scope))
+    return {row[0]: json.loads(row[1]) for row in rows}
+

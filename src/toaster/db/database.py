@@ -1,0 +1,110 @@
+"""The database handle: one engine, one long-lived connection, transactions on demand."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import TYPE_CHECKING, Any
+
+from sqlalchemy import Connection, Engine
+from sqlalchemy.exc import OperationalError
+
+from toaster.db import migrate
+from toaster.db.dialects import Backend, backend_for
+from toaster.db.engine import default_url, make_engine, normalise_url
+from toaster.errors import ToasterError
+
+if TYPE_CHECKING:
+    from toaster.db.store import Store
+
+
+class Database:
+    """A toaster database (SQLite file or PostgreSQL), at the code's schema revision.
+
+    Not thread-safe: give each thread its own :func:`connect`. Use it as a context manager or
+    call :meth:`close`.
+    """
+
+    def __init__(self, engine: Engine, url: str) -> None:
+        self.engine = engine
+        self.url = url
+        self.backend: Backend = backend_for(engine.dialect.name)
+        self._conn: Connection | None = None
+        self._store: Store | None = None
+
+    @property
+    def dialect_name(self) -> str:
+        """``sqlite`` or ``postgresql``."""
+        return self.engine.dialect.name
+
+    @property
+    def connection(self) -> Connection:
+        """The long-lived connection shared by the store and the queries."""
+        if self._conn is None or self._conn.closed:
+            self._conn = self.engine.connect()
+        return self._conn
+
+    @contextmanager
+    def transaction(self, *, write: bool = False) -> Iterator[Connection]:
+        """One transaction (nested calls join the open one). ``write`` takes SQLite's write
+        lock up front so that two writers never deadlock half-way."""
+        conn = self.connection
+        if conn.in_transaction():
+            yield conn
+            return
+        conn.info["write"] = write
+        with conn.begin():
+            yield conn
+
+    def cursor(self) -> Any:
+        """A raw DBAPI cursor on the shared connection (inside a transaction)."""
+        return self.connection.connection.dbapi_connection.cursor()  # type: ignore[union-attr]
+
+    def store(self) -> Store:
+        """The write API (one per database handle, it remembers what each source wrote)."""
+        if self._store is None:
+            from toaster.db.store import Store
+
+            self._store = Store(self)
+        return self._store
+
+    def close(self) -> None:
+        """Close the connection and dispose of the engine."""
+        if self._conn is not None:
+            self._conn.close()
+            self._conn = None
+        self.engine.dispose()
+
+    def __enter__(self) -> Database:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def connect(url: str | None = None, *, create: bool = True, check: bool = True) -> Database:
+    """Open a toaster database.
+
+    Args:
+        url: ``sqlite:///file.db``, ``postgresql://host/db`` or a path ending in ``.db``;
+            default ``$TOASTER_DB`` or ``sqlite:///toaster.db``.
+        create: migrate a database that has no table yet (a new file or database) to head.
+        check: raise :class:`~toaster.errors.SchemaOutdatedError` when an existing database is
+            not at the code's revision (the message says to run ``toaster db upgrade``).
+    """
+    shown = url or default_url()
+    engine = make_engine(shown)
+    try:
+        if create and migrate.is_empty(engine):
+            migrate.upgrade(engine)
+        if check:
+            migrate.check_at_head(engine, url_hint=shown if url else "")
+    except OperationalError as exc:
+        engine.dispose()
+        reason = str(exc.orig).strip().splitlines()[0] if exc.orig else str(exc)
+        msg = f"cannot open database {normalise_url(shown)!r}: {reason}"
+        raise ToasterError(msg) from None
+    except BaseException:
+        engine.dispose()
+        raise
+    return Database(engine, normalise_url(shown))

@@ -1,0 +1,66 @@
+"""Backend-specific SQL lives here, one module per backend, behind one interface.
+
+The store's hot path (key look-up, interval open/close/refresh, event append) is written once per
+backend in bulk form: ``executemany`` on SQLite, one statement over ``unnest`` arrays on
+PostgreSQL (round trips dominate there). Everything else uses SQLAlchemy Core and is shared.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+#: Natural key of a fact without the agent: subject, subject owner, property, sub-property,
+#: target, target owner.
+Key = tuple[str, str, str, str, str, str]
+
+
+class Backend(Protocol):
+    """What the store needs from a backend; ``cur`` is a raw DBAPI cursor in a transaction."""
+
+    name: str
+
+    def lookup_keys(self, cur: Any, agent_id: str, keys: list[Key]) -> dict[Key, int]:
+        """Ids of the given keys of ``agent_id`` that exist."""
+
+    def insert_keys(
+        self, cur: Any, agent_id: str, rows: list[tuple[Key, str]]
+    ) -> dict[Key, int]:
+        """Insert ``(key, property_type)`` rows (skipping existing ones); return their ids."""
+
+    def open_rows(self, cur: Any, key_ids: list[int]) -> dict[int, tuple[Any, ...]]:
+        """Open intervals of these keys: key_id -> (value_text, value_num, confidence,
+        observability, source)."""
+
+    def close_intervals(self, cur: Any, t_ns: int, key_ids: list[int]) -> int:
+        """Close the open interval of each key at ``t_ns``; return the number closed."""
+
+    def refresh_intervals(self, cur: Any, rows: list[tuple[Any, ...]]) -> int:
+        """``(value_num, confidence, observability, key_id)``: refresh open intervals."""
+
+    def insert_intervals(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
+        """``(key_id, value_text, value_num, confidence, observability, valid_from_ns,
+        recorded_ns, source)``: open new intervals."""
+
+    def insert_events(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
+        """``(key_id, agent_id, kind, stamp_ns, value_text, value_num, confidence,
+        observability, previous_text, source, recorded_ns)``: append events."""
+
+    def set_read_only(self, cur: Any) -> None:
+        """Make the current transaction read-only, enforced by the database."""
+
+    def clear_read_only(self, cur: Any) -> None:
+        """Undo :meth:`set_read_only` for a pooled connection."""
+
+
+def backend_for(dialect_name: str) -> Backend:
+    """The backend implementation for a SQLAlchemy dialect name."""
+    if dialect_name == "sqlite":
+        from toaster.db.dialects.sqlite import SQLiteBackend
+
+        return SQLiteBackend()
+    if dialect_name == "postgresql":
+        from toaster.db.dialects.postgresql import PostgreSQLBackend
+
+        return PostgreSQLBackend()
+    msg = f"unsupported database backend {dialect_name!r}"
+    raise ValueError(msg)

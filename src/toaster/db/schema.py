@@ -1,0 +1,195 @@
+"""The one declaration of toaster's schema (SQLAlchemy Core). Alembic migrations create it.
+
+Tables
+------
+``entities``    every thing toaster knows (text id, name, kind, owner for joints).
+``agents``      the entities that hold beliefs; ``is_self`` marks robots whose perception is the
+                world state. ``num`` is a small integer used to name the per-agent views.
+``fact_keys``   one row per identity of a fact for an agent:
+                (agent, subject, subject owner, property, sub-property, target, target owner).
+``facts``       validity intervals ``[valid_from_ns, valid_to_ns)`` of a key with its value,
+                confidence and observability. ``valid_to_ns`` NULL = current. At most one open
+                interval per key (partial unique index).
+``events``      every change of any agent's beliefs (appeared / changed / ended) and user events.
+``ontology``    class tree as an adjacency list (class, individual, instantiated).
+``properties``  static properties of entities, open key/value.
+``areas``       area definitions (a JSON spec) so that areas survive restarts.
+``settings``    thresholds and rule configuration kept as data (JSON values by scope/key).
+``store_state`` one row; ``cache_epoch`` is bumped by writes that bypass snapshot sync so that
+                every store process reloads what it remembers of the open facts.
+
+Readable views (``current_facts``, ``memory``, ``fact_history``, ``event_log``) and one view
+per agent (``fact_table_<agent>``, ``memory_table_<agent>``, ``events_table_<agent>``) are
+created by migrations and by agent registration (see :mod:`toaster.db.views`).
+"""
+
+from __future__ import annotations
+
+from sqlalchemy import (
+    BigInteger,
+    Boolean,
+    CheckConstraint,
+    Column,
+    Float,
+    ForeignKey,
+    Index,
+    Integer,
+    MetaData,
+    Table,
+    Text,
+    text,
+)
+
+NAMING = {
+    "ix": "ix_%(table_name)s_%(column_0_N_name)s",
+    "uq": "uq_%(table_name)s_%(column_0_N_name)s",
+    "ck": "ck_%(table_name)s_%(constraint_name)s",
+    "fk": "fk_%(table_name)s_%(column_0_name)s_%(referred_table_name)s",
+    "pk": "pk_%(table_name)s",
+}
+
+metadata = MetaData(naming_convention=NAMING)
+
+#: 64-bit integer primary keys that are also SQLite rowid aliases (autoincrementing).
+RowId = BigInteger().with_variant(Integer(), "sqlite")
+
+
+def _text(name: str, **kwargs: object) -> Column:
+    return Column(name, Text, nullable=False, server_default=text("''"), **kwargs)  # type: ignore[arg-type]
+
+
+entities = Table(
+    "entities",
+    metadata,
+    Column("id", Text, primary_key=True),
+    _text("name"),
+    _text("kind"),
+    _text("owner_id"),
+    Column("created_ns", BigInteger, nullable=False),
+    CheckConstraint("id <> ''", name="id_not_empty"),
+)
+
+agents = Table(
+    "agents",
+    metadata,
+    Column("id", Text, ForeignKey("entities.id", ondelete="CASCADE"), primary_key=True),
+    Column("num", Integer, nullable=False, unique=True),
+    Column("is_self", Boolean, nullable=False, server_default=text("false")),
+    Column("registered_ns", BigInteger, nullable=False),
+)
+
+fact_keys = Table(
+    "fact_keys",
+    metadata,
+    Column("id", RowId, primary_key=True, autoincrement=True),
+    Column("agent_id", Text, ForeignKey("agents.id", ondelete="CASCADE"), nullable=False),
+    Column("subject_id", Text, nullable=False),
+    _text("subject_owner_id"),
+    Column("property", Text, nullable=False),
+    _text("sub_property"),
+    _text("target_id"),
+    _text("target_owner_id"),
+    _text("property_type"),
+    CheckConstraint("subject_id <> '' AND property <> ''", name="key_not_empty"),
+    Index(
+        "uq_fact_keys_identity",
+        "agent_id", "subject_id", "subject_owner_id", "property", "sub_property",
+        "target_id", "target_owner_id",
+        unique=True,
+    ),
+    Index("ix_fact_keys_subject", "subject_id", "agent_id"),
+    Index("ix_fact_keys_target", "target_id", "agent_id"),
+    Index("ix_fact_keys_property", "agent_id", "property"),
+)
+
+facts = Table(
+    "facts",
+    metadata,
+    Column("id", RowId, primary_key=True, autoincrement=True),
+    Column("key_id", BigInteger, ForeignKey("fact_keys.id", ondelete="CASCADE"), nullable=False),
+    Column("value_text", Text, nullable=False),
+    Column("value_num", Float, nullable=True),
+    Column("confidence", Float, nullable=False),
+    Column("observability", Float, nullable=False),
+    Column("valid_from_ns", BigInteger, nullable=False),
+    Column("valid_to_ns", BigInteger, nullable=True),
+    Column("recorded_ns", BigInteger, nullable=False),
+    Column("source", Text, nullable=False),
+    CheckConstraint("valid_to_ns IS NULL OR valid_to_ns >= valid_from_ns", name="valid_interval"),
+    CheckConstraint("confidence >= 0 AND confidence <= 1", name="confidence_range"),
+    CheckConstraint("observability >= 0 AND observability <= 1", name="observability_range"),
+    # One open interval per key; also the index used to close and refresh the open interval.
+    Index(
+        "uq_facts_open_key", "key_id", unique=True,
+        sqlite_where=text("valid_to_ns IS NULL"), postgresql_where=text("valid_to_ns IS NULL"),
+    ),
+    # As-of: the last interval of a key starting at or before t.
+    Index("ix_facts_key_from", "key_id", "valid_from_ns", "id"),
+)
+
+events = Table(
+    "events",
+    metadata,
+    Column("id", RowId, primary_key=True, autoincrement=True),
+    Column("key_id", BigInteger, ForeignKey("fact_keys.id", ondelete="CASCADE"), nullable=False),
+    Column("agent_id", Text, ForeignKey("agents.id", ondelete="CASCADE"), nullable=False),
+    Column("kind", Text, nullable=False),
+    Column("stamp_ns", BigInteger, nullable=False),
+    Column("value_text", Text, nullable=True),
+    Column("value_num", Float, nullable=True),
+    Column("confidence", Float, nullable=True),
+    Column("observability", Float, nullable=True),
+    Column("previous_text", Text, nullable=True),
+    Column("source", Text, nullable=False),
+    Column("recorded_ns", BigInteger, nullable=False),
+    CheckConstraint("kind IN ('appeared', 'changed', 'ended', 'event')", name="kind_known"),
+    Index("ix_events_agent_stamp", "agent_id", "stamp_ns"),
+    Index("ix_events_stamp", "stamp_ns"),
+    Index("ix_events_key_stamp", "key_id", "stamp_ns"),
+)
+
+ontology = Table(
+    "ontology",
+    metadata,
+    Column("entity_class", Text, primary_key=True),
+    Column("individual", Text, primary_key=True),
+    Column("instantiated", Boolean, nullable=False, server_default=text("false")),
+    CheckConstraint("entity_class <> '' AND individual <> ''", name="not_empty"),
+    Index("ix_ontology_individual", "individual"),
+)
+
+properties = Table(
+    "properties",
+    metadata,
+    Column("entity_id", Text, ForeignKey("entities.id", ondelete="CASCADE"), primary_key=True),
+    Column("key", Text, primary_key=True),
+    Column("value", Text, nullable=False),
+    CheckConstraint("key <> ''", name="key_not_empty"),
+    Index("ix_properties_key_value", "key", "value"),
+)
+
+areas = Table(
+    "areas",
+    metadata,
+    Column("id", Text, primary_key=True),
+    _text("owner_id"),
+    Column("spec_json", Text, nullable=False),
+    Column("updated_ns", BigInteger, nullable=False),
+    CheckConstraint("id <> ''", name="id_not_empty"),
+)
+
+settings = Table(
+    "settings",
+    metadata,
+    Column("scope", Text, primary_key=True),
+    Column("key", Text, primary_key=True),
+    Column("value_json", Text, nullable=False),
+)
+
+store_state = Table(
+    "store_state",
+    metadata,
+    Column("id", Integer, primary_key=True),
+    Column("cache_epoch", BigInteger, nullable=False, server_default=text("0")),
+    CheckConstraint("id = 1", name="single_row"),
+)

@@ -1,0 +1,1 @@
+"""Alembic migrations of toaster's schema (run them with ``toaster db upgrade``)."""

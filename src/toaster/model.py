@@ -1,0 +1,204 @@
+"""Plain value types shared by the store, the queries and the producers (no SQLAlchemy here).
+
+A :class:`Fact` is what a producer or a user states; a :class:`FactRow` is one validity interval
+of a fact as stored for one agent; an :class:`EventRow` is one change of an agent's beliefs.
+All are NamedTuples: cheap to build in bulk, comparable, and easy to turn into dicts or frames.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+from toaster.errors import InvalidInputError
+
+#: Kinds of entity the original knew; other words are accepted and kept lower-case.
+AGENT_KINDS = frozenset({"human", "robot"})
+ENTITY_KINDS = frozenset({"human", "robot", "object", "joint", "area", "agent", ""})
+
+#: Event kinds written by the store; ``event`` is a user-recorded event (set-info EVENT).
+EVENT_KINDS = ("appeared", "changed", "ended", "event")
+
+
+class FactKey(NamedTuple):
+    """The identity of a fact for one agent (the agent itself is kept beside it)."""
+
+    subject_id: str
+    subject_owner_id: str
+    property: str
+    sub_property: str
+    target_id: str
+    target_owner_id: str
+
+
+class Fact(NamedTuple):
+    """A statement a source holds true: "SUBJECT PROPERTY TARGET" with its value and confidence.
+
+    Only ``subject_id`` and ``property`` are required. ``target_id`` is ``""`` for facts without
+    a target (IsMoving). ``value_text`` is the symbolic value: a change of it ends one interval
+    and starts the next; ``value_num`` and ``confidence`` refresh the current interval.
+    """
+
+    subject_id: str
+    property: str
+    target_id: str = ""
+    value_text: str = "true"
+    value_num: float | None = None
+    confidence: float = 1.0
+    observability: float = 1.0
+    property_type: str = ""
+    sub_property: str = ""
+    subject_owner_id: str = ""
+    target_owner_id: str = ""
+
+    @property
+    def key(self) -> FactKey:
+        """The identity of this fact (owners included, value excluded)."""
+        return FactKey(self.subject_id, self.subject_owner_id, self.property,
+                       self.sub_property, self.target_id, self.target_owner_id)
+
+
+def fact_key(fact: Fact) -> tuple[str, str, str, str, str, str]:
+    """Fast identity tuple of a fact, in :class:`FactKey` order."""
+    return (fact[0], fact[9], fact[1], fact[8], fact[2], fact[10])
+
+
+class FactRow(NamedTuple):
+    """One validity interval of a fact held by ``agent_id``; ``valid_to_ns`` None = current."""
+
+    agent_id: str
+    subject_id: str
+    subject_owner_id: str
+    property: str
+    property_type: str
+    sub_property: str
+    target_id: str
+    target_owner_id: str
+    value_text: str
+    value_num: float | None
+    confidence: float
+    observability: float
+    valid_from_ns: int
+    valid_to_ns: int | None
+    recorded_ns: int
+    source: str
+
+    @property
+    def is_current(self) -> bool:
+        """True while the interval is open."""
+        return self.valid_to_ns is None
+
+    def to_fact(self) -> Fact:
+        """The statement this row holds (without agent and interval)."""
+        return Fact(self.subject_id, self.property, self.target_id, self.value_text,
+                    self.value_num, self.confidence, self.observability, self.property_type,
+                    self.sub_property, self.subject_owner_id, self.target_owner_id)
+
+
+class EventRow(NamedTuple):
+    """One change of an agent's beliefs (or a user-recorded event)."""
+
+    id: int
+    agent_id: str
+    kind: str
+    stamp_ns: int
+    subject_id: str
+    subject_owner_id: str
+    property: str
+    property_type: str
+    sub_property: str
+    target_id: str
+    target_owner_id: str
+    value_text: str | None
+    value_num: float | None
+    confidence: float | None
+    observability: float | None
+    previous_text: str | None
+    source: str
+    recorded_ns: int
+
+
+class Entity(NamedTuple):
+    """A thing the world model knows: human, robot, object, joint (with owner), area..."""
+
+    id: str
+    name: str
+    kind: str
+    owner_id: str
+
+
+class Agent(NamedTuple):
+    """An entity that holds beliefs; ``is_self`` agents believe the world state."""
+
+    id: str
+    is_self: bool
+    fact_view: str
+    memory_view: str
+    events_view: str
+
+
+class OntologyRow(NamedTuple):
+    """One edge of the class tree: ``individual`` is a child of ``entity_class``."""
+
+    entity_class: str
+    individual: str
+    instantiated: bool
+
+
+class PropertyRow(NamedTuple):
+    """A static property of an entity (open key/value)."""
+
+    entity_id: str
+    key: str
+    value: str
+
+
+def check_id(value: object, what: str) -> str:
+    """Return ``value`` if it is a non-empty string id, else raise a one-line error."""
+    if not isinstance(value, str) or not value.strip():
+        msg = f"invalid {what} {value!r}: ids must be non-empty text"
+        raise InvalidInputError(msg)
+    return value
+
+
+def check_unit_interval(value: object, what: str) -> float:
+    """Return ``value`` as a float in [0, 1], else raise a one-line error naming it."""
+    try:
+        number = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        number = math.nan
+    if isinstance(value, bool) or not (0.0 <= number <= 1.0):
+        msg = f"invalid {what} {value!r}: it must be a number between 0 and 1"
+        raise InvalidInputError(msg)
+    return number
+
+
+def check_fact(fact: Fact) -> Fact:
+    """Validate one fact (ids, confidence, observability, numeric value); return it normalised."""
+    if not isinstance(fact, Fact):
+        if isinstance(fact, tuple) and 2 <= len(fact) <= len(Fact._fields):
+            fact = Fact(*fact)
+        else:
+            msg = f"invalid fact {fact!r}: give a toaster.Fact(subject_id, property, ...)"
+            raise InvalidInputError(msg)
+    check_id(fact.subject_id, "subject id")
+    check_id(fact.property, "property")
+    for name in ("target_id", "value_text", "property_type", "sub_property",
+                 "subject_owner_id", "target_owner_id"):
+        if not isinstance(getattr(fact, name), str):
+            msg = f"invalid {name} {getattr(fact, name)!r} in {fact.subject_id} {fact.property}: must be text"
+            raise InvalidInputError(msg)
+    confidence = check_unit_interval(fact.confidence, "confidence")
+    observability = check_unit_interval(fact.observability, "observability")
+    value_num = fact.value_num
+    if value_num is not None:
+        try:
+            value_num = float(value_num)
+        except (TypeError, ValueError):
+            value_num = math.nan
+        if not math.isfinite(value_num):
+            msg = f"invalid numeric value {fact.value_num!r} for {fact.subject_id} {fact.property}: must be finite"
+            raise InvalidInputError(msg)
+    if (confidence, observability, value_num) != (fact.confidence, fact.observability, fact.value_num):
+        fact = fact._replace(confidence=confidence, observability=observability, value_num=value_num)
+    return fact
