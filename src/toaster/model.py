@@ -186,7 +186,8 @@ def check_fact(fact: Fact) -> Fact:
     for name in ("target_id", "value_text", "property_type", "sub_property",
                  "subject_owner_id", "target_owner_id"):
         if not isinstance(getattr(fact, name), str):
-            msg = f"invalid {name} {getattr(fact, name)!r} in {fact.subject_id} {fact.property}: must be text"
+            msg = (f"invalid {name} {getattr(fact, name)!r} in {fact.subject_id} "
+                   f"{fact.property}: must be text")
             raise InvalidInputError(msg)
     confidence = check_unit_interval(fact.confidence, "confidence")
     observability = check_unit_interval(fact.observability, "observability")
@@ -197,8 +198,11 @@ def check_fact(fact: Fact) -> Fact:
         except (TypeError, ValueError):
             value_num = math.nan
         if not math.isfinite(value_num):
-            msg = f"invalid numeric value {fact.value_num!r} for {fact.subject_id} {fact.property}: must be finite"
+            msg = (f"invalid numeric value {fact.value_num!r} for {fact.subject_id} "
+                   f"{fact.property}: must be finite")
             raise InvalidInputError(msg)
-    if (confidence, observability, value_num) != (fact.confidence, fact.observability, fact.value_num):
-        fact = fact._replace(confidence=confidence, observability=observability, value_num=value_num)
+    normalised = (confidence, observability, value_num)
+    if normalised != (fact.confidence, fact.observability, fact.value_num):
+        fact = fact._replace(confidence=confidence, observability=observability,
+                             value_num=value_num)
     return fact

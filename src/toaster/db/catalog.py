@@ -170,7 +170,8 @@ def upsert_property(conn: Connection, entity_id: str, key: str, value: object) -
     check_id(key, "property key")
     check_entities(conn, [check_id(entity_id, "entity id")])
     if value is None or isinstance(value, dict | list):
-        msg = f"invalid value {value!r} for property {key!r} of {entity_id!r}: give text or a number"
+        msg = (f"invalid value {value!r} for property {key!r} of {entity_id!r}: "
+               "give text or a number")
         raise InvalidInputError(msg)
     table = s.properties
     where = (table.c.entity_id == entity_id, table.c.key == key)

@@ -59,7 +59,8 @@ def _sqlite_engine(url) -> Engine:
     if database and database != ":memory:" and not database.startswith("file:"):
         parent = Path(database).expanduser().resolve().parent
         if not parent.is_dir():
-            msg = f"cannot create SQLite database {database!r}: folder {str(parent)!r} does not exist"
+            msg = (f"cannot create SQLite database {database!r}: "
+                   f"folder {str(parent)!r} does not exist")
             raise InvalidInputError(msg)
     engine = create_engine(url)
 

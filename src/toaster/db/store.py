@@ -214,7 +214,8 @@ class Store:
             except _StaleCache:
                 if attempt:
                     raise
-        raise AssertionError("unreachable")
+        msg = "unreachable"
+        raise AssertionError(msg)
 
     def _state(self, conn: Connection, source: str, agent_id: str) -> _SourceState:
         state = self._sources.get((source, agent_id))
@@ -312,9 +313,9 @@ class Store:
     def _apply(self, conn: Connection, writes: _Writes) -> None:
         cur = self.db.cursor()
         backend = self.backend
-        if writes.closing:
-            if backend.close_intervals(cur, writes.t_ns, writes.closing) != len(writes.closing):
-                raise _StaleCache
+        closing = writes.closing
+        if closing and backend.close_intervals(cur, writes.t_ns, closing) != len(closing):
+            raise _StaleCache
         if writes.refreshed:
             rows = [(f.value_num, f.confidence, f.observability, k) for k, f in writes.refreshed]
             if backend.refresh_intervals(cur, rows) != len(rows):

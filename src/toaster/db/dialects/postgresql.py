@@ -14,7 +14,9 @@ _KEY_ARRAYS = "%s::text[], %s::text[], %s::text[], %s::text[], %s::text[], %s::t
 
 
 def _columns(rows: list[tuple[Any, ...]], width: int) -> list[list[Any]]:
-    return [list(column) for column in zip(*rows, strict=True)] if rows else [[] for _ in range(width)]
+    if not rows:
+        return [[] for _ in range(width)]
+    return [list(column) for column in zip(*rows, strict=True)]
 
 
 class PostgreSQLBackend:

@@ -1,0 +1,30 @@
+"""The read path: plain rows out of the temporal fact store.
+
+>>> import toaster, toaster.queries as q                      # doctest: +SKIP
+>>> db = toaster.connect("sqlite:///toaster.db")               # doctest: +SKIP
+>>> q.fact_value(db, "PR2_ROBOT", "MUG", "IsOn", "TABLE", at=t)  # doctest: +SKIP
+"""
+
+from toaster.queries.catalog import agents, descendants, entities, ontology, properties
+from toaster.queries.events import events
+from toaster.queries.facts import beliefs_at, current_facts, fact_value, history, memory
+from toaster.queries.frames import to_dataframe
+from toaster.queries.sql import SQLResult, are_in_table, execute
+
+__all__ = [
+    "SQLResult",
+    "agents",
+    "are_in_table",
+    "beliefs_at",
+    "current_facts",
+    "descendants",
+    "entities",
+    "events",
+    "execute",
+    "fact_value",
+    "history",
+    "memory",
+    "ontology",
+    "properties",
+    "to_dataframe",
+]

@@ -1,0 +1,42 @@
+"""Reading events: every change of an agent's beliefs, and user-recorded events."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from sqlalchemy import text
+
+from toaster.model import EventRow
+from toaster.queries.facts import _where
+
+EVENT_COLUMNS = ", ".join(EventRow._fields)
+
+
+def events(db: Any, agent: str | None = None, *, since: int | None = None,
+           until: int | None = None, kind: str | list[str] | None = None,
+           limit: int | None = None, newest_first: bool = False,
+           **filters: Any) -> list[EventRow]:
+    """Events in ``[since, until]`` (both inclusive), oldest first unless ``newest_first``.
+
+    Filters: agent, subject, property, target, sub_property, source, value (lists match any).
+    """
+    where, params = _where({"agent": agent, **filters})
+    if kind is not None:
+        kinds = [kind] if isinstance(kind, str) else list(kind)
+        names = [f"kind_{i}" for i in range(len(kinds))]
+        where += f" AND kind IN ({', '.join(':' + n for n in names)})"
+        params.update(zip(names, kinds, strict=True))
+    if since is not None:
+        where += " AND stamp_ns >= :since"
+        params["since"] = since
+    if until is not None:
+        where += " AND stamp_ns <= :until"
+        params["until"] = until
+    order = "DESC" if newest_first else "ASC"
+    sql = (f"SELECT {EVENT_COLUMNS} FROM event_log WHERE {where} "
+           f"ORDER BY stamp_ns {order}, id {order}")
+    if limit is not None:
+        sql += " LIMIT :limit"
+        params["limit"] = int(limit)
+    with db.transaction() as conn:
+        return [EventRow(*row) for row in conn.execute(text(sql), params)]
