@@ -1,0 +1,18 @@
+"""Geometry producers (area_manager, agent_monitor, pdg facts) and the runner that ticks them."""
+
+from toaster.producers.areas import (
+    AreaManager,
+    area_from_original,
+    multiple_relative_position,
+    normalize_area,
+    relative_position,
+)
+from toaster.producers.config import DEFAULTS, make_config
+from toaster.producers.diff import SnapshotDiff
+from toaster.producers.monitor import AgentMonitor, pointing
+from toaster.producers.perception import PerceptionFacts
+from toaster.producers.runner import Runner, Session, Stats, load_session
+
+__all__ = ["DEFAULTS", "AgentMonitor", "AreaManager", "PerceptionFacts", "Runner", "Session",
+           "SnapshotDiff", "Stats", "area_from_original", "load_session", "make_config",
+           "multiple_relative_position", "normalize_area", "pointing", "relative_position"]

@@ -1,0 +1,88 @@
+"""Thresholds as data: the original's defaults, overridable from a dict, YAML file or the store.
+
+Durations are given in seconds (as the original's dynamic-reconfigure file) or as duration
+text ("250ms"); they are kept as nanoseconds internally.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+from toaster.errors import InvalidInputError
+from toaster.timeutil import NS_PER_S, parse_duration
+
+#: The original's effective defaults (agent_monitor cfg, area_manager, pdg); see docs/producers.md.
+DEFAULTS: dict[str, Any] = {
+    # agent_monitor: attention
+    "look_toward_distance": 2.0,
+    "look_toward_aperture": 2.0944,
+    "head_joint": "head",
+    # agent_monitor: body motion
+    "body_speed_window": 0.25,
+    "body_speed_threshold": 0.12,
+    "body_direction_window": 0.5,
+    "body_toward_angle": 1.0,
+    "body_toward_distance_window": 0.25,
+    "body_toward_speed_threshold": 0.12,
+    # agent_monitor: joint motion
+    "joint_speed_window": 0.25,
+    "joint_speed_threshold": 0.12,
+    "joint_direction_window": 0.5,
+    "joint_toward_angle": 1.0,
+    "joint_toward_distance_window": 0.25,
+    "joint_toward_speed_threshold": 0.12,
+    "motion_max_gap": 1.0,
+    # agent_monitor: Distance labels (upper bounds, metres)
+    "dist_reach": 0.05,
+    "dist_close": 0.2,
+    "dist_medium": 1.5,
+    "dist_far": 8.0,
+    "distance_emit_out": False,
+    # which agents and joints are monitored: "humans" | "robots" | "agents" | list of ids
+    "monitored_agents": "humans",
+    "monitored_joints": None,
+    # pointing
+    "pointing_joint_distance": 0.3,
+    "pointing_angle": 0.5,
+    # area_manager
+    "facing_angle": 0.5,
+    # pdg
+    "presence_timeout": 1.0,
+    # observabilities (original values) and fixed confidences
+    "observability_area": 0.8,
+    "observability_facing": 0.5,
+    "observability_monitor": 0.0,
+    "observability_present": 1.0,
+    "observability_in_hand": 0.8,
+    "confidence_present": 0.9,
+    "confidence_distance": 0.9,
+}
+
+_SECONDS = {k for k in DEFAULTS if k.endswith("_window")} | {"motion_max_gap",
+                                                              "presence_timeout"}
+
+
+def make_config(overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The defaults updated with ``overrides``; unknown keys and bad values raise one line."""
+    config = dict(DEFAULTS)
+    for key, value in (overrides or {}).items():
+        if key not in DEFAULTS:
+            msg = f"unknown threshold {key!r}: known ones are listed in docs/producers.md"
+            raise InvalidInputError(msg)
+        default = DEFAULTS[key]
+        if isinstance(default, float) and not isinstance(value, bool):
+            if isinstance(value, str) and key in _SECONDS:
+                value = parse_duration(value) / NS_PER_S
+            if not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
+                msg = f"invalid value {value!r} for {key!r}: give a non-negative number"
+                raise InvalidInputError(msg)
+            value = float(value)
+        config[key] = value
+    return config
+
+
+def ns(config: Mapping[str, Any], key: str) -> int:
+    """A duration threshold in nanoseconds."""
+    return round(float(config[key]) * NS_PER_S)
