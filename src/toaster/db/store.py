@@ -407,6 +407,13 @@ class Store:
             catalog.empty_facts(conn, agent_id)
             self.bump_epoch(conn)
 
+    def load_file(self, path: Any) -> dict[str, int]:
+        """Import an XML seed, JSON or YAML batch file in one transaction (see
+        :mod:`toaster.db.seed`); returns counts of rows written per kind."""
+        from toaster.db.seed import load_file
+
+        return load_file(self, path)
+
     # ------------------------------------------------------------------ catalog pass-throughs
     def add_ontology(self, entity_class: str, individual: str, instantiated: bool = False) -> None:
         """Add (or update) the class-tree edge ``entity_class`` -> ``individual``."""

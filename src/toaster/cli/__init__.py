@@ -1,0 +1,81 @@
+"""The ``toaster`` command: a thin client of the library (no SQL or rule lives here)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import click
+
+from toaster.errors import ToasterError
+
+
+class AppContext:
+    """What every command gets: the database URL, opened on first use."""
+
+    def __init__(self, url: str | None, debug: bool) -> None:
+        self.url = url
+        self.debug = debug
+        self._db: Any = None
+
+    @property
+    def db(self) -> Any:
+        """The database, created and migrated on first use when it is new."""
+        if self._db is None:
+            from toaster.db import connect
+
+            self._db = connect(self.url)
+        return self._db
+
+    def close(self) -> None:
+        if self._db is not None:
+            self._db.close()
+
+
+class ToasterGroup(click.Group):
+    """Turns toaster's expected errors into one-line messages (exit 1); ``--debug`` shows them
+    with their traceback."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except ToasterError as exc:
+            obj = ctx.find_object(AppContext)
+            if obj is not None and obj.debug:
+                raise
+            raise click.ClickException(str(exc)) from None
+
+
+@click.group(cls=ToasterGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.option("--db", "url", envvar="TOASTER_DB", metavar="URL",
+              help="sqlite:///FILE.db or postgresql://HOST/DB (env TOASTER_DB; default "
+                   "sqlite:///toaster.db in the working directory, created on first use).")
+@click.option("--debug", is_flag=True, help="Show tracebacks for errors.")
+@click.version_option(package_name="toaster")
+@click.pass_context
+def cli(ctx: click.Context, url: str | None, debug: bool) -> None:
+    """toaster: situation assessment for human-robot interaction.
+
+    Facts about the world and each agent's beliefs, kept as intervals in a temporal SQL
+    database (SQLite or PostgreSQL), with their events and memory.
+    """
+    app = AppContext(url, debug)
+    ctx.obj = app
+    ctx.call_on_close(app.close)
+
+
+def _register() -> None:
+    from toaster.cli.db import db_group
+    from toaster.cli.demo import demo
+    from toaster.cli.execute import execute
+    from toaster.cli.info import get_info, set_info
+
+    for command in (db_group, demo, execute, get_info, set_info):
+        cli.add_command(command)
+
+
+_register()
+
+
+def main() -> None:
+    """Entry point of the ``toaster`` script."""
+    cli(prog_name="toaster")

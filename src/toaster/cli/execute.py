@@ -1,0 +1,88 @@
+"""``toaster execute``: raw SQL (read-only unless --write), ARE_IN_TABLE, EMPTY, PRINT."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import click
+
+from toaster.cli.info import _self_agent, fact_options
+from toaster.cli.output import emit, output_options, say
+
+COMMANDS = ("SQL", "ARE_IN_TABLE", "EMPTY", "PRINT")
+
+
+@click.command()
+@click.argument("command", type=click.Choice(COMMANDS, case_sensitive=False))
+@click.argument("argument", required=False)
+@click.option("--write", is_flag=True, help="SQL: allow statements that write.")
+@click.option("--param", "params", multiple=True, metavar="NAME=VALUE",
+              help="SQL: a bound parameter for :NAME (repeatable).")
+@fact_options
+@click.option("--yes", is_flag=True, help="EMPTY: do not ask for confirmation.")
+@output_options
+@click.pass_obj
+def execute(app: Any, command: str, argument: str | None, write: bool, params: tuple[str, ...],
+            yes: bool, fmt: str | None, **opts: Any) -> None:
+    """Run SQL or one of the original's maintenance commands.
+
+    \b
+    SQL "STATEMENT" [--param k=v] [--write]   read-only unless --write (enforced by the DB)
+    ARE_IN_TABLE --agent A --subject S --property P [--target T]   true/false
+    EMPTY ALL | EMPTY AGENT --agent A          delete facts, memory and events
+    PRINT ALL | PRINT AGENT --agent A          print the tables
+    """
+    from toaster import queries as q
+
+    db = app.db
+    command = command.upper()
+    if command == "SQL":
+        if not argument:
+            raise click.UsageError(
+                'execute SQL needs the statement: toaster execute SQL "SELECT 1"')
+        bound = dict(p.split("=", 1) for p in params) if params else None
+        if any("=" not in p for p in params):
+            raise click.UsageError("--param takes NAME=VALUE")
+        result = q.execute(db, argument, bound, write=write)
+        if result.columns:
+            emit(result.rows, fmt, columns=result.columns)
+        else:
+            say(f"ok ({result.rowcount} row(s) affected)")
+    elif command == "ARE_IN_TABLE":
+        from toaster.model import Fact
+
+        agent = _self_agent(db, opts["agent"])
+        db.store().check_agent(agent)
+        if not (opts["subject"] and opts["property"]):
+            raise click.UsageError("ARE_IN_TABLE needs --subject and --property")
+        fact = Fact(opts["subject"], opts["property"], opts["target"] or "",
+                    sub_property=opts["sub_property"] or "")
+        answer = q.are_in_table(db, agent, [fact])[0]
+        click.echo("true" if answer else "false")
+        if not answer:
+            raise SystemExit(1)
+    elif command == "EMPTY":
+        scope = (argument or "").upper()
+        if scope not in ("ALL", "AGENT"):
+            raise click.UsageError("execute EMPTY needs ALL or AGENT --agent A")
+        agent = opts["agent"] if scope == "AGENT" else None
+        if scope == "AGENT" and not agent:
+            raise click.UsageError("execute EMPTY AGENT needs --agent")
+        what = f"agent {agent!r}" if agent else "every agent"
+        if not yes:
+            click.confirm(f"delete the facts, memory and events of {what}?", abort=True)
+        db.store().empty(agent)
+        say(f"emptied {what}")
+    else:
+        scope = (argument or "ALL").upper()
+        agents = [a.id for a in q.agents(db)]
+        if scope == "AGENT":
+            agents = [_self_agent(db, opts["agent"])]
+            db.store().check_agent(agents[0])
+        for agent in agents:
+            emit(q.current_facts(db, agent), fmt, title=f"fact_table_{agent}")
+            if scope == "ALL":
+                emit(q.memory(db, agent), fmt, title=f"memory_table_{agent}")
+        if scope == "ALL":
+            emit(q.entities(db), fmt, title="entities")
+            emit(q.events(db), fmt, title="events")

@@ -1,0 +1,158 @@
+"""``toaster run`` (tick sources and producers into the store) and ``toaster area`` (areas)."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import click
+
+from toaster.errors import InvalidInputError
+
+
+def _database(ctx: click.Context, url: str | None) -> Any:
+    if url:
+        from toaster.db import connect
+
+        db = connect(url)
+        ctx.call_on_close(db.close)
+        return db
+    app = ctx.find_object(object)
+    return app.db if app is not None and hasattr(app, "db") else None
+
+
+@click.command("run")
+@click.argument("path", metavar="SCENARIO_OR_RECORDING",
+                type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("--db", "url", metavar="URL", help="Database URL (default: the group's --db).")
+@click.option("--rate", type=float, help="Ticks per second (default: the file's, 30 / 2.5 Hz).")
+@click.option("--until", "until", metavar="T", help="Stop after this much input time (20s).")
+@click.option("--realtime", is_flag=True, help="Pace ticks to the wall clock.")
+@click.option("--no-db", is_flag=True, help="Compute only; write nothing.")
+@click.pass_context
+def run(ctx: click.Context, path: Path, url: str | None, rate: float | None, until: str | None,
+        realtime: bool, no_db: bool) -> None:
+    """Tick a scenario (.yaml/.json) or recording (obsmat .txt, .csv, .jsonl) into the store.
+
+    Areas stored in the database are added to the file's; the file's areas are stored.
+    Same input into a fresh database gives the same facts and events.
+    """
+    from toaster.producers import Runner, load_session
+    from toaster.timeutil import parse_duration
+
+    store = None if no_db else _database(ctx, url).store()
+    session = load_session(path, store.areas() if store is not None else None)
+    if rate is not None and rate <= 0:
+        msg = f"--rate {rate} must be a positive number of ticks per second"
+        raise InvalidInputError(msg)
+    end = session.end_ns
+    if until:
+        end = min(end, session.start_ns + parse_duration(until))
+    if store is not None:
+        for area_id, spec in session.areas.items():
+            store.put_area(area_id, spec, spec.get("owner", ""))
+        world = session.world
+        for source in session.sources:
+            source.setup(world)
+        store.add_entity(session.self_id, "robot", is_self=True, t_ns=session.start_ns)
+        for row, eid in enumerate(world.ids):
+            if eid == session.self_id:
+                continue
+            owner = world.ids[world.owner[row]] if world.owner[row] >= 0 else ""
+            store.add_entity(eid, world.kind_text[row], name=world.names[row], owner_id=owner,
+                             t_ns=session.start_ns)
+        session.world = type(world)()
+    runner = Runner(session.world, session.sources, session.producers, store=store,
+                    agent_id=session.self_id)
+    hz = rate or session.rate_hz
+    total = max(1, int((end - session.start_ns) * hz / 1e9) + 1)
+    wall = time.perf_counter()
+    if sys.stderr.isatty():
+        from rich.progress import Progress
+
+        with Progress(transient=True) as bar:
+            task = bar.add_task(f"{path.name}", total=total)
+            runner.run(session.start_ns, end, hz, realtime=realtime,
+                       on_tick=lambda _t: bar.advance(task))
+    else:
+        runner.run(session.start_ns, end, hz, realtime=realtime)
+    elapsed = time.perf_counter() - wall
+    stats = runner.stats
+    input_s = (end - session.start_ns) / 1e9
+    click.echo(f"{path.name}: {stats.ticks} ticks over {input_s:.1f} s of input in "
+               f"{elapsed:.2f} s ({input_s / elapsed if elapsed else 0:.0f}× real time)")
+    click.echo(f"facts: {stats.facts} emitted; events: {stats.events} (appeared "
+               f"{stats.appeared}, changed {stats.changed}, ended {stats.ended})")
+    for name, seconds in sorted(stats.seconds.items(), key=lambda kv: -kv[1]):
+        click.echo(f"  {name:<14} {seconds * 1e3:9.1f} ms  "
+                   f"({seconds / max(stats.ticks, 1) * 1e3:.3f} ms/tick)")
+
+
+@click.group("area")
+def area() -> None:
+    """Add, remove, list and show areas kept in the database."""
+
+
+@area.command("add")
+@click.argument("name")
+@click.option("--spec", "spec_text", help='JSON spec, e.g. \'{"shape": "circle", '
+              '"center": [1, 2], "radius": 1.5, "area_type": "support"}\'.')
+@click.option("--file", "spec_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="A YAML/JSON file holding the spec.")
+@click.pass_context
+def area_add(ctx: click.Context, name: str, spec_text: str | None, spec_file: Path | None
+             ) -> None:
+    """Add or replace area NAME (see docs/producers.md for the spec)."""
+    import yaml
+
+    from toaster.producers import normalize_area
+
+    if (spec_text is None) == (spec_file is None):
+        msg = "give the area as --spec JSON or --file PATH (exactly one)"
+        raise InvalidInputError(msg)
+    try:
+        raw = json.loads(spec_text) if spec_text else yaml.safe_load(spec_file.read_text())
+    except (json.JSONDecodeError, yaml.YAMLError) as exc:
+        msg = f"area spec is not valid JSON/YAML ({str(exc).splitlines()[0]})"
+        raise InvalidInputError(msg) from None
+    if not isinstance(raw, dict):
+        msg = "an area spec is a mapping such as {\"shape\": \"polygon\", \"points\": [...]}"
+        raise InvalidInputError(msg)
+    spec = normalize_area(name, raw)
+    _database(ctx, None).store().put_area(name, spec, spec["owner"])
+    click.echo(f"area {name} stored")
+
+
+@area.command("remove")
+@click.argument("name")
+@click.pass_context
+def area_remove(ctx: click.Context, name: str) -> None:
+    """Remove area NAME."""
+    if not _database(ctx, None).store().remove_area(name):
+        msg = f"no area named {name!r}: see `toaster area list`"
+        raise InvalidInputError(msg)
+    click.echo(f"area {name} removed")
+
+
+@area.command("list")
+@click.pass_context
+def area_list(ctx: click.Context) -> None:
+    """List stored areas."""
+    for name, spec in sorted(_database(ctx, None).store().areas().items()):
+        owner = f" owner={spec.get('owner')}" if spec.get("owner") else ""
+        click.echo(f"{name}\t{spec.get('shape')}\t{spec.get('area_type', '')}{owner}")
+
+
+@area.command("show")
+@click.argument("name")
+@click.pass_context
+def area_show(ctx: click.Context, name: str) -> None:
+    """Show the spec of area NAME as JSON."""
+    areas = _database(ctx, None).store().areas()
+    if name not in areas:
+        msg = f"no area named {name!r}: see `toaster area list`"
+        raise InvalidInputError(msg)
+    click.echo(json.dumps(areas[name], indent=2, sort_keys=True))
