@@ -1,0 +1,94 @@
+"""plot_facts: the timeline of facts per agent, as a picture (PNG, SVG, PDF) or data (.dat, CSV).
+
+>>> import toaster
+>>> from toaster.plotting import plot_facts                            # doctest: +SKIP
+>>> db = toaster.connect("sqlite:///run.db")                           # doctest: +SKIP
+>>> plot_facts(db, "mug.png", subject="mug", property="IsOn")         # doctest: +SKIP
+
+Pictures need the ``plot`` extra (matplotlib); data files need nothing beyond toaster.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from toaster.errors import InvalidInputError
+from toaster.plotting.datafiles import CSV_COLUMNS, gnuplot_script, write_csv, write_dat
+from toaster.plotting.timeline import (
+    FALSE_BELIEF,
+    UNAWARE,
+    Change,
+    Divergence,
+    Lane,
+    Series,
+    Timeline,
+    build_timeline,
+    fact_label,
+    timeline_from_rows,
+)
+
+IMAGE_FORMATS = ("png", "svg", "pdf")
+FORMATS = (*IMAGE_FORMATS, "dat", "csv")
+
+
+class PlotResult(NamedTuple):
+    """What :func:`plot_facts` wrote: the output file, any companion file, and the data."""
+
+    path: Path
+    companion: Path | None  # the gnuplot script beside a .dat
+    timeline: Timeline
+
+
+def output_format(path: str | Path, format: str | None = None) -> str:
+    """The format named (or implied by the file suffix); an unknown one raises a one-line error."""
+    name = (format or Path(path).suffix.lstrip(".")).lower()
+    if name not in FORMATS:
+        shown = f"format {format!r}" if format else f"file suffix of {str(path)!r}"
+        msg = f"unknown plot {shown}: use one of {', '.join(FORMATS)}"
+        raise InvalidInputError(msg)
+    return name
+
+
+def plot_facts(db: Any, output: str | Path, *, subject: str | Sequence[str] | None = None,
+               property: str | Sequence[str] | None = None,
+               target: str | Sequence[str] | None = None,
+               agents: str | Sequence[str] | None = None, since: int | None = None,
+               until: int | None = None, reference: str | None = None,
+               format: str | None = None, title: str | None = None,
+               dpi: int = 120) -> PlotResult:
+    """Write the timeline of the matching facts to ``output``.
+
+    Args:
+        db: an open :class:`toaster.Database`.
+        output: file to write; its suffix picks the format unless ``format`` is given.
+        subject, property, target: filters (a list matches any of its items).
+        agents: whose beliefs to show (default: every agent).
+        since, until: the window in ns (default: the span of the matching intervals).
+        reference: the agent others are compared with (default: the robot, ``is_self``).
+        format: ``png``, ``svg``, ``pdf`` (matplotlib), ``dat`` (gnuplot, with a ``.gp``
+            script beside it) or ``csv``.
+    """
+    fmt = output_format(output, format)
+    if fmt in IMAGE_FORMATS:
+        from toaster.plotting.render import _matplotlib
+
+        _matplotlib()  # fail on a missing extra before reading the database
+    timeline = build_timeline(db, subject=subject, property=property, target=target,
+                              agents=agents, since=since, until=until, reference=reference)
+    path = Path(output)
+    if fmt == "dat":
+        return PlotResult(path, write_dat(timeline, path), timeline)
+    if fmt == "csv":
+        return PlotResult(write_csv(timeline, path), None, timeline)
+    from toaster.plotting.render import render
+
+    render(timeline, title=title).savefig(path, format=fmt, dpi=dpi)
+    return PlotResult(path, None, timeline)
+
+
+__all__ = ["CSV_COLUMNS", "FALSE_BELIEF", "FORMATS", "IMAGE_FORMATS", "UNAWARE", "Change",
+           "Divergence", "Lane", "PlotResult", "Series", "Timeline", "build_timeline",
+           "fact_label", "gnuplot_script", "output_format", "plot_facts", "timeline_from_rows",
+           "write_csv", "write_dat"]

@@ -1,0 +1,242 @@
+"""Fact timelines: the step function of one or several facts, per agent, over a time window.
+
+Built from the stored validity intervals (current facts and memory), never sampled: a series
+holds one :class:`Change` per change of value (or confidence), starting with the value held at
+the window start. Where an agent's value differs from the reference agent's (the robot, i.e.
+the ``is_self`` agent, when it is plotted) the timeline records a :class:`Divergence`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from itertools import pairwise
+from typing import Any, NamedTuple
+
+from toaster.errors import InvalidInputError, UnknownAgentError
+from toaster.model import FactKey, FactRow
+from toaster.timeutil import format_ns
+
+#: Divergence kinds: the agent holds a value the reference does not share, or holds nothing
+#: while the reference holds a value.
+FALSE_BELIEF = "false_belief"
+UNAWARE = "unaware"
+
+
+class Change(NamedTuple):
+    """From ``t_ns`` on (until the next change), the agent holds ``value`` (None: nothing)."""
+
+    t_ns: int
+    value: str | None
+    value_num: float | None
+    confidence: float | None
+    level: int  # 0 = not believed, k = the lane's k-th distinct value (1-based)
+
+
+class Series(NamedTuple):
+    """The step function of one fact as one agent believed it."""
+
+    agent: str
+    changes: list[Change]
+
+    def value_at(self, t_ns: int) -> Change:
+        """The change in force at ``t_ns`` (the first one before the window start)."""
+        current = self.changes[0]
+        for change in self.changes:
+            if change.t_ns > t_ns:
+                break
+            current = change
+        return current
+
+
+class Divergence(NamedTuple):
+    """A span where ``agent`` believed ``value`` while ``reference`` believed another."""
+
+    lane: str
+    agent: str
+    reference: str
+    start_ns: int
+    end_ns: int
+    value: str | None
+    reference_value: str | None
+    kind: str
+
+
+@dataclass
+class Lane:
+    """One fact (subject, property, target and owners), with one series per agent."""
+
+    key: FactKey
+    values: list[str]
+    series: list[Series] = field(default_factory=list)
+
+    @property
+    def label(self) -> str:
+        """``subject property target`` with owners and sub-property when they are set."""
+        return fact_label(self.key)
+
+
+@dataclass
+class Timeline:
+    """Everything a plot or a data file needs, with times in integer nanoseconds."""
+
+    since_ns: int
+    until_ns: int
+    agents: list[str]
+    reference: str
+    lanes: list[Lane]
+    divergences: list[Divergence]
+
+
+def fact_label(key: FactKey) -> str:
+    """A readable name for a fact key (``alice.rightHand IsMoving``, ``mug IsOn table``)."""
+    subject = f"{key.subject_owner_id}.{key.subject_id}" if key.subject_owner_id else key.subject_id
+    target = f"{key.target_owner_id}.{key.target_id}" if key.target_owner_id else key.target_id
+    prop = f"{key.property}/{key.sub_property}" if key.sub_property else key.property
+    return " ".join(part for part in (subject, prop, target) if part)
+
+
+def _as_list(value: str | Sequence[str] | None) -> list[str] | None:
+    if value is None:
+        return None
+    return [value] if isinstance(value, str) else list(value)
+
+
+def check_agents(db: Any, agents: str | Sequence[str] | None) -> tuple[list[str], str]:
+    """The agents to plot (default all) and the reference one; unknown names raise."""
+    from toaster.queries import agents as list_agents
+
+    known = list_agents(db)
+    names = [a.id for a in known]
+    wanted = _as_list(agents) or names
+    for name in wanted:
+        if name not in names:
+            shown = ", ".join(names) or "none registered"
+            msg = f"unknown agent {name!r}: known agents are {shown}"
+            raise UnknownAgentError(msg)
+    if not wanted:
+        msg = "no agent to plot: register agents first (toaster set-info entity --kind robot)"
+        raise InvalidInputError(msg)
+    selves = [a.id for a in known if a.is_self and a.id in wanted]
+    return wanted, (selves[0] if selves else wanted[0])
+
+
+def build_timeline(db: Any, *, subject: str | Sequence[str] | None = None,
+                   property: str | Sequence[str] | None = None,
+                   target: str | Sequence[str] | None = None,
+                   agents: str | Sequence[str] | None = None, since: int | None = None,
+                   until: int | None = None, reference: str | None = None) -> Timeline:
+    """Read the matching intervals and turn them into a :class:`Timeline`.
+
+    ``since``/``until`` default to the first and last time found in the matching intervals.
+    ``reference`` (default: the robot, else the first agent) is whose beliefs the others are
+    compared with. Agents named in ``agents`` get a row in every lane; by default a lane shows
+    only the agents concerned (see :func:`timeline_from_rows`).
+    """
+    from toaster.queries import history
+
+    names, default_ref = check_agents(db, agents)
+    if reference is not None and reference not in names:
+        msg = f"reference agent {reference!r} is not plotted: add it to the agents ({names})"
+        raise InvalidInputError(msg)
+    if since is not None and until is not None and until <= since:
+        msg = (f"empty time window: until {format_ns(until)} is not after since "
+               f"{format_ns(since)}; give a later --until")
+        raise InvalidInputError(msg)
+    rows = history(db, names, since=since, until=until, subject=_as_list(subject),
+                   property=_as_list(property), target=_as_list(target))
+    if not rows:
+        wanted = ", ".join(f"{k}={v!r}" for k, v in (("subject", subject), ("property", property),
+                                                       ("target", target)) if v is not None)
+        msg = (f"no fact matches {wanted or 'the filters'} for {', '.join(names)} in the window;"
+               " check the names with toaster get-info facts")
+        raise InvalidInputError(msg)
+    since, until = _window(rows, since, until)
+    return timeline_from_rows(rows, since, until, names, reference or default_ref,
+                              show_all=agents is not None)
+
+
+def _window(rows: Sequence[FactRow], since: int | None, until: int | None) -> tuple[int, int]:
+    starts = [r.valid_from_ns for r in rows]
+    ends = [r.valid_to_ns for r in rows if r.valid_to_ns is not None]
+    lo = min(starts) if since is None else since
+    if until is not None:
+        return lo, until
+    hi = max([*starts, *ends])
+    if any(r.valid_to_ns is None for r in rows):  # show open intervals past their last change
+        hi += max(1_000_000_000, (hi - lo) // 20)
+    return lo, hi
+
+
+def timeline_from_rows(rows: Iterable[FactRow], since: int, until: int,
+                       agents: Sequence[str], reference: str, *,
+                       show_all: bool = False) -> Timeline:
+    """Build the timeline of ``rows`` (intervals of any agents) clipped to ``[since, until)``.
+
+    A fact's lane shows the reference agent and the agents that held a fact with the same
+    subject and property in the window (the others have no opinion on it), or every agent
+    with ``show_all``.
+    """
+    grouped: dict[FactKey, dict[str, list[FactRow]]] = {}
+    askers: dict[tuple[str, str], set[str]] = {}  # (subject, property) -> agents holding any
+    for row in rows:
+        key = FactKey(row.subject_id, row.subject_owner_id, row.property, row.sub_property,
+                      row.target_id, row.target_owner_id)
+        grouped.setdefault(key, {}).setdefault(row.agent_id, []).append(row)
+        askers.setdefault((row.subject_id, row.property), set()).add(row.agent_id)
+    lanes: list[Lane] = []
+    for key in sorted(grouped):
+        by_agent = grouped[key]
+        values = sorted({r.value_text for rs in by_agent.values() for r in rs})
+        lane = Lane(key, values)
+        concerned = askers[(key.subject_id, key.property)] | {reference}
+        for agent in agents:
+            if show_all or agent in concerned:
+                lane.series.append(Series(agent, _changes(by_agent.get(agent, []), values,
+                                                          since, until)))
+        lanes.append(lane)
+    divergences = [d for lane in lanes for d in _divergences(lane, reference, until)]
+    return Timeline(since, until, list(agents), reference, lanes, divergences)
+
+
+def _changes(rows: list[FactRow], values: list[str], since: int, until: int) -> list[Change]:
+    points: list[Change] = [Change(since, None, None, None, 0)]
+    for row in sorted(rows, key=lambda r: r.valid_from_ns):
+        start = max(row.valid_from_ns, since)
+        end = until if row.valid_to_ns is None else min(row.valid_to_ns, until)
+        if end <= start:
+            continue
+        points.append(Change(start, row.value_text, row.value_num, row.confidence,
+                             values.index(row.value_text) + 1))
+        if end < until:
+            points.append(Change(end, None, None, None, 0))
+    out: list[Change] = []
+    for point in points:
+        if out and out[-1].t_ns == point.t_ns:
+            out.pop()  # a later statement at the same instant wins (end then re-open)
+        if out and (out[-1].value, out[-1].confidence) == (point.value, point.confidence):
+            continue  # no visible change
+        out.append(point)
+    return out
+
+
+def _divergences(lane: Lane, reference: str, until: int) -> list[Divergence]:
+    ref = next(s for s in lane.series if s.agent == reference)
+    out: list[Divergence] = []
+    for series in lane.series:
+        if series.agent == reference:
+            continue
+        cuts = sorted({c.t_ns for c in ref.changes} | {c.t_ns for c in series.changes} | {until})
+        for start, end in pairwise(cuts):
+            mine, theirs = series.value_at(start).value, ref.value_at(start).value
+            if mine == theirs:
+                continue
+            kind = UNAWARE if mine is None else FALSE_BELIEF
+            last = out[-1] if out else None
+            if (last and last.agent == series.agent and last.end_ns == start
+                    and (last.value, last.reference_value, last.kind) == (mine, theirs, kind)):
+                out[-1] = last._replace(end_ns=end)
+            else:
+                out.append(Divergence(lane.label, series.agent, reference, start, end, mine,
+                                      theirs, kind))
+    return out
