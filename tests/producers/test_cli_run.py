@@ -24,8 +24,9 @@ def dump(url):
         out = {}
         for t in tables:  # the store's last column is its wall-clock write stamp: not compared
             rows = conn.execute(text(f"SELECT * FROM {t}"))
-            wall = [k for k in rows if k.startswith("recorded") or k.endswith("wall_ns")]
-            keep = [i for i, k in enumerate(rows.keys()) if k not in wall]
+            cols = list(rows.keys())
+            keep = [i for i, k in enumerate(cols)
+                    if not (k.startswith("recorded") or k.endswith("wall_ns"))]
             out[t] = sorted(tuple(r[i] for i in keep) for r in rows)
         return out
 
