@@ -1,0 +1,184 @@
+"""Exports of current facts, memory, full history and events to CSV, JSON lines and Parquet.
+
+CSV and JSON lines need nothing beyond the standard library; Parquet needs the ``export`` extra
+(pyarrow). Every file has one row per interval (or event) with the fields of
+:class:`~toaster.model.FactRow` (or :class:`~toaster.model.EventRow`), times as integer
+nanoseconds; :func:`read_rows` reads any of them back into the same typed rows.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import typing
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from toaster.errors import InvalidInputError, MissingDependencyError, UnknownAgentError
+from toaster.model import EventRow, FactRow
+from toaster.timeutil import format_ns
+
+KINDS = ("facts", "memory", "history", "events")
+FORMATS = ("csv", "jsonl", "parquet")
+_SUFFIXES = {"csv": "csv", "jsonl": "jsonl", "ndjson": "jsonl", "json": "jsonl",
+             "parquet": "parquet", "pq": "parquet"}
+
+
+class ExportResult(NamedTuple):
+    """What :func:`export` wrote."""
+
+    path: Path
+    format: str
+    rows: int
+
+
+def row_type(kind: str) -> type[FactRow] | type[EventRow]:
+    """The row type of an export kind (``events`` → EventRow, the others → FactRow)."""
+    check_kind(kind)
+    return EventRow if kind == "events" else FactRow
+
+
+def check_kind(kind: str) -> str:
+    """``kind`` if it is one of :data:`KINDS`, else a one-line error."""
+    if kind not in KINDS:
+        msg = f"unknown export kind {kind!r}: use one of {', '.join(KINDS)}"
+        raise InvalidInputError(msg)
+    return kind
+
+
+def export_format(path: str | Path, format: str | None = None) -> str:
+    """The format named or implied by the suffix (``.csv``, ``.jsonl``, ``.parquet``)."""
+    name = (format or Path(path).suffix.lstrip(".")).lower()
+    if name not in _SUFFIXES:
+        shown = f"format {format!r}" if format else f"file suffix of {str(path)!r}"
+        msg = f"unknown export {shown}: use one of {', '.join(FORMATS)}"
+        raise InvalidInputError(msg)
+    return _SUFFIXES[name]
+
+
+def select_rows(db: Any, kind: str, *, agent: str | Sequence[str] | None = None,
+                since: int | None = None, until: int | None = None,
+                **filters: Any) -> list[FactRow] | list[EventRow]:
+    """The rows an export of ``kind`` holds (filters as in get-info: subject, property, ...)."""
+    from toaster import queries
+
+    check_kind(kind)
+    _check_agents(db, agent)
+    if since is not None and until is not None and until < since:
+        msg = (f"empty time window: until {format_ns(until)} is before since "
+               f"{format_ns(since)}; swap them")
+        raise InvalidInputError(msg)
+    filters = {k: v for k, v in filters.items() if v is not None}
+    if kind == "facts":
+        if since is not None or until is not None:
+            msg = ("current facts have no time window: export 'history' (or 'memory') to "
+                   "limit intervals to a window")
+            raise InvalidInputError(msg)
+        return queries.current_facts(db, agent, **filters)
+    read = {"memory": queries.memory, "history": queries.history, "events": queries.events}
+    return read[kind](db, agent, since=since, until=until, **filters)
+
+
+def _check_agents(db: Any, agent: str | Sequence[str] | None) -> None:
+    if agent is None:
+        return
+    from toaster.queries import agents
+
+    known = [a.id for a in agents(db)]
+    for name in [agent] if isinstance(agent, str) else agent:
+        if name not in known:
+            msg = f"unknown agent {name!r}: known agents are {', '.join(known) or 'none'}"
+            raise UnknownAgentError(msg)
+
+
+def export(db: Any, kind: str, output: str | Path, *, format: str | None = None,
+           **filters: Any) -> ExportResult:
+    """Write the rows of ``kind`` (facts, memory, history, events) matching ``filters``.
+
+    Filters: agent, subject, property, target (lists match any), since, until (ns).
+    """
+    fmt = export_format(output, format)
+    if fmt == "parquet":
+        _pyarrow()
+    rows = select_rows(db, kind, **filters)
+    path = Path(output)
+    write_rows(rows, row_type(kind), path, fmt)
+    return ExportResult(path, fmt, len(rows))
+
+
+def write_rows(rows: Sequence[NamedTuple], rtype: type[NamedTuple], path: Path,
+               fmt: str) -> None:
+    """Write typed rows to ``path`` in ``fmt`` (``csv``, ``jsonl`` or ``parquet``)."""
+    fields = list(rtype._fields)
+    if fmt == "csv":
+        with path.open("w", newline="", encoding="utf-8") as handle:
+            writer = csv.writer(handle)
+            writer.writerow(fields)
+            writer.writerows(["" if v is None else v for v in row] for row in rows)
+    elif fmt == "jsonl":
+        with path.open("w", encoding="utf-8") as handle:
+            for row in rows:
+                handle.write(json.dumps(dict(zip(fields, row, strict=True))) + "\n")
+    else:
+        pa, pq = _pyarrow()
+        kinds = _field_kinds(rtype)
+        arrow = {str: pa.string(), int: pa.int64(), float: pa.float64()}
+        schema = pa.schema([(f, arrow[kinds[f][0]]) for f in fields])
+        columns = {f: [row[i] for row in rows] for i, f in enumerate(fields)}
+        pq.write_table(pa.table(columns, schema=schema), path)
+
+
+def read_rows(path: str | Path, kind: str, format: str | None = None) -> list[Any]:
+    """Read an export back into :class:`FactRow` or :class:`EventRow` tuples."""
+    rtype = row_type(kind)
+    fmt = export_format(path, format)
+    path = Path(path)
+    if fmt == "parquet":
+        _, pq = _pyarrow()
+        records: list[dict[str, Any]] = pq.read_table(path).to_pylist()
+    elif fmt == "jsonl":
+        with path.open(encoding="utf-8") as handle:
+            records = [json.loads(line) for line in handle if line.strip()]
+    else:
+        with path.open(newline="", encoding="utf-8") as handle:
+            records = list(csv.DictReader(handle))
+    kinds = _field_kinds(rtype)
+    try:
+        return [rtype(*(_typed(rec[f], kinds[f]) for f in rtype._fields))
+                for rec in records]
+    except KeyError as exc:
+        msg = f"{path.name}: column {exc.args[0]!r} is missing; is this a toaster {kind} export?"
+        raise InvalidInputError(msg) from None
+
+
+def _field_kinds(rtype: type[NamedTuple]) -> dict[str, tuple[type, bool]]:
+    """Each field's base type and whether it may be None."""
+    hints = typing.get_type_hints(rtype)
+    out: dict[str, tuple[type, bool]] = {}
+    for name in rtype._fields:
+        args = typing.get_args(hints[name])
+        base = [a for a in args if a is not type(None)]
+        out[name] = (base[0], True) if base else (hints[name], False)
+    return out
+
+
+def _typed(value: Any, kind: tuple[type, bool]) -> Any:
+    base, optional = kind
+    if value is None or (value == "" and (optional or base is not str)):
+        return None  # CSV cannot tell None from "": optional text reads back as None
+    if base is int:
+        return int(value)
+    if base is float:
+        return float(value)
+    return str(value)
+
+
+def _pyarrow() -> tuple[Any, Any]:
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError:
+        package = "pyarrow"
+        raise MissingDependencyError(package, "export", "Parquet export") from None
+    return pa, pq
