@@ -253,17 +253,17 @@ class Store:
             state.last_t = t_ns
             return SyncResult(0, 0, 0, 0, len(new))
         touched = [(key, check_fact(fact)) for key, fact in touched]
-        writes = _Writes(agent_id, source, t_ns)
-        fresh = [(key, fact) for key, fact in touched if key not in old]
-        if fresh:
-            self._open_fresh(conn, agent_id, fresh, writes)
+        writes = _Writes(agent_id, source, t_ns)  # events in order: ended, changed, appeared
+        for key in gone:
+            key_id, fact = old[key]
+            writes.end(key_id, fact)
         for key, fact in touched:
             held = old.get(key)
             if held is not None:
                 writes.update(held[0], fact, held[1])
-        for key in gone:
-            key_id, fact = old[key]
-            writes.end(key_id, fact)
+        fresh = [(key, fact) for key, fact in touched if key not in old]
+        if fresh:
+            self._open_fresh(conn, agent_id, fresh, writes)
         self._apply(conn, writes)
         for key, fact in touched:
             old[key] = (self._key_ids[(agent_id, key)], fact)

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import hashlib
 
-from sqlalchemy import Connection, text
+from typing import Any
+
+from sqlalchemy import Connection
 
 MAX_IDENTIFIER_BYTES = 63
 PREFIXES = ("fact_table_", "memory_table_", "events_table_")
@@ -35,19 +37,31 @@ def agent_view_names(agent_id: str) -> tuple[str, str, str]:
     return tuple(view_name(p, agent_id) for p in PREFIXES)  # type: ignore[return-value]
 
 
+def quote_identifier(name: str) -> str:
+    """Standard SQL quoting (the same on both backends; SQLAlchemy's preparer would double
+    ``%`` for psycopg, which raw DDL must not do)."""
+    return '"' + name.replace('"', '""') + '"'
+
+
+def _ddl_cursor(conn: Connection) -> Any:
+    # DDL goes to the driver without parameters, so that neither SQLAlchemy (':name') nor
+    # psycopg ('%s') reads placeholders inside a quoted identifier.
+    return conn.connection.dbapi_connection.cursor()  # type: ignore[union-attr]
+
+
 def create_agent_views(conn: Connection, agent_id: str, num: int) -> None:
     """Create the three views of an agent inside the caller's transaction."""
-    quote = conn.dialect.identifier_preparer.quote_identifier
+    cur = _ddl_cursor(conn)
     for name, source in zip(agent_view_names(agent_id), _SOURCES, strict=True):
-        conn.execute(text(f"DROP VIEW IF EXISTS {quote(name)}"))
-        conn.execute(text(
-            f"CREATE VIEW {quote(name)} AS SELECT * FROM {source} "
+        cur.execute(f"DROP VIEW IF EXISTS {quote_identifier(name)}")
+        cur.execute(
+            f"CREATE VIEW {quote_identifier(name)} AS SELECT * FROM {source} "
             f"WHERE agent_id = (SELECT id FROM agents WHERE num = {int(num)})"
-        ))
+        )
 
 
 def drop_agent_views(conn: Connection, agent_id: str) -> None:
     """Drop an agent's views (used when the agent is removed)."""
-    quote = conn.dialect.identifier_preparer.quote_identifier
+    cur = _ddl_cursor(conn)
     for name in agent_view_names(agent_id):
-        conn.execute(text(f"DROP VIEW IF EXISTS {quote(name)}"))
+        cur.execute(f"DROP VIEW IF EXISTS {quote_identifier(name)}")

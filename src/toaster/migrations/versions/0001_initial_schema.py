@@ -169,11 +169,12 @@ def upgrade() -> None:
 def downgrade() -> None:
     """Drop everything, per-agent views first (they depend on the readable views)."""
     bind = op.get_bind()
-    preparer = bind.dialect.identifier_preparer
     readable = {name for name, _ in VIEWS}
+    cursor = bind.connection.dbapi_connection.cursor()  # no placeholder parsing in identifiers
     for view in sa.inspect(bind).get_view_names():
         if view not in readable:
-            op.execute(f"DROP VIEW IF EXISTS {preparer.quote_identifier(view)}")
+            quoted = '"' + view.replace('"', '""') + '"'
+            cursor.execute(f"DROP VIEW IF EXISTS {quoted}")
     for name, _ in reversed(VIEWS):
         op.execute(f"DROP VIEW IF EXISTS {name}")
     with op.batch_alter_table('facts', schema=None) as batch_op:
