@@ -207,7 +207,7 @@ def test_rules_run_in_the_same_transaction(store: toaster.Store) -> None:
     """A rule sees each change set; when it fails, the triggering write is rolled back."""
     seen = []
 
-    def rule(conn, changes) -> None:  # noqa: ANN001
+    def rule(conn, changes) -> None:
         seen.append((changes.agent_id, [f.property for _, f in changes.appeared]))
         if any(f.property == "Bad" for _, f in changes.appeared):
             msg = "rule refused"
