@@ -15,6 +15,9 @@ Tables
 ``properties``  static properties of entities, open key/value.
 ``areas``       area definitions (a JSON spec) so that areas survive restarts.
 ``settings``    thresholds and rule configuration kept as data (JSON values by scope/key).
+``belief_chain`` nested belief holders: holder ``A>B`` (an agent row) is the chain A, B
+                ("A's model of B's beliefs"), one row per position (revision 0002).
+``belief_rules`` the belief rules' SQL statements of the database's backend, by step (0002).
 ``store_state`` one row; ``cache_epoch`` is bumped by writes that bypass snapshot sync so that
                 every store process reloads what it remembers of the open facts.
 
@@ -192,4 +195,22 @@ store_state = Table(
     Column("id", Integer, primary_key=True),
     Column("cache_epoch", BigInteger, nullable=False, server_default=text("0")),
     CheckConstraint("id = 1", name="single_row"),
+)
+
+belief_chain = Table(
+    "belief_chain",
+    metadata,
+    Column("holder_id", Text, ForeignKey("agents.id", ondelete="CASCADE"), primary_key=True),
+    Column("position", Integer, primary_key=True),
+    Column("member_id", Text, ForeignKey("agents.id", ondelete="CASCADE"), nullable=False),
+    CheckConstraint("position >= 1", name="position_positive"),
+    Index("ix_belief_chain_member_id", "member_id"),
+)
+
+belief_rules = Table(
+    "belief_rules",
+    metadata,
+    Column("backend", Text, primary_key=True),
+    Column("step", Text, primary_key=True),
+    Column("sql_text", Text, nullable=False),
 )

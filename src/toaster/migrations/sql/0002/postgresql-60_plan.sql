@@ -9,18 +9,18 @@ SELECT holder_id, hkey, action,
        CASE action WHEN 'changed' THEN h_text END
 FROM (
   SELECT g.holder_id, g.hkey, sf.value_text AS s_text, sf.value_num AS s_num,
-         MIN(1.0, sf.confidence * g.pconf) AS new_conf, sf.observability AS s_obs,
+         LEAST(1.0, sf.confidence * g.pconf) AS new_conf, sf.observability AS s_obs,
          hf.value_text AS h_text, hf.value_num AS h_num, hf.confidence AS h_conf,
          hf.observability AS h_obs,
          CASE
            WHEN sf.key_id IS NULL THEN CASE WHEN hf.key_id IS NOT NULL THEN 'ended' END
            WHEN hf.key_id IS NULL THEN 'appeared'
            WHEN hf.value_text <> sf.value_text THEN 'changed'
-           WHEN hf.value_num IS NOT sf.value_num OR hf.observability <> sf.observability
-                OR hf.confidence <> MIN(1.0, sf.confidence * g.pconf) THEN 'refreshed'
+           WHEN hf.value_num IS DISTINCT FROM sf.value_num OR hf.observability <> sf.observability
+                OR hf.confidence <> LEAST(1.0, sf.confidence * g.pconf) THEN 'refreshed'
          END AS action
   FROM (SELECT holder_id, hkey, MAX(self_key) AS self_key, MAX(pconf) AS pconf
         FROM belief_in WHERE hkey IS NOT NULL GROUP BY holder_id, hkey) g
-  LEFT JOIN facts sf INDEXED BY uq_facts_open_key ON sf.key_id = g.self_key AND sf.valid_to_ns IS NULL
-  LEFT JOIN facts hf INDEXED BY uq_facts_open_key ON hf.key_id = g.hkey AND hf.valid_to_ns IS NULL
-) WHERE action IS NOT NULL
+  LEFT JOIN facts sf ON sf.key_id = g.self_key AND sf.valid_to_ns IS NULL
+  LEFT JOIN facts hf ON hf.key_id = g.hkey AND hf.valid_to_ns IS NULL
+) AS planned WHERE action IS NOT NULL

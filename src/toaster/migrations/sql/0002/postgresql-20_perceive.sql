@@ -2,9 +2,9 @@
 -- 'after'. :everything = 1 computes it for every located entity, else for belief_focus only.
 INSERT INTO belief_seen (holder_id, entity_id, phase, pconf)
 WITH RECURSIVE
-cfg_room(p) AS (SELECT value FROM json_each((SELECT value_json FROM settings WHERE scope = 'beliefs' AND key = 'copresence'))),
-cfg_in(p) AS (SELECT value FROM json_each((SELECT value_json FROM settings WHERE scope = 'beliefs' AND key = 'containment'))),
-cfg_vis(p, side) AS (SELECT key, value FROM json_each((SELECT value_json FROM settings WHERE scope = 'beliefs' AND key = 'visibility'))),
+cfg_room(p) AS (SELECT value FROM json_array_elements_text((SELECT value_json::json FROM settings WHERE scope = 'beliefs' AND key = 'copresence'))),
+cfg_in(p) AS (SELECT value FROM json_array_elements_text((SELECT value_json::json FROM settings WHERE scope = 'beliefs' AND key = 'containment'))),
+cfg_vis(p, side) AS (SELECT key, value FROM json_each_text((SELECT value_json::json FROM settings WHERE scope = 'beliefs' AND key = 'visibility'))),
 cfg_depth(d) AS (SELECT CAST(value_json AS INTEGER) FROM settings WHERE scope = 'beliefs' AND key = 'depth'),
 sf(s, p, tg, c) AS (
   SELECT k.subject_id, k.property, k.target_id, f.confidence
@@ -14,7 +14,7 @@ sf(s, p, tg, c) AS (
          OR k.property IN (SELECT p FROM cfg_vis))
     AND f.value_text NOT IN ('false', 'False', 'FALSE', '0')
     AND f.valid_from_ns <= :t
-    AND CASE :phase WHEN 'after' THEN f.valid_to_ns IS NULL
+    AND CASE CAST(:phase AS text) WHEN 'after' THEN f.valid_to_ns IS NULL
                     WHEN 'before' THEN f.valid_from_ns < :t AND (f.valid_to_ns IS NULL OR f.valid_to_ns >= :t)
                     ELSE f.valid_to_ns IS NULL OR f.valid_to_ns >= :t END
 ),
@@ -49,6 +49,7 @@ mp(m, e, c) AS (
   FROM sf JOIN cfg_vis v ON v.p = sf.p
   UNION ALL
   SELECT m, m, 1.0 FROM members
+  WHERE (SELECT value_json FROM settings WHERE scope = 'beliefs' AND key = 'self_perception') = 'true'
 ),
 mpm(m, e, c) AS (
   SELECT m, e, MAX(c) FROM mp WHERE m IN (SELECT m FROM members) GROUP BY m, e
@@ -63,7 +64,7 @@ cp(holder, pos, e, c) AS (
   JOIN mpm link ON link.m = prev.member AND link.e = ch.member
   JOIN mpm x ON x.m = ch.member AND x.e = cp.e
 )
-SELECT cp.holder, cp.e, :phase, MAX(cp.c)
+SELECT cp.holder, cp.e, CAST(:phase AS text), MAX(cp.c)
 FROM cp JOIN chain_len n ON n.holder = cp.holder AND n.n = cp.pos
 WHERE cp.e IN (SELECT e FROM focus)
 GROUP BY cp.holder, cp.e

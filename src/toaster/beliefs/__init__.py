@@ -1,0 +1,1 @@
+"""Perspective taking: every non-self agent's beliefs, maintained by rules in the database."""

@@ -1,0 +1,141 @@
+"""The belief rules: set-based SQL statements run in the transaction of every self write.
+
+The statements live in the database (table ``belief_rules``, installed by migration 0002, one
+definition per backend). Per write (a *tick*) the rule runs a fixed number of statements
+whatever the number of agents: the changed self keys go into a temporary table, one recursive
+query computes who perceives what (rooms, containers, visibility, nested holders), and one
+``INSERT ... SELECT`` / ``UPDATE`` per kind of row writes every holder's intervals and events.
+"""
+
+from __future__ import annotations
+
+import itertools
+import re
+from typing import TYPE_CHECKING, Any
+
+from sqlalchemy import Connection, TextClause, text
+
+from toaster.beliefs import config as cfg
+from toaster.db import catalog
+from toaster.timeutil import now_ns
+
+if TYPE_CHECKING:
+    from toaster.db.store import ChangeSet, Store
+
+SOURCE = "beliefs"
+SEPARATOR = ">"
+_STEPS_WRITE = ("50_keys", "55_resolve", "60_plan", "70_events", "80_close",
+                "85_refresh_rows", "90_open")
+
+
+def holder_id(agent: str, *about: str) -> str:
+    """The id of a (nested) belief holder: ``holder_id("Anne", "Sally") == "Anne>Sally"``."""
+    return SEPARATOR.join((agent, *about))
+
+
+def _split(sql: str) -> list[str]:
+    lines = [line for line in sql.splitlines() if not line.lstrip().startswith("--")]
+    return [part.strip() for part in "\n".join(lines).split(";") if part.strip()]
+
+
+def load_statements(conn: Connection) -> dict[str, list[Any]]:
+    """The rule statements of this database's backend, by step (compiled once)."""
+    rows = conn.execute(text("SELECT step, sql_text FROM belief_rules WHERE backend = :b"),
+                        {"b": conn.dialect.name}).all()
+    steps: dict[str, list[Any]] = {}
+    for step, body in rows:
+        parts = _split(body)
+        steps[step] = parts if step == "00_temp" else [text(part) for part in parts]
+    return steps
+
+
+def ensure_holders(conn: Connection, depth: int, t_ns: int) -> int:
+    """Register the nested holders ``A>B`` (and deeper, up to ``depth``) of every pair of
+    first-order agents; return how many were created."""
+    first = [row[0] for row in conn.execute(text(
+        "SELECT id FROM agents WHERE NOT is_self AND id NOT IN "
+        "(SELECT holder_id FROM belief_chain) ORDER BY id"))]
+    known = {row[0] for row in conn.execute(text("SELECT DISTINCT holder_id FROM belief_chain"))}
+    created = 0
+    for length in range(2, depth + 1):
+        for chain in itertools.product(first, repeat=length):
+            if any(a == b for a, b in itertools.pairwise(chain)):
+                continue
+            holder = holder_id(*chain)
+            if holder in known or holder in first:
+                continue
+            catalog.upsert_entity(conn, holder, "belief", "", "", is_self=False, agent=True,
+                                  t_ns=t_ns)
+            conn.execute(text("INSERT INTO belief_chain (holder_id, position, member_id) "
+                              "VALUES (:h, :p, :m)"),
+                         [{"h": holder, "p": i, "m": m} for i, m in enumerate(chain, 1)])
+            created += 1
+    return created
+
+
+class BeliefRule:
+    """A store rule: propagate a self agent's changes to every other agent's beliefs."""
+
+    def __init__(self, store: Store) -> None:
+        self.store = store
+        self._steps: dict[str, list[Any]] | None = None
+        self._agent_count: int | None = None
+
+    def _insert_keys(self, conn: Connection, key_ids: list[int]) -> None:
+        cur = self.store.db.cursor()
+        if conn.dialect.name == "postgresql":
+            cur.execute("INSERT INTO belief_keys (key_id) SELECT DISTINCT unnest(%s::bigint[])",
+                        [key_ids])
+        else:
+            cur.executemany("INSERT OR IGNORE INTO belief_keys (key_id) VALUES (?)",
+                            [(k,) for k in key_ids])
+
+    def _temp(self, conn: Connection, steps: dict[str, list[Any]]) -> None:
+        cur = self.store.db.cursor()
+        if conn.dialect.name == "postgresql":
+            cur.execute(";\n".join(steps["00_temp"]))
+        else:
+            for part in steps["00_temp"]:
+                cur.execute(part)
+
+    def _run(self, conn: Connection, steps: dict[str, list[Any]], names: tuple[str, ...],
+             params: dict[str, Any]) -> None:
+        for name in names:
+            for stmt in steps[name]:
+                conn.execute(stmt, params)
+
+    def __call__(self, conn: Connection, changes: ChangeSet) -> None:
+        if changes.empty or not self.store.agents().get(changes.agent_id):
+            return
+        config = cfg.read(conn)
+        if not config["enabled"]:
+            return
+        if self._steps is None:
+            self._steps = load_statements(conn)
+        steps = self._steps
+        count = conn.execute(text("SELECT count(*) FROM agents")).scalar_one()
+        if config["depth"] >= 2 and count != self._agent_count:
+            ensure_holders(conn, int(config["depth"]), changes.t_ns)
+            count = conn.execute(text("SELECT count(*) FROM agents")).scalar_one()
+        self._agent_count = count
+        facts = [*changes.appeared, *changes.changed, *changes.refreshed, *changes.ended]
+        key_ids = list(dict.fromkeys(item[0] for item in facts))
+        params = {"self": changes.agent_id, "t": changes.t_ns, "source": SOURCE,
+                  "recorded": now_ns(), "phase": "around", "everything": 0}
+        self._temp(conn, steps)
+        self._insert_keys(conn, key_ids)
+        self._run(conn, steps, ("10_focus", "20_perceive", "30_changes"), params)
+        watched = cfg.perception_properties(config)
+        if any(item[1].property in watched for item in facts):
+            for phase in ("before", "after"):
+                self._run(conn, steps, ("20_perceive",), {**params, "phase": phase,
+                                                          "everything": 1})
+            self._run(conn, steps, ("40_refresh",), params)
+        self._run(conn, steps, _STEPS_WRITE, params)
+        self._run(conn, steps, ("99_clear",), params)
+
+
+def _check_sql(sql: str) -> bool:
+    """True when ``sql`` names no bound parameter outside the known set (used by tests)."""
+    return set(re.findall(r"(?<![:\w]):([a-z_]+)", sql)) <= {
+        "self", "t", "source", "recorded", "phase", "everything"}
