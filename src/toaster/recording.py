@@ -322,3 +322,25 @@ def _merged(frames: list[Frame], events: list[EventRow]) -> Iterator[Frame | Eve
     keyed_events = ((e.stamp_ns, 1, k, e) for k, e in enumerate(events))
     for *_, item in heapq.merge(keyed_frames, keyed_events):
         yield item
+
+
+def read_frames(path: str | Path) -> list[Frame]:
+    """Frames from a JSON-lines file: ``{"t_ns", "entities", "areas"}`` per line."""
+    import json
+
+    from toaster.errors import FileFormatError
+
+    frames = []
+    with Path(path).open(encoding="utf-8") as handle:
+        for number, line in enumerate(handle, 1):
+            if not line.strip():
+                continue
+            try:
+                item = json.loads(line)
+                frames.append(Frame(int(item["t_ns"]), item.get("entities", []),
+                                    item.get("areas")))
+            except (ValueError, KeyError, TypeError) as exc:
+                msg = (f"{Path(path).name} line {number}: not a frame ({exc}); write "
+                       '{"t_ns": 0, "entities": [["pr2", "robot", 0, 0, 0, 0]]}')
+                raise FileFormatError(msg) from None
+    return frames

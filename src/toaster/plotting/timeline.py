@@ -90,8 +90,11 @@ class Timeline:
 
 def fact_label(key: FactKey) -> str:
     """A readable name for a fact key (``alice.rightHand IsMoving``, ``mug IsOn table``)."""
-    subject = f"{key.subject_owner_id}.{key.subject_id}" if key.subject_owner_id else key.subject_id
-    target = f"{key.target_owner_id}.{key.target_id}" if key.target_owner_id else key.target_id
+    subject, target = key.subject_id, key.target_id
+    if key.subject_owner_id and key.subject_owner_id != subject:
+        subject = f"{key.subject_owner_id}.{subject}"
+    if key.target_owner_id and key.target_owner_id != target:
+        target = f"{key.target_owner_id}.{target}"
     prop = f"{key.property}/{key.sub_property}" if key.sub_property else key.property
     return " ".join(part for part in (subject, prop, target) if part)
 
