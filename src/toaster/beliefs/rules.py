@@ -13,7 +13,7 @@ import itertools
 import re
 from typing import TYPE_CHECKING, Any
 
-from sqlalchemy import Connection, TextClause, text
+from sqlalchemy import Connection, text
 
 from toaster.beliefs import config as cfg
 from toaster.db import catalog
@@ -104,6 +104,23 @@ class BeliefRule:
             for stmt in steps[name]:
                 conn.execute(stmt, params)
 
+    def _nested_holders(self, conn: Connection, steps: dict[str, list[Any]],
+                        config: dict[str, Any], t_ns: int, params: dict[str, Any]) -> None:
+        """Register missing ``A>B`` holders once someone perceives something (so that a
+        database where nobody perceives anything keeps only its real agents)."""
+        if config["depth"] < 2:
+            return
+        count = conn.execute(text("SELECT count(*) FROM agents")).scalar_one()
+        if count == self._agent_count:
+            return
+        if conn.execute(text("SELECT 1 FROM belief_in LIMIT 1")).first() is None:
+            return
+        if ensure_holders(conn, int(config["depth"]), t_ns):
+            conn.execute(text("DELETE FROM belief_seen"))
+            conn.execute(text("DELETE FROM belief_in"))
+            self._run(conn, steps, ("20_perceive", "30_changes"), params)
+        self._agent_count = conn.execute(text("SELECT count(*) FROM agents")).scalar_one()
+
     def __call__(self, conn: Connection, changes: ChangeSet) -> None:
         if changes.empty or not self.store.agents().get(changes.agent_id):
             return
@@ -113,11 +130,6 @@ class BeliefRule:
         if self._steps is None:
             self._steps = load_statements(conn)
         steps = self._steps
-        count = conn.execute(text("SELECT count(*) FROM agents")).scalar_one()
-        if config["depth"] >= 2 and count != self._agent_count:
-            ensure_holders(conn, int(config["depth"]), changes.t_ns)
-            count = conn.execute(text("SELECT count(*) FROM agents")).scalar_one()
-        self._agent_count = count
         facts = [*changes.appeared, *changes.changed, *changes.refreshed, *changes.ended]
         key_ids = list(dict.fromkeys(item[0] for item in facts))
         params = {"self": changes.agent_id, "t": changes.t_ns, "source": SOURCE,
@@ -125,6 +137,7 @@ class BeliefRule:
         self._temp(conn, steps)
         self._insert_keys(conn, key_ids)
         self._run(conn, steps, ("10_focus", "20_perceive", "30_changes"), params)
+        self._nested_holders(conn, steps, config, changes.t_ns, params)
         watched = cfg.perception_properties(config)
         if any(item[1].property in watched for item in facts):
             for phase in ("before", "after"):

@@ -1,0 +1,118 @@
+"""Reading beliefs: an agent's (or A's model of B's) beliefs, one value, false-belief reports,
+the history of one belief across agents. Plain queries over the same tables as the world state.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+from sqlalchemy import text
+
+from toaster import queries as q
+from toaster.beliefs import config as cfg
+from toaster.beliefs.rules import SEPARATOR, holder_id
+from toaster.errors import InvalidInputError
+from toaster.model import FactRow
+
+
+class BeliefDiff(NamedTuple):
+    """One key on which two holders disagree; ``None`` = not believed by that holder."""
+
+    subject_id: str
+    property: str
+    target_id: str
+    sub_property: str
+    value_a: str | None
+    confidence_a: float | None
+    value_b: str | None
+    confidence_b: float | None
+
+
+def _holder(db: Any, agent: str, about: str | list[str] | tuple[str, ...] | None) -> str:
+    chain = [] if about is None else ([about] if isinstance(about, str) else list(about))
+    holder = holder_id(agent, *chain)
+    with db.transaction() as conn:
+        found = conn.execute(text("SELECT 1 FROM agents WHERE id = :a"), {"a": holder}).first()
+    if found is None:
+        what = f"belief holder {holder!r}" if chain else f"agent {agent!r}"
+        msg = (f"unknown {what}: register the agents as humans or robots"
+               + (" and raise the beliefs depth (`toaster beliefs config depth N`)" if chain
+                  else ""))
+        raise InvalidInputError(msg)
+    return holder
+
+
+def self_agent(db: Any) -> str:
+    """The first self agent (the robot whose perception is the world state)."""
+    with db.transaction() as conn:
+        row = conn.execute(text("SELECT id FROM agents WHERE is_self ORDER BY num LIMIT 1")).first()
+    if row is None:
+        msg = "no self agent: register the robot with is_self (`toaster set-info ENTITY --self`)"
+        raise InvalidInputError(msg)
+    return row[0]
+
+
+def beliefs(db: Any, agent: str, about: str | list[str] | None = None, *,
+            at: int | None = None, **filters: Any) -> list[FactRow]:
+    """What ``agent`` believes (or believes ``about`` believes) now, or at time ``at``."""
+    holder = _holder(db, agent, about)
+    if at is None:
+        return q.current_facts(db, holder, **filters)
+    return q.beliefs_at(db, holder, at, **filters)
+
+
+def belief_value(db: Any, agent: str, subject: str, property: str, target: str = "", *,
+                 about: str | list[str] | None = None, at: int | None = None) -> FactRow | None:
+    """One belief of ``agent`` (or of its model of ``about``) now or at ``at``; None if not held."""
+    return q.fact_value(db, _holder(db, agent, about), subject, property, target, at=at)
+
+
+def false_beliefs(db: Any, agent: str, other: str | None = None, *, about: str | None = None,
+                  at: int | None = None) -> list[BeliefDiff]:
+    """Keys on which ``agent`` (A) and ``other`` (B, default the self agent) disagree: A believes
+    what B does not, B believes what A does not, or both hold the key with different values."""
+    a_rows = beliefs(db, agent, about, at=at)
+    b_rows = beliefs(db, other or self_agent(db), at=at)
+
+    def index(rows: list[FactRow]) -> dict[tuple[str, ...], FactRow]:
+        return {(r.subject_id, r.subject_owner_id, r.property, r.sub_property, r.target_id,
+                 r.target_owner_id): r for r in rows}
+
+    a, b = index(a_rows), index(b_rows)
+    diffs = []
+    for key in sorted(a.keys() | b.keys()):
+        ra, rb = a.get(key), b.get(key)
+        if ra is not None and rb is not None and ra.value_text == rb.value_text:
+            continue
+        diffs.append(BeliefDiff(key[0], key[2], key[4], key[3],
+                                ra.value_text if ra else None, ra.confidence if ra else None,
+                                rb.value_text if rb else None, rb.confidence if rb else None))
+    return diffs
+
+
+def belief_history(db: Any, subject: str, property: str, target: str | None = None, *,
+                   agents: list[str] | None = None) -> list[FactRow]:
+    """Every interval of one belief across holders (self, agents, nested), oldest first."""
+    rows = q.history(db, agents, subject=subject, property=property, target=target)
+    return sorted(rows, key=lambda r: (r.valid_from_ns, r.agent_id))
+
+
+def holders(db: Any) -> list[str]:
+    """Every non-self belief holder, first order then nested (``A>B``)."""
+    with db.transaction() as conn:
+        rows = conn.execute(text("SELECT id FROM agents WHERE NOT is_self ORDER BY num")).all()
+    return sorted((r[0] for r in rows), key=lambda h: (h.count(SEPARATOR), h))
+
+
+def configure(db: Any, **settings: Any) -> dict[str, Any]:
+    """Change belief-rule settings (validated); return the whole configuration."""
+    store = db.store()
+    for key, value in settings.items():
+        store.put_setting(cfg.SCOPE, key, cfg.validate(key, value))
+    return config(db)
+
+
+def config(db: Any) -> dict[str, Any]:
+    """The belief-rule configuration as stored (defaults filled in)."""
+    with db.transaction() as conn:
+        return cfg.read(conn)
