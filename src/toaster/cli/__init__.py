@@ -68,9 +68,12 @@ def _register() -> None:
     from toaster.cli.demo import demo
     from toaster.cli.execute import execute
     from toaster.cli.info import get_info, set_info
+    from toaster.cli.export import export, record
+    from toaster.cli.plot import plot_facts
     from toaster.cli.run import area, run
 
-    for command in (area, db_group, demo, execute, get_info, run, set_info):
+    for command in (area, db_group, demo, execute, export, get_info, plot_facts, record, run,
+                    set_info):
         cli.add_command(command)
 
 
