@@ -96,7 +96,8 @@ def _fact(where: str, raw: object) -> Fact:
                                raw.get("value_num"), raw.get("confidence", 1.0),
                                raw.get("observability", 1.0)))
     except InvalidInputError as exc:
-        raise FileFormatError(f"{where}: {exc}") from None
+        msg = f"{where}: {exc}"
+        raise FileFormatError(msg) from None
 
 
 def _mapping(where: str, raw: object) -> dict[str, str | None]:
