@@ -25,7 +25,7 @@ import sys
 import tempfile
 import time
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -102,7 +102,8 @@ def bench_sync(db: toaster.Database, snaps: list[list[Fact]]) -> dict[str, float
         result = store.sync_snapshot("bench", AGENT, tick * 1000, snap)
         times.append(time.perf_counter() - start)
         changed += result.appeared + result.changed + result.ended
-        # rows: appeared = interval + event; changed = close + interval + event; ended = close + event
+        # rows: appeared = interval + event; changed = close + interval + event;
+        # ended = close + event
         rows += 2 * result.appeared + 3 * result.changed + 2 * result.ended
     quiet = []
     for tick in range(30):
@@ -256,7 +257,8 @@ def fill_memory(db: toaster.Database, agents: int, keys: int, intervals: int) ->
     return agents * keys * intervals
 
 
-def bench_as_of(db: toaster.Database, agents: int, intervals: int, n: int = 15) -> tuple[float, float]:
+def bench_as_of(db: toaster.Database, agents: int, intervals: int,
+                n: int = 15) -> tuple[float, float]:
     """Median ms of beliefs_at for one agent at random t, and of the plain b-tree scan."""
     rng = random.Random(3)
     ours, scan = [], []

@@ -67,8 +67,8 @@ def _register() -> None:
     from toaster.cli.db import db_group
     from toaster.cli.demo import demo
     from toaster.cli.execute import execute
-    from toaster.cli.info import get_info, set_info
     from toaster.cli.export import export, record
+    from toaster.cli.info import get_info, set_info
     from toaster.cli.plot import plot_facts
     from toaster.cli.run import area, run
 

@@ -11,7 +11,6 @@ with a hash suffix on both backends, so the same name works everywhere.
 from __future__ import annotations
 
 import hashlib
-
 from typing import Any
 
 from sqlalchemy import Connection
