@@ -43,10 +43,10 @@ def build(n: int, n_areas: int = 100, agents: int = 20, seed: int = 0):
 
 def tick_all(world, pos, rng, t, managers, diff):
     pos[:, :2] += rng.normal(0, 0.02, (len(pos), 2))
-    world.observe("bench", world.ids[: len(pos)], np.full(len(pos), t), pos)
+    world.observe("bench", np.arange(len(pos)), np.full(len(pos), t), pos)
     world.commit()
     for m in managers:
-        diff.apply(m.name, m.compute(world, t))
+        diff.apply(m.name, m.compute_batch(world, t))
 
 
 def naive(world, areas, t):

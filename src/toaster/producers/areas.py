@@ -27,6 +27,7 @@ import shapely
 
 from toaster.errors import InvalidInputError
 from toaster.model import Fact
+from toaster.producers.batch import FactBatch
 from toaster.producers.config import make_config, ns
 from toaster.world.geometry import bearing, to_local_xy, wrap_angle
 from toaster.world.state import HUMAN, JOINT, OBJECT, ROBOT, World
@@ -157,6 +158,8 @@ class _Compiled:
     bounds: tuple[float, float, float, float]
     z_lo: float
     z_hi: float
+    prop: str = "IsInArea"
+    sub: str = ""
 
 
 def _compile(area_id: str, spec: dict[str, Any]) -> _Compiled:
@@ -180,7 +183,14 @@ def _compile(area_id: str, spec: dict[str, Any]) -> _Compiled:
         bounds = tuple(outer.bounds)
     kinds = np.zeros(4, bool)
     kinds[list(entity_kinds(spec["entity_types"]))] = True
-    return _Compiled(area_id, spec, kinds, inner, outer, bounds, z_lo, z_hi)
+    area_type = spec["area_type"]
+    if area_type == "room":
+        prop, sub = "IsInRoom", "room"
+    elif area_type == "support":
+        prop, sub = "IsAt", "location"
+    else:
+        prop, sub = "IsInArea", area_type
+    return _Compiled(area_id, spec, kinds, inner, outer, bounds, z_lo, z_hi, prop, sub)
 
 
 def _inside(shape: Any, xy: np.ndarray) -> np.ndarray:
@@ -192,8 +202,17 @@ def _inside(shape: Any, xy: np.ndarray) -> np.ndarray:
     return shapely.intersects_xy(shape, xy[:, 0], xy[:, 1])
 
 
+_K = 1 << 32  # membership key = area slot × _K + row
+
+
 class AreaManager:
-    """Computes IsInRoom / IsAt / IsInArea / IsFacing / AreaDensity for a set of areas."""
+    """Computes IsInRoom / IsAt / IsInArea / IsFacing / AreaDensity for a set of areas.
+
+    Areas without owner are tested together: entities sorted by x, each area's bounding box
+    picks its (entity, area) candidate pairs with two searchsorted calls, then one vectorised
+    exact test per shape kind. Owned areas (few, moving) are tested one by one in their owner's
+    frame. Memberships are kept as sorted int64 keys (slot × 2³² + row).
+    """
 
     name = "area_manager"
 
@@ -201,7 +220,9 @@ class AreaManager:
                  config: Mapping[str, Any] | None = None) -> None:
         self.config = make_config(config)
         self._areas: dict[str, _Compiled] = {}
-        self._state: dict[str, np.ndarray] = {}
+        self._keys = np.zeros(0, np.int64)
+        self._slots: list[_Compiled] = []
+        self._static: _StaticAreas | None = None
         for area_id, spec in (areas or {}).items():
             self.set_area(area_id, spec)
 
@@ -210,100 +231,194 @@ class AreaManager:
         """The normalised specs, by area name."""
         return {k: v.spec for k, v in self._areas.items()}
 
+    def _members(self) -> dict[str, np.ndarray]:
+        slot = self._keys // _K
+        return {a.area_id: self._keys[slot == i] % _K for i, a in enumerate(self._slots)}
+
+    def _relayout(self, members: dict[str, np.ndarray]) -> None:
+        self._slots = list(self._areas.values())
+        parts = [i * _K + members.get(a.area_id, np.zeros(0, np.int64))
+                 for i, a in enumerate(self._slots)]
+        self._keys = np.sort(np.concatenate(parts)) if parts else np.zeros(0, np.int64)
+        self._static = _StaticAreas(self._slots)
+
     def set_area(self, area_id: str, spec: Mapping[str, Any]) -> dict[str, Any]:
         """Add or replace an area (membership state starts empty)."""
         norm = normalize_area(area_id, spec)
+        members = self._members()
+        members.pop(area_id, None)
         self._areas[area_id] = _compile(area_id, norm)
-        self._state[area_id] = np.zeros(0, bool)
+        self._relayout(members)
         return norm
 
     def remove_area(self, area_id: str) -> None:
         """Forget an area."""
-        self._areas.pop(area_id, None)
-        self._state.pop(area_id, None)
+        members = self._members()
+        if self._areas.pop(area_id, None) is not None:
+            members.pop(area_id, None)
+            self._relayout(members)
 
     def inside(self, area_id: str, world: World) -> list[str]:
         """Ids currently inside an area (after the last compute)."""
-        state = self._state[area_id]
-        return [world.ids[r] for r in np.flatnonzero(state)]
+        rows = self._members()[area_id]
+        return [world.ids[r] for r in rows.tolist()]
 
     def compute(self, world: World, t_ns: int) -> list[Fact]:
         """Update memberships and return this tick's area facts."""
+        return self.compute_batch(world, t_ns).facts()
+
+    def compute_batch(self, world: World, t_ns: int) -> FactBatch:
+        """Update memberships and return this tick's area facts as arrays."""
         n = world.n
+        out = FactBatch(world)
+        if not self._slots:
+            return out
         live = world.live_mask(t_ns, ns(self.config, "presence_timeout"))
         kind, pos, owner_of = world.kind[:n], world.pos[:n], world.owner[:n]
-
-        facts: list[Fact] = []
-        for area_id, area in self._areas.items():
-            state = np.zeros(n, bool)
-            prev = self._state[area_id]
-            state_prev = np.zeros(n, bool)
-            state_prev[: len(prev)] = prev[:n]
-            owner_id = area.spec["owner"]
-            owner = world.index.get(owner_id, -1) if owner_id else -1
-            if owner_id and (owner < 0 or not live[owner]):
-                self._state[area_id] = state
+        prev = self._keys
+        new_parts = []
+        static = self._static
+        assert static is not None
+        if static.slots.size:
+            new_parts.append(static.members(pos, kind, live, prev))
+        owner_rows: dict[int, int] = {}
+        for slot in static.owned:
+            area = self._slots[slot]
+            owner = world.index.get(area.spec["owner"], -1)
+            if owner < 0 or not live[owner]:
                 continue
+            owner_rows[slot] = owner
+            lo, hi = np.searchsorted(prev, [slot * _K, (slot + 1) * _K])
+            prev_rows = prev[lo:hi] - slot * _K
             cand_mask = live & area.kinds[kind]
-            if owner >= 0:
-                cand_mask[owner] = False
-                cand_mask &= owner_of != owner
+            cand_mask[owner] = False
+            cand_mask &= owner_of != owner
             cand = np.flatnonzero(cand_mask)
-            xy = pos[cand, :2]
+            xy = to_local_xy(pos[cand, :2], pos[owner, :2], world.rpy[owner, 2])
             z = pos[cand, 2]
-            z_lo, z_hi = area.z_lo, area.z_hi
-            if owner >= 0:
-                xy = to_local_xy(xy, pos[owner, :2], world.rpy[owner, 2])
-                z_lo, z_hi = z_lo + pos[owner, 2], z_hi + pos[owner, 2]
+            z_lo, z_hi = area.z_lo + pos[owner, 2], area.z_hi + pos[owner, 2]
             x0, y0, x1, y1 = area.bounds
             near = ((xy[:, 0] >= x0) & (xy[:, 0] <= x1) & (xy[:, 1] >= y0) & (xy[:, 1] <= y1)
                     & (z >= z_lo) & (z <= z_hi))
             cand, xy = cand[near], xy[near]
             in_outer = _inside(area.outer, xy)
             in_inner = in_outer if area.inner is area.outer else _inside(area.inner, xy)
-            state[cand] = in_inner | (state_prev[cand] & in_outer)
-            self._state[area_id] = state
-            facts.extend(self._facts(world, area, owner, state, live))
-        return facts
+            was = np.isin(cand, prev_rows, assume_unique=True)
+            new_parts.append(slot * _K + cand[in_inner | (was & in_outer)])
+        keys = np.sort(np.concatenate(new_parts)) if new_parts else np.zeros(0, np.int64)
+        self._keys = keys
+        bounds = np.searchsorted(keys, np.arange(len(self._slots) + 1, dtype=np.int64) * _K)
+        rows_all = keys % _K
+        kind_count = None
+        for slot, area in enumerate(self._slots):
+            owner = owner_rows.get(slot, -1)
+            if area.spec["owner"] and owner < 0:
+                continue
+            rows = rows_all[bounds[slot]:bounds[slot + 1]]
+            if "density" in area.spec["facts"] and owner < 0 and kind_count is None:
+                kind_count = np.bincount(kind[live], minlength=4)
+            self._facts(world, area, owner, rows, live, kind_count, out)
+        return out
 
-    def _facts(self, world: World, area: _Compiled, owner: int, state: np.ndarray,
-               live: np.ndarray) -> list[Fact]:
+    def _facts(self, world: World, area: _Compiled, owner: int, rows: np.ndarray,
+               live: np.ndarray, kind_count: np.ndarray | None, out: FactBatch) -> None:
         spec, area_id = area.spec, area.area_id
-        rows = np.flatnonzero(state)
         owner_id = spec["owner"] if owner >= 0 else ""
-        area_type = spec["area_type"]
-        if area_type == "room":
-            prop, sub = "IsInRoom", "room"
-        elif area_type == "support":
-            prop, sub = "IsAt", "location"
-        else:
-            prop, sub = "IsInArea", area_type
-        obs = self.config["observability_area"]
-        ids, owners = world.ids, world.owner
-        facts = [Fact(ids[r], prop, area_id, "true", None, 1.0, obs, "position", sub,
-                      ids[owners[r]] if owners[r] >= 0 else "", owner_id) for r in rows.tolist()]
+        prop, sub = area.prop, area.sub
+        out.add(prop, rows, area_id, obs=self.config["observability_area"],
+                property_type="position", sub_property=sub, tgt_owner=owner_id)
         if "interaction" in spec["facts"] and owner >= 0 and rows.size:
             pos = world.pos
             angle = wrap_angle(world.rpy[rows, 2] - bearing(pos[rows, :2], pos[owner, :2]))
             limit = self.config["facing_angle"]
             conf = (limit - np.abs(angle)) / limit
             keep = conf > 0
-            obs_facing = self.config["observability_facing"]
-            facts.extend(
-                Fact(ids[r], "IsFacing", owner_id, "true", a, c, obs_facing, "posture", "angle",
-                     ids[owners[r]] if owners[r] >= 0 else "", "")
-                for r, a, c in zip(rows[keep].tolist(), angle[keep].tolist(),
-                                   conf[keep].tolist(), strict=True))
+            out.add("IsFacing", rows[keep], owner_id, value_num=angle[keep], conf=conf[keep],
+                    obs=self.config["observability_facing"], property_type="posture",
+                    sub_property="angle")
         if "density" in spec["facts"]:
-            population = live & area.kinds[world.kind[: world.n]]
             if owner >= 0:
+                population = live & area.kinds[world.kind[: world.n]]
                 population[owner] = False
                 population &= world.owner[: world.n] != owner
-            total = int(population.sum())
+                total = int(population.sum())
+            else:
+                total = int(kind_count[area.kinds].sum())
             ratio = rows.size / total if total else 0.0
-            facts.append(Fact(area_id, "AreaDensity", "", "true", ratio, 1.0, 0.0, "density",
-                              "ratio", owner_id, ""))
-        return facts
+            out.add("AreaDensity", area_id, "", value_num=ratio, conf=1.0, obs=0.0,
+                    property_type="density", sub_property="ratio", subj_owner=owner_id)
+
+
+class _StaticAreas:
+    """Areas without owner, compiled to arrays for a vectorised membership test."""
+
+    def __init__(self, slots: list[_Compiled]) -> None:
+        static = [i for i, a in enumerate(slots) if not a.spec["owner"]]
+        self.owned = [i for i, a in enumerate(slots) if a.spec["owner"]]
+        self.slots = np.asarray(static, np.int64)
+        areas = [slots[i] for i in static]
+        b = np.asarray([a.bounds for a in areas], float).reshape(-1, 4)
+        self.x0, self.y0, self.x1, self.y1 = b.T
+        self.z_lo = np.asarray([a.z_lo for a in areas], float)
+        self.z_hi = np.asarray([a.z_hi for a in areas], float)
+        self.kinds = np.asarray([a.kinds for a in areas], bool).reshape(-1, 4)
+        self.circle = np.asarray([isinstance(a.outer, tuple) for a in areas], bool)
+        self.same = np.asarray([a.inner is a.outer for a in areas], bool)
+        circ = [(a.outer, a.inner) if isinstance(a.outer, tuple) else ((0, 0, 0), (0, 0, 0))
+                for a in areas]
+        self.cx = np.asarray([c[0][0] for c in circ], float)
+        self.cy = np.asarray([c[0][1] for c in circ], float)
+        self.r_out = np.asarray([c[0][2] for c in circ], float)
+        self.r_in = np.asarray([c[1][2] for c in circ], float)
+        self.outer = np.asarray([None if isinstance(a.outer, tuple) else a.outer for a in areas]
+                                + [None], object)[:-1]
+        self.inner = np.asarray([None if isinstance(a.inner, tuple) else a.inner for a in areas]
+                                + [None], object)[:-1]
+
+    def members(self, pos: np.ndarray, kind: np.ndarray, live: np.ndarray,
+                prev: np.ndarray) -> np.ndarray:
+        """New membership keys of the static areas (unsorted)."""
+        cand = np.flatnonzero(live & self.kinds.any(axis=0)[kind])
+        if cand.size == 0:
+            return np.zeros(0, np.int64)
+        x = pos[cand, 0]
+        order = np.argsort(x, kind="stable")
+        xs = x[order]
+        lo = np.searchsorted(xs, self.x0, side="left")
+        hi = np.searchsorted(xs, self.x1, side="right")
+        counts = np.maximum(hi - lo, 0)
+        total = int(counts.sum())
+        if total == 0:
+            return np.zeros(0, np.int64)
+        area = np.repeat(np.arange(len(counts)), counts)
+        start = np.cumsum(counts) - counts
+        ent = cand[order[np.arange(total) - np.repeat(start - lo, counts)]]
+        p = pos[ent]
+        ok = ((p[:, 1] >= self.y0[area]) & (p[:, 1] <= self.y1[area]) & (p[:, 2] >= self.z_lo[area])
+              & (p[:, 2] <= self.z_hi[area]) & self.kinds[area, kind[ent]])
+        area, ent, p = area[ok], ent[ok], p[ok]
+        circle = self.circle[area]
+        in_outer = np.empty(len(area), bool)
+        in_inner = np.empty(len(area), bool)
+        c = np.flatnonzero(circle)
+        if c.size:
+            ac = area[c]
+            d2 = (p[c, 0] - self.cx[ac]) ** 2 + (p[c, 1] - self.cy[ac]) ** 2
+            in_outer[c] = d2 <= self.r_out[ac] * self.r_out[ac]
+            in_inner[c] = d2 <= self.r_in[ac] * self.r_in[ac]
+        g = np.flatnonzero(~circle)
+        if g.size:
+            ag = area[g]
+            in_outer[g] = shapely.intersects_xy(self.outer[ag], p[g, 0], p[g, 1])
+            same = self.same[ag]
+            in_inner[g] = in_outer[g]
+            diff = g[~same]
+            if diff.size:
+                in_inner[diff] = shapely.intersects_xy(self.inner[area[diff]], p[diff, 0],
+                                                       p[diff, 1])
+        keys = self.slots[area] * _K + ent
+        was = np.isin(keys, prev)
+        return keys[in_inner | (was & in_outer)]
 
 
 LABELS = ((math.pi / 6, "ahead", "ahead"), (math.pi / 4, "ahead right", "ahead left"),

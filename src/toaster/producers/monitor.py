@@ -18,6 +18,7 @@ import numpy as np
 
 from toaster.errors import InvalidInputError
 from toaster.model import Fact
+from toaster.producers.batch import FactBatch
 from toaster.producers.config import make_config, ns
 from toaster.timeutil import NS_PER_S
 from toaster.world.geometry import bearing, gaze_axis, wrap_angle
@@ -73,22 +74,24 @@ class AgentMonitor:
     def monitored_joints(self, world: World, agents: np.ndarray, live: np.ndarray) -> np.ndarray:
         """Rows of the monitored joints of the given agents (default: all their joints)."""
         n = world.n
-        is_joint = (world.kind[:n] == JOINT) & live & np.isin(world.owner[:n], agents)
+        joints = np.flatnonzero((world.kind[:n] == JOINT) & live)
+        joints = joints[np.isin(world.owner[joints], agents)]
         which = self.config["monitored_joints"]
         if which is None:
-            return np.flatnonzero(is_joint)
+            return joints
         names = self._joint_names(world)
         if isinstance(which, Mapping):
-            rows = [r for r in np.flatnonzero(is_joint)
+            rows = [r for r in joints
                     if names[r] in which.get(world.ids[world.owner[r]], ())]
             return np.asarray(rows, dtype=np.int64)
-        return np.flatnonzero(is_joint & np.isin(names, list(which)))
+        return joints[np.isin(names[joints], list(which))]
 
     def head_rows(self, world: World) -> np.ndarray:
         """For every row, the row of its head joint (by name), or -1."""
         n = world.n
         names = self._joint_names(world)
-        heads = np.flatnonzero((world.kind[:n] == JOINT) & (names == self.config["head_joint"]))
+        joints = np.flatnonzero(world.kind[:n] == JOINT)
+        heads = joints[names[joints] == self.config["head_joint"]]
         head_of = np.full(n, -1, np.int64)
         head_of[world.owner[heads]] = heads
         return head_of
@@ -96,75 +99,81 @@ class AgentMonitor:
     # -- compute ----------------------------------------------------------------------------
     def compute(self, world: World, t_ns: int) -> list[Fact]:
         """All monitor facts for this tick."""
+        return self.compute_batch(world, t_ns).facts()
+
+    def compute_batch(self, world: World, t_ns: int) -> FactBatch:
+        """All monitor facts for this tick, as arrays (see :mod:`toaster.producers.batch`)."""
         cfg = self.config
         n = world.n
+        out = FactBatch(world)
         live = world.live_mask(t_ns, ns(cfg, "presence_timeout"))
         agents = self.monitored_agents(world, live)
         if agents.size == 0:
-            return []
+            return out
         targets = np.flatnonzero(live & (world.kind[:n] != JOINT))
-        facts = self._looking(world, agents, targets)
+        self._looking(world, agents, targets, out)
         gap = ns(cfg, "motion_max_gap")
         speed, _, _ = _speed(world, agents, ns(cfg, "body_speed_window"), gap)
         moving = speed > cfg["body_speed_threshold"]
-        ids = world.ids
         obs = cfg["observability_monitor"]
         mov = agents[moving]
-        facts.extend(Fact(ids[a], "IsMoving", "", "true", s, min(1.0, s * 3.6 / 5.0), obs,
-                          "motion", "agent") for a, s in zip(mov.tolist(),
-                                                             speed[moving].tolist(), strict=True))
         if mov.size:
-            facts.extend(self._toward(world, mov, targets, "body", speed[moving]))
+            s = speed[moving]
+            out.add("IsMoving", mov, value_num=s, conf=np.minimum(1.0, s * 3.6 / 5.0), obs=obs,
+                    property_type="motion", sub_property="agent")
+            self._toward(world, mov, targets, "body", out)
         still = agents[~moving]
         joints = self.monitored_joints(world, still, live)
         if joints.size:
-            facts.extend(self._distance(world, joints, targets))
+            self._distance(world, joints, targets, out)
             jspeed, _, _ = _speed(world, joints, ns(cfg, "joint_speed_window"), gap)
             jm = jspeed > cfg["joint_speed_threshold"]
             jmov = joints[jm]
-            facts.extend(Fact(ids[j], "IsMoving", "", "true", s, min(1.0, s * 3.6 / 20.0), obs,
-                              "motion", "joint", ids[world.owner[j]])
-                         for j, s in zip(jmov.tolist(), jspeed[jm].tolist(), strict=True))
             if jmov.size:
-                facts.extend(self._toward(world, jmov, targets, "joint", jspeed[jm]))
-        return facts
+                s = jspeed[jm]
+                out.add("IsMoving", jmov, value_num=s, conf=np.minimum(1.0, s * 3.6 / 20.0),
+                        obs=obs, property_type="motion", sub_property="joint")
+                self._toward(world, jmov, targets, "joint", out)
+        return out
 
-    def _looking(self, world: World, agents: np.ndarray, targets: np.ndarray) -> list[Fact]:
+    def _looking(self, world: World, agents: np.ndarray, targets: np.ndarray,
+                 out: FactBatch) -> None:
         cfg = self.config
         head_of = self.head_rows(world)
         heads = head_of[agents]
         has = heads >= 0
         agents, heads = agents[has], heads[has]
         if agents.size == 0 or targets.size == 0:
-            return []
+            return
         reach, aperture = cfg["look_toward_distance"], cfg["look_toward_aperture"]
         points = world.pos[np.where(head_of[targets] >= 0, head_of[targets], targets)]
-        delta = points[None, :, :] - world.pos[heads][:, None, :]
-        dist = np.linalg.norm(delta, axis=2)
+        hp = world.pos[heads]
+        dx = points[None, :, 0] - hp[:, None, 0]
+        dy = points[None, :, 1] - hp[:, None, 1]
+        dz = points[None, :, 2] - hp[:, None, 2]
+        dist = np.sqrt(dx * dx + dy * dy + dz * dz)  # = norm over (dx, dy, dz), same rounding
         near = (dist <= reach) & (targets[None, :] != agents[:, None]) & (dist > 0)
         ai, ti = np.nonzero(near)
         if ai.size == 0:
-            return []
+            return
         axis = gaze_axis(world.rpy[heads[ai]])
-        cos = np.einsum("ij,ij->i", delta[ai, ti], axis) / dist[ai, ti]
-        ang = np.arccos(np.clip(cos, -1.0, 1.0))
         d = dist[ai, ti]
+        delta = np.stack([dx[ai, ti], dy[ai, ti], dz[ai, ti]], axis=1)
+        cos = np.einsum("ij,ij->i", delta, axis) / d
+        ang = np.arccos(np.clip(cos, -1.0, 1.0))
         toward = ang < aperture / 2
         at = toward & (d <= reach / 2) & (ang < aperture / 8)
-        ids, obs = world.ids, cfg["observability_monitor"]
-        a_ids, t_ids = agents[ai].tolist(), targets[ti].tolist()
-        angs = ang.tolist()
-        out = [Fact(ids[a_ids[k]], "IsLookingToward", ids[t_ids[k]], "true", angs[k],
-                    (aperture - angs[k]) / aperture, obs, "attention", "agent")
-               for k in np.flatnonzero(toward).tolist()]
+        obs = cfg["observability_monitor"]
+        a_rows, t_rows = agents[ai], targets[ti]
         quarter = aperture / 4
-        out.extend(Fact(ids[a_ids[k]], "IsLookingAt", ids[t_ids[k]], "true", angs[k],
-                        (quarter - angs[k]) / quarter, obs, "attention", "agent")
-                   for k in np.flatnonzero(at).tolist())
-        return out
+        for keep, prop, width in ((toward, "IsLookingToward", aperture),
+                                  (at, "IsLookingAt", quarter)):
+            a = ang[keep]
+            out.add(prop, a_rows[keep], t_rows[keep], value_num=a, conf=(width - a) / width,
+                    obs=obs, property_type="attention", sub_property="agent")
 
     def _toward(self, world: World, movers: np.ndarray, targets: np.ndarray, part: str,
-                speed: np.ndarray) -> list[Fact]:
+                out: FactBatch) -> None:
         """IsMovingToward by direction and by distance for moving bodies or joints."""
         cfg = self.config
         gap = ns(cfg, "motion_max_gap")
@@ -178,45 +187,45 @@ class AgentMonitor:
         dev = wrap_angle(heading[:, None] - bearing(now[:, None, :], tgt[None, :, :]))
         theta = cfg[f"{part}_toward_angle"]
         conf = (theta - np.abs(dev)) / theta
-        ids, obs = world.ids, cfg["observability_monitor"]
-        owner_ids = ["" if o < 0 else ids[o] for o in owner.tolist()]
+        obs = cfg["observability_monitor"]
         mi, ti = np.nonzero((conf > 0) & ~excluded)
-        out = [Fact(ids[m], "IsMovingToward", ids[t], "true", d, c, obs, "motion", "direction",
-                    owner_ids[i])
-               for i, m, t, d, c in zip(mi.tolist(), movers[mi].tolist(), targets[ti].tolist(),
-                                        dev[mi, ti].tolist(), conf[mi, ti].tolist(), strict=True)]
+        out.add("IsMovingToward", movers[mi], targets[ti], value_num=dev[mi, ti],
+                conf=conf[mi, ti], obs=obs, property_type="motion", sub_property="direction")
         _, ref, secs = _speed(world, movers, ns(cfg, f"{part}_toward_distance_window"), gap)
-        before = np.linalg.norm(ref[:, None, :] - tgt[None, :, :], axis=2)
-        after = np.linalg.norm(now[:, None, :] - tgt[None, :, :], axis=2)
+        before = _dist2d(ref, tgt)
+        after = _dist2d(now, tgt)
         delta = before - after
         step = np.linalg.norm(now - ref, axis=1)
         limit = cfg[f"{part}_toward_speed_threshold"] * secs
         ok = (delta > limit[:, None]) & ~excluded & (step[:, None] > 0)
         mi, ti = np.nonzero(ok)
-        share = delta[mi, ti] / step[mi]
-        out.extend(Fact(ids[m], "IsMovingToward", ids[t], "true", d, min(1.0, c), obs, "motion",
-                        "distance", owner_ids[i])
-                   for i, m, t, d, c in zip(mi.tolist(), movers[mi].tolist(),
-                                            targets[ti].tolist(), delta[mi, ti].tolist(),
-                                            share.tolist(), strict=True))
-        return out
+        out.add("IsMovingToward", movers[mi], targets[ti], value_num=delta[mi, ti],
+                conf=np.minimum(1.0, delta[mi, ti] / step[mi]), obs=obs,
+                property_type="motion", sub_property="distance")
 
-    def _distance(self, world: World, joints: np.ndarray, targets: np.ndarray) -> list[Fact]:
+    def _distance(self, world: World, joints: np.ndarray, targets: np.ndarray,
+                  out: FactBatch) -> None:
         cfg = self.config
         bounds = np.array([cfg["dist_reach"], cfg["dist_close"], cfg["dist_medium"],
                            cfg["dist_far"]])
         dist = np.linalg.norm(world.pos[joints][:, None, :] - world.pos[targets][None, :, :],
                               axis=2)
-        label = np.searchsorted(bounds, dist, side="right")
-        keep = np.ones_like(dist, bool) if cfg["distance_emit_out"] else label < 4
-        ji, ti = np.nonzero(keep)
-        ids, conf = world.ids, cfg["confidence_distance"]
-        obs = cfg["observability_monitor"]
-        jrows, owners = joints[ji].tolist(), world.owner[joints[ji]].tolist()
-        return [Fact(ids[j], "Distance", ids[t], lab, d, conf, obs, "position", "3D", ids[o])
-                for j, o, t, lab, d in zip(jrows, owners, targets[ti].tolist(),
-                                           DIST_LABELS[label[ji, ti]].tolist(),
-                                           dist[ji, ti].tolist(), strict=True)]
+        if cfg["distance_emit_out"]:
+            ji, ti = np.nonzero(np.ones_like(dist, bool))
+        else:
+            ji, ti = np.nonzero(dist < bounds[3])  # label < 4 (searchsorted right)
+        d = dist[ji, ti]
+        label = np.searchsorted(bounds, d, side="right")
+        out.add("Distance", joints[ji], targets[ti], value_text=(label, DIST_LABELS),
+                value_num=d, conf=cfg["confidence_distance"], obs=cfg["observability_monitor"],
+                property_type="position", sub_property="3D")
+
+
+def _dist2d(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(len(a), len(b)) 2D distances."""
+    dx = a[:, None, 0] - b[None, :, 0]
+    dy = a[:, None, 1] - b[None, :, 1]
+    return np.sqrt(dx * dx + dy * dy)
 
 
 def pointing(world: World, agent_id: str, joint: str = "rightHand", *, t_ns: int | None = None,

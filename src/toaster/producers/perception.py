@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from toaster.model import Fact
+from toaster.producers.batch import FactBatch
 from toaster.producers.config import make_config, ns
 from toaster.world.state import ROBOT, World
 
@@ -22,14 +23,19 @@ class PerceptionFacts:
 
     def compute(self, world: World, t_ns: int) -> list[Fact]:
         """Facts for this tick."""
-        cfg, n, ids = self.config, world.n, world.ids
+        return self.compute_batch(world, t_ns).facts()
+
+    def compute_batch(self, world: World, t_ns: int) -> FactBatch:
+        """Facts for this tick, as arrays."""
+        cfg, n = self.config, world.n
+        out = FactBatch(world)
         live = world.live_mask(t_ns, ns(cfg, "presence_timeout"))
         agents = np.flatnonzero(live & (world.kind[:n] <= ROBOT))
-        facts = [Fact(ids[a], "isPresent", "", "true", None, cfg["confidence_present"],
-                      cfg["observability_present"]) for a in agents.tolist()]
+        out.add("isPresent", agents, "", conf=cfg["confidence_present"],
+                obs=cfg["observability_present"])
         held = np.flatnonzero(live & (world.held_by[:n] >= 0))
-        for obj in held.tolist():
-            agent = ids[world.owner[world.held_by[obj]]]
-            facts.append(Fact(ids[obj], "IsInHand", agent, "true", None, 1.0,
-                              cfg["observability_in_hand"], "position", "object", "", agent))
-        return facts
+        if held.size:
+            agent = world.owner[world.held_by[held]]
+            out.add("IsInHand", held, agent, obs=cfg["observability_in_hand"],
+                    property_type="position", sub_property="object", tgt_owner=agent)
+        return out

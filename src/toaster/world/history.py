@@ -14,6 +14,7 @@ from toaster.timeutil import NS_PER_S
 
 DEFAULT_HORIZON_NS = 3_300_000_000
 NO_TIME = np.iinfo(np.int64).min
+_BIG = np.iinfo(np.int64).max
 
 
 class History:
@@ -84,8 +85,7 @@ class History:
         """For each row, the oldest sample with time > t_ref (the original's window rule)."""
         times, valid = self._valid(rows)
         ok = valid & (times > np.asarray(t_ref, dtype=np.int64).reshape(-1, 1))
-        big = np.iinfo(np.int64).max
-        slot = np.where(ok, times, big).argmin(axis=1)
+        slot = np.where(ok, times, _BIG).argmin(axis=1)
         found = ok.any(axis=1)
         return found, times[np.arange(len(rows)), slot], self.pos[rows, slot], self.rpy[rows, slot]
 

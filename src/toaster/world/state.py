@@ -63,6 +63,9 @@ class World:
         self.held_by = np.zeros(0, np.int64)
         self.sources_enabled: dict[str, bool] = {}
         self.history = History(history_capacity, history_horizon_ns)
+        self._version = 0
+        self._id_cache: tuple[int, np.ndarray, np.ndarray] = (-1, np.zeros(0, object),
+                                                              np.zeros(0, object))
 
     # -- entities ---------------------------------------------------------------------------
     def _grow(self) -> None:
@@ -122,6 +125,7 @@ class World:
             self.mobility.append(mobility)
         self.kind[row] = KIND_CODES[kind]
         self.owner[row] = owner
+        self._version += 1
         if size is not None:
             self.size[row] = size
         self.active[row] = True
@@ -137,6 +141,22 @@ class World:
         self.held_by[rows] = -1
         self.t_ns[rows] = NO_TIME
         self.history.clear_rows(rows[rows < self.history.t.shape[0]])
+
+    def _ids_cached(self) -> tuple[int, np.ndarray, np.ndarray]:
+        if self._id_cache[0] != self._version:
+            ids = np.asarray(self.ids, dtype=object).reshape(-1)
+            owner = self.owner[: self.n]
+            owners = np.where(owner >= 0, ids[owner], "") if self.n else ids
+            self._id_cache = (self._version, ids, np.asarray(owners, dtype=object))
+        return self._id_cache
+
+    def id_array(self) -> np.ndarray:
+        """Entity ids by row, as a numpy object array (cached until an entity is added)."""
+        return self._ids_cached()[1]
+
+    def owner_id_array(self) -> np.ndarray:
+        """Owner id by row ("" for entities without owner), as a numpy object array."""
+        return self._ids_cached()[2]
 
     def row(self, entity_id: str) -> int:
         """Row of a known entity, or a one-line error naming it."""
@@ -166,16 +186,23 @@ class World:
                 conf: np.ndarray | None = None) -> int:
         """Apply a batch of poses from one source with the newest-then-most-confident rule.
 
-        Unknown ids must have been added first. Joint poses are given in world coordinates
-        and stored relative to their agent. Returns how many entities changed.
+        Unknown ids must have been added first. ``ids`` may also be an integer array of
+        rows (see :meth:`rows_of`), which skips the id lookups. Joint poses are given in world
+        coordinates and stored relative to their agent. Returns how many entities changed.
         """
         if not self.sources_enabled.setdefault(source, True) or len(ids) == 0:
             return 0
-        try:
-            rows = np.fromiter((self.index[i] for i in ids), np.int64, len(ids))
-        except KeyError as exc:
-            msg = f"source {source!r} reports unknown entity {exc.args[0]!r}: add it first"
-            raise UnknownEntityError(msg) from None
+        if isinstance(ids, np.ndarray) and ids.dtype.kind in "iu":
+            rows = ids.astype(np.int64, copy=False)
+            if rows.min() < 0 or rows.max() >= self.n:
+                msg = f"source {source!r} reports rows outside the world (0..{self.n - 1})"
+                raise UnknownEntityError(msg)
+        else:
+            try:
+                rows = np.fromiter((self.index[i] for i in ids), np.int64, len(ids))
+            except KeyError as exc:
+                msg = f"source {source!r} reports unknown entity {exc.args[0]!r}: add it first"
+                raise UnknownEntityError(msg) from None
         t = np.asarray(t_ns, dtype=np.int64)
         pos = np.asarray(pos, dtype=float).reshape(-1, 3)
         rpy = np.zeros_like(pos) if rpy is None else np.asarray(rpy, float).reshape(-1, 3)

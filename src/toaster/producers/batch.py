@@ -1,0 +1,187 @@
+"""Facts as arrays: a producer's snapshot kept columnar until someone needs Fact tuples.
+
+A :class:`FactBatch` is a list of groups. A group shares its property, sub-property, property
+type and observability; subjects and targets are either one text constant or an array of world
+rows; value_text, value_num and confidence are a constant or an array. Subject owners are always
+derived from the subject rows (the owner's id, or "" for a row without owner) or given with a
+constant subject; target owners are a constant or an array of rows (-1 = "").
+
+Diffing works on integer keys (group signature × subject row × target row) and interned
+value_text codes, so a tick where nothing changed creates no Python object per fact; only
+:meth:`FactBatch.facts` builds tuples (in group order, the order the producers always used).
+Rule kept by every producer: within one group signature, the target owner rows are a function
+of the subject and target rows, and a fact key is never produced both by a constant-subject
+(or -target) group and by a row group of the same signature.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from itertools import repeat
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from toaster.model import Fact
+
+_B = 1 << 21  # rows < 2M
+_SIGS: dict[tuple, int] = {}
+_TEXTS: dict[str, int] = {}
+_make_fact = partial(tuple.__new__, Fact)
+_EMPTY = np.zeros(0, np.int64)
+_NEG = np.full(1024, -1, np.int64)
+
+
+def _sig_id(sig: tuple) -> int:
+    got = _SIGS.get(sig)
+    if got is None:
+        got = _SIGS[sig] = len(_SIGS)
+    return got
+
+
+def text_code(text: str) -> int:
+    """A process-wide integer for a value_text."""
+    got = _TEXTS.get(text)
+    if got is None:
+        got = _TEXTS[text] = len(_TEXTS)
+    return got
+
+
+class Group(NamedTuple):
+    """One run of facts sharing their property (see the module doc)."""
+
+    prop: str
+    subj: np.ndarray | str
+    tgt: np.ndarray | str
+    value_text: str | tuple[np.ndarray, np.ndarray]  # constant or (codes, labels)
+    value_num: np.ndarray | float | None
+    conf: np.ndarray | float
+    obs: float
+    property_type: str
+    sub_property: str
+    tgt_owner: np.ndarray | str = ""
+    subj_owner: str = ""
+    size: int = 0
+
+
+class FactBatch:
+    """A producer's snapshot as array groups, tied to the world whose rows it names."""
+
+    __slots__ = ("_facts", "groups", "n", "world")
+
+    def __init__(self, world: Any) -> None:
+        self.world = world
+        self.groups: list[Group] = []
+        self.n = 0
+        self._facts: list[Fact] | None = None
+
+    def __len__(self) -> int:
+        return self.n
+
+    def add(self, prop: str, subj: np.ndarray | str, tgt: np.ndarray | str = "", *,
+            value_text: str | tuple[np.ndarray, np.ndarray] = "true",
+            value_num: np.ndarray | float | None = None, conf: np.ndarray | float = 1.0,
+            obs: float = 1.0, property_type: str = "", sub_property: str = "",
+            tgt_owner: np.ndarray | str = "", subj_owner: str = "") -> None:
+        """Append a group; array columns all have the group's length.
+
+        ``subj_owner`` is used only with a constant subject (row subjects derive theirs).
+        """
+        if isinstance(subj, np.ndarray):
+            size = len(subj)
+        elif isinstance(tgt, np.ndarray):
+            size = len(tgt)
+        else:
+            size = 1
+        if size == 0:
+            return
+        self.groups.append(Group(prop, subj, tgt, value_text, value_num, conf, obs,
+                                 property_type, sub_property, tgt_owner, subj_owner, size))
+        self.n += size
+        self._facts = None
+
+    # -- tuples ------------------------------------------------------------------------------
+    def facts(self) -> list[Fact]:
+        """The Fact tuples, in group order (built once, then cached)."""
+        if self._facts is not None:
+            return self._facts
+        world = self.world
+        ids = world.id_array()
+        owner_ids = world.owner_id_array()
+        out: list[Fact] = []
+        for g in self.groups:
+            m = g.size
+            if isinstance(g.subj, np.ndarray):
+                subj: Any = ids[g.subj].tolist()
+                subj_owner: Any = owner_ids[g.subj].tolist()
+            else:
+                subj, subj_owner = repeat(g.subj, m), repeat(g.subj_owner, m)
+            tgt = ids[g.tgt].tolist() if isinstance(g.tgt, np.ndarray) else repeat(g.tgt, m)
+            if isinstance(g.value_text, tuple):
+                codes, labels = g.value_text
+                vt: Any = labels[codes].tolist()
+            else:
+                vt = repeat(g.value_text, m)
+            vn = g.value_num.tolist() if isinstance(g.value_num, np.ndarray) else repeat(
+                g.value_num, m)
+            cf = g.conf.tolist() if isinstance(g.conf, np.ndarray) else repeat(g.conf, m)
+            if isinstance(g.tgt_owner, np.ndarray):
+                to: Any = np.where(g.tgt_owner >= 0, ids[g.tgt_owner], "").tolist()
+            else:
+                to = repeat(g.tgt_owner, m)
+            out.extend(map(_make_fact, zip(subj, repeat(g.prop, m), tgt, vt, vn, cf,  # noqa: B905
+                                           repeat(g.obs, m), repeat(g.property_type, m),
+                                           repeat(g.sub_property, m), subj_owner, to)))
+        self._facts = out
+        return out
+
+    # -- keys ----------------------------------------------------------------------------------
+    def keys(self) -> tuple[np.ndarray, np.ndarray]:
+        """(int64 fact keys, int64 value_text codes) for every fact, in group order."""
+        groups = self.groups
+        if not groups:
+            return _EMPTY, _EMPTY
+        sizes = np.fromiter((g.size for g in groups), np.int64, len(groups))
+        base = np.empty(len(groups), np.int64)
+        code = np.empty(len(groups), np.int64)
+        subj_parts, tgt_parts, labelled = [], [], []
+        neg = _neg1(int(sizes.max()))
+        for i, g in enumerate(groups):
+            subj_row = isinstance(g.subj, np.ndarray)
+            tgt_row = isinstance(g.tgt, np.ndarray)
+            base[i] = _sig_id((g.prop, g.sub_property,
+                               None if subj_row else (g.subj, g.subj_owner),
+                               None if tgt_row else g.tgt,
+                               None if isinstance(g.tgt_owner, np.ndarray) else g.tgt_owner))
+            subj_parts.append(g.subj if subj_row else neg[: g.size])
+            tgt_parts.append(g.tgt if tgt_row else neg[: g.size])
+            if isinstance(g.value_text, tuple):
+                code[i] = -1
+                labelled.append(i)
+            else:
+                code[i] = text_code(g.value_text)
+        keys = np.repeat(base * (_B * _B), sizes)
+        keys += (np.concatenate(subj_parts) + 1) * _B
+        keys += np.concatenate(tgt_parts) + 1
+        codes = np.repeat(code, sizes)
+        if labelled:
+            ends = np.cumsum(sizes)
+            for i in labelled:
+                lab_codes, labels = groups[i].value_text
+                table = np.array([text_code(x) for x in labels.tolist()], np.int64)
+                codes[ends[i] - sizes[i]: ends[i]] = table[lab_codes]
+        return keys, codes
+
+
+def _neg1(m: int) -> np.ndarray:
+    global _NEG
+    if len(_NEG) < m:
+        _NEG = np.full(max(m, 2 * len(_NEG)), -1, np.int64)
+    return _NEG
+
+
+def as_facts(facts: Any) -> list[Fact]:
+    """Fact tuples from a batch or any iterable of facts."""
+    if isinstance(facts, FactBatch):
+        return facts.facts()
+    return facts if isinstance(facts, list) else list(facts)
