@@ -303,7 +303,7 @@ class AreaManager:
             cand, xy = cand[near], xy[near]
             in_outer = _inside(area.outer, xy)
             in_inner = in_outer if area.inner is area.outer else _inside(area.inner, xy)
-            was = np.isin(cand, prev_rows, assume_unique=True)
+            was = _in_sorted(cand, prev_rows)
             new_parts.append(slot * _K + cand[in_inner | (was & in_outer)])
         keys = np.sort(np.concatenate(new_parts)) if new_parts else np.zeros(0, np.int64)
         self._keys = keys
@@ -347,6 +347,14 @@ class AreaManager:
             ratio = rows.size / total if total else 0.0
             out.add("AreaDensity", area_id, "", value_num=ratio, conf=1.0, obs=0.0,
                     property_type="density", sub_property="ratio", subj_owner=owner_id)
+
+
+def _in_sorted(values: np.ndarray, sorted_keys: np.ndarray) -> np.ndarray:
+    """``np.isin(values, sorted_keys)`` for a sorted key array (cheaper than np.isin)."""
+    if len(sorted_keys) == 0:
+        return np.zeros(len(values), bool)
+    pos = np.minimum(np.searchsorted(sorted_keys, values), len(sorted_keys) - 1)
+    return sorted_keys[pos] == values
 
 
 class _StaticAreas:
@@ -417,7 +425,7 @@ class _StaticAreas:
                 in_inner[diff] = shapely.intersects_xy(self.inner[area[diff]], p[diff, 0],
                                                        p[diff, 1])
         keys = self.slots[area] * _K + ent
-        was = np.isin(keys, prev)
+        was = _in_sorted(keys, prev)
         return keys[in_inner | (was & in_outer)]
 
 

@@ -59,7 +59,9 @@ class AgentMonitor:
                 msg = (f"monitored_agents {which!r} is not understood: use humans, robots, "
                        "agents or a list of agent ids")
                 raise InvalidInputError(msg)
-            mask = np.isin(kind, kinds)
+            table = np.zeros(4, bool)
+            table[list(kinds)] = True
+            mask = table[kind]
         else:
             mask = np.zeros(world.n, bool)
             mask[world.rows_of(which)] = True
@@ -75,7 +77,9 @@ class AgentMonitor:
         """Rows of the monitored joints of the given agents (default: all their joints)."""
         n = world.n
         joints = np.flatnonzero((world.kind[:n] == JOINT) & live)
-        joints = joints[np.isin(world.owner[joints], agents)]
+        mask = np.zeros(n, bool)
+        mask[agents] = True
+        joints = joints[mask[world.owner[joints]]]
         which = self.config["monitored_joints"]
         if which is None:
             return joints
