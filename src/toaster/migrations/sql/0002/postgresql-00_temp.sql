@@ -1,5 +1,6 @@
 CREATE TEMP TABLE IF NOT EXISTS belief_keys (key_id bigint PRIMARY KEY);
 CREATE TEMP TABLE IF NOT EXISTS belief_focus (entity_id text PRIMARY KEY);
 CREATE TEMP TABLE IF NOT EXISTS belief_seen (holder_id text, entity_id text, phase text, pconf float8);
+CREATE INDEX IF NOT EXISTS belief_seen_entity ON belief_seen (entity_id, phase);
 CREATE TEMP TABLE IF NOT EXISTS belief_in (holder_id text, self_key bigint, hkey bigint, pconf float8);
 CREATE TEMP TABLE IF NOT EXISTS belief_plan (holder_id text, hkey bigint, action text, value_text text, value_num float8, confidence float8, observability float8, previous_text text)
