@@ -91,15 +91,34 @@ class Runner:
             out[producer.name] = facts
             start = clock()
             changes = self.diff.apply(producer.name, facts)
-            if self.store is not None:
-                self.store.sync_snapshot(producer.name, self.agent_id, t_ns, as_facts(facts))
-            self._add("store" if self.store is not None else "diff", clock() - start)
+            self._add("diff", clock() - start)
             self.stats.facts += len(facts)
             self.stats.appeared += changes.appeared
             self.stats.changed += changes.changed
             self.stats.ended += changes.ended
+        if self.store is not None:
+            start = clock()
+            self._write(t_ns, out)
+            self._add("store", clock() - start)
         self.stats.ticks += 1
         return out
+
+    def _write(self, t_ns: int, out: dict[str, list[Fact] | FactBatch]) -> None:
+        """All producers' snapshots in one transaction (one commit per tick).
+
+        If that fails (the store's caches went stale under a concurrent writer, …) it has been
+        rolled back and the store has forgotten its caches: write again one snapshot per
+        transaction, as ``sync_snapshot`` alone does, so that its own retry applies.
+        """
+        store, agent = self.store, self.agent_id
+        snapshots = [(name, as_facts(facts)) for name, facts in out.items()]
+        try:
+            with store.transaction():
+                for name, facts in snapshots:
+                    store.sync_snapshot(name, agent, t_ns, facts)
+        except Exception:
+            for name, facts in snapshots:
+                store.sync_snapshot(name, agent, t_ns, facts)
 
     def _add(self, name: str, seconds: float) -> None:
         self.stats.seconds[name] = self.stats.seconds.get(name, 0.0) + seconds
