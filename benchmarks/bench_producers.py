@@ -70,7 +70,7 @@ def naive(world, areas, t):
     return facts
 
 
-def measure(n: int, repeats: int = 30) -> tuple[float, float]:
+def measure(n: int, repeats: int = 30) -> tuple[float, float, float, float]:
     world, areas, pos, rng = build(n)
     managers = [AreaManager(areas), AgentMonitor()]
     diff = SnapshotDiff()
@@ -89,16 +89,20 @@ def measure(n: int, repeats: int = 30) -> tuple[float, float]:
         start = time.perf_counter()
         naive(world, areas, t)
         naive_times.append(time.perf_counter() - start)
-    return statistics.median(times) * 1e3, statistics.median(naive_times) * 1e3
+    return (statistics.median(times) * 1e3, statistics.median(naive_times) * 1e3,
+            min(times) * 1e3, min(naive_times) * 1e3)
 
 
 def main() -> None:
+    # Medians are the targets; "best" (minimum) shows the cost without the preemption spikes
+    # of a loaded 2-vCPU machine (a tick descheduled once costs +4 ms).
     print(f"{'entities':>9} {'areas':>6} {'agents':>6} {'tick ms':>9} {'naive ms':>9} {'ratio':>7}"
-          f" {'target':>8}")
+          f" {'target':>8} {'best ms':>8} {'naive best':>10} {'ratio':>6}")
     for n, target in ((1_000, 5.0), (10_000, 50.0)):
-        fast, slow = measure(n)
+        fast, slow, fast_min, slow_min = measure(n)
         print(f"{n:>9} {100:>6} {20:>6} {fast:>9.2f} {slow:>9.1f} {slow / fast:>6.0f}× "
-              f"{'≤' + str(target):>8}")
+              f"{'≤' + str(target):>8} {fast_min:>8.2f} {slow_min:>10.1f} "
+              f"{slow_min / fast_min:>5.0f}×")
 
 
 if __name__ == "__main__":
