@@ -188,13 +188,24 @@ class AgentMonitor:
         tgt = world.pos[targets, :2]
         _, ref_dir, _ = _speed(world, movers, ns(cfg, f"{part}_direction_window"), gap)
         heading = bearing(ref_dir, now)
-        dev = wrap_angle(heading[:, None] - bearing(now[:, None, :], tgt[None, :, :]))
         theta = cfg[f"{part}_toward_angle"]
-        conf = (theta - np.abs(dev)) / theta
         obs = cfg["observability_monitor"]
-        mi, ti = np.nonzero((conf > 0) & ~excluded)
-        out.add("IsMovingToward", movers[mi], targets[ti], value_num=dev[mi, ti],
-                conf=conf[mi, ti], obs=obs, property_type="motion", sub_property="direction")
+        dx = tgt[None, :, 0] - now[:, None, 0]
+        dy = tgt[None, :, 1] - now[:, None, 1]
+        cand = ~excluded
+        if theta < np.pi - 1e-3:
+            # cheap superset of |dev| < theta: cos(dev) > cos(theta + margin) (no arctan2 over
+            # every pair); the exact test below decides, so the facts are unchanged
+            dot = np.cos(heading)[:, None] * dx + np.sin(heading)[:, None] * dy
+            dist = np.sqrt(dx * dx + dy * dy)
+            cand &= (dot > np.cos(theta + 1e-6) * dist) | (dist == 0)
+        mi, ti = np.nonzero(cand)
+        dev = wrap_angle(heading[mi] - np.arctan2(dy[mi, ti], dx[mi, ti]))
+        conf = (theta - np.abs(dev)) / theta
+        keep = conf > 0
+        mi, ti = mi[keep], ti[keep]
+        out.add("IsMovingToward", movers[mi], targets[ti], value_num=dev[keep],
+                conf=conf[keep], obs=obs, property_type="motion", sub_property="direction")
         _, ref, secs = _speed(world, movers, ns(cfg, f"{part}_toward_distance_window"), gap)
         before = _dist2d(ref, tgt)
         after = _dist2d(now, tgt)
