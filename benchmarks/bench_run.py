@@ -58,6 +58,13 @@ class PgSchema:
         sep = "&" if "?" in self.base else "?"
         return f"{self.base}{sep}options=-csearch_path%3D{self.name}"
 
+    def analyze(self) -> None:
+        """ANALYZE the schema's tables (the store's tables start empty: trap 2)."""
+        tables = self.conn.execute("SELECT tablename FROM pg_tables WHERE schemaname = %s",
+                                   (self.name,)).fetchall()
+        for (table,) in tables:
+            self.conn.execute(f'ANALYZE {self.name}."{table}"')
+
     def drop(self) -> None:
         self.conn.execute(f"DROP SCHEMA IF EXISTS {self.name} CASCADE")
         self.conn.close()
@@ -92,13 +99,16 @@ def scene(n: int, objects_move: bool):
     return tick
 
 
-def time_ticks(tick, store, ticks: int, warmup: int = 3) -> tuple[float, float, float]:
+def time_ticks(tick, store, ticks: int, warmup: int = 3,
+               after_warmup=None) -> tuple[float, float, float]:
     """(median ms, median rows written per tick, median facts)."""
     diff = SnapshotDiff()
     t = 10 * S
     for _ in range(warmup):
         tick(t, diff, store)
         t += S // 30
+    if after_warmup is not None:
+        after_warmup()
     times, rows = [], []
     for _ in range(ticks):
         start = time.perf_counter()
@@ -158,8 +168,10 @@ def bench_ticks(pg_url: str | None, ticks: int) -> None:
           f" {'rows/tick':>10} {'raw ms':>8} {'vs raw':>7}")
     for label, objects_move in (("all move", True), ("agents move", False)):
         base, _, _ = time_ticks(scene(1000, objects_move), None, ticks)
-        backends = [("sqlite", None)] + ([("postgresql", pg_url)] if pg_url else [])
-        for backend, url in backends:
+        backends = [("sqlite", None, False)]
+        if pg_url:
+            backends += [("postgresql", pg_url, False), ("pg+analyze", pg_url, True)]
+        for backend, url, analyze in backends:
             with tempfile.TemporaryDirectory() as tmp:
                 schema = None
                 if backend == "sqlite":
@@ -169,7 +181,8 @@ def bench_ticks(pg_url: str | None, ticks: int) -> None:
                     db_url = schema.url
                 try:
                     db, store = open_store(db_url)
-                    ms, rows, _ = time_ticks(scene(1000, objects_move), store, ticks)
+                    ms, rows, _ = time_ticks(scene(1000, objects_move), store, ticks,
+                                             after_warmup=schema.analyze if analyze else None)
                     db.close()
                     raw = (raw_sqlite(int(rows), f"{tmp}/raw.db") if backend == "sqlite"
                            else raw_pg(int(rows), schema.url))
