@@ -76,17 +76,6 @@ def remove_entity(conn: Connection, entity_id: str) -> None:
     conn.execute(delete(s.entities).where(s.entities.c.id == entity_id))
 
 
-def insert_missing_entities(conn: Connection, rows: list[dict[str, str]], t_ns: int) -> None:
-    """Register entities that facts mention but nobody declared (kind '')."""
-    ids = [row["id"] for row in rows]
-    existing = set(conn.execute(select(s.entities.c.id).where(
-        s.entities.c.id.in_(bindparam("ids", expanding=True))), {"ids": ids}).scalars())
-    new = [{"id": r["id"], "name": r["id"], "kind": "", "owner_id": r["owner"], "created_ns": t_ns}
-           for r in rows if r["id"] not in existing]
-    if new:
-        conn.execute(insert(s.entities), new)
-
-
 def check_entities(conn: Connection, ids: list[str]) -> None:
     """Raise :class:`UnknownEntityError` for the first id (non-empty) not registered."""
     wanted = [i for i in ids if i]

@@ -21,6 +21,12 @@ Tables
 ``store_state`` one row; ``cache_epoch`` is bumped by writes that bypass snapshot sync so that
                 every store process reloads what it remembers of the open facts.
 
+No foreign keys on ``facts`` and ``events``: they are the hot tables (thousands of rows per
+second) and a per-row foreign-key check there cost more than the insert itself (PostgreSQL runs
+one trigger per row). The store writes them only with key ids it just read or created, and
+deletions go through :func:`toaster.db.catalog.empty_facts`, which removes events, intervals and
+keys together.
+
 Readable views (``current_facts``, ``memory``, ``fact_history``, ``event_log``) and one view
 per agent (``fact_table_<agent>``, ``memory_table_<agent>``, ``events_table_<agent>``) are
 created by migrations and by agent registration (see :mod:`toaster.db.views`).
@@ -109,7 +115,7 @@ facts = Table(
     "facts",
     metadata,
     Column("id", RowId, primary_key=True, autoincrement=True),
-    Column("key_id", BigInteger, ForeignKey("fact_keys.id", ondelete="CASCADE"), nullable=False),
+    Column("key_id", BigInteger, nullable=False),  # -> fact_keys.id (see "No foreign keys")
     Column("value_text", Text, nullable=False),
     Column("value_num", Float, nullable=True),
     Column("confidence", Float, nullable=False),
@@ -134,8 +140,8 @@ events = Table(
     "events",
     metadata,
     Column("id", RowId, primary_key=True, autoincrement=True),
-    Column("key_id", BigInteger, ForeignKey("fact_keys.id", ondelete="CASCADE"), nullable=False),
-    Column("agent_id", Text, ForeignKey("agents.id", ondelete="CASCADE"), nullable=False),
+    Column("key_id", BigInteger, nullable=False),  # -> fact_keys.id
+    Column("agent_id", Text, nullable=False),  # -> agents.id
     Column("kind", Text, nullable=False),
     Column("stamp_ns", BigInteger, nullable=False),
     Column("value_text", Text, nullable=True),

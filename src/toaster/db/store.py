@@ -76,7 +76,7 @@ class _SourceState:
 
 
 class _StaleCache(Exception):
-    """An interval this store believed open was closed by someone else: reload and retry."""
+    """Another writer opened an interval concurrently: forget what is remembered and retry."""
 
 
 class Store:
@@ -189,16 +189,16 @@ class Store:
                          {"s": is_self, "a": agent_id})
             self._agents = None
 
-    def _ensure_entities(self, conn: Connection, facts: Iterable[Fact]) -> None:
-        rows = []
+    def _ensure_entities(self, facts: Iterable[Fact]) -> None:
+        rows, stamp = [], now_ns()
         for fact in facts:
             for entity_id, owner in ((fact.subject_id, fact.subject_owner_id),
                                      (fact.target_id, fact.target_owner_id)):
                 if entity_id and entity_id not in self._entities:
                     self._entities.add(entity_id)
-                    rows.append({"id": entity_id, "owner": owner})
+                    rows.append((entity_id, owner, stamp))
         if rows:
-            catalog.insert_missing_entities(conn, rows, now_ns())
+            self.backend.insert_entities(self.db.cursor(), rows)
 
     # ------------------------------------------------------------------ snapshot sync
     def sync_snapshot(self, source: str, agent_id: str, t_ns: int,
@@ -266,15 +266,8 @@ class Store:
         writes = _Writes(agent_id, source, t_ns)  # events in order: ended, changed, appeared
         for key in gone:
             writes.end(key_ids[(agent_id, key)], old[key])
-        fresh = []
-        for key, fact in touched:
-            held = held_get(key)
-            if held is None:
-                fresh.append((key, fact))
-            else:
-                writes.update(key_ids[(agent_id, key)], fact, held)
-        if fresh:
-            self._open_fresh(conn, agent_id, fresh, writes)
+        if touched:
+            self._resolve(conn, agent_id, touched, writes)
         self._apply(conn, writes)
         for key, fact in touched:
             old[key] = fact
@@ -290,27 +283,27 @@ class Store:
         missing = [(key, fact) for key, fact in facts if (agent_id, key) not in self._key_ids]
         if not missing:
             return set()
+        # Keys this process never saw are usually new: insert first, look up the rest.
         cur = self.db.cursor()
-        found = self.backend.lookup_keys(cur, agent_id, [key for key, _ in missing])
-        to_create = [(key, fact.property_type) for key, fact in missing if key not in found]
-        created: dict[Key, int] = {}
-        if to_create:
-            self._ensure_entities(conn, [fact for key, fact in missing if key not in found])
-            created = self.backend.insert_keys(cur, agent_id, to_create)
-            if len(created) != len(to_create):  # raced with another writer: read the rest
-                found.update(self.backend.lookup_keys(
-                    cur, agent_id, [key for key, _ in to_create if key not in created]))
+        self._ensure_entities([fact for _, fact in missing])
+        created = self.backend.insert_keys(
+            cur, agent_id, [(key, fact.property_type) for key, fact in missing])
+        found: dict[Key, int] = {}
+        if len(created) != len(missing):
+            found = self.backend.lookup_keys(
+                cur, agent_id, [key for key, _ in missing if key not in created])
         for key, key_id in (*found.items(), *created.items()):
             self._key_ids[(agent_id, key)] = key_id
         return set(created)
 
-    def _open_fresh(self, conn: Connection, agent_id: str, fresh: list[tuple[Key, Fact]],
-                    writes: _Writes) -> None:
-        """Facts new to this source: they may already be open (another source, a user)."""
-        created = self._key_id_map(conn, agent_id, fresh)
-        known = [self._key_ids[(agent_id, key)] for key, _ in fresh if key not in created]
+    def _resolve(self, conn: Connection, agent_id: str, items: list[tuple[Key, Fact]],
+                 writes: _Writes) -> None:
+        """Compare stated facts with what is stored now (the open interval, whoever wrote it):
+        a missing interval appears, another symbolic value changes, the rest refreshes."""
+        created = self._key_id_map(conn, agent_id, items)
+        known = [self._key_ids[(agent_id, key)] for key, _ in items if key not in created]
         open_rows = self.backend.open_rows(self.db.cursor(), known) if known else {}
-        for key, fact in fresh:
+        for key, fact in items:
             key_id = self._key_ids[(agent_id, key)]
             row = open_rows.get(key_id)
             if row is None:
@@ -324,13 +317,14 @@ class Store:
     def _apply(self, conn: Connection, writes: _Writes) -> None:
         cur = self.db.cursor()
         backend = self.backend
-        closing = writes.closing
-        if closing and backend.close_intervals(cur, writes.t_ns, closing) != len(closing):
-            raise _StaleCache
+        if writes.closing:
+            # A fact this source held may have been ended by another writer: no event then.
+            closed = backend.close_intervals(cur, writes.t_ns, writes.closing)
+            writes.ended = [(k, f) for k, f in writes.ended if k in closed]
+        writes.events[:0] = [writes.event(k, f, "ended", None) for k, f in writes.ended]
         if writes.refreshed:
-            rows = [(f.value_num, f.confidence, f.observability, k) for k, f in writes.refreshed]
-            if backend.refresh_intervals(cur, rows) != len(rows):
-                raise _StaleCache
+            backend.refresh_intervals(
+                cur, [(f.value_num, f.confidence, f.observability, k) for k, f in writes.refreshed])
         try:
             if writes.opening:
                 backend.insert_intervals(cur, writes.opening)
@@ -364,7 +358,7 @@ class Store:
                 catalog.check_entities(conn, [fact.subject_id, fact.target_id])
             key = fact_key(fact)
             writes = _Writes(agent_id, source, t_ns)
-            self._open_fresh(conn, agent_id, [(key, fact)], writes)
+            self._resolve(conn, agent_id, [(key, fact)], writes)
             self._apply(conn, writes)
             self.bump_epoch(conn)
         return writes.outcome()
@@ -490,12 +484,12 @@ class _Writes:
     def _open(self, key_id: int, fact: Fact, kind: str, previous: str | None) -> None:
         self.opening.append((key_id, fact.value_text, fact.value_num, fact.confidence,
                              fact.observability, self.t_ns, self.recorded_ns, self.source))
-        self._event(key_id, fact, kind, previous)
+        self.events.append(self.event(key_id, fact, kind, previous))
 
-    def _event(self, key_id: int, fact: Fact, kind: str, previous: str | None) -> None:
-        self.events.append((key_id, self.agent_id, kind, self.t_ns, fact.value_text,
-                            fact.value_num, fact.confidence, fact.observability, previous,
-                            self.source, self.recorded_ns))
+    def event(self, key_id: int, fact: Fact, kind: str, previous: str | None) -> tuple[Any, ...]:
+        """The events row for one change."""
+        return (key_id, self.agent_id, kind, self.t_ns, fact.value_text, fact.value_num,
+                fact.confidence, fact.observability, previous, self.source, self.recorded_ns)
 
     def appear(self, key_id: int, fact: Fact) -> None:
         self._open(key_id, fact, "appeared", None)
@@ -514,8 +508,8 @@ class _Writes:
             self.refreshed.append((key_id, fact))
 
     def end(self, key_id: int, fact: Fact) -> None:
+        """Close the key's open interval (its event is written once the close is known)."""
         self.closing.append(key_id)
-        self._event(key_id, fact, "ended", None)
         self.ended.append((key_id, fact))
 
     def change_set(self) -> ChangeSet:

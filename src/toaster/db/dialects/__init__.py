@@ -31,8 +31,8 @@ class Backend(Protocol):
         """Open intervals of these keys: key_id -> (value_text, value_num, confidence,
         observability, source)."""
 
-    def close_intervals(self, cur: Any, t_ns: int, key_ids: list[int]) -> int:
-        """Close the open interval of each key at ``t_ns``; return the number closed."""
+    def close_intervals(self, cur: Any, t_ns: int, key_ids: list[int]) -> set[int]:
+        """Close the open interval of each key at ``t_ns``; return the keys that had one."""
 
     def refresh_intervals(self, cur: Any, rows: list[tuple[Any, ...]]) -> int:
         """``(value_num, confidence, observability, key_id)``: refresh open intervals."""
@@ -44,6 +44,9 @@ class Backend(Protocol):
     def insert_events(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
         """``(key_id, agent_id, kind, stamp_ns, value_text, value_num, confidence,
         observability, previous_text, source, recorded_ns)``: append events."""
+
+    def insert_entities(self, cur: Any, rows: list[tuple[str, str, int]]) -> None:
+        """``(id, owner_id, created_ns)``: register entities (kind '') unless they exist."""
 
     def set_read_only(self, cur: Any) -> None:
         """Make the current transaction read-only, enforced by the database."""

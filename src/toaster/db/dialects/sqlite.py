@@ -33,10 +33,14 @@ class SQLiteBackend:
             params = [agent_id]
             for key in chunk:
                 params.extend(key)
-            cur.execute(
-                f"SELECT id, {_KEY_COLS} FROM fact_keys WHERE agent_id = ? "
-                f"AND ({_KEY_COLS}) IN (VALUES {values})",
-                params,
+            cur.execute(  # a join on the VALUES list seeks the identity index per key
+                f"WITH v(s, so, p, sp, t, tw) AS (VALUES {values[0:]}) "
+                f"SELECT k.id, k.subject_id, k.subject_owner_id, k.property, k.sub_property, "
+                f"k.target_id, k.target_owner_id FROM v CROSS JOIN fact_keys k "
+                f"ON k.agent_id = ? AND k.subject_id = v.s AND k.subject_owner_id = v.so "
+                f"AND k.property = v.p AND k.sub_property = v.sp AND k.target_id = v.t "
+                f"AND k.target_owner_id = v.tw",
+                [*params[1:], params[0]],
             )
             for row in cur.fetchall():
                 found[tuple(row[1:])] = row[0]
@@ -74,13 +78,17 @@ class SQLiteBackend:
                 found[row[0]] = tuple(row[1:])
         return found
 
-    def close_intervals(self, cur: Any, t_ns: int, key_ids: list[int]) -> int:
-        cur.executemany(
-            "UPDATE facts INDEXED BY uq_facts_open_key SET valid_to_ns = ? "
-            "WHERE key_id = ? AND valid_to_ns IS NULL",
-            [(t_ns, key_id) for key_id in key_ids],
-        )
-        return cur.rowcount
+    def close_intervals(self, cur: Any, t_ns: int, key_ids: list[int]) -> set[int]:
+        closed: set[int] = set()
+        for chunk in _chunks(key_ids, _MAX_VARS):
+            marks = ",".join("?" * len(chunk))
+            cur.execute(
+                "UPDATE facts INDEXED BY uq_facts_open_key SET valid_to_ns = ? "
+                f"WHERE key_id IN ({marks}) AND valid_to_ns IS NULL RETURNING key_id",
+                [t_ns, *chunk],
+            )
+            closed.update(row[0] for row in cur.fetchall())
+        return closed
 
     def refresh_intervals(self, cur: Any, rows: list[tuple[Any, ...]]) -> int:
         cur.executemany(
@@ -103,6 +111,13 @@ class SQLiteBackend:
             "confidence, observability, previous_text, source, recorded_ns) "
             "VALUES (?,?,?,?,?,?,?,?,?,?,?)",
             rows,
+        )
+
+    def insert_entities(self, cur: Any, rows: list[tuple[str, str, int]]) -> None:
+        cur.executemany(
+            "INSERT INTO entities (id, name, kind, owner_id, created_ns) "
+            "VALUES (?, ?, '', ?, ?) ON CONFLICT DO NOTHING",
+            [(entity_id, entity_id, owner, t) for entity_id, owner, t in rows],
         )
 
     def set_read_only(self, cur: Any) -> None:
