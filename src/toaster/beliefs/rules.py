@@ -122,8 +122,9 @@ class BeliefRule:
         self._agent_count = conn.execute(text("SELECT count(*) FROM agents")).scalar_one()
 
     def __call__(self, conn: Connection, changes: ChangeSet) -> None:
-        if changes.empty or not self.store.agents().get(changes.agent_id):
-            return
+        agents = self.store.agents()
+        if changes.empty or not agents.get(changes.agent_id) or all(agents.values()):
+            return  # not a self agent's change, or nobody else holds beliefs
         config = cfg.read(conn)
         if not config["enabled"]:
             return

@@ -64,6 +64,7 @@ def cli(ctx: click.Context, url: str | None, debug: bool) -> None:
 
 
 def _register() -> None:
+    from toaster.cli.beliefs import beliefs
     from toaster.cli.db import db_group
     from toaster.cli.demo import demo
     from toaster.cli.execute import execute
@@ -72,8 +73,8 @@ def _register() -> None:
     from toaster.cli.plot import plot_facts
     from toaster.cli.run import area, run
 
-    for command in (area, db_group, demo, execute, export, get_info, plot_facts, record, run,
-                    set_info):
+    for command in (area, beliefs, db_group, demo, execute, export, get_info, plot_facts,
+                    record, run, set_info):
         cli.add_command(command)
 
 

@@ -1,0 +1,149 @@
+"""``toaster beliefs``: each agent's beliefs, false-belief reports, scenarios, rule settings."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import click
+
+from toaster.cli.output import emit, output_options, say
+
+
+def _at(value: str | None) -> int | None:
+    from toaster.timeutil import parse_time
+
+    return None if value is None else parse_time(value)
+
+
+def _about(value: str | None) -> list[str] | None:
+    return None if not value else [part for part in value.split(",") if part]
+
+
+@click.group()
+def beliefs() -> None:
+    """Per-agent belief states kept by the perspective-taking rules.
+
+    A's model of B's beliefs is the holder ``A>B`` (``--about B``; ``--about B,C`` for deeper).
+    """
+
+
+@beliefs.command("show")
+@click.argument("agent")
+@click.option("--about", help="Show AGENT's model of this agent's beliefs (A>B).")
+@click.option("--at", "at", metavar="TIME", help="As of TIME (default now).")
+@click.option("--subject")
+@click.option("--property")
+@click.option("--target")
+@output_options
+@click.pass_obj
+def show(app: Any, agent: str, about: str | None, at: str | None, subject: str | None,
+         property: str | None, target: str | None, fmt: str | None) -> None:
+    """What AGENT believes (now or --at TIME)."""
+    from toaster.beliefs import api
+
+    rows = api.beliefs(app.db, agent, _about(about), at=_at(at), subject=subject,
+                       property=property, target=target)
+    emit(rows, fmt, empty=f"({agent} believes nothing that matches)")
+
+
+@beliefs.command("value")
+@click.argument("agent")
+@click.option("--subject", required=True)
+@click.option("--property", required=True)
+@click.option("--target", default="")
+@click.option("--about", help="AGENT's model of this agent's beliefs.")
+@click.option("--at", "at", metavar="TIME")
+@output_options
+@click.pass_obj
+def value(app: Any, agent: str, subject: str, property: str, target: str,
+          about: str | None, at: str | None, fmt: str | None) -> None:
+    """One belief of AGENT: its value and interval, or that it is not held."""
+    from toaster.beliefs import api
+
+    row = api.belief_value(app.db, agent, subject, property, target, about=_about(about),
+                           at=_at(at))
+    emit([row] if row else [], fmt, empty="(not believed)")
+
+
+@beliefs.command("diff")
+@click.argument("agent")
+@click.option("--other", help="Compare with this agent (default: the self agent).")
+@click.option("--about", help="Use AGENT's model of this agent.")
+@click.option("--at", "at", metavar="TIME")
+@output_options
+@click.pass_obj
+def diff(app: Any, agent: str, other: str | None, about: str | None, at: str | None,
+         fmt: str | None) -> None:
+    """False-belief report: where AGENT and OTHER disagree (value_a = AGENT's)."""
+    from toaster.beliefs import api
+
+    rows = api.false_beliefs(app.db, agent, other, about=about, at=_at(at))
+    emit(rows, fmt, empty="(no disagreement)")
+
+
+@beliefs.command("history")
+@click.option("--subject", required=True)
+@click.option("--property", required=True)
+@click.option("--target")
+@click.option("--agent", "agents", multiple=True, help="Only these holders (repeatable).")
+@output_options
+@click.pass_obj
+def history(app: Any, subject: str, property: str, target: str | None,
+            agents: tuple[str, ...], fmt: str | None) -> None:
+    """Every interval of one belief across the robot, the agents and nested holders."""
+    from toaster.beliefs import api
+
+    rows = api.belief_history(app.db, subject, property, target, agents=list(agents) or None)
+    emit(rows, fmt)
+
+
+@beliefs.command("holders")
+@click.pass_obj
+def holders(app: Any) -> None:
+    """Belief holders other than the self agent (first order, then nested A>B)."""
+    from toaster.beliefs import api
+
+    for holder in api.holders(app.db):
+        click.echo(holder)
+
+
+@beliefs.command("config")
+@click.argument("key", required=False)
+@click.argument("value", required=False)
+@click.pass_obj
+def config(app: Any, key: str | None, value: str | None) -> None:
+    """Show the rule settings, or set KEY to VALUE (JSON: depth 1, enabled false...)."""
+    from toaster.beliefs import api
+
+    if key is None:
+        click.echo(json.dumps(api.config(app.db), indent=2, sort_keys=True))
+        return
+    if value is None:
+        click.echo(json.dumps(api.config(app.db).get(key)))
+        return
+    try:
+        parsed = json.loads(value)
+    except json.JSONDecodeError:
+        parsed = value
+    api.configure(app.db, **{key: parsed})
+    say(f"beliefs.{key} = {json.dumps(parsed)}")
+
+
+@beliefs.command("replay")
+@click.argument("scenario", type=click.Path(exists=True, dir_okay=False))
+@click.option("--check", is_flag=True, help="Exit 1 unless every expectation holds.")
+@click.pass_obj
+def replay(app: Any, scenario: str, check: bool) -> None:
+    """Replay a belief scenario (timed facts and room changes) into the database."""
+    from toaster.beliefs import scenario as sc
+
+    loaded = sc.replay(app.db, scenario)
+    say(f"replayed {loaded.name}: {len(loaded.steps)} steps")
+    failures = sc.check(app.db, loaded)
+    for failure in failures:
+        click.echo(failure)
+    if loaded.expect:
+        say(f"{len(loaded.expect) - len(failures)}/{len(loaded.expect)} expectations hold")
+    if check and failures:
+        raise SystemExit(1)
