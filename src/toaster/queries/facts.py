@@ -8,8 +8,6 @@ from __future__ import annotations
 
 from typing import Any
 
-from sqlalchemy import text
-
 from toaster.model import FactRow
 
 FACT_COLUMNS = ", ".join(FactRow._fields)
@@ -19,12 +17,6 @@ _FILTER_ARGS = {"agent": "agent_id", "subject": "subject_id", "property": "prope
                 "target": "target_id", "sub_property": "sub_property", "source": "source",
                 "property_type": "property_type", "value": "value_text",
                 "subject_owner": "subject_owner_id", "target_owner": "target_owner_id"}
-_SEEK = (
-    "SELECT {cols} FROM fact_keys k JOIN facts f ON f.id = ("
-    "SELECT f2.id FROM facts f2 WHERE f2.key_id = k.id AND f2.valid_from_ns <= :t "
-    "ORDER BY f2.valid_from_ns DESC, f2.id DESC LIMIT 1) "
-    "WHERE {where} AND (f.valid_to_ns IS NULL OR f.valid_to_ns > :t)"
-)
 _KEY_COLS = ("k.agent_id, k.subject_id, k.subject_owner_id, k.property, k.property_type, "
              "k.sub_property, k.target_id, k.target_owner_id, f.value_text, f.value_num, "
              "f.confidence, f.observability, f.valid_from_ns, f.valid_to_ns, f.recorded_ns, "
@@ -48,8 +40,11 @@ def _where(filters: dict[str, Any], prefix: str = "") -> tuple[str, dict[str, An
 
 
 def _rows(db: Any, sql: str, params: dict[str, Any]) -> list[FactRow]:
-    with db.transaction() as conn:
-        return [FactRow(*row) for row in conn.execute(text(sql), params)]
+    # The driver's cursor directly: these reads are the API's hot path (as-of, point reads).
+    with db.transaction():
+        cur = db.cursor()
+        cur.execute(db.backend.named(sql), params)
+        return [FactRow(*row) for row in cur.fetchall()]
 
 
 def _select(db: Any, view: str, filters: dict[str, Any], *, since: int | None,
@@ -95,8 +90,9 @@ def beliefs_at(db: Any, agent: str, t_ns: int, **filters: Any) -> list[FactRow]:
     """Everything ``agent`` believed at ``t_ns`` (as-of): one seek per fact key of the agent."""
     where, params = _where({"agent": agent, **filters}, prefix="k.")
     params["t"] = t_ns
-    sql = _SEEK.format(cols=_KEY_COLS, where=where)
-    sql += " ORDER BY k.subject_id, k.property, k.target_id, k.id"
+    sql = (f"SELECT {_KEY_COLS} FROM fact_keys k {db.backend.as_of_join} WHERE {where} "
+           "AND (f.valid_to_ns IS NULL OR f.valid_to_ns > :t) "
+           "ORDER BY k.subject_id, k.property, k.target_id, k.id")
     return _rows(db, sql, params)
 
 

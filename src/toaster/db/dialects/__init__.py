@@ -18,6 +18,12 @@ class Backend(Protocol):
     """What the store needs from a backend; ``cur`` is a raw DBAPI cursor in a transaction."""
 
     name: str
+    #: FROM-clause fragment joining each key ``k`` to its interval ``f`` starting last at or
+    #: before ``:t`` (the per-key seek behind every as-of query).
+    as_of_join: str
+
+    def named(self, sql: str) -> str:
+        """``sql`` with ``:name`` placeholders rewritten to the driver's named style."""
 
     def lookup_keys(self, cur: Any, agent_id: str, keys: list[Key]) -> dict[Key, int]:
         """Ids of the given keys of ``agent_id`` that exist."""

@@ -6,10 +6,12 @@ Arrays travel in binary (``%b``): psycopg's text-array quoting costs ~1 µs per 
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 from toaster.db.dialects import Key
 
+_NAMED = re.compile(r"(?<![:\w]):(\w+)")
 _KEY_COLS = "subject_id, subject_owner_id, property, sub_property, target_id, target_owner_id"
 _KEY_ARRAYS = "%b::text[], %b::text[], %b::text[], %b::text[], %b::text[], %b::text[]"
 
@@ -24,6 +26,13 @@ class PostgreSQLBackend:
     """The PostgreSQL implementation of :class:`toaster.db.dialects.Backend`."""
 
     name = "postgresql"
+    as_of_join = (  # LATERAL fetches the row in the seek itself (no second look-up by id)
+        "CROSS JOIN LATERAL (SELECT * FROM facts f2 WHERE f2.key_id = k.id "
+        "AND f2.valid_from_ns <= :t ORDER BY f2.valid_from_ns DESC, f2.id DESC LIMIT 1) f"
+    )
+
+    def named(self, sql: str) -> str:
+        return _NAMED.sub(r"%(\1)s", sql)
 
     def lookup_keys(self, cur: Any, agent_id: str, keys: list[Key]) -> dict[Key, int]:
         cur.execute(

@@ -25,6 +25,13 @@ class SQLiteBackend:
     """The SQLite implementation of :class:`toaster.db.dialects.Backend`."""
 
     name = "sqlite"
+    as_of_join = (
+        "JOIN facts f ON f.id = (SELECT f2.id FROM facts f2 WHERE f2.key_id = k.id "
+        "AND f2.valid_from_ns <= :t ORDER BY f2.valid_from_ns DESC, f2.id DESC LIMIT 1)"
+    )
+
+    def named(self, sql: str) -> str:
+        return sql  # sqlite3 takes :name as it is
 
     def lookup_keys(self, cur: Any, agent_id: str, keys: list[Key]) -> dict[Key, int]:
         found: dict[Key, int] = {}
