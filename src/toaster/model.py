@@ -173,8 +173,22 @@ def check_unit_interval(value: object, what: str) -> float:
     return number
 
 
+def _plain(fact: object) -> bool:
+    """True for a Fact whose fields already have the right types and ranges (fast path)."""
+    if type(fact) is not Fact:
+        return False
+    s, p, t, vt, vn, c, o, pt, sp, so, to = fact  # type: ignore[misc]
+    return (type(s) is str and type(p) is str and type(t) is str and type(vt) is str
+            and type(pt) is str and type(sp) is str and type(so) is str and type(to) is str
+            and type(c) is float and 0.0 <= c <= 1.0 and type(o) is float and 0.0 <= o <= 1.0
+            and (vn is None or (type(vn) is float and math.isfinite(vn)))
+            and bool(s) and bool(p) and not s.isspace() and not p.isspace())
+
+
 def check_fact(fact: Fact) -> Fact:
     """Validate one fact (ids, confidence, observability, numeric value); return it normalised."""
+    if _plain(fact):
+        return fact
     if not isinstance(fact, Fact):
         if isinstance(fact, tuple) and 2 <= len(fact) <= len(Fact._fields):
             fact = Fact(*fact)
