@@ -131,8 +131,6 @@ def upgrade() -> None:
     sa.Column('source', sa.Text(), nullable=False),
     sa.Column('recorded_ns', sa.BigInteger(), nullable=False),
     sa.CheckConstraint("kind IN ('appeared', 'changed', 'ended', 'event')", name=op.f('ck_events_kind_known')),
-    sa.ForeignKeyConstraint(['agent_id'], ['agents.id'], name=op.f('fk_events_agent_id_agents'), ondelete='CASCADE'),
-    sa.ForeignKeyConstraint(['key_id'], ['fact_keys.id'], name=op.f('fk_events_key_id_fact_keys'), ondelete='CASCADE'),
     sa.PrimaryKeyConstraint('id', name=op.f('pk_events'))
     )
     with op.batch_alter_table('events', schema=None) as batch_op:
@@ -154,7 +152,6 @@ def upgrade() -> None:
     sa.CheckConstraint('confidence >= 0 AND confidence <= 1', name=op.f('ck_facts_confidence_range')),
     sa.CheckConstraint('observability >= 0 AND observability <= 1', name=op.f('ck_facts_observability_range')),
     sa.CheckConstraint('valid_to_ns IS NULL OR valid_to_ns >= valid_from_ns', name=op.f('ck_facts_valid_interval')),
-    sa.ForeignKeyConstraint(['key_id'], ['fact_keys.id'], name=op.f('fk_facts_key_id_fact_keys'), ondelete='CASCADE'),
     sa.PrimaryKeyConstraint('id', name=op.f('pk_facts'))
     )
     with op.batch_alter_table('facts', schema=None) as batch_op:
