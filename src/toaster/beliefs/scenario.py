@@ -25,13 +25,13 @@ see it as one tick. Expectations are as-of queries at their ``t`` (default: the 
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from toaster.beliefs import api
+from toaster.documents import read_document
 from toaster.errors import FileFormatError, InvalidInputError
 from toaster.model import Fact, check_fact, fact_key
 
@@ -143,23 +143,7 @@ def parse(data: object, name: str = "scenario") -> Scenario:
 def load(path: str | Path) -> Scenario:
     """Read a scenario file (``.yaml``/``.yml`` or ``.json``)."""
     path = Path(path)
-    try:
-        body = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        msg = f"cannot read scenario {str(path)!r}: {exc.strerror}"
-        raise FileFormatError(msg) from None
-    try:
-        if path.suffix == ".json":
-            data = json.loads(body)
-        else:
-            import yaml
-
-            data = yaml.safe_load(body)
-    except Exception as exc:  # any parse error of either format
-        first = str(exc).strip().splitlines()[0]
-        msg = f"cannot parse scenario {str(path)!r}: {first}"
-        raise FileFormatError(msg) from None
-    return parse(data, path.name)
+    return parse(read_document(path, "scenario"), path.name)
 
 
 class Replayer:

@@ -25,14 +25,12 @@ was, and the error names the file, the row and the fix.
 
 from __future__ import annotations
 
-import json
 import xml.etree.ElementTree as ET
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import yaml
-
+from toaster.documents import read_document
 from toaster.errors import FileFormatError, InvalidInputError
 from toaster.model import Fact
 from toaster.timeutil import parse_time
@@ -67,25 +65,13 @@ def load_file(store: Any, path: str | Path) -> BatchReport:
         rows = _read_xml(path)
         with store.transaction():
             return _apply_xml(store, path, rows)
-    data = _read_document(path, suffix)
+    data = read_document(path, "batch file")
+    if not isinstance(data, dict):
+        msg = (f"cannot read {str(path)!r}: the top level must be a mapping with sections "
+               f"{', '.join(sorted(_SECTIONS))}")
+        raise FileFormatError(msg)
     with store.transaction():
         return apply_document(store, data, origin=str(path))
-
-
-def _read_document(path: Path, suffix: str) -> dict[str, Any]:
-    try:
-        raw = path.read_text(encoding="utf-8")
-        data = json.loads(raw) if suffix == ".json" else yaml.safe_load(raw)
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, yaml.YAMLError) as exc:
-        reason = str(exc).strip().splitlines()[0]
-        msg = f"cannot read {str(path)!r}: {reason} (expected JSON or YAML with sections " \
-              f"{', '.join(sorted(_SECTIONS))})"
-        raise FileFormatError(msg) from None
-    if not isinstance(data, dict):
-        msg = f"cannot read {str(path)!r}: the top level must be a mapping with sections " \
-              f"{', '.join(sorted(_SECTIONS))}"
-        raise FileFormatError(msg)
-    return data
 
 
 def apply_document(store: Any, data: dict[str, Any], *, origin: str = "batch") -> BatchReport:

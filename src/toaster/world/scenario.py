@@ -6,7 +6,6 @@ entity at time t is computed from its waypoints, so replays give identical world
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -14,8 +13,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
+from toaster.documents import read_document
 from toaster.errors import FileFormatError, InvalidInputError
 from toaster.timeutil import parse_duration, parse_time
 from toaster.world.geometry import wrap_angle
@@ -77,18 +76,7 @@ class Scenario:
 def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a scenario file (.yaml, .yml or .json)."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        msg = f"cannot read scenario {str(path)!r}: {exc.strerror}"
-        raise FileFormatError(msg) from None
-    try:
-        data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
-    except (json.JSONDecodeError, yaml.YAMLError) as exc:
-        first = str(exc).splitlines()[0]
-        msg = f"scenario {path.name!r} is not valid YAML/JSON ({first}): fix the syntax"
-        raise FileFormatError(msg) from None
-    return parse_scenario(data, path.name)
+    return parse_scenario(read_document(path, "scenario"), path.name)
 
 
 def parse_scenario(data: Any, origin: str = "scenario") -> Scenario:
