@@ -12,12 +12,12 @@ from toaster.cli import cli
 
 
 @pytest.fixture
-def sally_anne(db_url: str):  # noqa: ANN201
+def sally_anne(db_url: str):
     """The shipped Sally-Anne scenario replayed with its expectations checked."""
     runner = CliRunner()
     path = resources.files("toaster") / "examples" / "beliefs_sally_anne.yaml"
 
-    def invoke(*args: str):  # noqa: ANN202
+    def invoke(*args: str):
         return runner.invoke(cli, ["--db", db_url, *args])
 
     result = invoke("beliefs", "replay", str(path), "--check")
@@ -25,7 +25,7 @@ def sally_anne(db_url: str):  # noqa: ANN201
     return invoke
 
 
-def test_false_belief_while_sally_is_away(sally_anne) -> None:  # noqa: ANN001
+def test_false_belief_while_sally_is_away(sally_anne) -> None:
     """At 4 s Sally (away) still thinks the marble is in the basket; the robot knows the box."""
     diff = sally_anne("beliefs", "diff", "SALLY", "--at", "4s", "--json")
     rows = [json.loads(line) for line in diff.output.splitlines()]
@@ -37,7 +37,7 @@ def test_false_belief_while_sally_is_away(sally_anne) -> None:  # noqa: ANN001
     assert json.loads(second.output)["agent_id"] == "ANNE>SALLY"
 
 
-def test_holders_history_and_config(sally_anne) -> None:  # noqa: ANN001
+def test_holders_history_and_config(sally_anne) -> None:
     """Nested holders are listed; the history spans holders; settings round-trip."""
     assert sally_anne("beliefs", "holders").output.split() == [
         "ANNE", "SALLY", "ANNE>SALLY", "SALLY>ANNE"]
