@@ -61,11 +61,16 @@ class Database:
         return self.connection.connection.dbapi_connection.cursor()  # type: ignore[union-attr]
 
     def store(self) -> Store:
-        """The write API (one per database handle, it remembers what each source wrote)."""
+        """The write API (one per database handle, it remembers what each source wrote), with
+        the belief rules installed."""
         if self._store is None:
+            from toaster.beliefs.rules import BeliefRule
             from toaster.db.store import Store
 
             self._store = Store(self)
+            # Every store applies the belief rules kept in the database, so that several writer
+            # processes all keep the other agents' beliefs up to date.
+            self._store.add_rule(BeliefRule(self._store))
         return self._store
 
     def close(self) -> None:

@@ -92,11 +92,6 @@ class Store:
         self._epoch: int | None = None
         self._rules: list[Rule] = []
         self._in_tx = False
-        # Belief propagation (toaster.beliefs): every store applies the rules stored in the
-        # database, so several writer processes all keep the other agents' beliefs up to date.
-        from toaster.beliefs.rules import BeliefRule
-
-        self._rules.append(BeliefRule(self))
 
     # ------------------------------------------------------------------ transactions, caches
     @contextmanager
