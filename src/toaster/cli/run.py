@@ -152,3 +152,26 @@ def area_show(ctx: click.Context, name: str) -> None:
         msg = f"no area named {name!r}: see `toaster area list`"
         raise InvalidInputError(msg)
     click.echo(json.dumps(areas[name], indent=2, sort_keys=True))
+
+
+@click.command("relpos")
+@click.argument("path", metavar="SCENARIO",
+                type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("--at", "at", default="0s", metavar="T", help="Scenario time (2.5s; default 0s).")
+@click.option("--viewer", required=True, help="The agent whose viewpoint is used.")
+@click.option("--object", "object_id", required=True, help="The entity to locate.")
+@click.option("--reference", default=None, help="Locate it relative to this entity "
+              "(default: relative to the viewer).")
+def relpos(path: Path, at: str, viewer: str, object_id: str, reference: str | None) -> None:
+    """Where an object is from an agent's viewpoint: left/right, in front/behind, above/below."""
+    from toaster.producers import Runner, load_session
+    from toaster.producers.spatial import relative_position_from
+    from toaster.timeutil import parse_duration
+
+    session = load_session(path)
+    Runner(session.world, session.sources, []).tick(session.start_ns + parse_duration(at))
+    words, (fwd, left, up) = relative_position_from(session.world, viewer, object_id, reference,
+                                                    config=session.config)
+    where = ", ".join(words) or "same place"
+    click.echo(f"{object_id}: {where} (relative to {reference or viewer}, from {viewer}'s "
+               f"viewpoint; forward {fwd:+.2f} m, left {left:+.2f} m, up {up:+.2f} m)")

@@ -58,6 +58,20 @@ DEFAULTS: dict[str, Any] = {
     "observability_in_hand": 0.8,
     "confidence_present": 0.9,
     "confidence_distance": 0.9,
+    # move3d_facts (spatial.py): shapes are boxes standing on their position, x/y centred
+    "spatial": False,  # force the spatial producer on (it is on when an entity has a role)
+    "on_gap": 0.05,  # IsOn: max height of the object's bottom above the support's top
+    "on_penetration": 0.03,  # IsOn: max depth of the bottom below the support's top
+    "next_to_distance": 0.3,  # IsNextTo: max gap between footprints (same support / floor)
+    "floor_height": 0.05,  # objects whose bottom is this close to z = 0 stand on the floor
+    "view_aperture": 2.0944,  # field of view (full cone angle, radians) around the gaze
+    "view_range": 8.0,  # metres
+    "eye_height": 1.6,  # eyes above an agent's position when it has no head joint
+    "visible_min_fraction": 0.2,  # IsVisibleBy when at least this share of points is seen
+    "arm_reach": 0.75,  # IsReachableBy: from the shoulder to the nearest point of the box
+    "shoulder_height": 1.3,
+    "agent_size": [0.5, 0.5, 1.75],  # body box of agents without a size (an occluder)
+    "observability_spatial": 1.0,
 }
 
 _SECONDS = {k for k in DEFAULTS if k.endswith("_window")} | {"motion_max_gap",

@@ -15,6 +15,7 @@ from toaster.producers.batch import FactBatch, as_facts
 from toaster.producers.diff import SnapshotDiff
 from toaster.producers.monitor import AgentMonitor
 from toaster.producers.perception import PerceptionFacts
+from toaster.producers.spatial import SpatialFacts
 from toaster.timeutil import NS_PER_S
 from toaster.world.scenario import ScenarioSource, load_scenario
 from toaster.world.state import World
@@ -185,5 +186,8 @@ def load_session(path: str | Path, areas: dict[str, dict[str, Any]] | None = Non
         raise FileFormatError(msg)
     producers: list[Producer] = [PerceptionFacts(config), AreaManager(all_areas, config),
                                  AgentMonitor(config)]
+    entities = source.scenario.entities if isinstance(source, ScenarioSource) else []
+    if config.get("spatial") or any(e.get("role") for e in entities):
+        producers.append(SpatialFacts(config))
     return Session(world, [source], producers, all_areas, self_id or DEFAULT_SELF, start, end,
                    rate, config)

@@ -21,7 +21,7 @@ from toaster.world.geometry import wrap_angle
 from toaster.world.state import World
 
 ACTIONS = ("set_pose", "move", "put_in_hand", "remove_from_hand", "enter", "leave", "look_at",
-           "stop_looking", "point", "stop_pointing")
+           "stop_looking", "point", "stop_pointing", "open", "close")
 ARM_LENGTH = 0.6
 
 
@@ -209,6 +209,8 @@ class ScenarioSource:
             world.add_entity(eid, kind, name=ent.get("name", ""), size=ent.get("size"),
                              mobility=ent.get("mobility", "full"))
             self._kind[eid] = kind
+            if "role" in ent or "closed" in ent:
+                world.set_shape(eid, role=ent.get("role"), closed=ent.get("closed"))
             self._pose[eid] = (_vec(ent.get("position", [0, 0, 0]), eid), _rpy(ent, eid))
             for j in ent.get("joints", []) or []:
                 jid = j.get("id", f"{eid}/{j['name']}")
@@ -299,6 +301,8 @@ class ScenarioSource:
                 raise FileFormatError(msg)
             self._pointing[eid] = (action["target"], world.ids[jrow],
                                    world.local_pos[jrow].tolist(), world.local_rpy[jrow].tolist())
+        elif verb in ("open", "close"):
+            world.closed[eid] = verb == "close"
         elif verb == "stop_pointing" and eid in self._pointing:
             _, jid, lpos, lrpy = self._pointing.pop(eid)
             world.set_joint_local(jid, lpos, lrpy)

@@ -62,6 +62,8 @@ class World:
         self.active = np.zeros(0, bool)
         self.held_by = np.zeros(0, np.int64)
         self.sources_enabled: dict[str, bool] = {}
+        self.roles: dict[str, str] = {}  # spatial shape roles: "support" | "container"
+        self.closed: dict[str, bool] = {}  # containers that are closed (lid on)
         self.history = History(history_capacity, history_horizon_ns)
         self._version = 0
         self._id_cache: tuple[int, np.ndarray, np.ndarray] = (-1, np.zeros(0, object),
@@ -252,6 +254,20 @@ class World:
         delta = self.pos[joints] - self.pos[agents]
         self.local_pos[joints] = np.einsum("nji,nj->ni", rot, delta)
         self.local_rpy[joints] = wrap_angle(self.rpy[joints] - self.rpy[agents])
+
+    def set_shape(self, entity_id: str, *, size: Sequence[float] | None = None,
+                  role: str | None = None, closed: bool | None = None) -> None:
+        """Give an entity a box (size x, y, z in metres), a role (support, container) or a lid."""
+        row = self.row(entity_id)
+        if size is not None:
+            self.size[row] = size
+        if role is not None:
+            if role not in ("support", "container", "none"):
+                msg = f"unknown shape role {role!r} for {entity_id!r}: use support or container"
+                raise InvalidInputError(msg)
+            self.roles[entity_id] = role
+        if closed is not None:
+            self.closed[entity_id] = bool(closed)
 
     # -- held objects -----------------------------------------------------------------------
     def put_in_hand(self, object_id: str, agent_id: str, hand: str) -> None:

@@ -1,0 +1,74 @@
+"""Sally-Anne from geometry alone: visibility facts feed the belief rules (SQLite file)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+import toaster
+from toaster.beliefs.api import belief_value
+from toaster.producers import Runner, load_session
+
+EXAMPLE = Path(toaster.__file__).parent / "examples" / "scenario_spatial_sally_anne.yaml"
+S = 1_000_000_000
+
+
+def run_into_store(path: Path, url: str) -> object:
+    """Tick a scenario into a fresh store, registering entities as ``toaster run`` does."""
+    db = toaster.connect(url)
+    store = db.store()
+    session = load_session(path)
+    world = session.world
+    runner = Runner(world, session.sources, session.producers, store=store,
+                    agent_id=session.self_id)
+    store.add_entity(session.self_id, "robot", is_self=True, t_ns=session.start_ns)
+    for row, eid in enumerate(world.ids):
+        if eid != session.self_id:
+            owner = world.ids[world.owner[row]] if world.owner[row] >= 0 else ""
+            store.add_entity(eid, world.kind_text[row], name=world.names[row], owner_id=owner,
+                             t_ns=session.start_ns)
+    runner.run(session.start_ns, session.end_ns, session.rate_hz)
+    return db
+
+
+@pytest.fixture(scope="module")
+def sally_db(tmp_path_factory: pytest.TempPathFactory) -> object:
+    path = tmp_path_factory.mktemp("sally") / "sally.db"
+    db = run_into_store(EXAMPLE, f"sqlite:///{path}")
+    yield db
+    db.close()
+
+
+def held(db: object, agent: str, target: str, at: int, about: str | None = None) -> bool:
+    return belief_value(db, agent, "MARBLE", "IsIn", target, about=about, at=at) is not None
+
+
+def test_everyone_sees_the_marble_go_into_the_basket(sally_db: object) -> None:
+    for agent in ("ROBOT", "SALLY", "ANNE"):
+        assert held(sally_db, agent, "BASKET", 2 * S)
+    assert held(sally_db, "ANNE", "BASKET", 2 * S, about="SALLY")
+
+
+def test_false_belief_after_sally_comes_back(sally_db: object) -> None:
+    at = 13 * S  # Sally is back, looking at the closed basket and box
+    assert held(sally_db, "ROBOT", "BOX", at)
+    assert not held(sally_db, "ROBOT", "BASKET", at)
+    assert held(sally_db, "ANNE", "BOX", at)
+    assert not held(sally_db, "ANNE", "BASKET", at)
+    assert held(sally_db, "SALLY", "BASKET", at)
+    assert not held(sally_db, "SALLY", "BOX", at)
+    assert held(sally_db, "ANNE", "BASKET", at, about="SALLY")
+    assert not held(sally_db, "ANNE", "BOX", at, about="SALLY")
+
+
+def test_sally_sees_the_containers_closed(sally_db: object) -> None:
+    at = 13 * S
+    assert belief_value(sally_db, "SALLY", "BASKET", "IsClosed", at=at) is not None
+    assert belief_value(sally_db, "SALLY", "BOX", "IsClosed", at=at) is not None
+
+
+def test_sally_opens_the_basket(sally_db: object) -> None:
+    at = 15 * S
+    assert belief_value(sally_db, "SALLY", "BASKET", "IsClosed", at=at) is None
+    assert belief_value(sally_db, "ROBOT", "BASKET", "IsClosed", at=at) is None
