@@ -72,3 +72,16 @@ def test_sally_opens_the_basket(sally_db: object) -> None:
     at = 15 * S
     assert belief_value(sally_db, "SALLY", "BASKET", "IsClosed", at=at) is None
     assert belief_value(sally_db, "ROBOT", "BASKET", "IsClosed", at=at) is None
+
+
+def test_sally_anne_on_each_backend(db_url: str) -> None:
+    """The same false beliefs on SQLite and PostgreSQL (skips when PostgreSQL is absent)."""
+    db = run_into_store(EXAMPLE, db_url)
+    try:
+        at = 13 * S
+        assert held(db, "ANNE", "BOX", at) and held(db, "ROBOT", "BOX", at)
+        assert held(db, "SALLY", "BASKET", at) and not held(db, "SALLY", "BOX", at)
+        assert held(db, "ANNE", "BASKET", at, about="SALLY")
+        assert belief_value(db, "SALLY", "BASKET", "IsClosed", at=15 * S) is None
+    finally:
+        db.close()
