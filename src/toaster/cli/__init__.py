@@ -71,10 +71,10 @@ def _register() -> None:
     from toaster.cli.export import export, record
     from toaster.cli.info import get_info, set_info
     from toaster.cli.plot import plot_facts
-    from toaster.cli.run import area, run
+    from toaster.cli.run import area, relpos, run
 
     for command in (area, beliefs, db_group, demo, execute, export, get_info, plot_facts,
-                    record, run, set_info):
+                    record, relpos, run, set_info):
         cli.add_command(command)
 
 

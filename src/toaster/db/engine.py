@@ -49,9 +49,26 @@ def make_engine(url: str | None = None) -> Engine:
     if backend == "sqlite":
         return _sqlite_engine(parsed)
     if backend == "postgresql":
-        return create_engine(parsed, pool_pre_ping=True, pool_size=2, max_overflow=4)
+        return _postgresql_engine(parsed)
     msg = f"unsupported database {backend!r} in {raw!r}: toaster runs on SQLite and PostgreSQL"
     raise InvalidInputError(msg)
+
+
+def _postgresql_engine(url) -> Engine:
+    engine = create_engine(url, pool_pre_ping=True, pool_size=2, max_overflow=4)
+
+    @event.listens_for(engine, "connect")
+    def _on_connect(dbapi_connection, _record) -> None:
+        # The belief rules' recursive queries have huge cost estimates, which make PostgreSQL
+        # JIT-compile them (seconds of compilation for milliseconds of work), and their
+        # generic plans (psycopg prepares a statement after 5 runs) are far worse than plans
+        # made for the actual parameters. Short statements gain from neither.
+        with dbapi_connection.cursor() as cursor:
+            cursor.execute("SET jit = off")
+            cursor.execute("SET plan_cache_mode = force_custom_plan")
+        dbapi_connection.commit()
+
+    return engine
 
 
 def _sqlite_engine(url) -> Engine:
