@@ -83,5 +83,13 @@ def test_sally_anne_on_each_backend(db_url: str) -> None:
         assert held(db, "SALLY", "BASKET", at) and not held(db, "SALLY", "BOX", at)
         assert held(db, "ANNE", "BASKET", at, about="SALLY")
         assert belief_value(db, "SALLY", "BASKET", "IsClosed", at=15 * S) is None
+        assert not held(db, "SALLY", "BASKET", 15 * S)
     finally:
         db.close()
+
+
+def test_opening_the_basket_ends_sallys_belief_in_it(sally_db: object) -> None:
+    """Sally opens the lidded basket and sees it empty: her belief that the marble is in it
+    ends (the issue's last step)."""
+    assert held(sally_db, "SALLY", "BASKET", 13 * S)
+    assert not held(sally_db, "SALLY", "BASKET", 15 * S)

@@ -140,7 +140,8 @@ class BeliefRule:
         self._run(conn, steps, ("10_focus", "20_perceive", "30_changes"), params)
         self._nested_holders(conn, steps, config, changes.t_ns, params)
         watched = cfg.perception_properties(config)
-        if any(item[1].property in watched for item in facts):
+        if any(item[1].property in watched or item[1].property == config["closed"]
+               for item in facts):
             for phase in ("before", "after"):
                 self._run(conn, steps, ("20_perceive",), {**params, "phase": phase,
                                                           "everything": 1})
