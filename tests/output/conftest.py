@@ -96,11 +96,7 @@ def run_scenario(db: toaster.Database, name: str, seconds: float) -> list[tuple[
     store, world = db.store(), session.world
     runner = Runner(world, session.sources, session.producers, store=store,
                     agent_id=session.self_id)
-    store.add_entity(session.self_id, "robot", is_self=True, t_ns=session.start_ns)
-    for row, eid in enumerate(world.ids):
-        if eid != session.self_id:
-            owner = world.ids[world.owner[row]] if world.owner[row] >= 0 else ""
-            store.add_entity(eid, world.kind_text[row], owner_id=owner, t_ns=session.start_ns)
+    session.register(store)
     areas = [(aid, spec["points"]) for aid, spec in session.areas.items()
              if spec.get("shape") == "polygon" and not spec.get("owner")]
     frames: list[tuple[Any, ...]] = []

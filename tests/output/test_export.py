@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 import toaster
-from conftest import T0, S
+from tests.output.conftest import T0, S
 from toaster import Fact
 from toaster.errors import InvalidInputError, UnknownAgentError
 from toaster.export import export, read_rows, select_rows

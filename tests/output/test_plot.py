@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 import toaster
-from conftest import T0, S, run_scenario
+from tests.output.conftest import T0, S, run_scenario
 from toaster.errors import InvalidInputError, MissingDependencyError, UnknownAgentError
 from toaster.plotting import FALSE_BELIEF, UNAWARE, Timeline, build_timeline, plot_facts
 from toaster.queries import history

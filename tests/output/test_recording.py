@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 
 import toaster
-from conftest import T0, S, run_scenario
+from tests.output.conftest import T0, S, run_scenario
 from toaster.errors import InvalidInputError
 from toaster.recording import ENTITIES_TOPIC, FACTS_TOPIC, LINE_STRIP, TEXT, record
 

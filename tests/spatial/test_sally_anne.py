@@ -22,12 +22,7 @@ def run_into_store(path: Path, url: str) -> object:
     world = session.world
     runner = Runner(world, session.sources, session.producers, store=store,
                     agent_id=session.self_id)
-    store.add_entity(session.self_id, "robot", is_self=True, t_ns=session.start_ns)
-    for row, eid in enumerate(world.ids):
-        if eid != session.self_id:
-            owner = world.ids[world.owner[row]] if world.owner[row] >= 0 else ""
-            store.add_entity(eid, world.kind_text[row], name=world.names[row], owner_id=owner,
-                             t_ns=session.start_ns)
+    session.register(store)
     runner.run(session.start_ns, session.end_ns, session.rate_hz)
     return db
 

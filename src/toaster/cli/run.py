@@ -54,15 +54,7 @@ def run(ctx: click.Context, path: Path, url: str | None, rate: float | None, unt
     runner = Runner(session.world, session.sources, session.producers, store=store,
                     agent_id=session.self_id)
     if store is not None:
-        for area_id, spec in session.areas.items():
-            store.put_area(area_id, spec, spec.get("owner", ""))
-        world = session.world
-        store.add_entity(session.self_id, "robot", is_self=True, t_ns=session.start_ns)
-        for row, eid in enumerate(world.ids):
-            if eid != session.self_id:
-                owner = world.ids[world.owner[row]] if world.owner[row] >= 0 else ""
-                store.add_entity(eid, world.kind_text[row], name=world.names[row],
-                                 owner_id=owner, t_ns=session.start_ns)
+        session.register(store)
     hz = rate or session.rate_hz
     total = max(1, int((end - session.start_ns) * hz / 1e9) + 1)
     wall = time.perf_counter()

@@ -156,6 +156,20 @@ class Session:
     rate_hz: float
     config: dict[str, Any]
 
+    def register(self, store: Any) -> None:
+        """Put the areas and entities in the store before the first tick (the self agent as a
+        self robot, joints with their owner), in one transaction, as ``toaster run`` does."""
+        world, start = self.world, self.start_ns
+        with store.transaction():
+            for area_id, spec in self.areas.items():
+                store.put_area(area_id, spec, spec.get("owner", ""))
+            store.add_entity(self.self_id, "robot", is_self=True, t_ns=start)
+            for row, entity_id in enumerate(world.ids):
+                if entity_id != self.self_id:
+                    owner = world.ids[world.owner[row]] if world.owner[row] >= 0 else ""
+                    store.add_entity(entity_id, world.kind_text[row], name=world.names[row],
+                                     owner_id=owner, t_ns=start)
+
 
 def load_session(path: str | Path, areas: dict[str, dict[str, Any]] | None = None) -> Session:
     """Build world, sources and producers from a scenario (.yaml/.yml/.json) or recording.
