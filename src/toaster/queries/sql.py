@@ -27,7 +27,8 @@ def execute(db: Any, sql: str, params: dict[str, Any] | list[Any] | None = None,
     ``PRAGMA query_only`` on SQLite, ``SET TRANSACTION READ ONLY`` on PostgreSQL).
 
     Parameters use the driver's style (``?`` on SQLite, ``%s`` on PostgreSQL; or ``:name``
-    with a dict on both). A write bumps the store's cache epoch so producers re-read.
+    with a dict on both). A write bumps the cache epoch, so that every store (this process's
+    included) re-reads what its sources hold before its next write.
     """
     backend = db.backend
     if isinstance(params, dict):
@@ -46,7 +47,10 @@ def execute(db: Any, sql: str, params: dict[str, Any] | list[Any] | None = None,
                     rows = [tuple(r) for r in result] if result.returns_rows else []
                     count = result.rowcount
                 else:
-                    cur.execute(sql, bound if bound else None) if bound else cur.execute(sql)
+                    if bound:
+                        cur.execute(sql, bound)
+                    else:  # no parameters: neither driver looks for placeholders
+                        cur.execute(sql)
                     columns = [d[0] for d in cur.description] if cur.description else []
                     rows = [tuple(r) for r in cur.fetchall()] if cur.description else []
                     count = cur.rowcount
@@ -66,8 +70,6 @@ def execute(db: Any, sql: str, params: dict[str, Any] | list[Any] | None = None,
             raise ReadOnlyError(msg) from None
         msg = f"SQL error: {message}"
         raise ToasterError(msg) from None
-    if write and db._store is not None:
-        db._store.forget()
     return SQLResult(columns, rows, count)
 
 
