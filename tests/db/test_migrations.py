@@ -54,3 +54,26 @@ def test_empty_database_is_created_on_first_use(empty_url: str) -> None:
     """connect() on an empty database migrates it to head."""
     with toaster.connect(empty_url) as db:
         assert migrate.current_revision(db.engine) == migrate.head_revision()
+
+
+def test_downgrade_with_nested_holders_named_oddly(empty_url: str) -> None:
+    """Agents and nested holders whose ids hold ':', '%', quotes are dropped cleanly."""
+    from toaster import Fact
+    from toaster.beliefs import api
+
+    odd = ["a:b %s", "c'd \"e\""]
+    with toaster.connect(empty_url) as db:
+        store = db.store()
+        store.add_entity("R", "robot", is_self=True, t_ns=0)
+        for agent in odd:
+            store.add_entity(agent, "human", t_ns=0)
+        store.add_entity("MUG", "object", t_ns=0)
+        room = [Fact(agent, "IsInRoom", "LAB") for agent in odd] + [Fact("MUG", "IsInRoom", "LAB")]
+        store.sync_snapshot("s", "R", 1, room)
+        store.sync_snapshot("s", "R", 2, [*room, Fact("MUG", "IsOn", "TABLE")])
+        assert f"{odd[0]}>{odd[1]}" in api.holders(db)
+    engine = make_engine(empty_url)
+    migrate.downgrade(engine, "base")
+    with engine.connect() as conn:
+        assert inspect(conn).get_view_names() == []
+    engine.dispose()

@@ -96,12 +96,14 @@ def _view_names(agent_id: str) -> list[str]:
 def downgrade() -> None:
     """Remove nested holders (their beliefs and views), the tables and the settings."""
     bind = op.get_bind()
-    quote = bind.dialect.identifier_preparer.quote_identifier
+    # Raw cursor and standard quoting: no ':name' or '%' placeholder parsing in identifiers.
+    cursor = bind.connection.dbapi_connection.cursor()
     holders = [row[0] for row in bind.execute(
         sa.text("SELECT DISTINCT holder_id FROM belief_chain"))]
     for holder in holders:
         for name in _view_names(holder):
-            op.execute(f"DROP VIEW IF EXISTS {quote(name)}")
+            quoted = '"' + name.replace('"', '""') + '"'
+            cursor.execute(f"DROP VIEW IF EXISTS {quoted}")
         for table in ("events", "facts", "fact_keys"):
             if table == "facts":
                 bind.execute(sa.text("DELETE FROM facts WHERE key_id IN "
