@@ -97,15 +97,10 @@ def run_scenario(db: toaster.Database, name: str, seconds: float) -> list[tuple[
     runner = Runner(world, session.sources, session.producers, store=store,
                     agent_id=session.self_id)
     session.register(store)
-    areas = [(aid, spec["points"]) for aid, spec in session.areas.items()
-             if spec.get("shape") == "polygon" and not spec.get("owner")]
     frames: list[tuple[Any, ...]] = []
 
     def grab(t_ns: int) -> None:
-        entities = [(eid, world.kind_text[r], *world.pos[r], world.rpy[r][2])
-                    for r, eid in enumerate(world.ids)
-                    if world.active[r] and world.kind_text[r] in ("human", "robot", "object")]
-        frames.append((t_ns, entities, areas if not frames else None))
+        frames.append(session.frame(t_ns, with_areas=not frames))
 
     end = session.start_ns + int(seconds * S)
     runner.run(session.start_ns, end, session.rate_hz, on_tick=grab)

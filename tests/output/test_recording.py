@@ -103,3 +103,26 @@ def test_bad_frames(tmp_path: Path) -> None:
     (tmp_path / "c").mkdir()
     with pytest.raises(InvalidInputError, match="it exists"):
         record(tmp_path / "c", [(1, [], None)])
+
+
+def test_run_records_what_it_saw(tmp_path: Path) -> None:
+    """`toaster run --record DIR` writes the run's frames and the events it stored."""
+    from click.testing import CliRunner
+
+    from toaster.cli import cli
+
+    url = f"sqlite:///{tmp_path / 'run.db'}"
+    scenario = Path(toaster.__file__).parent / "examples" / "scenario_flat.yaml"
+    result = CliRunner().invoke(cli, ["--db", url, "run", str(scenario), "--until", "2s",
+                                      "--record", str(tmp_path / "bag")])
+    assert result.exit_code == 0, result.output
+    messages = _read(next((tmp_path / "bag").glob("*.mcap")))
+    topics = {topic for topic, *_ in messages}
+    assert {ENTITIES_TOPIC, FACTS_TOPIC} <= topics
+    with toaster.connect(url) as db:
+        stored = len(toaster.queries.events(db))
+    assert sum(topic == FACTS_TOPIC for topic, *_ in messages) == stored
+    again = CliRunner().invoke(cli, ["--db", url, "run", str(scenario), "--record",
+                                     str(tmp_path / "bag")])
+    assert again.exit_code == 1
+    assert "exists" in again.output

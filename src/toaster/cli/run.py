@@ -32,9 +32,13 @@ def _database(ctx: click.Context, url: str | None) -> Any:
 @click.option("--until", "until", metavar="T", help="Stop after this much input time (20s).")
 @click.option("--realtime", is_flag=True, help="Pace ticks to the wall clock.")
 @click.option("--no-db", is_flag=True, help="Compute only; write nothing.")
+@click.option("--record", "record_dir", type=click.Path(path_type=Path), metavar="DIR",
+              help="Also write the run as a rosbag2/MCAP recording in the new folder DIR "
+                   "(entities, areas, the facts' events) for Foxglove, Lichtblick or RViz 2; "
+                   "needs toaster[rosbag].")
 @click.pass_context
 def run(ctx: click.Context, path: Path, url: str | None, rate: float | None, until: str | None,
-        realtime: bool, no_db: bool) -> None:
+        realtime: bool, no_db: bool, record_dir: Path | None) -> None:
     """Tick a scenario (.yaml/.json) or recording (obsmat .txt, .csv, .jsonl) into the store.
 
     Areas stored in the database are added to the file's; the file's areas are stored.
@@ -43,6 +47,9 @@ def run(ctx: click.Context, path: Path, url: str | None, rate: float | None, unt
     from toaster.producers import Runner, load_session
     from toaster.timeutil import parse_duration
 
+    if record_dir is not None and record_dir.exists():
+        msg = f"cannot record into {str(record_dir)!r}: it exists; give a new folder name"
+        raise InvalidInputError(msg)
     store = None if no_db else _database(ctx, url).store()
     session = load_session(path, store.areas() if store is not None else None)
     if rate is not None and rate <= 0:
@@ -57,16 +64,26 @@ def run(ctx: click.Context, path: Path, url: str | None, rate: float | None, unt
         session.register(store)
     hz = rate or session.rate_hz
     total = max(1, int((end - session.start_ns) * hz / 1e9) + 1)
+    frames: list[tuple[Any, ...]] = []
+
+    def grab(t_ns: int) -> None:
+        if record_dir is not None:
+            frames.append(session.frame(t_ns, with_areas=not frames))
+
     wall = time.perf_counter()
     if sys.stderr.isatty():
         from rich.progress import Progress
 
         with Progress(transient=True) as bar:
             task = bar.add_task(f"{path.name}", total=total)
-            runner.run(session.start_ns, end, hz, realtime=realtime,
-                       on_tick=lambda _t: bar.advance(task))
+
+            def advance(t_ns: int) -> None:
+                grab(t_ns)
+                bar.advance(task)
+
+            runner.run(session.start_ns, end, hz, realtime=realtime, on_tick=advance)
     else:
-        runner.run(session.start_ns, end, hz, realtime=realtime)
+        runner.run(session.start_ns, end, hz, realtime=realtime, on_tick=grab)
     elapsed = time.perf_counter() - wall
     stats = runner.stats
     input_s = (end - session.start_ns) / 1e9
@@ -77,6 +94,11 @@ def run(ctx: click.Context, path: Path, url: str | None, rate: float | None, unt
     for name, seconds in sorted(stats.seconds.items(), key=lambda kv: -kv[1]):
         click.echo(f"  {name:<14} {seconds * 1e3:9.1f} ms  "
                    f"({seconds / max(stats.ticks, 1) * 1e3:.3f} ms/tick)")
+    if record_dir is not None:
+        from toaster.recording import record
+
+        result = record(record_dir, frames, db=store.db if store is not None else None)
+        click.echo(f"recording: {result.mcap} ({result.frames} frames, {result.facts} fact lines)")
 
 
 @click.group("area")

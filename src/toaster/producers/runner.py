@@ -156,6 +156,19 @@ class Session:
     rate_hz: float
     config: dict[str, Any]
 
+    def frame(self, t_ns: int, *, with_areas: bool = False) -> tuple[Any, ...]:
+        """A recording frame of the world now (:mod:`toaster.recording`): humans, robots and
+        objects as ``(id, kind, x, y, z, yaw)``, and the fixed polygon areas when asked."""
+        world = self.world
+        entities = [(entity_id, world.kind_text[r], *map(float, world.pos[r]),
+                     float(world.rpy[r][2]))
+                    for r, entity_id in enumerate(world.ids)
+                    if world.active[r] and world.kind_text[r] in ("human", "robot", "object")]
+        areas = ([(area_id, spec["points"]) for area_id, spec in self.areas.items()
+                  if spec.get("shape") == "polygon" and not spec.get("owner")]
+                 if with_areas else None)
+        return (t_ns, entities, areas)
+
     def register(self, store: Any) -> None:
         """Put the areas and entities in the store before the first tick (the self agent as a
         self robot, joints with their owner), in one transaction, as ``toaster run`` does."""
