@@ -60,12 +60,10 @@ def _postgresql_engine(url) -> Engine:
     @event.listens_for(engine, "connect")
     def _on_connect(dbapi_connection, _record) -> None:
         # The belief rules' recursive queries have huge cost estimates, which make PostgreSQL
-        # JIT-compile them (seconds of compilation for milliseconds of work), and their
-        # generic plans (psycopg prepares a statement after 5 runs) are far worse than plans
-        # made for the actual parameters. Short statements gain from neither.
+        # JIT-compile them: seconds of compilation for milliseconds of work. Short statements
+        # never gain from JIT.
         with dbapi_connection.cursor() as cursor:
             cursor.execute("SET jit = off")
-            cursor.execute("SET plan_cache_mode = force_custom_plan")
         dbapi_connection.commit()
 
     return engine
