@@ -34,11 +34,7 @@ def fact_options(func: Any) -> Any:
 
 
 def _self_agent(db: Any, agent: str | None) -> str:
-    if agent:
-        return agent
-    from toaster.db.seed import _agent
-
-    return _agent(db.store(), {})
+    return agent or db.store().self_agent()
 
 
 @click.command("get-info")

@@ -33,6 +33,7 @@ from typing import Any
 from toaster.documents import read_document
 from toaster.errors import FileFormatError, InvalidInputError
 from toaster.model import Fact
+from toaster.queries.catalog import entities
 from toaster.timeutil import parse_time
 
 _FACT_FIELDS = {"subject": "subject_id", "subject_id": "subject_id", "property": "property",
@@ -150,14 +151,7 @@ def fact_from_mapping(row: dict[str, Any]) -> Fact:
 
 def _agent(store: Any, row: dict[str, Any]) -> str:
     agent = row.get("agent")
-    if agent:
-        return str(agent)
-    selves = [a for a, is_self in store.agents().items() if is_self]
-    if len(selves) == 1:
-        return selves[0]
-    msg = (f"row {row!r} names no agent and there is not exactly one self agent "
-           f"({', '.join(selves) or 'none'}): add 'agent: ID'")
-    raise InvalidInputError(msg)
+    return str(agent) if agent else store.self_agent()
 
 
 def _req(row: dict[str, Any], *names: str) -> str:
@@ -227,7 +221,7 @@ def _apply_xml(store: Any, path: Path, rows: list[dict[str, str]]) -> BatchRepor
             report.add("ontology")
         elif "color" in row or "linkType" in row:
             entity_id = _req(row, "id")
-            if not any(e == entity_id for e in _known(store, entity_id)):
+            if not entities(store.db, entity_id):  # properties of undeclared entities
                 store.add_entity(entity_id, "", entity_id)
             for key in ("color", "height", "linkedToId", "linkType"):
                 if key in row:
@@ -248,8 +242,3 @@ def _apply_xml(store: Any, path: Path, rows: list[dict[str, str]]) -> BatchRepor
             raise FileFormatError(msg)
     return report
 
-
-def _known(store: Any, entity_id: str) -> list[str]:
-    from toaster.queries.catalog import entities
-
-    return [e.id for e in entities(store.db, entity_id)]

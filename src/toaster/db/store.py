@@ -157,6 +157,17 @@ class Store:
                 raise UnknownAgentError(msg)
         return agent_id
 
+    def self_agent(self) -> str:
+        """The one self agent, which facts default to; an error names the fix when there is
+        none or several."""
+        selves = [agent for agent, is_self in self.agents().items() if is_self]
+        if len(selves) != 1:
+            msg = (f"no agent given and there is not exactly one self agent "
+                   f"({', '.join(sorted(selves)) or 'none'}): name the agent "
+                   "(--agent ID, or 'agent: ID' in a file)")
+            raise InvalidInputError(msg)
+        return selves[0]
+
     def add_entity(self, entity_id: str, kind: str = "object", name: str = "", owner_id: str = "",
                    *, is_self: bool | None = None, agent: bool | None = None,
                    t_ns: int | None = None) -> None:
