@@ -1,10 +1,16 @@
 """The belief rules: set-based SQL statements run in the transaction of every self write.
 
-The statements live in the database (table ``belief_rules``, installed by migration 0002, one
-definition per backend). Per write (a *tick*) the rule runs a fixed number of statements
-whatever the number of agents: the changed self keys go into a temporary table, one recursive
-query computes who perceives what (rooms, containers, visibility, nested holders), and one
-``INSERT ... SELECT`` / ``UPDATE`` per kind of row writes every holder's intervals and events.
+The statements live in the database (table ``belief_rules``, installed by migrations 0002 and
+0003, one definition per backend). Per write (a *tick*) the rule runs a fixed number of
+statements whatever the number of agents: the changed self keys go into a temporary table, one
+recursive query computes who perceives what (rooms, containers, visibility, nested holders),
+and one ``INSERT ... SELECT`` / ``UPDATE`` per kind of row writes what changes.
+
+A holder whose belief equals the self's and who perceives its changes *follows* the self key
+(``belief_follow``): the views show it the self's intervals and events, so such a change
+writes no holder row. Rows are written only when a holder starts following (its own event,
+its own interval closed), stops (it missed a change: its own interval continues the value it
+held, a false belief), or when its perception confidence changes.
 """
 
 from __future__ import annotations
@@ -24,8 +30,13 @@ if TYPE_CHECKING:
 
 SOURCE = "beliefs"
 SEPARATOR = ">"
-_STEPS_WRITE = ("50_keys", "55_resolve", "60_plan", "70_events", "80_close",
-                "85_refresh_rows", "90_open")
+_STEPS_WRITE = ("35_freeze", "45_resolve", "50_keys", "45_resolve", "60_plan", "70_events",
+                "80_close", "85_refresh_rows", "90_follow")
+# Periods to copy into own rows before a write that bypasses the rule (see BeliefRule.detach).
+_HOLDER_OPEN = ("SELECT w.id FROM fact_keys k JOIN belief_follow w ON w.hkey = k.id "
+                "AND w.to_ns IS NULL WHERE k.agent_id = :a")
+_FOLLOWING_SELF = ("SELECT w.id FROM fact_keys k JOIN belief_follow w ON w.self_key = k.id "
+                   "WHERE k.agent_id = :a")
 
 
 def holder_id(agent: str, *about: str) -> str:
@@ -81,14 +92,22 @@ class BeliefRule:
         self._steps: dict[str, list[Any]] | None = None
         self._agent_count: int | None = None
 
-    def _insert_keys(self, conn: Connection, key_ids: list[int]) -> None:
+    def _insert_changed(self, conn: Connection, changes: ChangeSet) -> None:
+        """The tick's self keys; refreshed ones with the values they held before the tick."""
+        rows: dict[int, tuple[Any, ...]] = {}
+        for item in (*changes.appeared, *changes.changed, *changes.ended):
+            rows[item[0]] = (item[0], False, None, None, None)
+        for key_id, _, held in changes.refreshed:
+            rows[key_id] = (key_id, True, held.value_num, held.confidence, held.observability)
         cur = self.store.db.cursor()
         if conn.dialect.name == "postgresql":
-            cur.execute("INSERT INTO belief_keys (key_id) SELECT DISTINCT unnest(%s::bigint[])",
-                        [key_ids])
+            cur.execute(
+                "INSERT INTO belief_changed (key_id, refreshed, prev_num, prev_conf, prev_obs) "
+                "SELECT * FROM unnest(%s::bigint[], %s::boolean[], %s::float8[], %s::float8[], "
+                "%s::float8[])", [list(column) for column in zip(*rows.values(), strict=True)])
         else:
-            cur.executemany("INSERT OR IGNORE INTO belief_keys (key_id) VALUES (?)",
-                            [(k,) for k in key_ids])
+            cur.executemany("INSERT INTO belief_changed VALUES (?, ?, ?, ?, ?)",
+                            list(rows.values()))
 
     def _temp(self, conn: Connection, steps: dict[str, list[Any]]) -> None:
         cur = self.store.db.cursor()
@@ -121,6 +140,28 @@ class BeliefRule:
             self._run(conn, steps, ("20_perceive", "30_changes"), params)
         self._agent_count = conn.execute(text("SELECT count(*) FROM agents")).scalar_one()
 
+    def _statements(self, conn: Connection) -> dict[str, list[Any]]:
+        if self._steps is None:
+            self._steps = load_statements(conn)
+        return self._steps
+
+    def detach(self, conn: Connection, agent_id: str | None, *, keep: bool) -> None:
+        """Before a write that bypasses the rule (a direct write to a holder, emptying an
+        agent, changing who is self): copy the followed periods involving ``agent_id`` into
+        its own rows. ``keep=False``: the agent's rows are about to be deleted, so its own
+        periods are dropped instead (``agent_id`` None: every period)."""
+        if agent_id is None:
+            conn.execute(text("DELETE FROM belief_follow"))
+            return
+        steps = self._statements(conn)
+        self._temp(conn, steps)
+        chosen = _FOLLOWING_SELF if not keep else f"{_HOLDER_OPEN} UNION {_FOLLOWING_SELF}"
+        conn.execute(text(f"INSERT INTO belief_mat (follow_id) {chosen}"), {"a": agent_id})
+        self._run(conn, steps, ("95_materialize",), {})
+        if not keep:
+            conn.execute(text("DELETE FROM belief_follow WHERE hkey IN "
+                              "(SELECT id FROM fact_keys WHERE agent_id = :a)"), {"a": agent_id})
+
     def __call__(self, conn: Connection, changes: ChangeSet) -> None:
         agents = self.store.agents()
         if changes.empty or not agents.get(changes.agent_id) or all(agents.values()):
@@ -128,15 +169,12 @@ class BeliefRule:
         config = cfg.read(conn)
         if not config["enabled"]:
             return
-        if self._steps is None:
-            self._steps = load_statements(conn)
-        steps = self._steps
+        steps = self._statements(conn)
         facts = [*changes.appeared, *changes.changed, *changes.refreshed, *changes.ended]
-        key_ids = list(dict.fromkeys(item[0] for item in facts))
         params = {"self": changes.agent_id, "t": changes.t_ns, "source": SOURCE,
                   "recorded": now_ns(), "phase": "around", "everything": 0}
         self._temp(conn, steps)
-        self._insert_keys(conn, key_ids)
+        self._insert_changed(conn, changes)
         self._run(conn, steps, ("10_focus", "20_perceive", "30_changes"), params)
         self._nested_holders(conn, steps, config, changes.t_ns, params)
         watched = cfg.perception_properties(config)

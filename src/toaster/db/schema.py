@@ -17,7 +17,13 @@ Tables
 ``settings``    thresholds and rule configuration kept as data (JSON values by scope/key).
 ``belief_chain`` nested belief holders: holder ``A>B`` (an agent row) is the chain A, B
                 ("A's model of B's beliefs"), one row per position (revision 0002).
-``belief_rules`` the belief rules' SQL statements of the database's backend, by step (0002).
+``belief_rules`` the belief rules' SQL statements of the database's backend, by step (0002,
+                replaced by 0003).
+``belief_follow`` periods during which a holder's belief of a key *follows* the self agent's
+                key (it perceives every change): the self's intervals clipped to
+                ``[from_ns, to_ns)`` and its events stamped in ``[events_from_ns,
+                events_to_ns]`` are the holder's, read through the views, confidence x
+                ``pconf``; a robot change perceived by a following holder writes no row (0003).
 ``store_state`` one row; ``cache_epoch`` is bumped by writes that bypass snapshot sync so that
                 every store process reloads what it remembers of the open facts.
 
@@ -219,4 +225,25 @@ belief_rules = Table(
     Column("backend", Text, primary_key=True),
     Column("step", Text, primary_key=True),
     Column("sql_text", Text, nullable=False),
+)
+
+belief_follow = Table(
+    "belief_follow",
+    metadata,
+    Column("id", RowId, primary_key=True, autoincrement=True),
+    Column("holder_id", Text, nullable=False),  # -> agents.id (the belief holder)
+    Column("hkey", BigInteger, nullable=False),  # -> fact_keys.id of the holder
+    Column("self_key", BigInteger, nullable=False),  # -> fact_keys.id of the self agent
+    Column("from_ns", BigInteger, nullable=False),
+    Column("to_ns", BigInteger, nullable=True),
+    Column("events_from_ns", BigInteger, nullable=False),
+    Column("events_to_ns", BigInteger, nullable=True),
+    Column("pconf", Float, nullable=False),
+    CheckConstraint("to_ns IS NULL OR to_ns >= from_ns", name="valid_period"),
+    CheckConstraint("pconf >= 0", name="pconf_positive"),
+    # One open period per holder key; the rule finds the followers of a changed self key.
+    Index("uq_belief_follow_open_hkey", "hkey", unique=True,
+          sqlite_where=text("to_ns IS NULL"), postgresql_where=text("to_ns IS NULL")),
+    Index("ix_belief_follow_hkey_from", "hkey", "from_ns"),
+    Index("ix_belief_follow_self_holder", "self_key", "holder_id"),
 )

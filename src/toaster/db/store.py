@@ -45,7 +45,7 @@ class ChangeSet(NamedTuple):
     t_ns: int
     appeared: list[tuple[int, Fact]]
     changed: list[tuple[int, Fact, str]]
-    refreshed: list[tuple[int, Fact]]
+    refreshed: list[tuple[int, Fact, Fact]]  # (key, new fact, the fact it held before)
     ended: list[tuple[int, Fact]]
 
     @property
@@ -55,6 +55,8 @@ class ChangeSet(NamedTuple):
 
 
 #: A rule: called as ``rule(conn, changes)`` inside the transaction of the triggering write.
+#: A rule that shares rows between agents may also have ``detach(conn, agent_id, keep=...)``,
+#: called before writes that bypass it (see :meth:`Store._detach`).
 Rule = Callable[[Connection, ChangeSet], None]
 
 
@@ -136,6 +138,14 @@ class Store:
         """Run ``rule(conn, changes)`` after every fact write, in the same transaction."""
         self._rules.append(rule)
 
+    def _detach(self, conn: Connection, agent_id: str | None, *, keep: bool) -> None:
+        """Let rules turn rows they share with ``agent_id`` into its own rows (``keep``) or
+        drop them (the agent's facts are being deleted) before a write that bypasses them."""
+        for rule in self._rules:
+            detach = getattr(rule, "detach", None)
+            if detach is not None:
+                detach(conn, agent_id, keep=keep)
+
     # ------------------------------------------------------------------ agents and entities
     def agents(self) -> dict[str, bool]:
         """Known agents: id -> is_self."""
@@ -184,6 +194,8 @@ class Store:
     def remove_entity(self, entity_id: str) -> None:
         """Remove an entity (an agent loses its beliefs, views and events too)."""
         with self.transaction() as conn:
+            if entity_id in self.agents():
+                self._detach(conn, entity_id, keep=False)
             catalog.remove_entity(conn, entity_id)
             self.bump_epoch(conn)
 
@@ -191,6 +203,7 @@ class Store:
         """Mark (or unmark) an agent as a *self* agent whose perception is the world state."""
         with self.transaction() as conn:
             self.check_agent(agent_id)
+            self._detach(conn, agent_id, keep=True)
             conn.execute(text("UPDATE agents SET is_self = :s WHERE id = :a"),
                          {"s": is_self, "a": agent_id})
             self._agents = None
@@ -306,6 +319,8 @@ class Store:
                  writes: _Writes) -> None:
         """Compare stated facts with what is stored now (the open interval, whoever wrote it):
         a missing interval appears, another symbolic value changes, the rest refreshes."""
+        if not self.agents().get(agent_id):
+            self._detach(conn, agent_id, keep=True)
         created = self._key_id_map(conn, agent_id, items)
         known = [self._key_ids[(agent_id, key)] for key, _ in items if key not in created]
         open_rows = self.backend.open_rows(self.db.cursor(), known) if known else {}
@@ -330,7 +345,8 @@ class Store:
         writes.events[:0] = [writes.event(k, f, "ended", None) for k, f in writes.ended]
         if writes.refreshed:
             backend.refresh_intervals(
-                cur, [(f.value_num, f.confidence, f.observability, k) for k, f in writes.refreshed])
+                cur, [(f.value_num, f.confidence, f.observability, k)
+                      for k, f, _ in writes.refreshed])
         try:
             if writes.opening:
                 backend.insert_intervals(cur, writes.opening)
@@ -385,6 +401,8 @@ class Store:
                    "target_owner_id": target_owner_id}
         with self.transaction() as conn:
             self.check_agent(agent_id)
+            if not self.agents().get(agent_id):
+                self._detach(conn, agent_id, keep=True)
             rows = catalog.open_facts_matching(conn, agent_id, property, filters)
             writes = _Writes(agent_id, source, t_ns)
             for key_id, fact, valid_from in rows:
@@ -415,6 +433,7 @@ class Store:
         with self.transaction() as conn:
             if agent_id is not None:
                 self.check_agent(agent_id)
+            self._detach(conn, agent_id, keep=False)
             catalog.empty_facts(conn, agent_id)
             self.bump_epoch(conn)
 
@@ -483,7 +502,7 @@ class _Writes:
         self.events: list[tuple[Any, ...]] = []
         self.appeared: list[tuple[int, Fact]] = []
         self.changed: list[tuple[int, Fact, str]] = []
-        self.refreshed: list[tuple[int, Fact]] = []
+        self.refreshed: list[tuple[int, Fact, Fact]] = []
         self.ended: list[tuple[int, Fact]] = []
         self.retyped: list[tuple[int, str]] = []
 
@@ -511,7 +530,7 @@ class _Writes:
             self.changed.append((key_id, fact, held.value_text))
         elif (fact.value_num, fact.confidence, fact.observability) != (
                 held.value_num, held.confidence, held.observability):
-            self.refreshed.append((key_id, fact))
+            self.refreshed.append((key_id, fact, held))
 
     def end(self, key_id: int, fact: Fact) -> None:
         """Close the key's open interval (its event is written once the close is known)."""

@@ -17,10 +17,10 @@ _FILTER_ARGS = {"agent": "agent_id", "subject": "subject_id", "property": "prope
                 "target": "target_id", "sub_property": "sub_property", "source": "source",
                 "property_type": "property_type", "value": "value_text",
                 "subject_owner": "subject_owner_id", "target_owner": "target_owner_id"}
-_KEY_COLS = ("k.agent_id, k.subject_id, k.subject_owner_id, k.property, k.property_type, "
-             "k.sub_property, k.target_id, k.target_owner_id, f.value_text, f.value_num, "
-             "f.confidence, f.observability, f.valid_from_ns, f.valid_to_ns, f.recorded_ns, "
-             "f.source")
+_KEY_ONLY = ("k.agent_id, k.subject_id, k.subject_owner_id, k.property, k.property_type, "
+             "k.sub_property, k.target_id, k.target_owner_id")
+_KEY_COLS = (f"{_KEY_ONLY}, f.value_text, f.value_num, f.confidence, f.observability, "
+             "f.valid_from_ns, f.valid_to_ns, f.recorded_ns, f.source")
 
 
 def _where(filters: dict[str, Any], prefix: str = "") -> tuple[str, dict[str, Any]]:
@@ -87,12 +87,27 @@ def history(db: Any, agent: str | None = None, *, since: int | None = None,
 
 
 def beliefs_at(db: Any, agent: str, t_ns: int, **filters: Any) -> list[FactRow]:
-    """Everything ``agent`` believed at ``t_ns`` (as-of): one seek per fact key of the agent."""
+    """Everything ``agent`` believed at ``t_ns`` (as-of): one seek per fact key of the agent.
+
+    A holder key that followed the self agent's key at ``t_ns`` (``belief_follow``) takes the
+    self's interval then, clipped to the period, confidence x the period's ``pconf``."""
+    backend = db.backend
     where, params = _where({"agent": agent, **filters}, prefix="k.")
     params["t"] = t_ns
-    sql = (f"SELECT {_KEY_COLS} FROM fact_keys k {db.backend.as_of_join} WHERE {where} "
-           "AND (f.valid_to_ns IS NULL OR f.valid_to_ns > :t) "
-           "ORDER BY k.subject_id, k.property, k.target_id, k.id")
+    lo, hi = backend.least, backend.greatest
+    own = (f"SELECT {_KEY_COLS}, k.id AS key_id FROM fact_keys k "
+           f"{backend.as_of_join.format(key='k.id')} WHERE {where} "
+           "AND (f.valid_to_ns IS NULL OR f.valid_to_ns > :t)")
+    followed = (
+        f"SELECT {_KEY_ONLY}, f.value_text, f.value_num, {lo}(1.0, f.confidence * w.pconf), "
+        f"f.observability, {hi}(f.valid_from_ns, w.from_ns), CASE WHEN w.to_ns IS NULL THEN "
+        "f.valid_to_ns WHEN f.valid_to_ns IS NULL THEN w.to_ns "
+        f"ELSE {lo}(f.valid_to_ns, w.to_ns) END, f.recorded_ns, 'beliefs', k.id "
+        "FROM fact_keys k JOIN belief_follow w ON w.hkey = k.id AND w.from_ns <= :t "
+        f"AND (w.to_ns IS NULL OR w.to_ns > :t) {backend.as_of_join.format(key='w.self_key')} "
+        f"WHERE {where} AND (f.valid_to_ns IS NULL OR f.valid_to_ns > :t)")
+    sql = (f"SELECT {FACT_COLUMNS} FROM ({own} UNION ALL {followed}) AS held "
+           "ORDER BY subject_id, property, target_id, key_id")
     return _rows(db, sql, params)
 
 
@@ -106,9 +121,8 @@ def fact_value(db: Any, agent: str, subject: str, property: str, target: str = "
                "sub_property": sub_property, "subject_owner": subject_owner,
                "target_owner": target_owner}
     if at is None:
-        where, params = _where(filters, prefix="k.")
-        sql = (f"SELECT {_KEY_COLS} FROM fact_keys k JOIN facts f ON f.key_id = k.id "
-               f"AND f.valid_to_ns IS NULL WHERE {where} ORDER BY k.id LIMIT 1")
+        where, params = _where(filters)
+        sql = f"SELECT {FACT_COLUMNS} FROM current_facts WHERE {where} ORDER BY key_id LIMIT 1"
         rows = _rows(db, sql, params)
     else:
         rows = beliefs_at(db, agent, at, **{k: v for k, v in filters.items() if k != "agent"})

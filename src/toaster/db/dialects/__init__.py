@@ -18,9 +18,13 @@ class Backend(Protocol):
     """What the store needs from a backend; ``cur`` is a raw DBAPI cursor in a transaction."""
 
     name: str
-    #: FROM-clause fragment joining each key ``k`` to its interval ``f`` starting last at or
-    #: before ``:t`` (the per-key seek behind every as-of query).
+    #: FROM-clause fragment joining the key ``{key}`` (a format field: ``k.id``,
+    #: ``w.self_key``) to its interval ``f`` starting last at or before ``:t`` (the per-key
+    #: seek behind every as-of query).
     as_of_join: str
+    #: The two-argument scalar minimum and maximum (``MIN``/``MAX`` or ``LEAST``/``GREATEST``).
+    least: str
+    greatest: str
 
     def named(self, sql: str) -> str:
         """``sql`` with ``:name`` placeholders rewritten to the driver's named style."""

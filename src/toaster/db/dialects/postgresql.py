@@ -27,9 +27,10 @@ class PostgreSQLBackend:
 
     name = "postgresql"
     as_of_join = (  # LATERAL fetches the row in the seek itself (no second look-up by id)
-        "CROSS JOIN LATERAL (SELECT * FROM facts f2 WHERE f2.key_id = k.id "
+        "CROSS JOIN LATERAL (SELECT * FROM facts f2 WHERE f2.key_id = {key} "
         "AND f2.valid_from_ns <= :t ORDER BY f2.valid_from_ns DESC, f2.id DESC LIMIT 1) f"
     )
+    least, greatest = "LEAST", "GREATEST"
 
     def named(self, sql: str) -> str:
         return _NAMED.sub(r"%(\1)s", sql)

@@ -26,9 +26,10 @@ class SQLiteBackend:
 
     name = "sqlite"
     as_of_join = (
-        "JOIN facts f ON f.id = (SELECT f2.id FROM facts f2 WHERE f2.key_id = k.id "
+        "JOIN facts f ON f.id = (SELECT f2.id FROM facts f2 WHERE f2.key_id = {key} "
         "AND f2.valid_from_ns <= :t ORDER BY f2.valid_from_ns DESC, f2.id DESC LIMIT 1)"
     )
+    least, greatest = "MIN", "MAX"  # two-argument scalar forms
 
     def named(self, sql: str) -> str:
         return sql  # sqlite3 takes :name as it is

@@ -1,0 +1,72 @@
+-- Who perceives which entity at :t, for :phase 'around' (before or after the tick), 'before' or
+-- 'after'. :everything = 1 computes it for every located entity, else for belief_focus only.
+INSERT INTO belief_seen (holder_id, entity_id, phase, pconf)
+WITH RECURSIVE
+cfg_room(p) AS (SELECT value FROM json_array_elements_text((SELECT value_json::json FROM settings WHERE scope = 'beliefs' AND key = 'copresence'))),
+cfg_in(p) AS (SELECT value FROM json_array_elements_text((SELECT value_json::json FROM settings WHERE scope = 'beliefs' AND key = 'containment'))),
+cfg_vis(p, side) AS (SELECT key, value FROM json_each_text((SELECT value_json::json FROM settings WHERE scope = 'beliefs' AND key = 'visibility'))),
+cfg_depth(d) AS (SELECT CAST(value_json AS INTEGER) FROM settings WHERE scope = 'beliefs' AND key = 'depth'),
+sf(s, p, tg, c) AS (
+  SELECT k.subject_id, k.property, k.target_id, f.confidence
+  FROM fact_keys k CROSS JOIN LATERAL (  -- one index range per perception key, whatever the history
+    SELECT f.confidence FROM facts f
+    WHERE f.key_id = k.id
+      AND f.value_text NOT IN ('false', 'False', 'FALSE', '0')
+      AND f.valid_from_ns <= :t
+      AND CASE CAST(:phase AS text) WHEN 'after' THEN f.valid_to_ns IS NULL
+                      WHEN 'before' THEN f.valid_from_ns < :t AND (f.valid_to_ns IS NULL OR f.valid_to_ns >= :t)
+                      ELSE f.valid_to_ns IS NULL OR f.valid_to_ns >= :t END) AS f
+  WHERE k.agent_id = :self
+    AND (k.property IN (SELECT p FROM cfg_room) OR k.property IN (SELECT p FROM cfg_in)
+         OR k.property IN (SELECT p FROM cfg_vis))
+),
+chain(holder, pos, member) AS (
+  SELECT a.id, 1, a.id FROM agents a
+  WHERE NOT a.is_self AND a.id NOT IN (SELECT holder_id FROM belief_chain)
+  UNION ALL
+  SELECT c.holder_id, c.position, c.member_id FROM belief_chain c
+  WHERE c.holder_id IN (SELECT holder_id FROM belief_chain GROUP BY holder_id
+                        HAVING MAX(position) <= (SELECT d FROM cfg_depth))
+),
+chain_len(holder, n) AS (SELECT holder, MAX(pos) FROM chain GROUP BY holder),
+members(m) AS (SELECT DISTINCT member FROM chain),
+focus(e) AS (
+  SELECT entity_id FROM belief_focus WHERE :everything = 0
+  UNION SELECT s FROM sf WHERE :everything = 1
+  UNION SELECT tg FROM sf WHERE :everything = 1 AND tg <> ''
+  UNION SELECT m FROM members
+),
+up(e, cur) AS (
+  SELECT e, e FROM focus
+  UNION SELECT up.e, sf.tg FROM up JOIN sf ON sf.s = up.cur AND sf.p IN (SELECT p FROM cfg_in)
+),
+loc(e, room, c) AS (
+  SELECT up.e, sf.tg, sf.c FROM up JOIN sf ON sf.s = up.cur AND sf.p IN (SELECT p FROM cfg_room)
+),
+mp(m, e, c) AS (
+  SELECT lm.e, le.e, lm.c FROM loc lm JOIN members ON members.m = lm.e JOIN loc le ON le.room = lm.room
+  UNION ALL
+  SELECT CASE v.side WHEN 'subject' THEN sf.s ELSE sf.tg END,
+         CASE v.side WHEN 'subject' THEN sf.tg ELSE sf.s END, sf.c
+  FROM sf JOIN cfg_vis v ON v.p = sf.p
+  UNION ALL
+  SELECT m, m, 1.0 FROM members
+  WHERE (SELECT value_json FROM settings WHERE scope = 'beliefs' AND key = 'self_perception') = 'true'
+),
+mpm(m, e, c) AS (
+  SELECT m, e, MAX(c) FROM mp WHERE m IN (SELECT m FROM members) GROUP BY m, e
+),
+cp(holder, pos, e, c) AS (
+  SELECT ch.holder, 1, x.e, x.c FROM chain ch JOIN mpm x ON x.m = ch.member WHERE ch.pos = 1
+  UNION ALL
+  SELECT cp.holder, ch.pos, x.e, cp.c * x.c
+  FROM cp
+  JOIN chain ch ON ch.holder = cp.holder AND ch.pos = cp.pos + 1
+  JOIN chain prev ON prev.holder = cp.holder AND prev.pos = cp.pos
+  JOIN mpm link ON link.m = prev.member AND link.e = ch.member
+  JOIN mpm x ON x.m = ch.member AND x.e = cp.e
+)
+SELECT cp.holder, cp.e, CAST(:phase AS text), MAX(cp.c)
+FROM cp JOIN chain_len n ON n.holder = cp.holder AND n.n = cp.pos
+WHERE cp.e IN (SELECT e FROM focus)
+GROUP BY cp.holder, cp.e

@@ -1,0 +1,226 @@
+"""Followed periods: holders share the robot's rows while they perceive every change.
+
+Random stories (rooms, containers, visibility with two confidences, value and number changes)
+are replayed on both backends; every holder's timeline must then read as if it had its own
+rows: no overlap, no split of an unchanged belief, one event per interval start and end, and
+the as-of query agreeing with the stored history at every tick.
+"""
+
+from __future__ import annotations
+
+import random
+from collections import defaultdict
+
+import pytest
+from sqlalchemy import text
+
+import toaster
+import toaster.queries as q
+from toaster import Fact
+from toaster.beliefs import api
+from toaster.db import migrate
+from toaster.db.engine import make_engine
+
+HUMANS = ("ANNE", "BOB", "CAROL")
+OBJECTS = ("MUG", "KEYS", "BALL")
+ROOMS = ("KITCHEN", "HALL")
+
+
+def _key(row: object) -> tuple[str, ...]:
+    return (row.subject_id, row.subject_owner_id, row.property, row.sub_property,
+            row.target_id, row.target_owner_id)
+
+
+class Story:
+    """A random world: humans and objects move between rooms and a box, values change."""
+
+    def __init__(self, seed: int) -> None:
+        self.rng = random.Random(seed)
+        self.room = {h: self.rng.choice(ROOMS) for h in HUMANS}
+        self.room.update({o: self.rng.choice(ROOMS) for o in (*OBJECTS, "BOX")})
+        self.in_box = dict.fromkeys(OBJECTS, False)
+        self.color = dict.fromkeys(OBJECTS, "red")
+        self.temp = dict.fromkeys(OBJECTS, 20.0)
+        self.seen: dict[tuple[str, str], float] = {}
+        self.closed = True
+
+    def step(self) -> None:
+        for _ in range(self.rng.randint(1, 3)):
+            what = self.rng.randrange(7)
+            if what == 0:
+                h = self.rng.choice(HUMANS)
+                self.room[h] = self.rng.choice((*ROOMS, None))
+            elif what == 1:
+                self.room[self.rng.choice((*OBJECTS, "BOX"))] = self.rng.choice(ROOMS)
+            elif what == 2:
+                o = self.rng.choice(OBJECTS)
+                self.in_box[o] = not self.in_box[o]
+            elif what == 3:
+                self.color[self.rng.choice(OBJECTS)] = self.rng.choice(("red", "blue", "green"))
+            elif what == 4:
+                self.temp[self.rng.choice(OBJECTS)] += self.rng.choice((-1.0, 1.0))
+            elif what == 5:
+                pair = (self.rng.choice(OBJECTS), self.rng.choice(HUMANS))
+                if pair in self.seen:
+                    del self.seen[pair]
+                else:
+                    self.seen[pair] = self.rng.choice((0.5, 1.0))
+            else:
+                self.closed = not self.closed
+
+    def facts(self) -> list[Fact]:
+        out = [Fact(e, "IsInRoom", r) for e, r in self.room.items() if r is not None]
+        out += [Fact(o, "IsIn", "BOX") for o, inside in self.in_box.items() if inside]
+        out += [Fact(o, "Color", value_text=c) for o, c in self.color.items()]
+        out += [Fact(o, "Temperature", value_text="num", value_num=v)
+                for o, v in self.temp.items()]
+        out += [Fact(o, "IsVisibleBy", h, confidence=c) for (o, h), c in self.seen.items()]
+        if self.closed:
+            out.append(Fact("BOX", "IsClosed", value_text="true"))
+        return out
+
+
+def _replay(db: toaster.Database, seed: int, ticks: int) -> list[int]:
+    st = db.store()
+    st.add_entity("R", "robot", is_self=True, t_ns=0)
+    for h in HUMANS:
+        st.add_entity(h, "human", t_ns=0)
+    for e in (*OBJECTS, "BOX", *ROOMS):
+        st.add_entity(e, "object", t_ns=0)
+    story, times = Story(seed), []
+    for tick in range(1, ticks + 1):
+        story.step()
+        st.sync_snapshot("world", "R", tick * 10, story.facts())
+        times.append(tick * 10)
+    return times
+
+
+def _check_timelines(db: toaster.Database, times: list[int]) -> int:
+    """Assert the invariants of every holder's timeline; return the number of intervals."""
+    checked = 0
+    for holder in api.holders(db):
+        rows = q.history(db, holder)
+        events = defaultdict(list)
+        for e in q.events(db, holder):
+            events[_key(e)].append(e)
+        by_key = defaultdict(list)
+        for r in rows:
+            by_key[_key(r)].append(r)
+        for key, intervals in by_key.items():
+            intervals.sort(key=lambda r: r.valid_from_ns)
+            expected = []
+            for i, r in enumerate(intervals):
+                assert r.valid_to_ns is None or r.valid_to_ns > r.valid_from_ns, (holder, r)
+                prev = intervals[i - 1] if i else None
+                nxt = intervals[i + 1] if i + 1 < len(intervals) else None
+                touching = prev is not None and prev.valid_to_ns == r.valid_from_ns
+                if prev is not None:
+                    assert prev.valid_to_ns is not None, (holder, key, "two open intervals")
+                    assert prev.valid_to_ns <= r.valid_from_ns, (holder, key, "overlap")
+                    assert not (touching and prev.value_text == r.value_text), (
+                        holder, key, "an unchanged belief split in two intervals")
+                expected.append(("changed" if touching else "appeared", r.valid_from_ns,
+                                 r.value_text, prev.value_text if touching else None))
+                if r.valid_to_ns is not None and (nxt is None
+                                                  or nxt.valid_from_ns != r.valid_to_ns):
+                    expected.append(("ended", r.valid_to_ns, r.value_text, None))
+                checked += 1
+            got = [(e.kind, e.stamp_ns, e.value_text, e.previous_text)
+                   for e in sorted(events.pop(key, []), key=lambda e: (e.stamp_ns, e.kind))]
+            assert got == sorted(expected, key=lambda x: (x[1], x[0])), (holder, key)
+        assert not events, (holder, "events without intervals", list(events))
+        for t in times:
+            held = {(_key(r), r.value_text, round(r.confidence, 9)) for r in rows
+                    if r.valid_from_ns <= t and (r.valid_to_ns is None or r.valid_to_ns > t)}
+            as_of = {(_key(r), r.value_text, round(r.confidence, 9))
+                     for r in q.beliefs_at(db, holder, t)}
+            assert as_of == held, (holder, t)
+        current = {(_key(r), r.value_text) for r in q.current_facts(db, holder)}
+        assert current == {(_key(r), r.value_text) for r in rows if r.valid_to_ns is None}
+    return checked
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_random_stories_keep_every_timeline_consistent(db: toaster.Database, seed: int) -> None:
+    times = _replay(db, seed, 40)
+    assert _check_timelines(db, times) > 50
+
+
+def test_a_change_every_holder_perceives_writes_no_holder_row(db: toaster.Database) -> None:
+    st = db.store()
+    st.add_entity("R", "robot", is_self=True, t_ns=0)
+    for h in HUMANS:
+        st.add_entity(h, "human", t_ns=0)
+    room = [Fact(h, "IsInRoom", "KITCHEN") for h in HUMANS] + [Fact("MUG", "IsInRoom",
+                                                                    "KITCHEN")]
+
+    def physical_rows() -> int:
+        with db.transaction() as conn:
+            return conn.execute(text(
+                "SELECT (SELECT count(*) FROM facts f JOIN fact_keys k ON k.id = f.key_id "
+                "WHERE k.agent_id <> 'R') + (SELECT count(*) FROM events WHERE agent_id <> 'R')"
+            )).scalar_one()
+
+    st.sync_snapshot("w", "R", 1, [*room, Fact("MUG", "Color", value_text="red")])
+    st.sync_snapshot("w", "R", 2, [*room, Fact("MUG", "Color", value_text="blue")])
+    before = physical_rows()
+    for t, color in ((3, "green"), (4, "red"), (5, "blue")):
+        st.sync_snapshot("w", "R", t, [*room, Fact("MUG", "Color", value_text=color)])
+    assert physical_rows() == before
+    # ... and yet every holder, nested ones included, has the three changes as its own.
+    for holder in (*HUMANS, "ANNE>BOB"):
+        changes = q.events(db, holder, subject="MUG", property="Color", kind="changed")
+        assert [(e.stamp_ns, e.previous_text, e.value_text) for e in changes][-3:] == [
+            (3, "blue", "green"), (4, "green", "red"), (5, "red", "blue")]
+
+
+def test_a_missed_change_keeps_one_unsplit_interval(db: toaster.Database) -> None:
+    st = db.store()
+    st.add_entity("R", "robot", is_self=True, t_ns=0)
+    st.add_entity("SALLY", "human", t_ns=0)
+    here = [Fact("MARBLE", "IsInRoom", "LAB")]
+    st.sync_snapshot("w", "R", 1, [*here, Fact("SALLY", "IsInRoom", "LAB"),
+                                   Fact("MARBLE", "IsIn", "BASKET")])
+    st.sync_snapshot("w", "R", 2, [*here, Fact("MARBLE", "IsIn", "BASKET")])  # Sally leaves
+    st.sync_snapshot("w", "R", 3, [*here, Fact("MARBLE", "IsIn", "BOX")])  # unseen move
+    basket = q.history(db, "SALLY", subject="MARBLE", property="IsIn")
+    assert [(r.target_id, r.valid_from_ns, r.valid_to_ns) for r in basket] == [
+        ("BASKET", 1, None)]
+    assert [(e.kind, e.stamp_ns) for e in q.events(db, "SALLY", subject="MARBLE",
+                                                   property="IsIn")] == [("appeared", 1)]
+
+
+def test_direct_writes_and_emptying_the_robot_keep_holder_beliefs(db: toaster.Database) -> None:
+    times = _replay(db, 4, 15)
+    before = {h: {(_key(r), r.value_text) for r in q.current_facts(db, h)}
+              for h in api.holders(db)}
+    st = db.store()
+    # A user corrects Anne directly: the rest of what she follows stays as it was.
+    st.assert_fact("ANNE", Fact("MUG", "Color", value_text="purple"), t_ns=times[-1] + 1)
+    anne = {(_key(r), r.value_text) for r in q.current_facts(db, "ANNE")}
+    assert anne == {x for x in before["ANNE"] if x[0][2] != "Color" or x[0][0] != "MUG"} | {
+        (("MUG", "", "Color", "", "", ""), "purple")}
+    assert _check_timelines(db, times) > 0
+    # Emptying the robot's facts leaves every holder's beliefs (and history) in place.
+    history = {h: q.history(db, h) for h in api.holders(db)}
+    st.empty("R")
+    assert q.current_facts(db, "R") == []
+    for h in api.holders(db):
+        assert sorted(q.history(db, h)) == sorted(history[h])
+    with db.transaction() as conn:
+        assert conn.execute(text("SELECT count(*) FROM belief_follow")).scalar_one() == 0
+
+
+def test_downgrade_to_0002_keeps_holder_beliefs(empty_url: str) -> None:
+    with toaster.connect(empty_url) as db:
+        _replay(db, 5, 12)
+        holders = api.holders(db)
+        history = {h: sorted(q.history(db, h)) for h in holders}
+        events = {h: len(q.events(db, h)) for h in holders}
+    engine = make_engine(empty_url)
+    migrate.downgrade(engine, "0002")
+    engine.dispose()
+    with toaster.connect(empty_url, check=False) as db:
+        for h in holders:
+            assert sorted(q.history(db, h)) == history[h]
+            assert len(q.events(db, h)) == events[h]
