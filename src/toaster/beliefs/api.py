@@ -43,13 +43,10 @@ def _holder(db: Any, agent: str, about: str | list[str] | tuple[str, ...] | None
 
 
 def self_agent(db: Any) -> str:
-    """The first self agent (the robot whose perception is the world state)."""
-    with db.transaction() as conn:
-        row = conn.execute(text("SELECT id FROM agents WHERE is_self ORDER BY num LIMIT 1")).first()
-    if row is None:
-        msg = "no self agent: register the robot with is_self (`toaster set-info ENTITY --self`)"
-        raise InvalidInputError(msg)
-    return row[0]
+    """The robot whose beliefs others are compared with: the one self agent (an error asks
+    to name it when there are several or none)."""
+    return db.store().self_agent(
+        fix="name the robot to compare with (other=ID; on the command line --other ID)")
 
 
 def beliefs(db: Any, agent: str, about: str | list[str] | None = None, *,

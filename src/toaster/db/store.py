@@ -167,14 +167,14 @@ class Store:
                 raise UnknownAgentError(msg)
         return agent_id
 
-    def self_agent(self) -> str:
-        """The one self agent, which facts default to; an error names the fix when there is
+    def self_agent(self, fix: str = "name the agent (--agent ID, or 'agent: ID' in a file)"
+                   ) -> str:
+        """The one self agent, which facts default to; an error says ``fix`` when there is
         none or several."""
         selves = [agent for agent, is_self in self.agents().items() if is_self]
         if len(selves) != 1:
             msg = (f"no agent given and there is not exactly one self agent "
-                   f"({', '.join(sorted(selves)) or 'none'}): name the agent "
-                   "(--agent ID, or 'agent: ID' in a file)")
+                   f"({', '.join(sorted(selves)) or 'none'}): {fix}")
             raise InvalidInputError(msg)
         return selves[0]
 
