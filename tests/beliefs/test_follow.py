@@ -224,3 +224,23 @@ def test_downgrade_to_0002_keeps_holder_beliefs(empty_url: str) -> None:
         for h in holders:
             assert sorted(q.history(db, h)) == history[h]
             assert len(q.events(db, h)) == events[h]
+
+
+def test_two_robots_writing_the_same_fact(db: toaster.Database) -> None:
+    """A holder follows whichever robot's change it perceived last, with no overlap."""
+    st = db.store()
+    for robot in ("R1", "R2"):
+        st.add_entity(robot, "robot", is_self=True, t_ns=0)
+    st.add_entity("ANNE", "human", t_ns=0)
+    here = [Fact("ANNE", "IsInRoom", "LAB"), Fact("MUG", "IsInRoom", "LAB")]
+    away = [Fact("ANNE", "IsInRoom", "HALL"), Fact("MUG", "IsInRoom", "LAB")]
+    st.sync_snapshot("w", "R1", 1, [*here, Fact("MUG", "Color", value_text="red")])
+    st.sync_snapshot("w", "R2", 2, [*here, Fact("MUG", "Color", value_text="blue")])
+    st.sync_snapshot("w", "R1", 3, [*here, Fact("MUG", "Color", value_text="green")])
+    st.sync_snapshot("w", "R1", 4, [*away, Fact("MUG", "Color", value_text="green")])
+    st.sync_snapshot("w", "R1", 5, [*away, Fact("MUG", "Color", value_text="white")])
+    st.sync_snapshot("w", "R2", 6, [*here, Fact("MUG", "Color", value_text="black")])
+    colors = q.history(db, "ANNE", subject="MUG", property="Color")
+    assert [(r.value_text, r.valid_from_ns, r.valid_to_ns) for r in colors] == [
+        ("red", 1, 2), ("blue", 2, 3), ("green", 3, 6), ("black", 6, None)]
+    assert _check_timelines(db, [1, 2, 3, 4, 5, 6]) >= 4

@@ -30,8 +30,8 @@ if TYPE_CHECKING:
 
 SOURCE = "beliefs"
 SEPARATOR = ">"
-_STEPS_WRITE = ("35_freeze", "45_resolve", "50_keys", "45_resolve", "60_plan", "70_events",
-                "80_close", "85_refresh_rows", "90_follow")
+_STEPS_WRITE = ("35_freeze", "45_resolve", "50_keys", "45_resolve", "55_switch", "58_frozen",
+                "60_plan", "70_events", "80_close", "85_refresh_rows", "90_follow")
 # Periods to copy into own rows before a write that bypasses the rule (see BeliefRule.detach).
 _HOLDER_OPEN = ("SELECT w.id FROM fact_keys k JOIN belief_follow w ON w.hkey = k.id "
                 "AND w.to_ns IS NULL WHERE k.agent_id = :a")

@@ -1,10 +1,3 @@
--- Frozen followers: their own interval continues where the period ends.
-INSERT INTO facts (key_id, value_text, value_num, confidence, observability, valid_from_ns,
-                   recorded_ns, source)
-SELECT hkey, value_text, value_num, confidence, observability, cut_ns, CAST(:recorded AS bigint), CAST(:source AS text)
-FROM belief_freeze WHERE value_text IS NOT NULL;
-UPDATE belief_follow w SET to_ns = z.cut_ns, events_to_ns = z.cut_ns FROM belief_freeze z
-WHERE z.follow_id = w.id;
 -- New followers: their belief now equals the self's; their own event of :t is written.
 INSERT INTO belief_follow (holder_id, hkey, self_key, from_ns, to_ns, events_from_ns,
                            events_to_ns, pconf)
