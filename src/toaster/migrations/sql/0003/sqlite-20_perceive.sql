@@ -54,8 +54,11 @@ mp(m, e, c) AS (
 mpm(m, e, c) AS (
   SELECT m, e, MAX(c) FROM mp WHERE m IN (SELECT m FROM members) GROUP BY m, e
 ),
+-- Nested holders (chains of 2 or more) only: first-order holders are read from mp directly.
 cp(holder, pos, e, c) AS (
-  SELECT ch.holder, 1, x.e, x.c FROM chain ch JOIN mpm x ON x.m = ch.member WHERE ch.pos = 1
+  SELECT ch.holder, 1, x.e, x.c FROM chain ch
+  JOIN chain_len n ON n.holder = ch.holder AND n.n >= 2
+  JOIN mpm x ON x.m = ch.member WHERE ch.pos = 1
   UNION ALL
   SELECT cp.holder, ch.pos, x.e, cp.c * x.c
   FROM cp
@@ -64,6 +67,12 @@ cp(holder, pos, e, c) AS (
   JOIN mpm link ON link.m = prev.member AND link.e = ch.member
   JOIN mpm x ON x.m = ch.member AND x.e = cp.e
 )
+SELECT ch.holder, mp.e, :phase, MAX(mp.c)
+FROM chain ch JOIN chain_len n ON n.holder = ch.holder AND n.n = 1
+JOIN mp ON mp.m = ch.member
+WHERE mp.e IN (SELECT e FROM focus)
+GROUP BY ch.holder, mp.e
+UNION ALL
 SELECT cp.holder, cp.e, :phase, MAX(cp.c)
 FROM cp JOIN chain_len n ON n.holder = cp.holder AND n.n = cp.pos
 WHERE cp.e IN (SELECT e FROM focus)
