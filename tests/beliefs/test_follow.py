@@ -244,3 +244,37 @@ def test_two_robots_writing_the_same_fact(db: toaster.Database) -> None:
     assert [(r.value_text, r.valid_from_ns, r.valid_to_ns) for r in colors] == [
         ("red", 1, 2), ("blue", 2, 3), ("green", 3, 6), ("black", 6, None)]
     assert _check_timelines(db, [1, 2, 3, 4, 5, 6]) >= 4
+
+
+def _timeline(db: toaster.Database) -> dict[str, tuple[list, list]]:
+    """Every holder's intervals and events, without row ids and wall-clock stamps."""
+    out = {}
+    for holder in api.holders(db):
+        rows = sorted((_key(r), r.value_text, r.value_num, round(r.confidence, 9),
+                       r.observability, r.valid_from_ns, r.valid_to_ns)
+                      for r in q.history(db, holder))
+        events = sorted((_key(e), e.kind, e.stamp_ns, e.value_text, e.previous_text,
+                         None if e.confidence is None else round(e.confidence, 9))
+                        for e in q.events(db, holder))
+        out[holder] = (rows, events)
+    return out
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3, 6])
+def test_shared_rows_read_exactly_like_copied_rows(db: toaster.Database, tmp_path: object,
+                                                   seed: int) -> None:
+    """The same story with share_rows off (every perceived change copied into the holder's
+    own rows, on SQLite) gives every holder the same intervals and events."""
+    times = _replay(db, seed, 40)
+    with toaster.connect(f"sqlite:///{tmp_path}/copied.db") as copied:
+        api.configure(copied, share_rows=False)
+        _replay(copied, seed, 40)
+        with copied.transaction() as conn:
+            assert conn.execute(text("SELECT count(*) FROM belief_follow")).scalar_one() == 0
+        reference = _timeline(copied)
+    shared = _timeline(db)
+    assert sorted(shared) == sorted(reference)
+    for holder, (rows, events) in reference.items():
+        assert shared[holder][0] == rows, holder
+        assert shared[holder][1] == events, holder
+    assert _check_timelines(db, times) > 50

@@ -7,7 +7,9 @@ Keys: ``enabled`` (bool), ``depth`` (1 = first order only, 2 = "A thinks B belie
 ``"target"`` for IsVisibleBy), ``closed`` (the property marking a closed container, default
 ``"IsClosed"``), ``refute_by_target`` (properties refuted by seeing the target alone, original
 issue #24, default ``["IsOn"]``), ``self_perception`` (an agent perceives facts about
-itself wherever it is, default false).
+itself wherever it is, default false), ``share_rows`` (a holder whose belief follows the self
+agent's reads the self's rows instead of copying them, default true; false copies every
+perceived change, the straightforward design, slower: see docs/beliefs.md).
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ DEFAULTS: dict[str, Any] = {
     "closed": "IsClosed",
     "refute_by_target": ["IsOn"],
     "self_perception": False,
+    "share_rows": True,
 }
 MAX_DEPTH = 4
 
@@ -44,7 +47,7 @@ def validate(key: str, value: object) -> object:
     if key not in DEFAULTS:
         msg = f"unknown beliefs setting {key!r}: use one of {', '.join(sorted(DEFAULTS))}"
         raise InvalidInputError(msg)
-    if key in ("enabled", "self_perception") and not isinstance(value, bool):
+    if key in ("enabled", "self_perception", "share_rows") and not isinstance(value, bool):
         msg = f"invalid beliefs setting {key}={value!r}: use true or false"
         raise InvalidInputError(msg)
     if key == "depth" and (not isinstance(value, int) or isinstance(value, bool)

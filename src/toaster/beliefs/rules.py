@@ -31,7 +31,9 @@ if TYPE_CHECKING:
 SOURCE = "beliefs"
 SEPARATOR = ">"
 _STEPS_WRITE = ("35_freeze", "45_resolve", "50_keys", "45_resolve", "55_switch", "58_frozen",
-                "60_plan", "70_events", "80_close", "85_refresh_rows", "90_follow")
+                "60_plan", "70_events", "80_close", "85_refresh_rows")
+# share_rows (default): a holder taking a change follows the self key; else it gets own rows.
+_STEPS_SHARE = {True: ("90_follow", "92_repconf"), False: ("91_open", "92_repconf")}
 # Periods to copy into own rows before a write that bypasses the rule (see BeliefRule.detach).
 _HOLDER_OPEN = ("SELECT w.id FROM fact_keys k JOIN belief_follow w ON w.hkey = k.id "
                 "AND w.to_ns IS NULL WHERE k.agent_id = :a")
@@ -183,8 +185,8 @@ class BeliefRule:
             for phase in ("before", "after"):
                 self._run(conn, steps, ("20_perceive",), {**params, "phase": phase,
                                                           "everything": 1})
-            self._run(conn, steps, ("40_refresh",), params)
-        self._run(conn, steps, _STEPS_WRITE, params)
+            self._run(conn, steps, ("40_refresh", "42_keep_max"), params)
+        self._run(conn, steps, _STEPS_WRITE + _STEPS_SHARE[bool(config["share_rows"])], params)
         self._run(conn, steps, ("99_clear",), params)
 
 

@@ -134,6 +134,9 @@ def upgrade() -> None:
     bind = op.get_bind()
     _install_rules(bind, "0003")
     _replace_views(bind, views(bind.dialect.name))
+    bind.execute(sa.text("INSERT INTO settings (scope, key, value_json) SELECT 'beliefs', "
+                         "'share_rows', 'true' WHERE NOT EXISTS (SELECT 1 FROM settings "
+                         "WHERE scope = 'beliefs' AND key = 'share_rows')"))
 
 
 def downgrade() -> None:
@@ -160,3 +163,4 @@ def downgrade() -> None:
         batch_op.drop_index("uq_belief_follow_open_hkey")
     op.drop_table("belief_follow")
     _install_rules(bind, "0002")
+    op.execute("DELETE FROM settings WHERE scope = 'beliefs' AND key = 'share_rows'")

@@ -1,6 +1,6 @@
 -- Seeing again: entities a holder perceives after the tick but not before. Observable self facts
 -- about them (not hidden in a closed container) are learnt with confidence x observability.
-INSERT INTO belief_in (holder_id, self_key, hkey, pconf)
+INSERT INTO belief_in (holder_id, self_key, hkey, pconf, seen_again)
 WITH RECURSIVE
 cfg_in(p) AS (SELECT value FROM json_each((SELECT value_json FROM settings WHERE scope = 'beliefs' AND key = 'containment'))),
 closed(e) AS (
@@ -31,13 +31,13 @@ opened(holder_id, entity_id, pconf) AS (
     JOIN facts f ON f.key_id = k.id AND f.valid_to_ns = :t
     WHERE k.agent_id = :self AND f.value_text = 'true' AND k.property = (SELECT json_extract(value_json, '$') FROM settings WHERE scope = 'beliefs' AND key = 'closed'))
 )
-SELECT n.holder_id, k.id, NULL, n.pconf * f.observability
+SELECT n.holder_id, k.id, NULL, n.pconf * f.observability, 1
 FROM newly n
 JOIN fact_keys k ON k.agent_id = :self AND k.subject_id = n.entity_id
 JOIN facts f ON f.key_id = k.id AND f.valid_to_ns IS NULL
 WHERE f.observability > 0 AND n.entity_id NOT IN (SELECT e FROM hidden)
 UNION ALL
-SELECT n.holder_id, NULL, hk.id, n.pconf
+SELECT n.holder_id, NULL, hk.id, n.pconf, 1
 FROM newly n
 JOIN fact_keys hk ON hk.agent_id = n.holder_id
   AND (hk.subject_id = n.entity_id
@@ -52,14 +52,14 @@ WHERE hk.subject_id NOT IN (SELECT e FROM hidden)
       AND sk.sub_property = hk.sub_property AND sk.target_id = hk.target_id
       AND sk.target_owner_id = hk.target_owner_id)
 UNION ALL
-SELECT o.holder_id, k.id, NULL, o.pconf * f.observability
+SELECT o.holder_id, k.id, NULL, o.pconf * f.observability, 1
 FROM opened o
 JOIN fact_keys k ON k.agent_id = :self AND k.target_id = o.entity_id
   AND k.property IN (SELECT p FROM cfg_in)
 JOIN facts f ON f.key_id = k.id AND f.valid_to_ns IS NULL
 WHERE f.observability > 0
 UNION ALL
-SELECT o.holder_id, NULL, hk.id, o.pconf
+SELECT o.holder_id, NULL, hk.id, o.pconf, 1
 FROM opened o
 JOIN fact_keys hk ON hk.agent_id = o.holder_id AND hk.target_id = o.entity_id
   AND hk.property IN (SELECT p FROM cfg_in)

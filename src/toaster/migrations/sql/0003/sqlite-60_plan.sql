@@ -2,8 +2,9 @@
 -- self key from :t), ended (event, close), refreshed (update in place). Following with another
 -- perception confidence: repconf. The self interval that holds now takes the new confidence:
 -- when it started at :t the period is split at :t (the event of :t too); when it started
--- inside the period, the period is split where it started (its event keeps the old
--- confidence, as an update in place would); when it started before, pconf is updated in place.
+-- inside the period or at its start, the period is split where it started (its event keeps
+-- the old confidence, as an update in place would); when it started before, pconf is updated
+-- in place.
 INSERT INTO belief_todo (holder_id, hkey, self_key, follow_id, action, value_text, value_num,
                          confidence, observability, previous_text, pconf, split_ns)
 SELECT holder_id, hkey, self_key, follow_id, action,
@@ -13,7 +14,7 @@ SELECT holder_id, hkey, self_key, follow_id, action,
        CASE action WHEN 'ended' THEN h_obs ELSE s_obs END,
        CASE action WHEN 'changed' THEN h_text END,
        pconf,
-       CASE WHEN action = 'repconf' AND s_from > w_from THEN s_from END
+       CASE WHEN action = 'repconf' AND s_from >= w_from THEN s_from END
 FROM (
   SELECT g.holder_id, g.hkey, g.self_key, g.pconf, w.id AS follow_id, w.from_ns AS w_from,
          sf.valid_from_ns AS s_from,
