@@ -1,9 +1,11 @@
 """Belief propagation cost: changed self facts per second with N other agents perceiving.
 
 Each tick is one snapshot of the self robot in which every one of ``--entities`` objects in the
-room changes its symbolic value: a close + open + event for the robot. "no rules" is the same
-run with beliefs disabled (the baseline). With the rules, a holder that perceives every change
-follows the robot's rows and writes none. "holder rows/change" counts the facts, events and
+room changes its symbolic value: a close + open + event for the robot. "no" rules is the same
+run with beliefs disabled (the baseline). With the rules ("shared", the default), a holder that
+perceives every change follows the robot's rows and writes none; "copied" (the setting
+share_rows = false) is the straightforward design, measured in the same run: every perceiving
+holder gets a close + open + event per change. "holder rows/change" counts the facts, events and
 belief_follow rows inserted for holders per changed self fact (the straightforward design
 inserts 2 and updates 1 per perceiving holder). "churn" keeps one holder out of the room two
 ticks in four: it misses every change of one tick (1,000 beliefs stop following) and catches
@@ -44,10 +46,10 @@ def _holder_rows(db: toaster.Database) -> int:
 
 
 def run(url: str, agents: int, depth: int, rules: bool, ticks: int, entities: int,
-        churn: bool = False) -> tuple[float, float]:
+        churn: bool = False, share: bool = True) -> tuple[float, float]:
     """(changed self facts per second, holder rows written per changed self fact)."""
     with toaster.connect(url) as db:
-        api.configure(db, enabled=rules, depth=depth)
+        api.configure(db, enabled=rules, depth=depth, share_rows=share)
         st = db.store()
         st.add_entity("R", "robot", is_self=True, t_ns=0)
         for i in range(agents):
@@ -81,24 +83,27 @@ def main() -> None:
     parser.add_argument("--entities", type=int, default=1000)
     parser.add_argument("--pg", default=PG, help="PostgreSQL URL ('' to skip)")
     args = parser.parse_args()
-    cases = [(0, 1, False, False), (1, 1, True, False), (5, 1, True, False),
-             (10, 1, True, False), (20, 1, True, False), (5, 2, True, False),
-             (10, 1, True, True)]
-    print(f"{'backend':10} {'agents':>6} {'depth':>5} {'rules':>5} {'churn':>5} "
+    # (agents, depth, rules, churn, share_rows); the last case is the straightforward design.
+    cases = [(0, 1, False, False, True), (1, 1, True, False, True), (5, 1, True, False, True),
+             (10, 1, True, False, True), (20, 1, True, False, True), (5, 2, True, False, True),
+             (10, 1, True, True, True), (10, 1, True, False, False)]
+    print(f"{'backend':10} {'agents':>6} {'depth':>5} {'rules':>7} {'churn':>5} "
           f"{'changed facts/s':>16} {'vs no rules':>11} {'holder rows/change':>18}")
     with tempfile.TemporaryDirectory() as tmp:
         for backend in ("sqlite", "postgresql"):
             if backend == "postgresql" and not args.pg:
                 continue
             baseline = None
-            for n, (agents, depth, rules, churn) in enumerate(cases):
+            for n, (agents, depth, rules, churn, share) in enumerate(cases):
                 if backend == "sqlite":
                     url = f"sqlite:///{tmp}/bench{n}.db"
                 else:
                     url = _pg_schema(args.pg, f"bench_beliefs_{n}")
-                rate, rows = run(url, agents, depth, rules, args.ticks, args.entities, churn)
+                rate, rows = run(url, agents, depth, rules, args.ticks, args.entities, churn,
+                                 share)
                 baseline = baseline or rate
-                print(f"{backend:10} {agents:6d} {depth:5d} {'yes' if rules else 'no':>5} "
+                kind = ("shared" if share else "copied") if rules else "no"
+                print(f"{backend:10} {agents:6d} {depth:5d} {kind:>7} "
                       f"{'yes' if churn else 'no':>5} {rate:16,.0f} {rate / baseline:10.2f}x "
                       f"{rows:18.2f}", flush=True)
 

@@ -8,6 +8,7 @@ CREATE TEMP TABLE IF NOT EXISTS belief_focus (entity_id text PRIMARY KEY) ON COM
 CREATE TEMP TABLE IF NOT EXISTS belief_seen (holder_id text, entity_id text, phase text, pconf float8) ON COMMIT DELETE ROWS;
 CREATE INDEX IF NOT EXISTS belief_seen_entity_holder ON belief_seen (entity_id, phase, holder_id);
 CREATE TEMP TABLE IF NOT EXISTS belief_in (holder_id text, self_key bigint, hkey bigint, pconf float8, seen_again integer NOT NULL DEFAULT 0) ON COMMIT DELETE ROWS;
+CREATE INDEX IF NOT EXISTS belief_in_key ON belief_in (self_key, holder_id);
 CREATE TEMP TABLE IF NOT EXISTS belief_todo (holder_id text, hkey bigint, self_key bigint, follow_id bigint, action text, value_text text, value_num float8, confidence float8, observability float8, previous_text text, pconf float8, split_ns bigint) ON COMMIT DELETE ROWS;
 CREATE TEMP TABLE IF NOT EXISTS belief_freeze (follow_id bigint PRIMARY KEY, hkey bigint, from_ns bigint, cut_ns bigint, value_text text, value_num float8, confidence float8, observability float8) ON COMMIT DELETE ROWS;
 CREATE TEMP TABLE IF NOT EXISTS belief_mat (follow_id bigint PRIMARY KEY) ON COMMIT DELETE ROWS;
