@@ -86,7 +86,7 @@ def main() -> None:
     # (agents, depth, rules, churn, share_rows); the last case is the straightforward design.
     cases = [(0, 1, False, False, True), (1, 1, True, False, True), (5, 1, True, False, True),
              (10, 1, True, False, True), (20, 1, True, False, True), (5, 2, True, False, True),
-             (10, 1, True, True, True), (10, 1, True, False, False)]
+             (10, 2, True, False, True), (10, 1, True, True, True), (10, 1, True, False, False)]
     print(f"{'backend':10} {'agents':>6} {'depth':>5} {'rules':>7} {'churn':>5} "
           f"{'changed facts/s':>16} {'vs no rules':>11} {'holder rows/change':>18}")
     with tempfile.TemporaryDirectory() as tmp:

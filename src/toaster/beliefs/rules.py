@@ -155,11 +155,12 @@ class BeliefRule:
         if agent_id is None:
             conn.execute(text("DELETE FROM belief_follow"))
             return
-        steps = self._statements(conn)
-        self._temp(conn, steps)
         chosen = _FOLLOWING_SELF if not keep else f"{_HOLDER_OPEN} UNION {_FOLLOWING_SELF}"
-        conn.execute(text(f"INSERT INTO belief_mat (follow_id) {chosen}"), {"a": agent_id})
-        self._run(conn, steps, ("95_materialize",), {})
+        if conn.execute(text(f"SELECT EXISTS ({chosen})"), {"a": agent_id}).scalar():
+            steps = self._statements(conn)
+            self._temp(conn, steps)
+            conn.execute(text(f"INSERT INTO belief_mat (follow_id) {chosen}"), {"a": agent_id})
+            self._run(conn, steps, ("95_materialize",), {})
         if not keep:
             conn.execute(text("DELETE FROM belief_follow WHERE hkey IN "
                               "(SELECT id FROM fact_keys WHERE agent_id = :a)"), {"a": agent_id})
