@@ -142,17 +142,20 @@ def upgrade() -> None:
 def downgrade() -> None:
     """Copy every followed period into the holders' own rows, then restore 0002."""
     bind = op.get_bind()
-    for step, body in _statements("0003", bind.dialect.name):
-        if step == "00_temp":
-            for part in body.split(";"):
-                if "belief_mat" in part:
-                    bind.exec_driver_sql(part.strip())
-    bind.exec_driver_sql("INSERT INTO belief_mat (follow_id) SELECT id FROM belief_follow")
-    body = dict(_statements("0003", bind.dialect.name))["95_materialize"]
-    lines = [line for line in body.splitlines() if not line.lstrip().startswith("--")]
-    for part in "\n".join(lines).split(";"):
-        if part.strip():
-            bind.exec_driver_sql(part.strip())
+    # The followed rows are those the views show under a holder's key while the underlying
+    # row belongs to the self's key: copy them as they are shown.
+    bind.exec_driver_sql(
+        "INSERT INTO facts (key_id, value_text, value_num, confidence, observability, "
+        "valid_from_ns, valid_to_ns, recorded_ns, source) "
+        "SELECT h.key_id, h.value_text, h.value_num, h.confidence, h.observability, "
+        "h.valid_from_ns, h.valid_to_ns, h.recorded_ns, h.source "
+        "FROM fact_history h JOIN facts f ON f.id = h.fact_id AND f.key_id <> h.key_id")
+    bind.exec_driver_sql(
+        "INSERT INTO events (key_id, agent_id, kind, stamp_ns, value_text, value_num, "
+        "confidence, observability, previous_text, source, recorded_ns) "
+        "SELECT h.key_id, h.agent_id, h.kind, h.stamp_ns, h.value_text, h.value_num, "
+        "h.confidence, h.observability, h.previous_text, h.source, h.recorded_ns "
+        "FROM event_log h JOIN events e ON e.id = h.id AND e.key_id <> h.key_id")
     _replace_views(bind, [("fact_history", _OWN),
                           ("current_facts", _OWN + " WHERE f.valid_to_ns IS NULL"),
                           ("memory", _OWN + " WHERE f.valid_to_ns IS NOT NULL"),
