@@ -31,6 +31,11 @@ def _database(ctx: click.Context, url: str | None) -> Any:
 @click.option("--rate", type=float, help="Ticks per second (default: the file's, 30 / 2.5 Hz).")
 @click.option("--until", "until", metavar="T", help="Stop after this much input time (20s).")
 @click.option("--realtime", is_flag=True, help="Pace ticks to the wall clock.")
+@click.option("--fps", type=float, metavar="FPS", help="Frame rate of an obsmat file's frame "
+              "numbers (default 25, as ETH/UCY); checked against its annotated velocities.")
+@click.option("--holders", metavar="none|humans|ID[,ID...]", help="Humans that hold beliefs "
+              "(store agents). Default: a scenario's config belief_holders, else humans; none "
+              "for recordings.")
 @click.option("--no-db", is_flag=True, help="Compute only; write nothing.")
 @click.option("--record", "record_dir", type=click.Path(path_type=Path), metavar="DIR",
               help="Also write the run as a rosbag2/MCAP recording in the new folder DIR "
@@ -38,7 +43,8 @@ def _database(ctx: click.Context, url: str | None) -> Any:
                    "needs toaster[rosbag].")
 @click.pass_context
 def run(ctx: click.Context, path: Path, url: str | None, rate: float | None, until: str | None,
-        realtime: bool, no_db: bool, record_dir: Path | None) -> None:
+        realtime: bool, fps: float | None, holders: str | None, no_db: bool,
+        record_dir: Path | None) -> None:
     """Tick a scenario (.yaml/.json) or recording (obsmat .txt, .csv, .jsonl) into the store.
 
     Areas stored in the database are added to the file's; the file's areas are stored.
@@ -51,7 +57,8 @@ def run(ctx: click.Context, path: Path, url: str | None, rate: float | None, unt
         msg = f"cannot record into {str(record_dir)!r}: it exists; give a new folder name"
         raise InvalidInputError(msg)
     store = None if no_db else _database(ctx, url).store()
-    session = load_session(path, store.areas() if store is not None else None)
+    session = load_session(path, store.areas() if store is not None else None, fps=fps,
+                           holders=holders)
     if rate is not None and rate <= 0:
         msg = f"--rate {rate} must be a positive number of ticks per second"
         raise InvalidInputError(msg)

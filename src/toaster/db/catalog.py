@@ -110,11 +110,13 @@ def open_facts_matching(conn: Connection, agent_id: str, prop: str,
 def empty_facts(conn: Connection, agent_id: str | None) -> None:
     """Delete facts, memory and events of one agent or of all (keys included)."""
     if agent_id is None:
-        for table in (s.events, s.facts, s.fact_keys):
+        for table in (s.events, s.fact_samples, s.facts, s.fact_keys):
             conn.execute(delete(table))
         return
     keys = select(s.fact_keys.c.id).where(s.fact_keys.c.agent_id == agent_id)
     conn.execute(delete(s.events).where(s.events.c.agent_id == agent_id))
+    conn.execute(delete(s.fact_samples).where(s.fact_samples.c.fact_id.in_(
+        select(s.facts.c.id).where(s.facts.c.key_id.in_(keys)))))
     conn.execute(delete(s.facts).where(s.facts.c.key_id.in_(keys)))
     conn.execute(delete(s.fact_keys).where(s.fact_keys.c.agent_id == agent_id))
 

@@ -24,6 +24,11 @@ Tables
                 ``[from_ns, to_ns)`` and its events stamped in ``[events_from_ns,
                 events_to_ns]`` are the holder's, read through the views, confidence x
                 ``pconf``; a robot change perceived by a following holder writes no row (0003).
+``fact_samples`` the numeric history inside an interval (revision 0004): when a number,
+                confidence or observability changes beyond its tolerance, the open interval
+                is refreshed in place and the values it held *until* then are kept here, so
+                the value at any past time is known within the tolerance (first sample of the
+                interval after t, else the interval's own values).
 ``store_state`` one row; ``cache_epoch`` is bumped by writes that bypass snapshot sync so that
                 every store process reloads what it remembers of the open facts.
 
@@ -50,6 +55,7 @@ from sqlalchemy import (
     Index,
     Integer,
     MetaData,
+    PrimaryKeyConstraint,
     Table,
     Text,
     text,
@@ -199,6 +205,18 @@ settings = Table(
     Column("scope", Text, primary_key=True),
     Column("key", Text, primary_key=True),
     Column("value_json", Text, nullable=False),
+)
+
+fact_samples = Table(
+    "fact_samples",
+    metadata,
+    Column("fact_id", BigInteger, nullable=False),  # -> facts.id (see "No foreign keys")
+    Column("until_ns", BigInteger, nullable=False),
+    Column("value_num", Float, nullable=True),
+    Column("confidence", Float, nullable=False),
+    Column("observability", Float, nullable=False),
+    PrimaryKeyConstraint("fact_id", "until_ns"),
+    sqlite_with_rowid=False,  # the primary key is the table: ~40 bytes a sample
 )
 
 store_state = Table(

@@ -7,7 +7,10 @@ wrote last (kept in memory, so unchanged facts cost nothing), then in one transa
 * appeared facts open an interval and write an ``appeared`` event;
 * a changed symbolic value (``value_text``) closes the interval at ``t``, opens the next one and
   writes a ``changed`` event (with the previous value);
-* a changed numeric value, confidence or observability refreshes the open interval in place;
+* a numeric value, confidence or observability that moved beyond the property's tolerance
+  (:mod:`toaster.db.tolerance`) refreshes the open interval in place and keeps the numbers it
+  held until then in ``fact_samples`` (as-of queries read them); a change within the
+  tolerance is not written;
 * facts missing from the snapshot close their interval at ``t`` and write an ``ended`` event.
 
 Writes that bypass snapshots (user assertions, retractions, EMPTY) bump ``store_state``'s
@@ -18,7 +21,6 @@ world state re-asserts itself as in the original's EMPTY. Belief rules registere
 
 from __future__ import annotations
 
-import operator
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -27,14 +29,15 @@ from typing import Any, NamedTuple
 from sqlalchemy import Connection, text
 from sqlalchemy.exc import IntegrityError
 
-from toaster.db import catalog
+from toaster.db import catalog, tolerance
+from toaster.db.batchdiff import BatchState, Snapshot, key_of
 from toaster.db.dialects import Key
+from toaster.db.tolerance import Tolerance
 from toaster.errors import InvalidInputError, TimeOrderError, UnknownAgentError
 from toaster.model import Fact, check_fact, check_id, fact_key
 from toaster.timeutil import format_ns, now_ns
 
-#: fact_key in C: (subject, subject owner, property, sub-property, target, target owner).
-_KEY = operator.itemgetter(0, 9, 1, 8, 2, 10)
+_KEY = key_of
 
 
 class ChangeSet(NamedTuple):
@@ -72,9 +75,10 @@ class SyncResult(NamedTuple):
 
 @dataclass
 class _SourceState:
-    facts: dict[Key, Fact] = field(default_factory=dict)
+    facts: dict[Key, Fact] = field(default_factory=dict)  # as stored (within tolerance)
     last_list: list[Fact] | None = None  # the last snapshot as given: equal lists skip the diff
     last_t: int = -(2**63)
+    arrays: BatchState | None = None  # the same facts as arrays, for fact-batch sources
 
 
 class _StaleCache(Exception):
@@ -93,6 +97,7 @@ class Store:
         self._entities: set[str] = set()
         self._epoch: int | None = None
         self._rules: list[Rule] = []
+        self._tolerances: dict[str, Tolerance] | None = None
         self._in_tx = False
 
     # ------------------------------------------------------------------ transactions, caches
@@ -120,6 +125,7 @@ class Store:
         self._agents = None
         self._entities.clear()
         self._epoch = None
+        self._tolerances = None
 
     def _check_epoch(self, conn: Connection) -> None:
         epoch = conn.execute(text("SELECT cache_epoch FROM store_state WHERE id = 1")).scalar_one()
@@ -221,20 +227,26 @@ class Store:
 
     # ------------------------------------------------------------------ snapshot sync
     def sync_snapshot(self, source: str, agent_id: str, t_ns: int,
-                      facts: Iterable[Fact]) -> SyncResult:
-        """Make ``source``'s facts for ``agent_id`` at ``t_ns`` exactly ``facts``.
+                      facts: Iterable[Fact] | Any) -> SyncResult:
+        """Make ``source``'s facts for ``agent_id`` at ``t_ns`` exactly ``facts`` (a list of
+        facts, or a producer's :class:`~toaster.producers.batch.FactBatch`).
 
         Only differences with what the source wrote last reach the database, in one
-        transaction. Facts about entities nobody registered register them (kind '').
+        transaction; numbers that moved less than their tolerance are not differences.
+        Facts about entities nobody registered register them (kind ''). A batch is diffed
+        as arrays: only its changed facts become tuples.
         """
         check_id(source, "source")
         if not isinstance(t_ns, int) or isinstance(t_ns, bool):
             msg = f"invalid time {t_ns!r}: times are integer nanoseconds"
             raise InvalidInputError(msg)
-        given = facts if isinstance(facts, list) else list(facts)
+        batch = facts if hasattr(facts, "facts_at") else None
+        given = [] if batch is not None else facts if isinstance(facts, list) else list(facts)
         for attempt in range(2):
             try:
                 with self.transaction() as conn:
+                    if batch is not None:
+                        return self._sync_batch(conn, source, agent_id, t_ns, batch)
                     return self._sync(conn, source, agent_id, t_ns, given)
             except _StaleCache:
                 if attempt:
@@ -262,14 +274,38 @@ class Store:
             self._sources[(source, agent_id)] = state
         return state
 
-    def _sync(self, conn: Connection, source: str, agent_id: str, t_ns: int,
-              given: list[Fact]) -> SyncResult:
+    def _begin(self, conn: Connection, source: str, agent_id: str, t_ns: int) -> _SourceState:
+        """The source's state, after checking the agent and the time order."""
         self.check_agent(agent_id)
         state = self._state(conn, source, agent_id)
         if t_ns < state.last_t:
             msg = (f"snapshot of {source!r} for {agent_id!r} at {format_ns(t_ns)} is older than "
                    f"its previous one ({format_ns(state.last_t)}): send snapshots in time order")
             raise TimeOrderError(msg)
+        return state
+
+    def tolerances(self, conn: Connection | None = None) -> dict[str, Tolerance]:
+        """Tolerance per property (``*``: the rest), read once per cache epoch."""
+        if self._tolerances is None:
+            if conn is None:
+                with self.db.transaction() as read_conn:
+                    self._tolerances = tolerance.read(read_conn)
+            else:
+                self._tolerances = tolerance.read(conn)
+        return self._tolerances
+
+    def _within(self, conn: Connection, new: Fact, held: Fact | None) -> bool:
+        """``new`` only moved ``held``'s numbers within their tolerance (nothing to write)."""
+        if held is None or new[:4] != held[:4] or new[7:] != held[7:]:
+            return False
+        table = self.tolerances(conn)
+        tol = table.get(new.property) or table["*"]
+        return not tolerance.beyond(tol, new[4:7], held[4:7])
+
+    def _sync(self, conn: Connection, source: str, agent_id: str, t_ns: int,
+              given: list[Fact]) -> SyncResult:
+        state = self._begin(conn, source, agent_id, t_ns)
+        state.arrays = None
         old = state.facts
         if given == state.last_list:  # the same facts in the same order: nothing to do
             state.last_t = t_ns
@@ -279,22 +315,58 @@ class Store:
             state.last_list, state.last_t = given, t_ns
             return SyncResult(0, 0, 0, 0, len(new))
         held_get = old.get
-        touched = [(key, check_fact(fact)) for key, fact in new.items() if held_get(key) != fact]
-        gone = old.keys() - new.keys()
+        touched = [(key, check_fact(fact)) for key, fact in new.items()
+                   if held_get(key) != fact and not self._within(conn, fact, held_get(key))]
+        gone = [key for key in old if key not in new]
+        result = self._write_diff(conn, state, agent_id, source, t_ns, touched,
+                                  [(key, old[key]) for key in gone], len(new))
+        state.last_list = given
+        return result
+
+    def _write_diff(self, conn: Connection, state: _SourceState, agent_id: str, source: str,
+                    t_ns: int, touched: list[tuple[Key, Fact]], gone: list[tuple[Key, Fact]],
+                    size: int) -> SyncResult:
+        """Write a snapshot's differences (stated facts, ended facts); remember them."""
+        if not touched and not gone:
+            state.last_t = t_ns
+            return SyncResult(0, 0, 0, 0, size)
         key_ids = self._key_ids
         writes = _Writes(agent_id, source, t_ns)  # events in order: ended, changed, appeared
-        for key in gone:
-            writes.end(key_ids[(agent_id, key)], old[key])
+        for key, fact in gone:
+            writes.end(key_ids[(agent_id, key)], fact)
         if touched:
             self._resolve(conn, agent_id, touched, writes)
         self._apply(conn, writes)
+        old = state.facts
         for key, fact in touched:
             old[key] = fact
-        for key in gone:
+        for key, _ in gone:
             del old[key]
-        state.last_list, state.last_t = given, t_ns
+        state.last_t = t_ns
         return SyncResult(len(writes.appeared), len(writes.changed), len(writes.refreshed),
-                          len(writes.ended), len(new) - len(touched))
+                          len(writes.ended), size - len(touched))
+
+    def _sync_batch(self, conn: Connection, source: str, agent_id: str, t_ns: int,
+                    batch: Any) -> SyncResult:
+        """:meth:`sync_snapshot` of a fact batch, diffed as arrays (:mod:`toaster.db.batchdiff`)."""
+        state = self._begin(conn, source, agent_id, t_ns)
+        arrays = state.arrays
+        if arrays is None or arrays.world is not batch.world:
+            result = self._sync(conn, source, agent_id, t_ns, batch.facts())
+            state.last_list = None
+            state.arrays = BatchState.of(batch, state.facts)
+            return result
+        new = Snapshot.of(batch, self.tolerances(conn))
+        touched, keep, old_pos, gone = arrays.diff(new)
+        facts = [check_fact(f) for f in batch.facts_at(new.order[touched])]
+        keys = list(map(_KEY, facts))
+        gone_items = list(zip(arrays.tkey[gone].tolist(), arrays.fact[gone].tolist(),
+                              strict=True))
+        result = self._write_diff(conn, state, agent_id, source, t_ns,
+                                  list(zip(keys, facts, strict=True)), gone_items, len(new.keys))
+        state.last_list = None
+        state.arrays = arrays.updated(new, touched, keep, old_pos, keys, facts)
+        return result
 
     def _key_id_map(self, conn: Connection, agent_id: str,
                     facts: list[tuple[Key, Fact]]) -> set[Key]:
@@ -333,7 +405,7 @@ class Store:
                 held = Fact(fact.subject_id, fact.property, fact.target_id, row[0], row[1],
                             row[2], row[3], fact.property_type, fact.sub_property,
                             fact.subject_owner_id, fact.target_owner_id)
-                writes.update(key_id, fact, held)
+                writes.update(key_id, fact, held, row[5])
 
     def _apply(self, conn: Connection, writes: _Writes) -> None:
         cur = self.db.cursor()
@@ -347,6 +419,7 @@ class Store:
             backend.refresh_intervals(
                 cur, [(f.value_num, f.confidence, f.observability, k)
                       for k, f, _ in writes.refreshed])
+            backend.insert_samples(cur, writes.samples)
         try:
             if writes.opening:
                 backend.insert_intervals(cur, writes.opening)
@@ -482,8 +555,12 @@ class Store:
 
     def put_setting(self, scope: str, key: str, value: object) -> None:
         """Store a JSON-able setting (thresholds, rule configuration)."""
+        if scope == tolerance.SCOPE:
+            tolerance.validate(key, value)
         with self.transaction() as conn:
             catalog.put_setting(conn, scope, key, value)
+            if scope == tolerance.SCOPE:  # every store re-reads its tolerances
+                self.bump_epoch(conn)
 
     def get_setting(self, scope: str, key: str, default: object = None) -> Any:
         """A stored setting, or ``default``."""
@@ -505,6 +582,7 @@ class _Writes:
         self.refreshed: list[tuple[int, Fact, Fact]] = []
         self.ended: list[tuple[int, Fact]] = []
         self.retyped: list[tuple[int, str]] = []
+        self.samples: list[tuple[int, int, float | None, float, float]] = []
 
     def _open(self, key_id: int, fact: Fact, kind: str, previous: str | None) -> None:
         self.opening.append((key_id, fact.value_text, fact.value_num, fact.confidence,
@@ -520,8 +598,9 @@ class _Writes:
         self._open(key_id, fact, "appeared", None)
         self.appeared.append((key_id, fact))
 
-    def update(self, key_id: int, fact: Fact, held: Fact) -> None:
-        """``fact`` replaces ``held`` (the open interval's content) for the same key."""
+    def update(self, key_id: int, fact: Fact, held: Fact, fact_id: int) -> None:
+        """``fact`` replaces ``held`` (the content of the open interval ``fact_id``) for the
+        same key; a refresh keeps ``held``'s numbers as a sample until now."""
         if fact.property_type != held.property_type:
             self.retyped.append((key_id, fact.property_type))
         if fact.value_text != held.value_text:
@@ -531,6 +610,8 @@ class _Writes:
         elif (fact.value_num, fact.confidence, fact.observability) != (
                 held.value_num, held.confidence, held.observability):
             self.refreshed.append((key_id, fact, held))
+            self.samples.append((fact_id, self.t_ns, held.value_num, held.confidence,
+                                 held.observability))
 
     def end(self, key_id: int, fact: Fact) -> None:
         """Close the key's open interval (its event is written once the close is known)."""

@@ -103,37 +103,82 @@ class FactBatch:
     # -- tuples ------------------------------------------------------------------------------
     def facts(self) -> list[Fact]:
         """The Fact tuples, in group order (built once, then cached)."""
+        if self._facts is None:
+            out: list[Fact] = []
+            for g in self.groups:
+                out.extend(self._group_facts(g, None))
+            self._facts = out
+        return self._facts
+
+    def facts_at(self, positions: np.ndarray) -> list[Fact]:
+        """The Fact tuples at these group-order positions (in their order), building only
+        those: a store writing a few changes of a large snapshot needs no more."""
         if self._facts is not None:
-            return self._facts
-        world = self.world
-        ids = world.id_array()
-        owner_ids = world.owner_id_array()
+            facts = self._facts
+            return [facts[i] for i in positions.tolist()]
+        order = np.argsort(positions, kind="stable")
+        wanted = positions[order]
         out: list[Fact] = []
+        start = 0
+        for g in self.groups:
+            lo, hi = np.searchsorted(wanted, (start, start + g.size))
+            if hi > lo:
+                out.extend(self._group_facts(g, wanted[lo:hi] - start))
+            start += g.size
+        result: list[Any] = [None] * len(out)
+        for slot, fact in zip(order.tolist(), out, strict=True):
+            result[slot] = fact
+        return result
+
+    def numbers(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(value_num with NaN for none, confidence, observability) per fact, group order."""
+        if not self.groups:
+            return np.zeros(0), np.zeros(0), np.zeros(0)
+        num, conf, obs = [], [], []
         for g in self.groups:
             m = g.size
-            if isinstance(g.subj, np.ndarray):
-                subj: Any = ids[g.subj].tolist()
-                subj_owner: Any = owner_ids[g.subj].tolist()
+            if isinstance(g.value_num, np.ndarray):
+                num.append(np.asarray(g.value_num, np.float64))
             else:
-                subj, subj_owner = repeat(g.subj, m), repeat(g.subj_owner, m)
-            tgt = ids[g.tgt].tolist() if isinstance(g.tgt, np.ndarray) else repeat(g.tgt, m)
-            if isinstance(g.value_text, tuple):
-                codes, labels = g.value_text
-                vt: Any = labels[codes].tolist()
-            else:
-                vt = repeat(g.value_text, m)
-            vn = g.value_num.tolist() if isinstance(g.value_num, np.ndarray) else repeat(
-                g.value_num, m)
-            cf = g.conf.tolist() if isinstance(g.conf, np.ndarray) else repeat(g.conf, m)
-            if isinstance(g.tgt_owner, np.ndarray):
-                to: Any = np.where(g.tgt_owner >= 0, ids[g.tgt_owner], "").tolist()
-            else:
-                to = repeat(g.tgt_owner, m)
-            out.extend(map(_make_fact, zip(subj, repeat(g.prop, m), tgt, vt, vn, cf,  # noqa: B905
-                                           repeat(g.obs, m), repeat(g.property_type, m),
-                                           repeat(g.sub_property, m), subj_owner, to)))
-        self._facts = out
-        return out
+                num.append(np.full(m, np.nan if g.value_num is None else g.value_num))
+            conf.append(np.asarray(g.conf, np.float64) if isinstance(g.conf, np.ndarray)
+                        else np.full(m, float(g.conf)))
+            obs.append(np.full(m, float(g.obs)))
+        return np.concatenate(num), np.concatenate(conf), np.concatenate(obs)
+
+    def _group_facts(self, g: Group, local: np.ndarray | None) -> list[Fact]:
+        """One group's facts, all of them or those at ``local`` positions in the group."""
+        world = self.world
+        ids = world.id_array()
+        m = g.size if local is None else len(local)
+
+        def pick(column: Any) -> Any:
+            return column if local is None else column[local]
+
+        if isinstance(g.subj, np.ndarray):
+            rows = pick(g.subj)
+            subj: Any = ids[rows].tolist()
+            subj_owner: Any = world.owner_id_array()[rows].tolist()
+        else:
+            subj, subj_owner = repeat(g.subj, m), repeat(g.subj_owner, m)
+        tgt = (ids[pick(g.tgt)].tolist() if isinstance(g.tgt, np.ndarray)
+               else repeat(g.tgt, m))
+        if isinstance(g.value_text, tuple):
+            codes, labels = g.value_text
+            vt: Any = labels[pick(codes)].tolist()
+        else:
+            vt = repeat(g.value_text, m)
+        vn = (pick(g.value_num).tolist() if isinstance(g.value_num, np.ndarray)
+              else repeat(g.value_num, m))
+        cf = pick(g.conf).tolist() if isinstance(g.conf, np.ndarray) else repeat(g.conf, m)
+        if isinstance(g.tgt_owner, np.ndarray):
+            owners = pick(g.tgt_owner)
+            to: Any = np.where(owners >= 0, ids[owners], "").tolist()
+        else:
+            to = repeat(g.tgt_owner, m)
+        return list(map(_make_fact, zip(subj, repeat(g.prop, m), tgt, vt, vn, cf,  # noqa: B905
+                                        repeat(g.obs, m), repeat(g.property_type, m),
+                                        repeat(g.sub_property, m), subj_owner, to)))
 
     # -- keys ----------------------------------------------------------------------------------
     def keys(self) -> tuple[np.ndarray, np.ndarray]:

@@ -8,10 +8,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
-from toaster.errors import FileFormatError
+from toaster.errors import FileFormatError, InvalidInputError
 from toaster.model import Fact
 from toaster.producers.areas import AreaManager
-from toaster.producers.batch import FactBatch, as_facts
+from toaster.producers.batch import FactBatch
 from toaster.producers.diff import SnapshotDiff
 from toaster.producers.monitor import AgentMonitor
 from toaster.producers.perception import PerceptionFacts
@@ -105,20 +105,20 @@ class Runner:
         return out
 
     def _write(self, t_ns: int, out: dict[str, list[Fact] | FactBatch]) -> None:
-        """All producers' snapshots in one transaction (one commit per tick).
+        """All producers' snapshots in one transaction (one commit per tick); fact batches go
+        to the store as they are (diffed as arrays there).
 
         If that fails (the store's caches went stale under a concurrent writer, …) it has been
         rolled back and the store has forgotten its caches: write again one snapshot per
         transaction, as ``sync_snapshot`` alone does, so that its own retry applies.
         """
         store, agent = self.store, self.agent_id
-        snapshots = [(name, as_facts(facts)) for name, facts in out.items()]
         try:
             with store.transaction():
-                for name, facts in snapshots:
+                for name, facts in out.items():
                     store.sync_snapshot(name, agent, t_ns, facts)
         except Exception:
-            for name, facts in snapshots:
+            for name, facts in out.items():
                 store.sync_snapshot(name, agent, t_ns, facts)
 
     def _add(self, name: str, seconds: float) -> None:
@@ -155,6 +155,8 @@ class Session:
     end_ns: int
     rate_hz: float
     config: dict[str, Any]
+    #: which humans hold beliefs (become store agents): "none", "humans" or their ids
+    belief_holders: str | tuple[str, ...] = "humans"
 
     def frame(self, t_ns: int, *, with_areas: bool = False) -> tuple[Any, ...]:
         """A recording frame of the world now (:mod:`toaster.recording`): humans, robots and
@@ -171,8 +173,12 @@ class Session:
 
     def register(self, store: Any) -> None:
         """Put the areas and entities in the store before the first tick (the self agent as a
-        self robot, joints with their owner), in one transaction, as ``toaster run`` does."""
-        world, start = self.world, self.start_ns
+        self robot, joints with their owner), in one transaction, as ``toaster run`` does.
+
+        Humans become agents (belief holders) only as ``belief_holders`` says; the others are
+        plain entities. Other robots stay agents, as the store makes them by default.
+        """
+        world, start, holders = self.world, self.start_ns, self.belief_holders
         with store.transaction():
             for area_id, spec in self.areas.items():
                 store.put_area(area_id, spec, spec.get("owner", ""))
@@ -180,41 +186,87 @@ class Session:
             for row, entity_id in enumerate(world.ids):
                 if entity_id != self.self_id:
                     owner = world.ids[world.owner[row]] if world.owner[row] >= 0 else ""
-                    store.add_entity(entity_id, world.kind_text[row], name=world.names[row],
-                                     owner_id=owner, t_ns=start)
+                    kind = world.kind_text[row]
+                    agent = None
+                    if kind == "human":
+                        agent = holders == "humans" or (not isinstance(holders, str)
+                                                         and entity_id in holders)
+                    store.add_entity(entity_id, kind, name=world.names[row],
+                                     owner_id=owner, agent=agent, t_ns=start)
 
 
-def load_session(path: str | Path, areas: dict[str, dict[str, Any]] | None = None) -> Session:
+def _belief_holders(value: Any, kinds: dict[str, str], name: str) -> str | tuple[str, ...]:
+    """Normalise a belief-holders choice: "none", "humans", or ids (a list or "a,b")."""
+    if isinstance(value, str):
+        word = value.strip()
+        if word.lower() in ("none", "humans"):
+            return word.lower()
+        value = word.split(",")
+    if not isinstance(value, list | tuple) or not all(isinstance(v, str) for v in value):
+        msg = (f"belief holders {value!r} for {name}: give none, humans or a list of ids "
+               "(--holders ID[,ID...])")
+        raise InvalidInputError(msg)
+    ids = tuple(dict.fromkeys(v.strip() for v in value if v.strip()))
+    sample = ",".join([i for i, kind in kinds.items() if kind == "human"][:3]) or "(none)"
+    if not ids:
+        msg = f"no belief holders given for {name}: give none, humans or ids such as {sample}"
+        raise InvalidInputError(msg)
+    for entity_id in ids:
+        if kinds.get(entity_id) not in ("human", "robot"):
+            msg = (f"belief holder {entity_id!r} is not a human of {name}: give none, humans "
+                   f"or ids of its people, such as {sample}")
+            raise InvalidInputError(msg)
+    return ids
+
+
+def load_session(path: str | Path, areas: dict[str, dict[str, Any]] | None = None, *,
+                 fps: float | None = None, holders: str | Sequence[str] | None = None
+                 ) -> Session:
     """Build world, sources and producers from a scenario (.yaml/.yml/.json) or recording.
 
-    Recordings: ``obsmat.txt`` (ETH/UCY, 2.5 Hz → rate 2.5), ``.csv`` or ``.jsonl`` tracks.
-    ``areas`` (for instance those kept in the store) are added to the file's own areas.
+    Recordings: ``obsmat.txt`` (ETH/UCY; frame numbers at ``fps``, default 25, checked against
+    the annotated velocities; ticks at the annotation rate, 2.5 Hz), ``.csv`` or ``.jsonl``
+    tracks. ``areas`` (for instance those kept in the store) are added to the file's own areas.
+    ``holders`` ("none", "humans" or ids) overrides the file's ``belief_holders`` (config of a
+    scenario); by default the humans of a scenario hold beliefs, those of a recording do not.
     """
     path = Path(path)
     world = World()
     suffix = path.suffix.lower()
+    if fps is not None and suffix != ".txt":
+        msg = (f"--fps is for obsmat .txt recordings (frame numbers): {path.name} gives its own "
+               "times; use --rate for ticks per second")
+        raise InvalidInputError(msg)
     if suffix in (".yaml", ".yml", ".json"):
         scenario = load_scenario(path)
         source: Any = ScenarioSource(scenario)
         all_areas = {**(areas or {}), **scenario.areas}
         config, rate, self_id = scenario.config, scenario.rate_hz, scenario.self_id
         start, end = scenario.start_ns, scenario.end_ns
+        kinds = {str(e["id"]): str(e.get("kind", "object")).lower() for e in scenario.entities}
+        default_holders = "humans"
     elif suffix == ".txt":
-        source = read_obsmat(path)
-        all_areas, config, rate, self_id = dict(areas or {}), {}, 2.5, ""
+        source = read_obsmat(path) if fps is None else read_obsmat(path, fps=fps)
+        all_areas, config, self_id = dict(areas or {}), {}, ""
+        rate = source.sample_hz or 2.5
         start, end = source.start_ns, source.end_ns
+        kinds, default_holders = source.kinds, "none"
     elif suffix in (".csv", ".jsonl", ".ndjson"):
         source = read_tracks(path)
         all_areas, config, rate, self_id = dict(areas or {}), {}, 10.0, ""
         start, end = source.start_ns, source.end_ns
+        kinds, default_holders = source.kinds, "none"
     else:
         msg = (f"cannot run {path.name!r}: give a scenario (.yaml, .yml, .json) or a recording "
                "(obsmat .txt, .csv, .jsonl)")
         raise FileFormatError(msg)
+    choice = holders if holders is not None else config.get("belief_holders")
+    belief_holders = _belief_holders(default_holders if choice is None else choice, kinds,
+                                     path.name)
     producers: list[Producer] = [PerceptionFacts(config), AreaManager(all_areas, config),
                                  AgentMonitor(config)]
     entities = source.scenario.entities if isinstance(source, ScenarioSource) else []
     if config.get("spatial") or any(e.get("role") for e in entities):
         producers.append(SpatialFacts(config))
     return Session(world, [source], producers, all_areas, self_id or DEFAULT_SELF, start, end,
-                   rate, config)
+                   rate, config, belief_holders)

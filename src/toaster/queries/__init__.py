@@ -7,12 +7,21 @@
 
 from toaster.queries.catalog import agents, descendants, entities, ontology, properties
 from toaster.queries.events import events
-from toaster.queries.facts import beliefs_at, current_facts, fact_value, history, memory
+from toaster.queries.facts import (
+    SignalPoint,
+    beliefs_at,
+    current_facts,
+    fact_value,
+    history,
+    memory,
+    signal,
+)
 from toaster.queries.frames import to_dataframe
 from toaster.queries.sql import SQLResult, are_in_table, execute
 
 __all__ = [
     "SQLResult",
+    "SignalPoint",
     "agents",
     "are_in_table",
     "beliefs_at",
@@ -26,5 +35,6 @@ __all__ = [
     "memory",
     "ontology",
     "properties",
+    "signal",
     "to_dataframe",
 ]

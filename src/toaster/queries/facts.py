@@ -6,7 +6,7 @@ tuples. Ids are always bound parameters; only column names from a fixed list rea
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 from toaster.model import FactRow
 
@@ -39,16 +39,18 @@ def _where(filters: dict[str, Any], prefix: str = "") -> tuple[str, dict[str, An
     return (" AND ".join(clauses) or "1 = 1"), params
 
 
-def _rows(db: Any, sql: str, params: dict[str, Any]) -> list[FactRow]:
+def _rows(db: Any, sql: str, params: dict[str, Any], *, raw: bool = False) -> list[Any]:
     # The driver's cursor directly: these reads are the API's hot path (as-of, point reads).
     with db.transaction():
         cur = db.cursor()
         cur.execute(db.backend.named(sql), params)
+        if raw:
+            return [tuple(row) for row in cur.fetchall()]
         return [FactRow(*row) for row in cur.fetchall()]
 
 
 def _select(db: Any, view: str, filters: dict[str, Any], *, since: int | None,
-            until: int | None, limit: int | None, order: str) -> list[FactRow]:
+            until: int | None, limit: int | None, order: str, extra: str = "") -> list[Any]:
     where, params = _where(filters)
     if since is not None:  # intervals still true at or after `since`
         where += " AND (valid_to_ns IS NULL OR valid_to_ns > :since)"
@@ -56,11 +58,11 @@ def _select(db: Any, view: str, filters: dict[str, Any], *, since: int | None,
     if until is not None:  # intervals that started at or before `until`
         where += " AND valid_from_ns <= :until"
         params["until"] = until
-    sql = f"SELECT {FACT_COLUMNS} FROM {view} WHERE {where} ORDER BY {order}"
+    sql = f"SELECT {FACT_COLUMNS}{extra} FROM {view} WHERE {where} ORDER BY {order}"
     if limit is not None:
         sql += " LIMIT :limit"
         params["limit"] = int(limit)
-    return _rows(db, sql, params)
+    return _rows(db, sql, params, raw=bool(extra))
 
 
 def current_facts(db: Any, agent: str | None = None, *, limit: int | None = None,
@@ -86,8 +88,18 @@ def history(db: Any, agent: str | None = None, *, since: int | None = None,
                    limit=limit, order="valid_from_ns, fact_id")
 
 
+def _numbers_at(conf: str | None = None) -> str:
+    """value_num, confidence, observability of interval ``f`` at ``:t``: those of its first
+    sample after ``:t`` (``s``, see ``Backend.sample_join``) when there is one."""
+    confidence = conf or "COALESCE(s.confidence, f.confidence)"
+    return ("CASE WHEN s.confidence IS NULL THEN f.value_num ELSE s.value_num END AS value_num, "
+            f"{confidence} AS confidence, "
+            "COALESCE(s.observability, f.observability) AS observability")
+
+
 def beliefs_at(db: Any, agent: str, t_ns: int, **filters: Any) -> list[FactRow]:
-    """Everything ``agent`` believed at ``t_ns`` (as-of): one seek per fact key of the agent.
+    """Everything ``agent`` believed at ``t_ns`` (as-of): one seek per fact key of the agent,
+    numbers as they were then (within their tolerance, from ``fact_samples``).
 
     A holder key that followed the self agent's key at ``t_ns`` (``belief_follow``) takes the
     self's interval then, clipped to the period, confidence x the period's ``pconf``."""
@@ -95,20 +107,78 @@ def beliefs_at(db: Any, agent: str, t_ns: int, **filters: Any) -> list[FactRow]:
     where, params = _where({"agent": agent, **filters}, prefix="k.")
     params["t"] = t_ns
     lo, hi = backend.least, backend.greatest
-    own = (f"SELECT {_KEY_COLS}, k.id AS key_id FROM fact_keys k "
-           f"{backend.as_of_join.format(key='k.id')} WHERE {where} "
+    samples = backend.sample_join.format(fact="f.id")
+    own = (f"SELECT {_KEY_ONLY}, f.value_text, {_numbers_at()}, f.valid_from_ns, "
+           "f.valid_to_ns, f.recorded_ns, f.source, k.id AS key_id FROM fact_keys k "
+           f"{backend.as_of_join.format(key='k.id')} {samples} WHERE {where} "
            "AND (f.valid_to_ns IS NULL OR f.valid_to_ns > :t)")
     followed = (
-        f"SELECT {_KEY_ONLY}, f.value_text, f.value_num, {lo}(1.0, f.confidence * w.pconf), "
-        f"f.observability, {hi}(f.valid_from_ns, w.from_ns), CASE WHEN w.to_ns IS NULL THEN "
+        f"SELECT {_KEY_ONLY}, f.value_text, "
+        f"{_numbers_at(f'{lo}(1.0, COALESCE(s.confidence, f.confidence) * w.pconf)')}, "
+        f"{hi}(f.valid_from_ns, w.from_ns), CASE WHEN w.to_ns IS NULL THEN "
         "f.valid_to_ns WHEN f.valid_to_ns IS NULL THEN w.to_ns "
         f"ELSE {lo}(f.valid_to_ns, w.to_ns) END, f.recorded_ns, 'beliefs', k.id "
         "FROM fact_keys k JOIN belief_follow w ON w.hkey = k.id AND w.from_ns <= :t "
         f"AND (w.to_ns IS NULL OR w.to_ns > :t) {backend.as_of_join.format(key='w.self_key')} "
-        f"WHERE {where} AND (f.valid_to_ns IS NULL OR f.valid_to_ns > :t)")
+        f"{samples} WHERE {where} AND (f.valid_to_ns IS NULL OR f.valid_to_ns > :t)")
     sql = (f"SELECT {FACT_COLUMNS} FROM ({own} UNION ALL {followed}) AS held "
            "ORDER BY subject_id, property, target_id, key_id")
     return _rows(db, sql, params)
+
+
+class SignalPoint(NamedTuple):
+    """From ``t_ns`` on, one key's number and confidence (``None`` after its interval ends:
+    the fact does not hold)."""
+
+    agent_id: str
+    subject_id: str
+    property: str
+    sub_property: str
+    target_id: str
+    t_ns: int
+    value_num: float | None
+    confidence: float | None
+
+
+def signal(db: Any, agent: str | None = None, *, since: int | None = None,
+           until: int | None = None, **filters: Any) -> list[SignalPoint]:
+    """The numbers of the matching facts over time, as step points: each interval's start,
+    each stored refresh (``fact_samples``) and its end (``value_num`` None). Sorted by key,
+    then time. The value at any time is the last point at or before it, within tolerance."""
+    rows = _select(db, "fact_history", {"agent": agent, **filters}, since=since, until=until,
+                   limit=None, order="valid_from_ns, fact_id", extra=", fact_id")
+    if not rows:
+        return []
+    samples: dict[int, list[tuple[int, float | None, float]]] = {}
+    ids = sorted({row[-1] for row in rows})
+    with db.transaction():
+        cur = db.cursor()
+        for start in range(0, len(ids), 500):
+            chunk = ids[start:start + 500]
+            names = {f"f{i}": fact_id for i, fact_id in enumerate(chunk)}
+            cur.execute(db.backend.named(
+                "SELECT fact_id, until_ns, value_num, confidence FROM fact_samples WHERE "
+                f"fact_id IN ({', '.join(':' + n for n in names)}) ORDER BY fact_id, until_ns"),
+                names)
+            for fact_id, until_ns, value, conf in cur.fetchall():
+                samples.setdefault(fact_id, []).append((until_ns, value, conf))
+    points: list[SignalPoint] = []
+    for *fields, fact_id in rows:
+        row = FactRow(*fields)
+        head = (row.agent_id, row.subject_id, row.property, row.sub_property, row.target_id)
+        start = row.valid_from_ns
+        for until_ns, value, conf in samples.get(fact_id, ()):
+            if until_ns <= start:  # before a followed period's clipped start
+                continue
+            if row.valid_to_ns is not None and until_ns > row.valid_to_ns:
+                break
+            points.append(SignalPoint(*head, start, value, conf))
+            start = until_ns
+        points.append(SignalPoint(*head, start, row.value_num, row.confidence))
+        if row.valid_to_ns is not None:
+            points.append(SignalPoint(*head, row.valid_to_ns, None, None))
+    points.sort(key=lambda p: (p[:5], p.t_ns))
+    return points
 
 
 def fact_value(db: Any, agent: str, subject: str, property: str, target: str = "", *,

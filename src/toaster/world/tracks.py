@@ -17,11 +17,14 @@ from pathlib import Path
 
 import numpy as np
 
-from toaster.errors import FileFormatError
+from toaster.errors import FileFormatError, InvalidInputError
 from toaster.timeutil import NS_PER_S
 from toaster.world.state import World
 
-OBSMAT_FRAME_NS = 40_000_000  # 25 fps: 10 frames = 0.4 s
+OBSMAT_FPS = 25.0  # ETH/UCY videos: 25 fps, annotated every 10 frames (0.4 s, 2.5 Hz)
+OBSMAT_FRAME_NS = 40_000_000  # one frame at OBSMAT_FPS
+OBSMAT_COLUMNS = ("frame", "ped", "pos_x", "pos_z", "pos_y", "v_x", "v_z", "v_y")
+FPS_TOLERANCE = 1.5  # refuse an fps more than this factor away from what the velocities imply
 
 
 class TrackSource:
@@ -40,6 +43,7 @@ class TrackSource:
         self._cursor = 0
         self.start_ns = int(self.t[0]) if len(self.t) else 0
         self.end_ns = int(self.t[-1]) if len(self.t) else 0
+        self.sample_hz: float | None = None  # the annotation rate, when the file tells it
 
     def setup(self, world: World) -> None:
         """Register every track id (not yet perceived, so not live until its first sample)."""
@@ -56,19 +60,125 @@ class TrackSource:
             self._cursor = stop
 
 
-def read_obsmat(path: str | Path, prefix: str = "ped", start_ns: int = 0) -> TrackSource:
-    """Read an ETH/UCY obsmat.txt (frame ped x z y vx vz vy); yaw follows the velocity."""
+
+
+def _label(path: Path) -> str:
+    """``seq_hotel/obsmat.txt``: the file with its folder (obsmat files all share one name)."""
+    return f"{path.parent.name}/{path.name}" if path.parent.name else path.name
+
+
+def _obsmat_table(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The numbers of an obsmat file (n × 8) and the line number of each row."""
+    label = _label(path)
     try:
-        data = np.loadtxt(path, ndmin=2)
-    except (OSError, ValueError) as exc:
-        msg = f"cannot read obsmat {str(path)!r} ({exc}): expected 8 numeric columns"
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        msg = f"cannot read obsmat {label!r} ({exc}): expected 8 numeric columns"
         raise FileFormatError(msg) from None
-    if data.shape[1] != 8:
-        msg = f"{str(path)!r} has {data.shape[1]} columns: obsmat has 8 (frame ped x z y vx vz vy)"
+    numbers, rows = [], []
+    for n, line in enumerate(text.splitlines(), 1):
+        fields = line.split("#", 1)[0].split()
+        if fields:
+            numbers.append(n)
+            rows.append(fields)
+            if len(fields) != len(OBSMAT_COLUMNS):
+                msg = (f"{label} line {n} has {len(fields)} columns: obsmat has 8 "
+                       "(frame ped x z y vx vz vy)")
+                raise FileFormatError(msg)
+    if not rows:
+        msg = f"{label} holds no samples: obsmat has one row per person and frame"
         raise FileFormatError(msg)
+    try:
+        data = np.array(rows, dtype=float)
+    except ValueError:
+        for n, fields in zip(numbers, rows, strict=True):
+            for column, word in zip(OBSMAT_COLUMNS, fields, strict=True):
+                try:
+                    float(word)
+                except ValueError:
+                    msg = (f"{label} line {n}: {column} {word!r} is not a number; obsmat rows "
+                           "are 8 numbers (frame ped x z y vx vz vy): fix or delete the line")
+                    raise FileFormatError(msg) from None
+        raise  # pragma: no cover - numpy and float() agree on what a number is
+    return data, np.asarray(numbers, np.int64)
+
+
+def _check_obsmat(label: str, data: np.ndarray, lines: np.ndarray) -> None:
+    """Refuse non-finite numbers and frames / person ids that are not non-negative integers."""
+    finite = np.isfinite(data)
+    ints = data[:, :2]
+    bad_int = (ints < 0) | (ints != np.floor(ints))
+    bad = ~finite.all(axis=1) | bad_int.any(axis=1)
+    if not bad.any():
+        return
+    i = int(np.argmax(bad))
+    where = f"{label} line {lines[i]}"
+    if not finite[i].all():
+        column = OBSMAT_COLUMNS[int(np.argmin(finite[i]))]
+        value = data[i, OBSMAT_COLUMNS.index(column)]
+        msg = f"{where}: {column} is {value}, not a finite number: fix or delete the line"
+    elif bad_int[i, 0]:
+        msg = (f"{where}: frame {data[i, 0]:g} is not a frame number (frames are non-negative "
+               "integers; columns are frame ped x z y vx vz vy): fix or delete the line")
+    else:
+        msg = (f"{where}: person id {data[i, 1]:g} is not an id (ids are non-negative integers; "
+               "columns are frame ped x z y vx vz vy): fix or delete the line")
+    raise FileFormatError(msg)
+
+
+def _check_fps(label: str, fps: float, frame: np.ndarray, ped: np.ndarray,
+               data: np.ndarray) -> float | None:
+    """The median frame step between a person's rows; refuse an fps the velocities contradict.
+
+    Rows are sorted by person then frame. Over consecutive rows of a person that walks
+    (mean annotated speed > 0.2 m/s), ``speed × frames / distance`` estimates the frame rate.
+    """
+    same = ped[1:] == ped[:-1]
+    steps = (frame[1:] - frame[:-1])[same].astype(float)
+    if not len(steps):
+        return None
+    step = float(np.median(steps))
+    moved = np.hypot(data[1:, 2] - data[:-1, 2], data[1:, 4] - data[:-1, 4])[same]
+    speed = np.hypot(data[:, 5], data[:, 7])
+    speed = ((speed[1:] + speed[:-1]) / 2)[same]
+    use = (speed > 0.2) & (moved > 0) & (steps > 0)
+    if use.sum() < 10:
+        return step
+    fit = float(np.median(speed[use] * steps[use] / moved[use]))
+    if not 1 / FPS_TOLERANCE <= fps / fit <= FPS_TOLERANCE:
+        per_step = float(np.median(moved[use] * step / steps[use]))
+        at = float(np.median(speed[use]))
+        guess = f"{round(fit):d}" if fit >= 10 else f"{fit:.2g}"
+        msg = (f"--fps {fps:g} does not fit {label}: its annotated velocities imply about "
+               f"{guess} fps (positions move {per_step:.2f} m per {step:g} frames at "
+               f"{at:.2f} m/s); give --fps {guess}")
+        raise FileFormatError(msg)
+    return step
+
+
+def read_obsmat(path: str | Path, prefix: str = "ped", start_ns: int = 0,
+                fps: float = OBSMAT_FPS) -> TrackSource:
+    """Read an ETH/UCY obsmat.txt (frame ped x z y vx vz vy); yaw follows the velocity.
+
+    ``fps`` is the video frame rate the frame numbers count (ETH/UCY: 25). It is checked
+    against the file: the annotated velocities must agree with the positions' steps. Bad rows
+    (non-finite numbers, negative or fractional frames or ids) are refused with their line.
+    """
+    try:
+        rate = math.nan if isinstance(fps, bool) else float(fps)
+    except (TypeError, ValueError):
+        rate = math.nan
+    if not (math.isfinite(rate) and rate > 0):
+        msg = f"--fps {fps!r} must be a positive number of frames per second (ETH/UCY: 25)"
+        raise InvalidInputError(msg)
+    path = Path(path)
+    label = _label(path)
+    data, lines = _obsmat_table(path)
+    _check_obsmat(label, data, lines)
     frame, ped = data[:, 0].astype(np.int64), data[:, 1].astype(np.int64)
     order = np.lexsort((frame, ped))
     frame, ped, data = frame[order], ped[order], data[order]
+    step = _check_fps(label, rate, frame, ped, data)
     yaw = np.arctan2(data[:, 7], data[:, 5])
     still = np.hypot(data[:, 5], data[:, 7]) == 0
     idx = np.where(~still, np.arange(len(yaw)), 0)
@@ -79,23 +189,87 @@ def read_obsmat(path: str | Path, prefix: str = "ped", start_ns: int = 0) -> Tra
     ids = [f"{prefix}{p}" for p in ped.tolist()]
     pos = np.column_stack([data[:, 2], data[:, 4], np.zeros(len(data))])
     rpy = np.column_stack([np.zeros(len(data)), np.zeros(len(data)), yaw])
-    t = start_ns + frame * OBSMAT_FRAME_NS
-    return TrackSource(t, ids, dict.fromkeys(ids, "human"), pos, rpy, name="obsmat")
+    t = start_ns + np.rint(frame * (NS_PER_S / rate)).astype(np.int64)
+    source = TrackSource(t, ids, dict.fromkeys(ids, "human"), pos, rpy, name="obsmat")
+    if step:
+        source.sample_hz = rate / step
+    return source
 
 
-def _rows(path: Path) -> list[dict]:
+def _rows(path: Path) -> list[tuple[int, dict]]:
+    """The samples of a CSV / JSON-lines file, each with its line number."""
+    out: list[tuple[int, dict]] = []
     try:
-        with path.open(encoding="utf-8") as fh:
+        with path.open(encoding="utf-8", newline="") as fh:
             if path.suffix in (".jsonl", ".ndjson"):
-                return [json.loads(line) for line in fh if line.strip()]
-            return list(csv.DictReader(fh))
-    except (OSError, json.JSONDecodeError, csv.Error) as exc:
+                for n, line in enumerate(fh, 1):
+                    if not line.strip():
+                        continue
+                    try:
+                        row = json.loads(line)
+                    except json.JSONDecodeError as exc:
+                        msg = (f"{path.name} line {n}: not JSON ({exc.msg}); one JSON object "
+                               "per line is expected")
+                        raise FileFormatError(msg) from None
+                    if not isinstance(row, dict):
+                        msg = (f"{path.name} line {n}: {type(row).__name__} instead of a JSON "
+                               'object such as {"t_s": 0.5, "id": "bob", "x": 1, "y": 2}')
+                        raise FileFormatError(msg)
+                    out.append((n, row))
+                return out
+            reader = csv.DictReader(fh)
+            out.extend((reader.line_num, row) for row in reader)
+            return out
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
         msg = f"cannot read tracks {path.name!r} ({exc}): one sample per line is expected"
         raise FileFormatError(msg) from None
 
 
+def _number(row: dict, key: str, default: float | None, where: str, unit: str) -> float:
+    """One finite number of a sample (``default`` when absent or empty; None: required)."""
+    raw = row.get(key)
+    if raw is None or (isinstance(raw, str) and not raw.strip()):
+        if default is None:
+            msg = f"{where}: missing {key} ({unit})"
+            raise FileFormatError(msg)
+        return default
+    try:
+        if isinstance(raw, bool):
+            raise TypeError
+        value = float(raw)
+    except (TypeError, ValueError):
+        msg = f"{where}: {key} {raw!r} is not a number ({unit}): fix or delete the line"
+        raise FileFormatError(msg) from None
+    if not math.isfinite(value):
+        msg = f"{where}: {key} is {raw!r}, not a finite number ({unit}): fix or delete the line"
+        raise FileFormatError(msg)
+    return value
+
+
+def _time_ns(row: dict, where: str) -> int:
+    """The sample time: integer ``t_ns`` or finite ``t_s`` (exactly one)."""
+    if ("t_ns" in row) == ("t_s" in row):
+        msg = f"{where}: give exactly one time column, t_ns (integer ns) or t_s (seconds)"
+        raise FileFormatError(msg)
+    if "t_s" in row:
+        return round(_number(row, "t_s", None, where, "seconds") * NS_PER_S)
+    raw = row["t_ns"]
+    try:
+        if isinstance(raw, bool | float):
+            raise ValueError
+        return int(str(raw).strip())
+    except ValueError:
+        msg = (f"{where}: t_ns {raw!r} is not an integer number of nanoseconds "
+               "(use t_s for seconds): fix or delete the line")
+        raise FileFormatError(msg) from None
+
+
 def read_tracks(path: str | Path) -> TrackSource:
-    """Read a generic CSV (.csv) or JSON-lines (.jsonl) track file."""
+    """Read a generic CSV (.csv) or JSON-lines (.jsonl) track file.
+
+    Bad samples (missing or non-numeric values, NaN or infinite poses, confidence outside
+    [0, 1]) are refused with their line number.
+    """
     path = Path(path)
     rows = _rows(path)
     if not rows:
@@ -106,26 +280,15 @@ def read_tracks(path: str | Path) -> TrackSource:
     pos, rpy, conf = np.zeros((n, 3)), np.zeros((n, 3)), np.ones(n)
     ids: list[str] = []
     kinds: dict[str, str] = {}
-    for i, row in enumerate(rows):
-        where = f"{path.name} sample {i + 1}"
-        if ("t_ns" in row) == ("t_s" in row):
-            msg = f"{where}: give exactly one time column, t_ns (integer ns) or t_s (seconds)"
-            raise FileFormatError(msg)
-        try:
-            if "t_ns" in row:
-                t[i] = int(str(row["t_ns"]).strip())
-            else:
-                t[i] = round(float(row["t_s"]) * NS_PER_S)
-            pos[i] = [float(row["x"]), float(row["y"]), float(row.get("z") or 0)]
-            rpy[i] = [float(row.get("roll") or 0), float(row.get("pitch") or 0),
-                      float(row.get("yaw") or 0)]
-            conf[i] = float(row.get("confidence") or 1)
-        except (KeyError, ValueError, TypeError) as exc:
-            msg = (f"{where}: bad or missing value ({exc}); t_ns must be an integer, "
-                   "x, y, z in metres and yaw in radians")
-            raise FileFormatError(msg) from None
-        if not all(math.isfinite(v) for v in (*pos[i], *rpy[i])):
-            msg = f"{where}: non-finite pose"
+    for i, (line, row) in enumerate(rows):
+        where = f"{path.name} line {line}"
+        t[i] = _time_ns(row, where)
+        pos[i] = [_number(row, key, None if key != "z" else 0.0, where, "metres")
+                  for key in ("x", "y", "z")]
+        rpy[i] = [_number(row, key, 0.0, where, "radians") for key in ("roll", "pitch", "yaw")]
+        conf[i] = _number(row, "confidence", 1.0, where, "between 0 and 1")
+        if not 0 <= conf[i] <= 1:
+            msg = f"{where}: confidence {conf[i]:g} must be between 0 and 1: fix the line"
             raise FileFormatError(msg)
         eid = str(row.get("id") or "")
         if not eid:

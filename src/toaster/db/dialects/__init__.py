@@ -22,6 +22,9 @@ class Backend(Protocol):
     #: ``w.self_key``) to its interval ``f`` starting last at or before ``:t`` (the per-key
     #: seek behind every as-of query).
     as_of_join: str
+    #: FROM-clause fragment joining ``s``, the first sample of the interval ``{fact}`` after
+    #: ``:t`` (its numbers then), or NULLs when there is none (the interval's own hold).
+    sample_join: str
     #: The two-argument scalar minimum and maximum (``MIN``/``MAX`` or ``LEAST``/``GREATEST``).
     least: str
     greatest: str
@@ -39,7 +42,7 @@ class Backend(Protocol):
 
     def open_rows(self, cur: Any, key_ids: list[int]) -> dict[int, tuple[Any, ...]]:
         """Open intervals of these keys: key_id -> (value_text, value_num, confidence,
-        observability, source)."""
+        observability, source, fact id)."""
 
     def close_intervals(self, cur: Any, t_ns: int, key_ids: list[int]) -> set[int]:
         """Close the open interval of each key at ``t_ns``; return the keys that had one."""
@@ -50,6 +53,10 @@ class Backend(Protocol):
     def insert_intervals(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
         """``(key_id, value_text, value_num, confidence, observability, valid_from_ns,
         recorded_ns, source)``: open new intervals."""
+
+    def insert_samples(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
+        """``(fact_id, until_ns, value_num, confidence, observability)``: the numbers an
+        interval held until a refresh (a second sample at the same time is dropped)."""
 
     def insert_events(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
         """``(key_id, agent_id, kind, stamp_ns, value_text, value_num, confidence,

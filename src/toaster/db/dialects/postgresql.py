@@ -30,6 +30,11 @@ class PostgreSQLBackend:
         "CROSS JOIN LATERAL (SELECT * FROM facts f2 WHERE f2.key_id = {key} "
         "AND f2.valid_from_ns <= :t ORDER BY f2.valid_from_ns DESC, f2.id DESC LIMIT 1) f"
     )
+    sample_join = (
+        "LEFT JOIN LATERAL (SELECT s2.value_num, s2.confidence, s2.observability "
+        "FROM fact_samples s2 WHERE s2.fact_id = {fact} AND s2.until_ns > :t "
+        "ORDER BY s2.until_ns LIMIT 1) s ON true"
+    )
     least, greatest = "LEAST", "GREATEST"
 
     def named(self, sql: str) -> str:
@@ -58,8 +63,8 @@ class PostgreSQLBackend:
 
     def open_rows(self, cur: Any, key_ids: list[int]) -> dict[int, tuple[Any, ...]]:
         cur.execute(
-            "SELECT key_id, value_text, value_num, confidence, observability, source FROM facts "
-            "WHERE key_id = ANY(%b::bigint[]) AND valid_to_ns IS NULL",
+            "SELECT key_id, value_text, value_num, confidence, observability, source, id "
+            "FROM facts WHERE key_id = ANY(%b::bigint[]) AND valid_to_ns IS NULL",
             [key_ids],
         )
         return {row[0]: tuple(row[1:]) for row in cur.fetchall()}
@@ -87,6 +92,14 @@ class PostgreSQLBackend:
             "valid_from_ns, recorded_ns, source) SELECT * FROM unnest(%b::bigint[], %b::text[], "
             "%b::float8[], %b::float8[], %b::float8[], %b::bigint[], %b::bigint[], %b::text[])",
             _columns(rows, 8),
+        )
+
+    def insert_samples(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
+        cur.execute(
+            "INSERT INTO fact_samples (fact_id, until_ns, value_num, confidence, observability) "
+            "SELECT * FROM unnest(%b::bigint[], %b::bigint[], %b::float8[], %b::float8[], "
+            "%b::float8[]) ON CONFLICT DO NOTHING",
+            _columns(rows, 5),
         )
 
     def insert_events(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:

@@ -29,6 +29,10 @@ class SQLiteBackend:
         "JOIN facts f ON f.id = (SELECT f2.id FROM facts f2 WHERE f2.key_id = {key} "
         "AND f2.valid_from_ns <= :t ORDER BY f2.valid_from_ns DESC, f2.id DESC LIMIT 1)"
     )
+    sample_join = (
+        "LEFT JOIN fact_samples s ON s.fact_id = {fact} AND s.until_ns = (SELECT "
+        "MIN(s2.until_ns) FROM fact_samples s2 WHERE s2.fact_id = {fact} AND s2.until_ns > :t)"
+    )
     least, greatest = "MIN", "MAX"  # two-argument scalar forms
 
     def named(self, sql: str) -> str:
@@ -77,7 +81,7 @@ class SQLiteBackend:
         for chunk in _chunks(key_ids, _MAX_VARS):
             marks = ",".join("?" * len(chunk))
             cur.execute(
-                "SELECT key_id, value_text, value_num, confidence, observability, source "
+                "SELECT key_id, value_text, value_num, confidence, observability, source, id "
                 f"FROM facts INDEXED BY uq_facts_open_key WHERE key_id IN ({marks}) "
                 "AND valid_to_ns IS NULL",
                 chunk,
@@ -110,6 +114,13 @@ class SQLiteBackend:
         cur.executemany(
             "INSERT INTO facts (key_id, value_text, value_num, confidence, observability, "
             "valid_from_ns, recorded_ns, source) VALUES (?,?,?,?,?,?,?,?)",
+            rows,
+        )
+
+    def insert_samples(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
+        cur.executemany(
+            "INSERT INTO fact_samples (fact_id, until_ns, value_num, confidence, observability) "
+            "VALUES (?,?,?,?,?) ON CONFLICT DO NOTHING",
             rows,
         )
 

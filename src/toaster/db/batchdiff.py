@@ -1,0 +1,123 @@
+"""The store's memory of a fact-batch source: its stored facts as arrays sorted by batch key.
+
+A producer's :class:`~toaster.producers.batch.FactBatch` names each fact by an integer key
+(group signature × subject row × target row) and its value_text by an interned code. Kept
+sorted by that key with the stored numbers beside it, a whole snapshot is compared with what
+is stored in a few numpy operations: only facts that appeared, changed their text or moved a
+number beyond its tolerance become Python tuples, and only they reach the database.
+"""
+
+from __future__ import annotations
+
+import operator
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from toaster.db.dialects import Key
+from toaster.db.tolerance import Tolerance
+from toaster.model import Fact
+
+#: fact_key in C: (subject, subject owner, property, sub-property, target, target owner).
+key_of = operator.itemgetter(0, 9, 1, 8, 2, 10)
+
+
+class Snapshot(NamedTuple):
+    """One batch, deduplicated (a repeated key keeps its last fact) and sorted by key."""
+
+    keys: np.ndarray
+    codes: np.ndarray
+    numbers: np.ndarray  # (n, 3): value_num (NaN = none), confidence, observability
+    tolerance: np.ndarray  # (n, 3): the same parts' tolerances
+    order: np.ndarray  # group-order position of each fact in the batch
+
+    @classmethod
+    def of(cls, batch: Any, tolerances: dict[str, Tolerance]) -> Snapshot:
+        keys, codes = batch.keys()
+        numbers = np.column_stack(batch.numbers()) if len(keys) else np.zeros((0, 3))
+        default = tolerances["*"]
+        per_group = np.array([tolerances.get(g.prop, default) for g in batch.groups]
+                             or np.zeros((0, 3)), np.float64).reshape(-1, 3)
+        sizes = np.fromiter((g.size for g in batch.groups), np.int64, len(batch.groups))
+        tol = np.repeat(per_group, sizes, axis=0)
+        order = np.argsort(keys, kind="stable")
+        keys = keys[order]
+        if len(keys) > 1:
+            last = np.ones(len(keys), bool)
+            last[:-1] = keys[1:] != keys[:-1]
+            if not last.all():
+                order, keys = order[last], keys[last]
+        return cls(keys, codes[order], numbers[order], tol[order], order)
+
+
+class BatchState:
+    """What a batch source has stored: sorted keys, text codes, numbers, text keys, facts."""
+
+    __slots__ = ("codes", "fact", "keys", "numbers", "tkey", "world")
+
+    def __init__(self, world: Any, keys: np.ndarray, codes: np.ndarray, numbers: np.ndarray,
+                 tkey: np.ndarray, fact: np.ndarray) -> None:
+        self.world, self.keys, self.codes, self.numbers = world, keys, codes, numbers
+        self.tkey, self.fact = tkey, fact
+
+    @classmethod
+    def of(cls, batch: Any, stored: dict[Key, Fact]) -> BatchState:
+        """The state after ``batch`` was written through the list path (``stored``: the
+        source's facts as stored, which may differ from the batch's within tolerance)."""
+        snap = Snapshot.of(batch, {"*": Tolerance()})
+        facts = batch.facts()
+        n = len(snap.keys)
+        codes, numbers = snap.codes.copy(), snap.numbers.copy()
+        tkey, fact = np.empty(n, object), np.empty(n, object)
+        for j, i in enumerate(snap.order.tolist()):
+            given = facts[i]
+            key = key_of(given)
+            held = stored.get(key, given)
+            tkey[j], fact[j] = key, held
+            if held is not given:
+                numbers[j] = (np.nan if held.value_num is None else held.value_num,
+                              held.confidence, held.observability)
+                if held.value_text != given.value_text:
+                    codes[j] = -1  # compare again next time (the database decides)
+        return cls(batch.world, snap.keys, codes, numbers, tkey, fact)
+
+    def diff(self, new: Snapshot) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(positions in ``new`` to write, mask of ``new`` facts kept as stored, their
+        positions here, positions here of facts gone)."""
+        n_old = len(self.keys)
+        if n_old == 0:
+            nothing = np.zeros(len(new.keys), bool)
+            return (np.arange(len(new.keys)), nothing, np.zeros(len(new.keys), np.int64),
+                    np.zeros(0, np.int64))
+        pos = np.minimum(np.searchsorted(self.keys, new.keys), n_old - 1)
+        found = self.keys[pos] == new.keys
+        held = self.numbers[pos]
+        with np.errstate(invalid="ignore"):
+            moved = ~(np.abs(new.numbers - held) <= new.tolerance)
+        moved &= ~(np.isnan(new.numbers) & np.isnan(held))
+        keep = found & (self.codes[pos] == new.codes) & ~moved.any(axis=1)
+        matched = np.zeros(n_old, bool)
+        matched[pos[found]] = True
+        return np.flatnonzero(~keep), keep, pos, np.flatnonzero(~matched)
+
+    def updated(self, new: Snapshot, touched: np.ndarray, keep: np.ndarray, pos: np.ndarray,
+                keys: list[Key], facts: list[Fact]) -> BatchState:
+        """The state once ``facts`` (at ``touched``) were written and the rest kept."""
+        n = len(new.keys)
+        numbers = new.numbers.copy()
+        tkey, fact = np.empty(n, object), np.empty(n, object)
+        if len(self.keys):
+            kept = pos[keep]
+            numbers[keep] = self.numbers[kept]
+            tkey[keep], fact[keep] = self.tkey[kept], self.fact[kept]
+        tkey[touched] = _objects(keys)
+        fact[touched] = _objects(facts)
+        return BatchState(self.world, new.keys, new.codes, numbers, tkey, fact)
+
+
+def _objects(items: list[Any]) -> np.ndarray:
+    """A 1-D object array of tuples (numpy would otherwise make them a 2-D array)."""
+    out = np.empty(len(items), object)
+    for i, item in enumerate(items):
+        out[i] = item
+    return out
