@@ -1,47 +1,54 @@
-"""One full tick with the database, and ETH/UCY replay speed into the database.
+"""Ticks and replays with the database, the way users run them (``Runner`` / ``toaster run``).
 
-Run: .venv/bin/python benchmarks/bench_run.py [--pg URL] [--no-pg] [--ticks N]
+Run: .venv/bin/python benchmarks/bench_run.py [--pg URL] [--no-pg] [--only tick|crowd|size]
+     [--repeats N]
 
-1. Tick with the store: the producer benchmark's scene (1,000 entities, 100 areas, 20 agents
-   with 2 joints) through ``Runner``-equivalent steps plus ``store.sync_snapshot`` per producer,
-   on a SQLite file and on PostgreSQL (a private schema, dropped afterwards). Two scenes: every
-   entity moves (the producer benchmark: every Distance / IsMovingToward value_num changes, so
-   every fact is refreshed every tick) and only the agents move (objects still). Baselines
-   measured in the same run: the same tick without the database, and the bare driver's raw
-   limit for as many rows (sqlite3 executemany, psycopg executemany into a temp table).
-2. Replay of ETH hotel and UCY zara01 (``obsmat.txt``) with ``toaster run``'s session (pdg,
-   area manager, agent monitor) into a fresh database: × real time (target ≥ 100×), against the
-   same replay without a database.
+1. **One full tick**: the producer benchmark's scene (1,000 entities, 100 areas, 20 humans with
+   a head and a hand; every entity jitters 2 cm a tick at 30 Hz) and a 10,000-entity scene with
+   30 humans, as a :class:`~toaster.producers.Session` (registered in the store as
+   ``toaster run`` registers a file's entities; the store with its belief rule, defaults) ticked
+   by :class:`~toaster.producers.Runner`. Same-run baselines: the tick without a database
+   (the geometry alone) and *before*: the settings of the previous release (no range for
+   IsMovingToward, no debounce, every number written exactly).
+2. **Crowd replay**: ``toaster run`` (a subprocess, its own figures) on synthetic crowds of
+   :mod:`crowd` (400 people at 2.5 Hz and at 30 Hz), on SQLite and PostgreSQL; the × real
+   time it prints, against ``--no-db``.
+3. **Size**: a 100-person crowd at 30 Hz with 2 cm of tracker noise, replayed for 40 s and
+   120 s; growth per hour from the difference (bytes, rows; PostgreSQL: with dead tuples).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import sqlite3
+import re
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 
 import bench_producers as bp
+import crowd
 import toaster
-from toaster.producers import AgentMonitor, AreaManager, Runner, SnapshotDiff, load_session
-from toaster.producers.batch import as_facts
+from toaster.db import tolerance
+from toaster.producers import AgentMonitor, AreaManager, Runner, Session
+from toaster.producers.perception import PerceptionFacts
+from toaster.world import World
 
 S = 1_000_000_000
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "eth-ucy-opentraj"
-RECORDINGS = {"ETH hotel": DATA / "ETH" / "seq_hotel" / "obsmat.txt",
-              "UCY zara01": DATA / "UCY" / "zara01" / "obsmat.txt"}
 PG_DEFAULT = "postgresql://postgres@127.0.0.1:5432/test"
+TOASTER = str(Path(sys.executable).parent / "toaster")
+#: the previous release's behaviour, for the same-run "before" column
+BEFORE = {"toward_range": 1e9, "min_duration": {"IsMoving": 0.0, "IsFacing": 0.0}}
 
 
-# -- databases -------------------------------------------------------------------------------
 class PgSchema:
     """A private schema on a PostgreSQL server, dropped on exit."""
 
@@ -58,193 +65,222 @@ class PgSchema:
         sep = "&" if "?" in self.base else "?"
         return f"{self.base}{sep}options=-csearch_path%3D{self.name}"
 
-    def analyze(self) -> None:
-        """ANALYZE the schema's tables (the store's tables start empty: trap 2)."""
-        tables = self.conn.execute("SELECT tablename FROM pg_tables WHERE schemaname = %s",
-                                   (self.name,)).fetchall()
-        for (table,) in tables:
-            self.conn.execute(f'ANALYZE {self.name}."{table}"')
+    def size(self) -> tuple[int, int, int]:
+        """(bytes of every table and index, live rows, dead rows) of the schema."""
+        self.conn.execute("SELECT pg_stat_clear_snapshot()")
+        row = self.conn.execute(
+            "SELECT COALESCE(SUM(pg_total_relation_size(relid)), 0), COALESCE(SUM(n_live_tup), "
+            "0), COALESCE(SUM(n_dead_tup), 0) FROM pg_stat_user_tables WHERE schemaname = %s",
+            (self.name,)).fetchone()
+        return int(row[0]), int(row[1]), int(row[2])
 
     def drop(self) -> None:
         self.conn.execute(f"DROP SCHEMA IF EXISTS {self.name} CASCADE")
         self.conn.close()
 
 
-def open_store(url: str):
-    db = toaster.connect(url)
-    store = db.store()
-    store.add_entity("toaster", "robot", is_self=True, t_ns=0)
-    return db, store
+class Database:
+    """A fresh SQLite file or PostgreSQL schema for one measurement."""
+
+    def __init__(self, backend: str, pg_url: str | None, tmp: str) -> None:
+        self.schema = PgSchema(pg_url) if backend == "postgresql" else None
+        self.path = Path(tmp) / f"bench_{time.monotonic_ns()}.db"
+        self.url = self.schema.url if self.schema else f"sqlite:///{self.path}"
+
+    def size(self) -> tuple[int, int, int]:
+        if self.schema:
+            return self.schema.size()
+        return sum(p.stat().st_size for p in self.path.parent.glob(self.path.name + "*")), 0, 0
+
+    def close(self) -> None:
+        if self.schema:
+            self.schema.drop()
 
 
-# -- 1. tick with the database ------------------------------------------------------------------
-def scene(n: int, objects_move: bool):
-    world, areas, pos, rng = bp.build(n)
-    managers = [AreaManager(areas), AgentMonitor()]
-    moving = len(pos) if objects_move else 20
-
-    def tick(t: int, diff: SnapshotDiff, store=None) -> int:
-        pos[:moving, :2] += rng.normal(0, 0.02, (moving, 2))
-        world.observe("bench", np.arange(len(pos)), np.full(len(pos), t), pos)
-        world.commit()
-        written = 0
-        for m in managers:
-            batch = m.compute_batch(world, t)
-            diff.apply(m.name, batch)
-            if store is not None:
-                r = store.sync_snapshot(m.name, "toaster", t, as_facts(batch))
-                written += r.appeared + r.changed + r.refreshed + r.ended
-        return written
-
-    return tick
+def set_before(store: Any) -> None:
+    """The previous release: every number written exactly."""
+    for prop in tolerance.DEFAULTS:
+        store.put_setting("tolerance", prop, {"value": 0, "confidence": 0, "observability": 0})
 
 
-def time_ticks(tick, store, ticks: int, warmup: int = 3,
-               after_warmup=None) -> tuple[float, float, float]:
-    """(median ms, median rows written per tick, median facts)."""
-    diff = SnapshotDiff()
-    t = 10 * S
-    for _ in range(warmup):
-        tick(t, diff, store)
-        t += S // 30
-    if after_warmup is not None:
-        after_warmup()
-    times, rows = [], []
-    for _ in range(ticks):
-        start = time.perf_counter()
-        rows.append(tick(t, diff, store))
-        times.append(time.perf_counter() - start)
-        t += S // 30
-    return statistics.median(times) * 1e3, statistics.median(rows), 0.0
+# -- 1. one full tick ---------------------------------------------------------------------------
+class Jitter:
+    """A source moving every entity by 2 cm (Gaussian) a tick, the producer benchmark's."""
+
+    name = "bench"
+
+    def __init__(self, pos: np.ndarray, rng: np.random.Generator) -> None:
+        self.pos, self.rng = pos, rng
+
+    def setup(self, world: World) -> None:
+        """Entities are in the world already."""
+
+    def advance(self, world: World, t_ns: int) -> None:
+        pos = self.pos
+        pos[:, :2] += self.rng.normal(0, 0.02, (len(pos), 2))
+        world.observe("bench", np.arange(len(pos)), np.full(len(pos), t_ns), pos)
 
 
-def raw_sqlite(rows: int, path: str) -> float:
-    """Bare sqlite3: one transaction upserting ``rows`` fact-like rows (ms)."""
-    con = sqlite3.connect(path)
-    con.execute("PRAGMA journal_mode=WAL")
-    con.execute("PRAGMA synchronous=NORMAL")
-    con.execute("CREATE TABLE IF NOT EXISTS f (k INTEGER PRIMARY KEY, v REAL, c REAL)")
-    data = [(i, float(i), 0.5) for i in range(max(rows, 1))]
-    con.executemany("INSERT OR REPLACE INTO f VALUES (?, ?, ?)", data)
-    con.commit()
-    times = []
-    for rep in range(5):
-        data = [(i, float(i + rep), 0.5) for i in range(max(rows, 1))]
-        start = time.perf_counter()
-        con.executemany("UPDATE f SET v = ?, c = ? WHERE k = ?", [(v, c, k) for k, v, c in data])
-        con.commit()
-        times.append(time.perf_counter() - start)
-    con.close()
-    return statistics.median(times) * 1e3
+def scene_session(n: int, agents: int, config: dict[str, Any], holders: str) -> Session:
+    world, areas, pos, rng = bp.build(n, agents=agents)
+    producers = [PerceptionFacts(config), AreaManager(areas, config), AgentMonitor(config)]
+    return Session(world, [Jitter(pos, rng)], producers, areas, "toaster", 0, 0, 30.0, config,
+                   belief_holders=holders)
 
 
-def raw_pg(rows: int, url: str) -> float:
-    """Bare psycopg: COPY ``rows`` rows into a temp table + one UPDATE … FROM (ms)."""
-    import psycopg
-
-    with psycopg.connect(url) as con:
-        con.execute("CREATE TABLE f (k bigint PRIMARY KEY, v float8, c float8)")
-        with con.cursor().copy("COPY f FROM STDIN") as cp:
-            for i in range(max(rows, 1)):
-                cp.write_row((i, float(i), 0.5))
-        con.commit()
-        times = []
-        for rep in range(5):
-            start = time.perf_counter()
-            con.execute("CREATE TEMP TABLE u (k bigint, v float8, c float8) ON COMMIT DROP")
-            with con.cursor().copy("COPY u FROM STDIN") as cp:
-                for i in range(max(rows, 1)):
-                    cp.write_row((i, float(i + rep), 0.5))
-            con.execute("UPDATE f SET v = u.v, c = u.c FROM u WHERE f.k = u.k")
-            con.commit()
-            times.append(time.perf_counter() - start)
-        con.execute("DROP TABLE f")
-    return statistics.median(times) * 1e3
-
-
-def bench_ticks(pg_url: str | None, ticks: int) -> None:
-    print("\n1. One full tick with the database (1,000 entities, 100 areas, 20 agents × 2 joints)")
-    print(f"{'scene':<16} {'backend':<10} {'tick ms':>9} {'no-db ms':>9} {'ratio':>7}"
-          f" {'rows/tick':>10} {'raw ms':>8} {'vs raw':>7}")
-    for label, objects_move in (("all move", True), ("agents move", False)):
-        base, _, _ = time_ticks(scene(1000, objects_move), None, ticks)
-        backends = [("sqlite", None, False)]
-        if pg_url:
-            backends += [("postgresql", pg_url, False), ("pg+analyze", pg_url, True)]
-        for backend, url, analyze in backends:
-            with tempfile.TemporaryDirectory() as tmp:
-                schema = None
-                if backend == "sqlite":
-                    db_url = f"sqlite:///{tmp}/bench.db"
-                else:
-                    schema = PgSchema(url)
-                    db_url = schema.url
-                try:
-                    db, store = open_store(db_url)
-                    ms, rows, _ = time_ticks(scene(1000, objects_move), store, ticks,
-                                             after_warmup=schema.analyze if analyze else None)
-                    db.close()
-                    raw = (raw_sqlite(int(rows), f"{tmp}/raw.db") if backend == "sqlite"
-                           else raw_pg(int(rows), schema.url))
-                finally:
-                    if schema is not None:
-                        schema.drop()
-            print(f"{label:<16} {backend:<10} {ms:>9.1f} {base:>9.2f} {ms / base:>6.0f}×"
-                  f" {rows:>10.0f} {raw:>8.1f} {ms / raw:>6.1f}×")
-
-
-# -- 2. replay -----------------------------------------------------------------------------------
-def replay(path: Path, url: str | None, schema: PgSchema | None = None) -> tuple[float, float, int]:
-    """(input seconds, wall seconds, ticks) of one replay, into ``url`` or without database."""
-    store = db = None
-    if url is not None:
-        db, store = open_store(url)
-    session = load_session(path, None)
+def time_ticks(session: Session, store: Any, ticks: int) -> tuple[float, float]:
+    """(median ms per tick, median rows written per tick) after 5 warm-up ticks."""
+    if store is not None:
+        session.register(store)
     runner = Runner(session.world, session.sources, session.producers, store=store,
-                    agent_id="toaster")
-    start = time.perf_counter()
-    stats = runner.run(session.start_ns, session.end_ns, session.rate_hz)
-    wall = time.perf_counter() - start
-    if db is not None:
-        db.close()
-    return (session.end_ns - session.start_ns) / S, wall, stats.ticks
+                    agent_id=session.self_id)
+    t = 10 * S
+    times, rows = [], []
+    for i in range(ticks + 5):
+        before = _written(store)
+        start = time.perf_counter()
+        runner.tick(t)
+        if i >= 5:
+            times.append(time.perf_counter() - start)
+            rows.append(_written(store) - before)
+        t += S // 30
+    return statistics.median(times) * 1e3, statistics.median(rows)
 
 
-def bench_replay(pg_url: str | None) -> None:
-    print("\n2. Replay of ETH / UCY tracks into the database (target ≥ 100× real time)")
-    print(f"{'recording':<12} {'backend':<10} {'input s':>8} {'ticks':>6} {'wall s':>8}"
-          f" {'× real':>8} {'no-db ×':>8} {'ratio':>6}")
-    for name, path in RECORDINGS.items():
-        if not path.is_file():
-            print(f"{name:<12} (missing: {path})")
-            continue
-        span, wall0, _ = replay(path, None)
-        base_speed = span / wall0
-        backends = [("sqlite", None)] + ([("postgresql", pg_url)] if pg_url else [])
-        for backend, url in backends:
-            with tempfile.TemporaryDirectory() as tmp:
-                schema = None
+def _written(store: Any) -> int:
+    if store is None:
+        return 0
+    with store.db.transaction() as conn:
+        return sum(conn.exec_driver_sql(f"SELECT COUNT(*) FROM {table}").scalar_one()
+                   for table in ("facts", "events", "fact_samples"))
+
+
+def bench_ticks(backends: list[str], pg: str | None, ticks: int, repeats: int) -> None:
+    print("\n1. One full tick with the database (median ms of "
+          f"{ticks} ticks, median of {repeats} runs; rows = new facts + events + samples)")
+    print(f"{'scene':<34} {'backend':<11} {'holders':<8} {'no-db ms':>9} {'before ms':>10}"
+          f" {'rows':>7} {'tick ms':>8} {'rows':>6} {'db/geom':>8} {'target':>7}")
+    scenes = [(1_000, 20, "1,000 ent / 100 areas / 20 humans", {"sqlite": 20, "postgresql": 33}),
+              (10_000, 30, "10,000 ent / 100 areas / 30 humans", {"sqlite": 100})]
+    for n, agents, label, targets in scenes:
+        geom = statistics.median(time_ticks(scene_session(n, agents, {}, "none"), None, ticks)[0]
+                                 for _ in range(repeats))
+        for backend in backends:
+            if backend not in targets:
+                continue
+            for holders in ("none", "humans"):
+                figures: dict[str, list[tuple[float, float]]] = {"before": [], "now": []}
+                for _ in range(repeats):
+                    for case in ("before", "now"):
+                        with tempfile.TemporaryDirectory() as tmp:
+                            database = Database(backend, pg, tmp)
+                            try:
+                                db = toaster.connect(database.url)
+                                store = db.store()
+                                config = BEFORE if case == "before" else {}
+                                if case == "before":
+                                    set_before(store)
+                                session = scene_session(n, agents, config, holders)
+                                figures[case].append(time_ticks(session, store, ticks))
+                                db.close()
+                            finally:
+                                database.close()
+                before_ms = statistics.median(f[0] for f in figures["before"])
+                before_rows = statistics.median(f[1] for f in figures["before"])
+                ms = statistics.median(f[0] for f in figures["now"])
+                rows = statistics.median(f[1] for f in figures["now"])
+                print(f"{label:<34} {backend:<11} {holders:<8} {geom:>9.2f} {before_ms:>10.1f}"
+                      f" {before_rows:>7.0f} {ms:>8.1f} {rows:>6.0f} {(ms - geom) / geom:>7.1f}×"
+                      f" {'≤' + str(targets[backend]):>7}", flush=True)
+
+
+# -- 2. crowd replay ------------------------------------------------------------------------------
+_SPEED = re.compile(r"in ([\d.]+) s \(([\d.]+)× real time\)")
+
+
+def toaster_run(csv: Path, url: str | None, rate: float, extra: tuple[str, ...] = ()
+                ) -> tuple[float, str]:
+    """``toaster run`` as a user types it: (wall seconds of the run loop, its output)."""
+    cmd = [TOASTER, *(["--db", url] if url else []), "run", str(csv), "--rate", str(rate),
+           *(["--no-db"] if url is None else []), *extra]
+    out = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    if out.returncode:
+        raise RuntimeError(f"{' '.join(cmd)} failed: {out.stderr.strip() or out.stdout}")
+    match = _SPEED.search(out.stdout)
+    if match is None:
+        raise RuntimeError(f"unexpected output of toaster run: {out.stdout}")
+    return float(match.group(1)), out.stdout
+
+
+def bench_crowd(backends: list[str], pg: str | None, repeats: int) -> None:
+    print("\n2. Crowd replay with `toaster run` (× real time = input seconds / run seconds; "
+          f"median of {repeats})")
+    print(f"{'crowd':<26} {'backend':<11} {'input s':>8} {'no-db ×':>8} {'×':>7} {'target':>7}"
+          f" {'store ms/tick':>14}")
+    cases = [(400, 2.5, 120.0, {"sqlite": 30, "postgresql": 10}),
+             (400, 30.0, 30.0, {"sqlite": 1})]
+    with tempfile.TemporaryDirectory() as tmp:
+        for people, hz, seconds, targets in cases:
+            csv = Path(tmp) / f"crowd_{people}_{hz}.csv"
+            crowd.write_crowd(csv, people, hz, seconds)
+            label = f"{people} people at {hz:g} Hz"
+            base = statistics.median(seconds / toaster_run(csv, None, hz)[0]
+                                     for _ in range(repeats))
+            for backend in backends:
+                if backend not in targets:
+                    continue
+                speeds, store_ms = [], []
+                for _ in range(repeats):
+                    database = Database(backend, pg, tmp)
+                    try:
+                        wall, out = toaster_run(csv, database.url, hz)
+                    finally:
+                        database.close()
+                    speeds.append(seconds / wall)
+                    found = re.search(r"store\s+[\d.]+ ms\s+\(([\d.]+) ms/tick\)", out)
+                    store_ms.append(float(found.group(1)) if found else float("nan"))
+                print(f"{label:<26} {backend:<11} {seconds:>8.0f} {base:>7.0f}×"
+                      f" {statistics.median(speeds):>6.1f}× {'≥' + str(targets[backend]):>7}"
+                      f" {statistics.median(store_ms):>14.2f}", flush=True)
+
+
+# -- 3. size per hour -----------------------------------------------------------------------------
+def bench_size(backends: list[str], pg: str | None) -> None:
+    print("\n3. Growth per hour: 100 people at 30 Hz with 2 cm tracker noise (`toaster run`; "
+          "slope between a 40 s and a 120 s replay; target ≤ 100 MB/h)")
+    print(f"{'backend':<11} {'MB/h':>8} {'rows/h':>12} {'dead rows at end':>17}"
+          f" {'samples/h':>10} {'intervals/h':>12} {'events/h':>10}")
+    with tempfile.TemporaryDirectory() as tmp:
+        csv = Path(tmp) / "crowd100.csv"
+        crowd.write_crowd(csv, 100, 30.0, 120.0, noise=0.02, seed=1)
+        for backend in backends:
+            sizes = []
+            for seconds in (40, 120):
+                database = Database(backend, pg, tmp)
                 try:
-                    if backend == "sqlite":
-                        db_url = f"sqlite:///{tmp}/replay.db"
-                    else:
-                        schema = PgSchema(url)
-                        db_url = schema.url
-                    span, wall, ticks = replay(path, db_url)
+                    toaster_run(csv, database.url, 30.0, ("--until", f"{seconds}s"))
+                    with toaster.connect(database.url) as db, db.transaction() as conn:
+                        counts = [conn.exec_driver_sql(f"SELECT COUNT(*) FROM {t}").scalar_one()
+                                  for t in ("fact_samples", "facts", "events")]
+                    sizes.append((database.size(), counts))
                 finally:
-                    if schema is not None:
-                        schema.drop()
-            speed = span / wall
-            print(f"{name:<12} {backend:<10} {span:>8.0f} {ticks:>6} {wall:>8.2f} {speed:>7.0f}×"
-                  f" {base_speed:>7.0f}× {base_speed / speed:>5.1f}×")
+                    database.close()
+            (b0, _, _), c0 = sizes[0]
+            (b1, _, dead), c1 = sizes[1]
+            per_hour = 3600 / 80
+            deltas = [(b - a) * per_hour for a, b in zip(c0, c1, strict=True)]
+            print(f"{backend:<11} {(b1 - b0) * per_hour / 1e6:>8.1f} {sum(deltas):>12,.0f}"
+                  f" {dead:>17,} {deltas[0]:>10,.0f} {deltas[1]:>12,.0f} {deltas[2]:>10,.0f}",
+                  flush=True)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--pg", default=os.environ.get("TOASTER_BENCH_PG", PG_DEFAULT))
     parser.add_argument("--no-pg", action="store_true")
-    parser.add_argument("--ticks", type=int, default=10)
-    parser.add_argument("--only", choices=("tick", "replay"))
+    parser.add_argument("--ticks", type=int, default=15)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--only", choices=("tick", "crowd", "size"))
     args = parser.parse_args()
     pg = None if args.no_pg else args.pg
     if pg:
@@ -253,10 +289,13 @@ def main() -> None:
         except Exception as exc:
             print(f"PostgreSQL not reachable at {pg} ({exc.__class__.__name__}); skipping it")
             pg = None
-    if args.only != "replay":
-        bench_ticks(pg, args.ticks)
-    if args.only != "tick":
-        bench_replay(pg)
+    backends = ["sqlite", *(["postgresql"] if pg else [])]
+    if args.only in (None, "tick"):
+        bench_ticks(backends, pg, args.ticks, args.repeats)
+    if args.only in (None, "crowd"):
+        bench_crowd(backends, pg, args.repeats)
+    if args.only in (None, "size"):
+        bench_size(backends, pg)
 
 
 if __name__ == "__main__":

@@ -72,7 +72,11 @@ def replay(folder: Path) -> dict:
         last[p] = (x, y)
     goal = {p: f"dest{int(np.argmin(np.hypot(*(dests - xy).T)))}" for p, xy in last.items()}
     hits = [best[(t, p)] == goal[p] for t, p in zip(t_of, ped, strict=True) if (t, p) in best]
-    moving_keys = [(t, p) for t, p in zip(t_of, ped, strict=True) if moving[(t, p)]]
+    # only destinations within IsMovingToward's range can be targets (relevance)
+    reach = monitor.config["toward_range"]
+    dest_xy = {f"dest{k}": xy for k, xy in enumerate(dests)}
+    moving_keys = [(t, p) for t, p, x, y in zip(t_of, ped, raw[:, 2], raw[:, 4], strict=True)
+                   if moving[(t, p)] and np.hypot(*(dest_xy[goal[p]] - (x, y))) < reach]
     inside = [goal[p] in among.get((t, p), ()) for t, p in moving_keys]
     return {"agreement": float(np.mean((computed == annotated)[~first])),
             "agreement_all": float(np.mean(computed == annotated)), "samples": int((~first).sum()),
@@ -87,6 +91,6 @@ def test_is_moving_agrees_with_annotated_velocity(scene):
           f"samples with a previous sample ({result['agreement_all']:.2%} counting each track's "
           f"first sample, which has no motion yet); final destination among "
           f"IsMovingToward(direction) targets on {result['among']:.1%} of {result['moving']} "
-          f"moving samples, the most confident on {result['toward_hits']:.1%}")
+          f"moving samples whose destination is in range, the most confident on {result['toward_hits']:.1%}")
     assert result["agreement"] >= 0.97
     assert result["among"] > 0.3  # a report more than an oracle: see docs/producers.md

@@ -325,19 +325,36 @@ class Store:
 
     def _write_diff(self, conn: Connection, state: _SourceState, agent_id: str, source: str,
                     t_ns: int, touched: list[tuple[Key, Fact]], gone: list[tuple[Key, Fact]],
-                    size: int) -> SyncResult:
-        """Write a snapshot's differences (stated facts, ended facts); remember them."""
+                    size: int, *, trust_cache: bool = False) -> SyncResult:
+        """Write a snapshot's differences (stated facts, ended facts); remember them.
+
+        Stated facts are compared with the open interval, whoever wrote it; with
+        ``trust_cache`` (producers' batches), a fact whose numbers alone moved refreshes what
+        this source wrote without reading it back first."""
         if not touched and not gone:
             state.last_t = t_ns
             return SyncResult(0, 0, 0, 0, size)
         key_ids = self._key_ids
+        old = state.facts
         writes = _Writes(agent_id, source, t_ns)  # events in order: ended, changed, appeared
         for key, fact in gone:
             writes.end(key_ids[(agent_id, key)], fact)
-        if touched:
-            self._resolve(conn, agent_id, touched, writes)
+        if touched and trust_cache and self.agents().get(agent_id):
+            # Only numbers moved: refresh what this source wrote without reading it back (a
+            # refresh that finds no open interval means another writer ended it: retry).
+            resolve = []
+            for key, fact in touched:
+                held = old.get(key)
+                if held is not None and held[3] == fact[3] and held[7] == fact[7]:
+                    writes.refreshed.append((key_ids[(agent_id, key)], fact, held))
+                else:
+                    resolve.append((key, fact))
+            touched_db = resolve
+        else:
+            touched_db = touched
+        if touched_db:
+            self._resolve(conn, agent_id, touched_db, writes)
         self._apply(conn, writes)
-        old = state.facts
         for key, fact in touched:
             old[key] = fact
         for key, _ in gone:
@@ -363,7 +380,8 @@ class Store:
         gone_items = list(zip(arrays.tkey[gone].tolist(), arrays.fact[gone].tolist(),
                               strict=True))
         result = self._write_diff(conn, state, agent_id, source, t_ns,
-                                  list(zip(keys, facts, strict=True)), gone_items, len(new.keys))
+                                  list(zip(keys, facts, strict=True)), gone_items, len(new.keys),
+                                  trust_cache=True)
         state.last_list = None
         state.arrays = arrays.updated(new, touched, keep, old_pos, keys, facts)
         return result
@@ -405,21 +423,21 @@ class Store:
                 held = Fact(fact.subject_id, fact.property, fact.target_id, row[0], row[1],
                             row[2], row[3], fact.property_type, fact.sub_property,
                             fact.subject_owner_id, fact.target_owner_id)
-                writes.update(key_id, fact, held, row[5])
+                writes.update(key_id, fact, held)
 
     def _apply(self, conn: Connection, writes: _Writes) -> None:
         cur = self.db.cursor()
         backend = self.backend
+        if writes.refreshed:  # first: a stale cache is found before anything is written
+            rows = [(f.value_num, f.confidence, f.observability, k)
+                    for k, f, _ in writes.refreshed]
+            if backend.refresh_intervals(cur, writes.t_ns, rows) != len(rows):
+                raise _StaleCache
         if writes.closing:
             # A fact this source held may have been ended by another writer: no event then.
             closed = backend.close_intervals(cur, writes.t_ns, writes.closing)
             writes.ended = [(k, f) for k, f in writes.ended if k in closed]
         writes.events[:0] = [writes.event(k, f, "ended", None) for k, f in writes.ended]
-        if writes.refreshed:
-            backend.refresh_intervals(
-                cur, [(f.value_num, f.confidence, f.observability, k)
-                      for k, f, _ in writes.refreshed])
-            backend.insert_samples(cur, writes.samples)
         try:
             if writes.opening:
                 backend.insert_intervals(cur, writes.opening)
@@ -582,7 +600,6 @@ class _Writes:
         self.refreshed: list[tuple[int, Fact, Fact]] = []
         self.ended: list[tuple[int, Fact]] = []
         self.retyped: list[tuple[int, str]] = []
-        self.samples: list[tuple[int, int, float | None, float, float]] = []
 
     def _open(self, key_id: int, fact: Fact, kind: str, previous: str | None) -> None:
         self.opening.append((key_id, fact.value_text, fact.value_num, fact.confidence,
@@ -598,9 +615,8 @@ class _Writes:
         self._open(key_id, fact, "appeared", None)
         self.appeared.append((key_id, fact))
 
-    def update(self, key_id: int, fact: Fact, held: Fact, fact_id: int) -> None:
-        """``fact`` replaces ``held`` (the content of the open interval ``fact_id``) for the
-        same key; a refresh keeps ``held``'s numbers as a sample until now."""
+    def update(self, key_id: int, fact: Fact, held: Fact) -> None:
+        """``fact`` replaces ``held`` (the open interval's content) for the same key."""
         if fact.property_type != held.property_type:
             self.retyped.append((key_id, fact.property_type))
         if fact.value_text != held.value_text:
@@ -610,8 +626,6 @@ class _Writes:
         elif (fact.value_num, fact.confidence, fact.observability) != (
                 held.value_num, held.confidence, held.observability):
             self.refreshed.append((key_id, fact, held))
-            self.samples.append((fact_id, self.t_ns, held.value_num, held.confidence,
-                                 held.observability))
 
     def end(self, key_id: int, fact: Fact) -> None:
         """Close the key's open interval (its event is written once the close is known)."""

@@ -18,6 +18,7 @@ crosses the outer one (grown by leave_hysteresis). The owner and its joints are 
 from __future__ import annotations
 
 import math
+import weakref
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -29,6 +30,7 @@ from toaster.errors import InvalidInputError
 from toaster.model import Fact
 from toaster.producers.batch import FactBatch
 from toaster.producers.config import make_config, ns
+from toaster.producers.debounce import Debouncer
 from toaster.world.geometry import bearing, to_local_xy, wrap_angle
 from toaster.world.state import HUMAN, JOINT, OBJECT, ROBOT, World
 
@@ -223,6 +225,8 @@ class AreaManager:
         self._keys = np.zeros(0, np.int64)
         self._slots: list[_Compiled] = []
         self._static: _StaticAreas | None = None
+        # IsFacing debounce per area: (compiled area, world, reported state by row)
+        self._facing: dict[str, tuple[_Compiled, weakref.ref[World], Debouncer]] = {}
         for area_id, spec in (areas or {}).items():
             self.set_area(area_id, spec)
 
@@ -320,6 +324,15 @@ class AreaManager:
             self._facts(world, area, owner, rows, live, kind_count, out)
         return out
 
+    def _facing_debouncer(self, world: World, area: _Compiled) -> Debouncer:
+        """The IsFacing state of an area, new when the area or the world changed."""
+        got = self._facing.get(area.area_id)
+        if got is None or got[0] is not area or got[1]() is not world:
+            got = (area, weakref.ref(world),
+                   Debouncer(ns(self.config, "min_duration", "IsFacing")))
+            self._facing[area.area_id] = got
+        return got[2]
+
     def _facts(self, world: World, area: _Compiled, owner: int, rows: np.ndarray,
                live: np.ndarray, kind_count: np.ndarray | None, out: FactBatch) -> None:
         spec, area_id = area.spec, area.area_id
@@ -332,10 +345,12 @@ class AreaManager:
             angle = wrap_angle(world.rpy[rows, 2] - bearing(pos[rows, :2], pos[owner, :2]))
             limit = self.config["facing_angle"]
             conf = (limit - np.abs(angle)) / limit
-            keep = conf > 0
-            out.add("IsFacing", rows[keep], owner_id, value_num=angle[keep], conf=conf[keep],
-                    obs=self.config["observability_facing"], property_type="posture",
-                    sub_property="angle")
+            # debounced (min_duration["IsFacing"]); a held fact keeps the measured angle
+            clock = np.maximum(world.t_ns[: world.n], world.t_ns[owner])
+            keep = self._facing_debouncer(world, area).update(rows, conf > 0, clock)
+            out.add("IsFacing", rows[keep], owner_id, value_num=angle[keep],
+                    conf=np.maximum(conf[keep], 0.0), obs=self.config["observability_facing"],
+                    property_type="posture", sub_property="angle")
         if "density" in spec["facts"]:
             if owner >= 0:
                 population = live & area.kinds[world.kind[: world.n]]

@@ -34,6 +34,14 @@ DEFAULTS: dict[str, Any] = {
     "joint_toward_distance_window": 0.25,
     "joint_toward_speed_threshold": 0.12,
     "motion_max_gap": 1.0,
+    # relevance: IsMovingToward only toward targets nearer than this (2D, metres), the upper
+    # bound of Distance "far" (dist_far): nobody moves toward something "out" of range
+    "toward_range": 8.0,
+    # debounce: a reported state flips only after this much consistent evidence (seconds per
+    # property; docs/producers.md). 0.3 s: a standing person with 2 cm noise at 30 Hz flips
+    # IsMoving ~890 times a minute undebounced, 1-3 with it (0.2 s: 5-8); a walk start is
+    # reported 0.3 s + 1 tick later; samples ≥ 0.3 s apart (ETH/UCY 2.5 Hz) are unaffected
+    "min_duration": {"IsMoving": 0.3, "IsFacing": 0.3},
     # agent_monitor: Distance labels (upper bounds, metres)
     "dist_reach": 0.05,
     "dist_close": 0.2,
@@ -43,6 +51,8 @@ DEFAULTS: dict[str, Any] = {
     # which agents and joints are monitored: "humans" | "robots" | "agents" | list of ids
     "monitored_agents": "humans",
     "monitored_joints": None,
+    # toaster run: humans holding beliefs: "none" | "humans" | list of ids (None: per input)
+    "belief_holders": None,
     # pointing
     "pointing_joint_distance": 0.3,
     "pointing_angle": 0.5,
@@ -76,17 +86,53 @@ DEFAULTS: dict[str, Any] = {
 
 _SECONDS = {k for k in DEFAULTS if k.endswith("_window")} | {"motion_max_gap",
                                                               "presence_timeout"}
+#: dict-valued settings whose values are durations in seconds, keyed by known names
+_SECONDS_BY_NAME = {"min_duration"}
+
+
+def _seconds(key: str, value: Any) -> float:
+    """A non-negative finite number of seconds (duration text accepted), or a one-line error."""
+    if isinstance(value, str):
+        try:
+            value = parse_duration(value) / NS_PER_S
+        except InvalidInputError:
+            msg = f"invalid value {value!r} for {key!r}: give seconds or a duration like '300ms'"
+            raise InvalidInputError(msg) from None
+    if (isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value)
+            or value < 0):
+        msg = f"invalid value {value!r} for {key!r}: give a non-negative number"
+        raise InvalidInputError(msg)
+    return float(value)
+
+
+def _seconds_by_name(key: str, value: Any) -> dict[str, float]:
+    """The default mapping updated with ``value`` (known names, durations in seconds)."""
+    default = DEFAULTS[key]
+    if not isinstance(value, Mapping):
+        msg = f"invalid value {value!r} for {key!r}: give a mapping such as {default!r}"
+        raise InvalidInputError(msg)
+    out = dict(default)
+    for name, seconds in value.items():
+        if name not in default:
+            msg = (f"unknown property {name!r} in {key!r}: use one of "
+                   f"{', '.join(sorted(default))}")
+            raise InvalidInputError(msg)
+        out[name] = _seconds(f"{key}.{name}", seconds)
+    return out
 
 
 def make_config(overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The defaults updated with ``overrides``; unknown keys and bad values raise one line."""
     config = dict(DEFAULTS)
+    config.update({key: dict(DEFAULTS[key]) for key in _SECONDS_BY_NAME})  # no shared dicts
     for key, value in (overrides or {}).items():
         if key not in DEFAULTS:
             msg = f"unknown threshold {key!r}: known ones are listed in docs/producers.md"
             raise InvalidInputError(msg)
         default = DEFAULTS[key]
-        if isinstance(default, float) and not isinstance(value, bool):
+        if key in _SECONDS_BY_NAME:
+            value = _seconds_by_name(key, value)
+        elif isinstance(default, float) and not isinstance(value, bool):
             if isinstance(value, str) and key in _SECONDS:
                 value = parse_duration(value) / NS_PER_S
             if not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
@@ -97,6 +143,7 @@ def make_config(overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
     return config
 
 
-def ns(config: Mapping[str, Any], key: str) -> int:
-    """A duration threshold in nanoseconds."""
-    return round(float(config[key]) * NS_PER_S)
+def ns(config: Mapping[str, Any], key: str, name: str | None = None) -> int:
+    """A duration threshold in nanoseconds (``name``: an entry of a dict-valued setting)."""
+    value = config[key] if name is None else config[key][name]
+    return round(float(value) * NS_PER_S)

@@ -7,10 +7,18 @@ name for every agent (no hard-coded ids), also for looked-at agents; the body Δ
 threshold is 0.12 m/s × the window (not ~0); the joint Δdistance sign is fixed (fires when the
 joint approaches); IsMovingToward/distance confidence is the share of the motion spent
 approaching (0..1); Distance "out" is not emitted unless ``distance_emit_out``.
+
+Relevance (:mod:`toaster.producers.relevance`): pair facts are computed only for pairs within
+range, found with a KD-tree on the targets built once per tick: IsMovingToward within
+``toward_range`` (2D), Distance within ``dist_far``, IsLookingToward / IsLookingAt within
+``look_toward_distance``. Debounce (:mod:`toaster.producers.debounce`): IsMoving of bodies and
+joints is reported after ``min_duration["IsMoving"]`` of consistent evidence; the reported
+state (not the raw one) selects the movers (IsMovingToward) and the still agents (joints).
 """
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Mapping
 from typing import Any
 
@@ -20,6 +28,8 @@ from toaster.errors import InvalidInputError
 from toaster.model import Fact
 from toaster.producers.batch import FactBatch
 from toaster.producers.config import make_config, ns
+from toaster.producers.debounce import Debouncer
+from toaster.producers.relevance import PlanarIndex, pair_distance
 from toaster.timeutil import NS_PER_S
 from toaster.world.geometry import bearing, gaze_axis, wrap_angle
 from toaster.world.state import HUMAN, JOINT, ROBOT, World
@@ -46,6 +56,10 @@ class AgentMonitor:
     def __init__(self, config: Mapping[str, Any] | None = None) -> None:
         self.config = make_config(config)
         self._names_cache: tuple[int, np.ndarray] = (-1, np.zeros(0, object))
+        moving_ns = ns(self.config, "min_duration", "IsMoving")
+        self._body_moving = Debouncer(moving_ns)
+        self._joint_moving = Debouncer(moving_ns)
+        self._world: weakref.ref[World] | None = None
 
     # -- selection --------------------------------------------------------------------------
     def monitored_agents(self, world: World, live: np.ndarray) -> np.ndarray:
@@ -114,34 +128,43 @@ class AgentMonitor:
         agents = self.monitored_agents(world, live)
         if agents.size == 0:
             return out
+        if self._world is None or self._world() is not world:
+            self._world = weakref.ref(world)
+            self._body_moving.reset()
+            self._joint_moving.reset()
+        clock = world.t_ns[:n]
         targets = np.flatnonzero(live & (world.kind[:n] != JOINT))
-        self._looking(world, agents, targets, out)
+        index = PlanarIndex(world.pos[targets, :2])  # KD-tree built on first need, this tick
+        self._looking(world, agents, targets, index, out)
         gap = ns(cfg, "motion_max_gap")
         speed, _, _ = _speed(world, agents, ns(cfg, "body_speed_window"), gap)
-        moving = speed > cfg["body_speed_threshold"]
+        moving = self._body_moving.update(agents, speed > cfg["body_speed_threshold"], clock)
         obs = cfg["observability_monitor"]
         mov = agents[moving]
         if mov.size:
             s = speed[moving]
             out.add("IsMoving", mov, value_num=s, conf=np.minimum(1.0, s * 3.6 / 5.0), obs=obs,
                     property_type="motion", sub_property="agent")
-            self._toward(world, mov, targets, "body", out)
+            self._toward(world, mov, targets, index, "body", out)
         still = agents[~moving]
         joints = self.monitored_joints(world, still, live)
         if joints.size:
-            self._distance(world, joints, targets, out)
+            self._distance(world, joints, targets, index, out)
             jspeed, _, _ = _speed(world, joints, ns(cfg, "joint_speed_window"), gap)
-            jm = jspeed > cfg["joint_speed_threshold"]
-            jmov = joints[jm]
-            if jmov.size:
-                s = jspeed[jm]
-                out.add("IsMoving", jmov, value_num=s, conf=np.minimum(1.0, s * 3.6 / 20.0),
-                        obs=obs, property_type="motion", sub_property="joint")
-                self._toward(world, jmov, targets, "joint", out)
+        else:
+            jspeed = np.zeros(0)
+        # joints of moving (or absent) agents count as not moving for the debounce
+        jm = self._joint_moving.update(joints, jspeed > cfg["joint_speed_threshold"], clock)
+        jmov = joints[jm]
+        if jmov.size:
+            s = jspeed[jm]
+            out.add("IsMoving", jmov, value_num=s, conf=np.minimum(1.0, s * 3.6 / 20.0),
+                    obs=obs, property_type="motion", sub_property="joint")
+            self._toward(world, jmov, targets, index, "joint", out)
         return out
 
     def _looking(self, world: World, agents: np.ndarray, targets: np.ndarray,
-                 out: FactBatch) -> None:
+                 index: PlanarIndex, out: FactBatch) -> None:
         cfg = self.config
         head_of = self.head_rows(world)
         heads = head_of[agents]
@@ -150,19 +173,21 @@ class AgentMonitor:
         if agents.size == 0 or targets.size == 0:
             return
         reach, aperture = cfg["look_toward_distance"], cfg["look_toward_aperture"]
-        points = world.pos[np.where(head_of[targets] >= 0, head_of[targets], targets)]
+        target_head = head_of[targets]
+        points = world.pos[np.where(target_head >= 0, target_head, targets)]
         hp = world.pos[heads]
-        dx = points[None, :, 0] - hp[:, None, 0]
-        dy = points[None, :, 1] - hp[:, None, 1]
-        dz = points[None, :, 2] - hp[:, None, 2]
-        dist = np.sqrt(dx * dx + dy * dy + dz * dz)  # = norm over (dx, dy, dz), same rounding
-        near = (dist <= reach) & (targets[None, :] != agents[:, None]) & (dist > 0)
-        ai, ti = np.nonzero(near)
+        # the index holds the targets' bodies: widen the query by the farthest head offset
+        headed = np.flatnonzero(target_head >= 0)
+        offset = float(np.sqrt(((points[headed, :2] - index.xy[headed]) ** 2).sum(1)).max(
+            initial=0.0))
+        ai, ti = index.candidates(hp, reach + offset)
+        dist = pair_distance(hp, points, ai, ti)  # = norm over (dx, dy, dz), same rounding
+        near = (dist <= reach) & (targets[ti] != agents[ai]) & (dist > 0)
+        ai, ti, d = ai[near], ti[near], dist[near]
         if ai.size == 0:
             return
         axis = gaze_axis(world.rpy[heads[ai]])
-        d = dist[ai, ti]
-        delta = np.stack([dx[ai, ti], dy[ai, ti], dz[ai, ti]], axis=1)
+        delta = points[ti] - hp[ai]
         cos = np.einsum("ij,ij->i", delta, axis) / d
         ang = np.arccos(np.clip(cos, -1.0, 1.0))
         toward = ang < aperture / 2
@@ -176,71 +201,66 @@ class AgentMonitor:
             out.add(prop, a_rows[keep], t_rows[keep], value_num=a, conf=(width - a) / width,
                     obs=obs, property_type="attention", sub_property="agent")
 
-    def _toward(self, world: World, movers: np.ndarray, targets: np.ndarray, part: str,
-                out: FactBatch) -> None:
-        """IsMovingToward by direction and by distance for moving bodies or joints."""
+    def _toward(self, world: World, movers: np.ndarray, targets: np.ndarray,
+                index: PlanarIndex, part: str, out: FactBatch) -> None:
+        """IsMovingToward by direction and by distance for moving bodies or joints.
+
+        Only targets nearer than ``toward_range`` (2D, from the mover's position) count.
+        """
         cfg = self.config
         gap = ns(cfg, "motion_max_gap")
+        now = world.pos[movers, :2]
+        tgt = index.xy
+        rng = cfg["toward_range"]
+        mi, ti = index.candidates(now, rng)
+        dx = tgt[ti, 0] - now[mi, 0]
+        dy = tgt[ti, 1] - now[mi, 1]
+        after = np.sqrt(dx * dx + dy * dy)
         owner = world.owner[movers]
         body = np.where(owner >= 0, owner, movers)
-        excluded = (targets[None, :] == body[:, None]) | (targets[None, :] == movers[:, None])
-        now = world.pos[movers, :2]
-        tgt = world.pos[targets, :2]
+        t_rows = targets[ti]
+        keep = (after < rng) & (t_rows != body[mi]) & (t_rows != movers[mi])
+        mi, ti, dx, dy, after = mi[keep], ti[keep], dx[keep], dy[keep], after[keep]
         _, ref_dir, _ = _speed(world, movers, ns(cfg, f"{part}_direction_window"), gap)
         heading = bearing(ref_dir, now)
         theta = cfg[f"{part}_toward_angle"]
         obs = cfg["observability_monitor"]
-        dx = tgt[None, :, 0] - now[:, None, 0]
-        dy = tgt[None, :, 1] - now[:, None, 1]
-        cand = ~excluded
-        if theta < np.pi - 1e-3:
-            # cheap superset of |dev| < theta: cos(dev) > cos(theta + margin) (no arctan2 over
-            # every pair); the exact test below decides, so the facts are unchanged
-            dot = np.cos(heading)[:, None] * dx + np.sin(heading)[:, None] * dy
-            dist = np.sqrt(dx * dx + dy * dy)
-            cand &= (dot > np.cos(theta + 1e-6) * dist) | (dist == 0)
-        mi, ti = np.nonzero(cand)
-        dev = wrap_angle(heading[mi] - np.arctan2(dy[mi, ti], dx[mi, ti]))
+        dev = wrap_angle(heading[mi] - np.arctan2(dy, dx))
         conf = (theta - np.abs(dev)) / theta
-        keep = conf > 0
-        mi, ti = mi[keep], ti[keep]
-        out.add("IsMovingToward", movers[mi], targets[ti], value_num=dev[keep],
-                conf=conf[keep], obs=obs, property_type="motion", sub_property="direction")
+        ok = conf > 0
+        out.add("IsMovingToward", movers[mi[ok]], targets[ti[ok]], value_num=dev[ok],
+                conf=conf[ok], obs=obs, property_type="motion", sub_property="direction")
         _, ref, secs = _speed(world, movers, ns(cfg, f"{part}_toward_distance_window"), gap)
-        before = _dist2d(ref, tgt)
-        after = _dist2d(now, tgt)
-        delta = before - after
+        bx = ref[mi, 0] - tgt[ti, 0]
+        by = ref[mi, 1] - tgt[ti, 1]
+        delta = np.sqrt(bx * bx + by * by) - after
         step = np.linalg.norm(now - ref, axis=1)
         limit = cfg[f"{part}_toward_speed_threshold"] * secs
-        ok = (delta > limit[:, None]) & ~excluded & (step[:, None] > 0)
-        mi, ti = np.nonzero(ok)
-        out.add("IsMovingToward", movers[mi], targets[ti], value_num=delta[mi, ti],
-                conf=np.minimum(1.0, delta[mi, ti] / step[mi]), obs=obs,
+        ok = (delta > limit[mi]) & (step[mi] > 0)
+        mi, ti, delta = mi[ok], ti[ok], delta[ok]
+        out.add("IsMovingToward", movers[mi], targets[ti], value_num=delta,
+                conf=np.minimum(1.0, delta / step[mi]), obs=obs,
                 property_type="motion", sub_property="distance")
 
     def _distance(self, world: World, joints: np.ndarray, targets: np.ndarray,
-                  out: FactBatch) -> None:
+                  index: PlanarIndex, out: FactBatch) -> None:
         cfg = self.config
         bounds = np.array([cfg["dist_reach"], cfg["dist_close"], cfg["dist_medium"],
                            cfg["dist_far"]])
-        dist = np.linalg.norm(world.pos[joints][:, None, :] - world.pos[targets][None, :, :],
-                              axis=2)
+        jp, tp = world.pos[joints], world.pos[targets]
         if cfg["distance_emit_out"]:
-            ji, ti = np.nonzero(np.ones_like(dist, bool))
+            ji = np.repeat(np.arange(len(joints)), len(targets))
+            ti = np.tile(np.arange(len(targets)), len(joints))
+            d = pair_distance(jp, tp, ji, ti)
         else:
-            ji, ti = np.nonzero(dist < bounds[3])  # label < 4 (searchsorted right)
-        d = dist[ji, ti]
+            ji, ti = index.candidates(jp, bounds[3])  # 2D ball ⊇ 3D ball
+            d = pair_distance(jp, tp, ji, ti)
+            near = d < bounds[3]  # label < 4 (searchsorted right)
+            ji, ti, d = ji[near], ti[near], d[near]
         label = np.searchsorted(bounds, d, side="right")
         out.add("Distance", joints[ji], targets[ti], value_text=(label, DIST_LABELS),
                 value_num=d, conf=cfg["confidence_distance"], obs=cfg["observability_monitor"],
                 property_type="position", sub_property="3D")
-
-
-def _dist2d(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(len(a), len(b)) 2D distances."""
-    dx = a[:, None, 0] - b[None, :, 0]
-    dy = a[:, None, 1] - b[None, :, 1]
-    return np.sqrt(dx * dx + dy * dy)
 
 
 def pointing(world: World, agent_id: str, joint: str = "rightHand", *, t_ns: int | None = None,

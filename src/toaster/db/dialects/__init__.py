@@ -42,21 +42,19 @@ class Backend(Protocol):
 
     def open_rows(self, cur: Any, key_ids: list[int]) -> dict[int, tuple[Any, ...]]:
         """Open intervals of these keys: key_id -> (value_text, value_num, confidence,
-        observability, source, fact id)."""
+        observability, source)."""
 
     def close_intervals(self, cur: Any, t_ns: int, key_ids: list[int]) -> set[int]:
         """Close the open interval of each key at ``t_ns``; return the keys that had one."""
 
-    def refresh_intervals(self, cur: Any, rows: list[tuple[Any, ...]]) -> int:
-        """``(value_num, confidence, observability, key_id)``: refresh open intervals."""
+    def refresh_intervals(self, cur: Any, t_ns: int, rows: list[tuple[Any, ...]]) -> int:
+        """``(value_num, confidence, observability, key_id)``: refresh open intervals in
+        place, keeping the numbers they held as a ``fact_samples`` row until ``t_ns`` (a second
+        refresh at the same time keeps the first sample); return how many were refreshed."""
 
     def insert_intervals(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
         """``(key_id, value_text, value_num, confidence, observability, valid_from_ns,
         recorded_ns, source)``: open new intervals."""
-
-    def insert_samples(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
-        """``(fact_id, until_ns, value_num, confidence, observability)``: the numbers an
-        interval held until a refresh (a second sample at the same time is dropped)."""
 
     def insert_events(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
         """``(key_id, agent_id, kind, stamp_ns, value_text, value_num, confidence,

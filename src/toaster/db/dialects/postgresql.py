@@ -63,8 +63,8 @@ class PostgreSQLBackend:
 
     def open_rows(self, cur: Any, key_ids: list[int]) -> dict[int, tuple[Any, ...]]:
         cur.execute(
-            "SELECT key_id, value_text, value_num, confidence, observability, source, id "
-            "FROM facts WHERE key_id = ANY(%b::bigint[]) AND valid_to_ns IS NULL",
+            "SELECT key_id, value_text, value_num, confidence, observability, source FROM facts "
+            "WHERE key_id = ANY(%b::bigint[]) AND valid_to_ns IS NULL",
             [key_ids],
         )
         return {row[0]: tuple(row[1:]) for row in cur.fetchall()}
@@ -77,12 +77,18 @@ class PostgreSQLBackend:
         )
         return {row[0] for row in cur.fetchall()}
 
-    def refresh_intervals(self, cur: Any, rows: list[tuple[Any, ...]]) -> int:
+    def refresh_intervals(self, cur: Any, t_ns: int, rows: list[tuple[Any, ...]]) -> int:
+        # The CTEs and the UPDATE see the same snapshot: the samples get the values before.
         cur.execute(
+            "WITH u AS (SELECT * FROM unnest(%b::float8[], %b::float8[], %b::float8[], "
+            "%b::bigint[]) AS u(n, c, o, k)), "
+            "kept AS (INSERT INTO fact_samples (fact_id, until_ns, value_num, confidence, "
+            "observability) SELECT f.id, %b, f.value_num, f.confidence, f.observability "
+            "FROM facts f JOIN u ON f.key_id = u.k AND f.valid_to_ns IS NULL "
+            "ON CONFLICT DO NOTHING) "
             "UPDATE facts f SET value_num = u.n, confidence = u.c, observability = u.o "
-            "FROM unnest(%b::float8[], %b::float8[], %b::float8[], %b::bigint[]) AS u(n, c, o, k) "
-            "WHERE f.key_id = u.k AND f.valid_to_ns IS NULL",
-            _columns(rows, 4),
+            "FROM u WHERE f.key_id = u.k AND f.valid_to_ns IS NULL",
+            [*_columns(rows, 4), t_ns],
         )
         return cur.rowcount
 
@@ -92,14 +98,6 @@ class PostgreSQLBackend:
             "valid_from_ns, recorded_ns, source) SELECT * FROM unnest(%b::bigint[], %b::text[], "
             "%b::float8[], %b::float8[], %b::float8[], %b::bigint[], %b::bigint[], %b::text[])",
             _columns(rows, 8),
-        )
-
-    def insert_samples(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
-        cur.execute(
-            "INSERT INTO fact_samples (fact_id, until_ns, value_num, confidence, observability) "
-            "SELECT * FROM unnest(%b::bigint[], %b::bigint[], %b::float8[], %b::float8[], "
-            "%b::float8[]) ON CONFLICT DO NOTHING",
-            _columns(rows, 5),
         )
 
     def insert_events(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:

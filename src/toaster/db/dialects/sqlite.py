@@ -81,7 +81,7 @@ class SQLiteBackend:
         for chunk in _chunks(key_ids, _MAX_VARS):
             marks = ",".join("?" * len(chunk))
             cur.execute(
-                "SELECT key_id, value_text, value_num, confidence, observability, source, id "
+                "SELECT key_id, value_text, value_num, confidence, observability, source "
                 f"FROM facts INDEXED BY uq_facts_open_key WHERE key_id IN ({marks}) "
                 "AND valid_to_ns IS NULL",
                 chunk,
@@ -102,7 +102,16 @@ class SQLiteBackend:
             closed.update(row[0] for row in cur.fetchall())
         return closed
 
-    def refresh_intervals(self, cur: Any, rows: list[tuple[Any, ...]]) -> int:
+    def refresh_intervals(self, cur: Any, t_ns: int, rows: list[tuple[Any, ...]]) -> int:
+        for chunk in _chunks([row[3] for row in rows], _MAX_VARS):
+            marks = ",".join("?" * len(chunk))
+            cur.execute(
+                "INSERT INTO fact_samples (fact_id, until_ns, value_num, confidence, "
+                "observability) SELECT id, ?, value_num, confidence, observability "
+                f"FROM facts INDEXED BY uq_facts_open_key WHERE key_id IN ({marks}) "
+                "AND valid_to_ns IS NULL ON CONFLICT DO NOTHING",
+                [t_ns, *chunk],
+            )
         cur.executemany(
             "UPDATE facts INDEXED BY uq_facts_open_key SET value_num = ?, confidence = ?, "
             "observability = ? WHERE key_id = ? AND valid_to_ns IS NULL",
@@ -114,13 +123,6 @@ class SQLiteBackend:
         cur.executemany(
             "INSERT INTO facts (key_id, value_text, value_num, confidence, observability, "
             "valid_from_ns, recorded_ns, source) VALUES (?,?,?,?,?,?,?,?)",
-            rows,
-        )
-
-    def insert_samples(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
-        cur.executemany(
-            "INSERT INTO fact_samples (fact_id, until_ns, value_num, confidence, observability) "
-            "VALUES (?,?,?,?,?) ON CONFLICT DO NOTHING",
             rows,
         )
 
