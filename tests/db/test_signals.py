@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -115,3 +116,25 @@ def test_batches_store_exactly_what_lists_store(db_url: str, tmp_path, seed: int
         results.append((hist, events, points, samples))
     assert results[0][0] and results[0][3] > 0
     assert results[0] == results[1]
+
+
+def test_get_info_value_at_a_past_time_gives_the_number_then(db_url: str) -> None:
+    """`toaster get-info FACT VALUE --at T` answers with the number held at T, not the last."""
+    from click.testing import CliRunner
+
+    from toaster.cli import cli
+    from toaster.timeutil import parse_time
+
+    t0 = parse_time("2026-11-22T12:00:00Z")
+    with toaster.connect(db_url) as db:
+        store = db.store()
+        store.add_entity("PR2_ROBOT", "robot", is_self=True, t_ns=0)
+        for i, value in enumerate((1.0, 1.3, 1.8)):
+            store.sync_snapshot("agent_monitor", "PR2_ROBOT", t0 + i * S, [_distance(value)])
+    runner = CliRunner()
+    for at, want in (("12:00:00.5", 1.0), ("12:00:01.5", 1.3), ("12:00:02.5", 1.8)):
+        result = runner.invoke(cli, ["--db", db_url, "get-info", "FACT", "VALUE", "--subject",
+                                     "BOB", "--property", "Distance", "--target", "MUG",
+                                     "--at", f"2026-11-22T{at}Z", "--json"])
+        assert result.exit_code == 0, result.output
+        assert json.loads(result.output.splitlines()[0])["value_num"] == want

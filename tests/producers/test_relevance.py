@@ -13,7 +13,7 @@ from toaster.producers.relevance import pairs_within
 from toaster.world import World
 
 S = 1_000_000_000
-NO_DEBOUNCE = {"min_duration": {"IsMoving": 0}}
+NO_DEBOUNCE = {"min_duration": {"IsMoving": 0, "IsMovingToward": 0}}
 
 
 @pytest.mark.parametrize("dims", [2, 3])

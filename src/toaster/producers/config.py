@@ -41,7 +41,7 @@ DEFAULTS: dict[str, Any] = {
     # property; docs/producers.md). 0.3 s: a standing person with 2 cm noise at 30 Hz flips
     # IsMoving ~890 times a minute undebounced, 1-3 with it (0.2 s: 5-8); a walk start is
     # reported 0.3 s + 1 tick later; samples ≥ 0.3 s apart (ETH/UCY 2.5 Hz) are unaffected
-    "min_duration": {"IsMoving": 0.3, "IsFacing": 0.3},
+    "min_duration": {"IsMoving": 0.3, "IsFacing": 0.3, "IsMovingToward": 0.3},
     # agent_monitor: Distance labels (upper bounds, metres)
     "dist_reach": 0.05,
     "dist_close": 0.2,

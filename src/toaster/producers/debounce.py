@@ -58,3 +58,50 @@ class Debouncer:
         agree = ~differ | flip
         since[agree] = clock[agree]
         return state[rows].copy()
+
+
+class PairDebouncer:
+    """The same rule for pair facts (mover × target), keyed by an int64 pair key.
+
+    Only the pairs evaluated in a tick are kept (within range, mover moving): a pair that is
+    not evaluated is dropped at once (there is no value to report for it), and one evaluated
+    for the first time takes its raw state at once, as a row never seen does.
+    """
+
+    __slots__ = ("keys", "min_ns", "since", "state")
+
+    def __init__(self, min_ns: int) -> None:
+        self.min_ns = int(min_ns)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every pair (a new world)."""
+        self.keys = np.zeros(0, np.int64)
+        self.state = np.zeros(0, bool)
+        self.since = np.zeros(0, np.int64)
+
+    def update(self, keys: np.ndarray, raw: np.ndarray, clock: np.ndarray) -> np.ndarray:
+        """The reported state of the pairs ``keys`` (unique) given their raw state and the
+        time of that evidence (ns, one per pair)."""
+        raw = np.asarray(raw, bool)
+        if self.min_ns <= 0:
+            return raw
+        order = np.argsort(keys, kind="stable")
+        k, r, c = keys[order], raw[order], clock[order]
+        if len(self.keys):
+            pos = np.minimum(np.searchsorted(self.keys, k), len(self.keys) - 1)
+            found = self.keys[pos] == k
+            state = np.where(found, self.state[pos], r)
+            since = np.where(found, self.since[pos], NO_TIME)
+        else:
+            state, since = r.copy(), np.full(len(k), NO_TIME, np.int64)
+        differ = r != state
+        timed = (since != NO_TIME) & (c != NO_TIME)
+        elapsed = np.where(timed, c, 0) - np.where(timed, since, 0)
+        flip = differ & (~timed | (elapsed >= self.min_ns) | (elapsed < 0))
+        state = np.where(flip, r, state)
+        since = np.where(~differ | flip, c, since)
+        self.keys, self.state, self.since = k, state, since
+        out = np.empty(len(k), bool)
+        out[order] = state
+        return out

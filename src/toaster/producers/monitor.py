@@ -28,12 +28,13 @@ from toaster.errors import InvalidInputError
 from toaster.model import Fact
 from toaster.producers.batch import FactBatch
 from toaster.producers.config import make_config, ns
-from toaster.producers.debounce import Debouncer
+from toaster.producers.debounce import Debouncer, PairDebouncer
 from toaster.producers.relevance import PlanarIndex, pair_distance
 from toaster.timeutil import NS_PER_S
 from toaster.world.geometry import bearing, gaze_axis, wrap_angle
 from toaster.world.state import HUMAN, JOINT, ROBOT, World
 
+_PAIR = 1 << 21  # pair key = mover row × _PAIR + target row (rows < 2M)
 DIST_LABELS = np.array(["reach", "close", "medium", "far", "out"], dtype=object)
 
 
@@ -59,6 +60,9 @@ class AgentMonitor:
         moving_ns = ns(self.config, "min_duration", "IsMoving")
         self._body_moving = Debouncer(moving_ns)
         self._joint_moving = Debouncer(moving_ns)
+        toward_ns = ns(self.config, "min_duration", "IsMovingToward")
+        self._toward_state = {(part, sub): PairDebouncer(toward_ns) for part in ("body", "joint")
+                              for sub in ("direction", "distance")}
         self._world: weakref.ref[World] | None = None
 
     # -- selection --------------------------------------------------------------------------
@@ -132,6 +136,8 @@ class AgentMonitor:
             self._world = weakref.ref(world)
             self._body_moving.reset()
             self._joint_moving.reset()
+            for debouncer in self._toward_state.values():
+                debouncer.reset()
         clock = world.t_ns[:n]
         targets = np.flatnonzero(live & (world.kind[:n] != JOINT))
         index = PlanarIndex(world.pos[targets, :2])  # KD-tree built on first need, this tick
@@ -227,19 +233,25 @@ class AgentMonitor:
         obs = cfg["observability_monitor"]
         dev = wrap_angle(heading[mi] - np.arctan2(dy, dx))
         conf = (theta - np.abs(dev)) / theta
-        ok = conf > 0
+        pairs = movers[mi] * _PAIR + targets[ti]
+        clock = world.t_ns[movers[mi]]
+        ok = self._toward_state[(part, "direction")].update(pairs, conf > 0, clock)
         out.add("IsMovingToward", movers[mi[ok]], targets[ti[ok]], value_num=dev[ok],
-                conf=conf[ok], obs=obs, property_type="motion", sub_property="direction")
+                conf=np.maximum(conf[ok], 0.0), obs=obs, property_type="motion",
+                sub_property="direction")
         _, ref, secs = _speed(world, movers, ns(cfg, f"{part}_toward_distance_window"), gap)
         bx = ref[mi, 0] - tgt[ti, 0]
         by = ref[mi, 1] - tgt[ti, 1]
         delta = np.sqrt(bx * bx + by * by) - after
         step = np.linalg.norm(now - ref, axis=1)
         limit = cfg[f"{part}_toward_speed_threshold"] * secs
-        ok = (delta > limit[mi]) & (step[mi] > 0)
+        raw = (delta > limit[mi]) & (step[mi] > 0)
+        ok = self._toward_state[(part, "distance")].update(pairs, raw, clock)
         mi, ti, delta = mi[ok], ti[ok], delta[ok]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            share = np.where(step[mi] > 0, delta / step[mi], 0.0)
         out.add("IsMovingToward", movers[mi], targets[ti], value_num=delta,
-                conf=np.minimum(1.0, delta / step[mi]), obs=obs,
+                conf=np.clip(share, 0.0, 1.0), obs=obs,
                 property_type="motion", sub_property="distance")
 
     def _distance(self, world: World, joints: np.ndarray, targets: np.ndarray,
