@@ -157,3 +157,22 @@ def test_shipped_scenario_plots(tmp_path: Path) -> None:
         assert keys >= {("mug", "IsInHand", "alice"), ("alice", "IsInRoom", "Kitchen")}
     finally:
         db.close()
+
+
+def test_numbers_of_the_run_get_their_own_panel(run_db: toaster.Database,
+                                                tmp_path: Path) -> None:
+    """alice's Distance to the mug (3.0, 1.0, 0.4 m over three intervals) is drawn as one
+    unbroken step line under its bars, and ends where the fact ends (14 s)."""
+    from toaster.plotting.render import number_gid
+
+    out = plot_facts(run_db, tmp_path / "run.svg", subject="alice", since=T0, until=T0 + 20 * S)
+    lane = next(lane for lane in out.timeline.lanes if lane.label == "alice Distance mug")
+    assert [s.agent for s in lane.signals] == ["pr2"]
+    (line,) = [ln for ax in out.figure.axes for ln in ax.lines
+               if ln.get_gid() == number_gid(lane, "pr2")]
+    points = list(zip(line.get_xdata(), line.get_ydata(), strict=True))
+    assert points[1:4] == [(1, 3.0), (5, 1.0), (8, 0.4)]
+    assert points[-2][0] == 14
+    assert [y != y for _, y in (points[0], points[-2])] == [True, True]  # NaN: not held
+    assert line.axes.get_ylabel() == "Distance (m)"
+    assert f'id="{number_gid(lane, "pr2")}"' in out.path.read_text()

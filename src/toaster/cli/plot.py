@@ -74,16 +74,22 @@ def _many(values: tuple[str, ...]) -> list[str] | None:
 @click.option("--format", "fmt", type=click.Choice(["png", "svg", "pdf", "dat", "csv"]),
               help="Output format (default: from OUTPUT's suffix).")
 @click.option("--title", help="Title of the picture.")
+@click.option("--numbers", type=click.Choice(["both", "only", "off"]), default="both",
+              show_default=True,
+              help="Facts with a number (Distance, IsMoving speed, angles): also draw the "
+                   "number over time (both), only the numbers (only), or the bars only (off).")
 @db_option
 def plot_facts(output: str, subject: tuple[str, ...], prop: tuple[str, ...],
                target: tuple[str, ...], agent: tuple[str, ...], reference: str | None,
                since: str | None, until: str | None, fmt: str | None, title: str | None,
-               url: str | None) -> None:
+               numbers: str, url: str | None) -> None:
     """Draw the timeline of facts to OUTPUT (.png, .svg, .pdf, .dat for gnuplot, .csv).
 
     One row per agent and fact: value changes, confidence, and where an agent's belief
-    differs from the reference agent's (false beliefs are hatched in red). Pictures need
-    matplotlib (pip install 'toaster[plot]').
+    differs from the reference agent's (false beliefs are hatched in red). Facts that carry
+    a number (value_num) get a second panel: the number over time, one step line per agent,
+    gaps where the fact does not hold (--numbers). Pictures need matplotlib
+    (pip install 'toaster[plot]').
     """
     from toaster.plotting import plot_facts as plot
 
@@ -91,10 +97,12 @@ def plot_facts(output: str, subject: tuple[str, ...], prop: tuple[str, ...],
         lo, hi = parse_window(since, until)
         result = plot(db, output, subject=_many(subject), property=_many(prop),
                       target=_many(target), agents=_many(agent), since=lo, until=hi,
-                      reference=reference, format=fmt, title=title)
+                      reference=reference, format=fmt, title=title, numbers=numbers)
     timeline = result.timeline
     false = sum(d.kind == "false_belief" for d in timeline.divergences)
-    click.echo(f"wrote {result.path} ({len(timeline.lanes)} facts, {len(timeline.agents)} "
-               f"agents, {false} false-belief spans)")
+    with_numbers = len(timeline.number_lanes) if numbers != "off" else 0
+    facts = with_numbers if numbers == "only" else len(timeline.lanes)
+    click.echo(f"wrote {result.path} ({facts} facts, {with_numbers} with numbers, "
+               f"{len(timeline.agents)} agents, {false} false-belief spans)")
     if result.companion is not None:
         click.echo(f"draw it with: gnuplot -p {result.companion}")

@@ -4,8 +4,11 @@
 >>> from toaster.plotting import plot_facts                            # doctest: +SKIP
 >>> db = toaster.connect("sqlite:///run.db")                           # doctest: +SKIP
 >>> plot_facts(db, "mug.png", subject="mug", property="IsOn")         # doctest: +SKIP
+>>> plot_facts(db, "dist.svg", property="Distance", numbers="only")    # doctest: +SKIP
 
-Pictures need the ``plot`` extra (matplotlib); data files need nothing beyond toaster.
+Facts that carry numbers (``value_num``: Distance, IsMoving speeds, angles) are also drawn as
+step lines of their number over time, refreshes included (``numbers``: ``both``, ``only``,
+``off``). Pictures need the ``plot`` extra (matplotlib); data files need nothing beyond toaster.
 """
 
 from __future__ import annotations
@@ -18,14 +21,23 @@ from toaster.errors import InvalidInputError
 from toaster.plotting.datafiles import CSV_COLUMNS, gnuplot_script, write_csv, write_dat
 from toaster.plotting.timeline import (
     FALSE_BELIEF,
+    NUMBERS,
     UNAWARE,
+    UNITS,
     Change,
     Divergence,
     Lane,
+    Point,
     Series,
+    Signal,
     Timeline,
+    add_signals,
     build_timeline,
+    check_numbers,
     fact_label,
+    number_unit,
+    panels,
+    signal_points,
     timeline_from_rows,
 )
 
@@ -34,11 +46,13 @@ FORMATS = (*IMAGE_FORMATS, "dat", "csv")
 
 
 class PlotResult(NamedTuple):
-    """What :func:`plot_facts` wrote: the output file, any companion file, and the data."""
+    """What :func:`plot_facts` wrote: the output file, any companion file, the data and, for a
+    picture, the matplotlib ``Figure`` that was saved."""
 
     path: Path
     companion: Path | None  # the gnuplot script beside a .dat
     timeline: Timeline
+    figure: Any = None
 
 
 def output_format(path: str | Path, format: str | None = None) -> str:
@@ -57,7 +71,7 @@ def plot_facts(db: Any, output: str | Path, *, subject: str | Sequence[str] | No
                agents: str | Sequence[str] | None = None, since: int | None = None,
                until: int | None = None, reference: str | None = None,
                format: str | None = None, title: str | None = None,
-               dpi: int = 120) -> PlotResult:
+               dpi: int = 120, numbers: str = "both") -> PlotResult:
     """Write the timeline of the matching facts to ``output``.
 
     Args:
@@ -69,26 +83,35 @@ def plot_facts(db: Any, output: str | Path, *, subject: str | Sequence[str] | No
         reference: the agent others are compared with (default: the robot, ``is_self``).
         format: ``png``, ``svg``, ``pdf`` (matplotlib), ``dat`` (gnuplot, with a ``.gp``
             script beside it) or ``csv``.
+        numbers: for facts that carry numbers (``value_num``), ``both`` (default: the bars,
+            plus a panel with the number over time; number blocks in a ``.dat``, number rows
+            in a CSV), ``only`` (the numbers only; facts without numbers are left out) or
+            ``off`` (the bars only).
     """
     fmt = output_format(output, format)
+    check_numbers(numbers)
     if fmt in IMAGE_FORMATS:
         from toaster.plotting.render import _matplotlib
 
         _matplotlib()  # fail on a missing extra before reading the database
     timeline = build_timeline(db, subject=subject, property=property, target=target,
-                              agents=agents, since=since, until=until, reference=reference)
+                              agents=agents, since=since, until=until, reference=reference,
+                              numbers=numbers != "off")
+    panels(timeline, numbers)  # "only" with no number: one-line error before writing
     path = Path(output)
     if fmt == "dat":
-        return PlotResult(path, write_dat(timeline, path), timeline)
+        return PlotResult(path, write_dat(timeline, path, numbers), timeline)
     if fmt == "csv":
-        return PlotResult(write_csv(timeline, path), None, timeline)
+        return PlotResult(write_csv(timeline, path, numbers), None, timeline)
     from toaster.plotting.render import render
 
-    render(timeline, title=title).savefig(path, format=fmt, dpi=dpi)
-    return PlotResult(path, None, timeline)
+    figure = render(timeline, title=title, numbers=numbers)
+    figure.savefig(path, format=fmt, dpi=dpi)
+    return PlotResult(path, None, timeline, figure)
 
 
-__all__ = ["CSV_COLUMNS", "FALSE_BELIEF", "FORMATS", "IMAGE_FORMATS", "UNAWARE", "Change",
-           "Divergence", "Lane", "PlotResult", "Series", "Timeline", "build_timeline",
-           "fact_label", "gnuplot_script", "output_format", "plot_facts", "timeline_from_rows",
-           "write_csv", "write_dat"]
+__all__ = ["CSV_COLUMNS", "FALSE_BELIEF", "FORMATS", "IMAGE_FORMATS", "NUMBERS", "UNAWARE",
+           "UNITS", "Change", "Divergence", "Lane", "PlotResult", "Point", "Series", "Signal",
+           "Timeline", "add_signals", "build_timeline", "check_numbers", "fact_label",
+           "gnuplot_script", "number_unit", "output_format", "panels", "plot_facts",
+           "signal_points", "timeline_from_rows", "write_csv", "write_dat"]

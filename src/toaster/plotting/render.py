@@ -3,8 +3,10 @@
 One panel per fact, one row per agent. A bar is a held value (its colour is the value, its
 opacity and the thin black line inside it the confidence); red hatching marks a false belief
 (the agent holds a value the reference agent does not), grey dots a fact the agent is unaware
-of. matplotlib is imported here only, and only through :class:`matplotlib.figure.Figure`, so
-no GUI backend and no global pyplot state are involved.
+of. Below the bars of a fact that carries numbers, a second panel draws its number over time
+(one step line per agent, gaps where the fact does not hold; y axis: the property and its
+unit). matplotlib is imported here only, and only through :class:`matplotlib.figure.Figure`,
+so no GUI backend and no global pyplot state are involved.
 """
 
 from __future__ import annotations
@@ -12,10 +14,11 @@ from __future__ import annotations
 from typing import Any
 
 from toaster.errors import MissingDependencyError
-from toaster.plotting.timeline import FALSE_BELIEF, Lane, Timeline
+from toaster.plotting.timeline import FALSE_BELIEF, Lane, Timeline, panels
 from toaster.timeutil import NS_PER_S, format_ns
 
 BAR = 0.6
+NUMBER_PANEL_HEIGHT = 1.7  # inches
 _MIN_LABEL_FRACTION = 0.06
 
 
@@ -28,29 +31,66 @@ def _matplotlib() -> Any:
     return Figure
 
 
-def render(timeline: Timeline, *, title: str | None = None) -> Any:
-    """A matplotlib ``Figure`` of the timeline (save it with ``fig.savefig(path)``)."""
+def number_gid(lane: Lane, agent: str) -> str:
+    """The ``gid`` of the number line of ``agent`` in ``lane`` (an ``id`` in an SVG)."""
+    return f"numbers: {lane.label} | {agent}"
+
+
+def render(timeline: Timeline, *, title: str | None = None, numbers: str = "both") -> Any:
+    """A matplotlib ``Figure`` of the timeline (save it with ``fig.savefig(path)``).
+
+    ``numbers``: ``both`` (bars, and a number panel under each fact that carries numbers),
+    ``only`` (the number panels only) or ``off`` (the bars only). A number line is a
+    ``Line2D`` whose ``gid`` is :func:`number_gid` and whose data are seconds since the window
+    start and the numbers (NaN: the fact does not hold).
+    """
     figure_cls = _matplotlib()
     from matplotlib.patches import Patch
 
-    lanes = timeline.lanes
-    rows = [len(lane.series) for lane in lanes]
-    fig = figure_cls(figsize=(11, 1.1 + sum(0.45 * r + 0.55 for r in rows)),
-                     layout="constrained")
-    axes = fig.subplots(len(lanes), 1, sharex=True, squeeze=False,
-                        gridspec_kw={"height_ratios": [r + 0.6 for r in rows]})[:, 0]
+    shown = panels(timeline, numbers)
+    heights = [0.45 * len(lane.series) + 0.55 if kind == "bars" else NUMBER_PANEL_HEIGHT
+               for kind, lane in shown]
+    fig = figure_cls(figsize=(11, 1.1 + sum(heights)), layout="constrained")
+    axes = fig.subplots(len(shown), 1, sharex=True, squeeze=False,
+                        gridspec_kw={"height_ratios": heights})[:, 0]
     span = (timeline.until_ns - timeline.since_ns) / NS_PER_S
-    for ax, lane in zip(axes, lanes, strict=True):
-        _draw_lane(ax, lane, timeline, span)
+    for ax, (kind, lane) in zip(axes, shown, strict=True):
+        if kind == "bars":
+            _draw_lane(ax, lane, timeline, span)
+        else:
+            _draw_numbers(ax, lane, timeline)
     axes[-1].set_xlim(0, span)
     axes[-1].set_xlabel(f"seconds since {format_ns(timeline.since_ns)}")
-    fig.suptitle(title or f"toaster facts ({len(lanes)}), reference agent: {timeline.reference}")
-    handles = [Patch(facecolor="none", edgecolor="red", hatch="////", label="false belief"),
-               Patch(facecolor="none", edgecolor="grey", linestyle=":", label="unaware"),
-               Patch(facecolor="0.6", edgecolor="black", label="held value (opacity, black line"
-                                                               " = confidence)")]
-    fig.legend(handles=handles, loc="outside lower center", ncols=3, fontsize="small")
+    facts = len({lane.label for _, lane in shown})
+    fig.suptitle(title or f"toaster facts ({facts}), reference agent: {timeline.reference}")
+    if any(kind == "bars" for kind, _ in shown):
+        handles = [Patch(facecolor="none", edgecolor="red", hatch="////", label="false belief"),
+                   Patch(facecolor="none", edgecolor="grey", linestyle=":", label="unaware"),
+                   Patch(facecolor="0.6", edgecolor="black",
+                         label="held value (opacity, black line = confidence)")]
+        fig.legend(handles=handles, loc="outside lower center", ncols=3, fontsize="small")
     return fig
+
+
+def _draw_numbers(ax: Any, lane: Lane, timeline: Timeline) -> None:
+    """One post-step line per agent of the lane's number, broken where it does not hold (the
+    reference agent solid and wide, the others dashed on top, so that equal numbers show)."""
+    import matplotlib as mpl
+
+    colours = mpl.colormaps["Dark2"]
+    for signal in lane.signals:
+        xs, ys = signal.steps(timeline.since_ns, timeline.until_ns)
+        reference = signal.agent == timeline.reference
+        style = {"linewidth": 2.4} if reference else {"linewidth": 1.4, "linestyle": "--"}
+        ax.plot(xs, ys, drawstyle="steps-post", label=(f"{signal.agent} (reference)"
+                                                       if reference else signal.agent),
+                color=colours(timeline.agents.index(signal.agent) % 8),
+                gid=number_gid(lane, signal.agent), **style)
+    label = lane.number_label
+    ax.set_ylabel(label.replace(" (", "\n(") if len(label) > 18 else label, fontsize="small")
+    ax.set_title(f"{lane.label}: number", loc="left", fontsize="medium")
+    ax.legend(loc="best", fontsize="small")
+    ax.grid(alpha=0.3)
 
 
 def _draw_lane(ax: Any, lane: Lane, timeline: Timeline, span: float) -> None:

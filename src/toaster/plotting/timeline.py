@@ -4,6 +4,11 @@ Built from the stored validity intervals (current facts and memory), never sampl
 holds one :class:`Change` per change of value (or confidence), starting with the value held at
 the window start. Where an agent's value differs from the reference agent's (the robot, i.e.
 the ``is_self`` agent, when it is plotted) the timeline records a :class:`Divergence`.
+
+Facts that carry a number (``value_num``: a distance, a speed, an angle) also get, per agent,
+a :class:`Signal`: the step function of that number from :func:`toaster.queries.signal`, with
+every refresh beyond the property's tolerance (``fact_samples``), not only the interval's last
+number, and ``None`` where the fact does not hold.
 """
 
 from __future__ import annotations
@@ -15,12 +20,23 @@ from typing import Any, NamedTuple
 
 from toaster.errors import InvalidInputError, UnknownAgentError
 from toaster.model import FactKey, FactRow
-from toaster.timeutil import format_ns
+from toaster.timeutil import NS_PER_S, format_ns
 
 #: Divergence kinds: the agent holds a value the reference does not share, or holds nothing
 #: while the reference holds a value.
 FALSE_BELIEF = "false_belief"
 UNAWARE = "unaware"
+
+#: What to draw or write of the numbers: bars and number lines (``both``), number lines of the
+#: facts that carry numbers only (``only``), or the bars only (``off``).
+NUMBERS = ("both", "only", "off")
+
+#: Units of ``value_num`` by property or (property, sub_property) (see docs/producers.md).
+UNITS: dict[str | tuple[str, str], str] = {
+    "Distance": "m", "IsMoving": "m/s", ("IsMovingToward", "direction"): "rad",
+    ("IsMovingToward", "distance"): "m", "IsLookingToward": "rad", "IsLookingAt": "rad",
+    "IsFacing": "rad", "IsNextTo": "m", "IsReachableBy": "m", "CanReach": "m",
+}
 
 
 class Change(NamedTuple):
@@ -49,6 +65,40 @@ class Series(NamedTuple):
         return current
 
 
+class Point(NamedTuple):
+    """From ``t_ns`` on (until the next point), the number and its confidence (None: the fact
+    does not hold, or holds no number)."""
+
+    t_ns: int
+    value_num: float | None
+    confidence: float | None
+
+
+class Signal(NamedTuple):
+    """The number of one fact over time as one agent believed it: step points from the window
+    start (the first point is the number held then, possibly None)."""
+
+    agent: str
+    points: list[Point]
+
+    def value_at(self, t_ns: int) -> Point:
+        """The point in force at ``t_ns`` (the first one before the window start)."""
+        current = self.points[0]
+        for point in self.points:
+            if point.t_ns > t_ns:
+                break
+            current = point
+        return current
+
+    def steps(self, since_ns: int, until_ns: int) -> tuple[list[float], list[float]]:
+        """x (seconds since ``since_ns``) and y (NaN where nothing is held) of a post-step
+        line: one entry per point plus one closing entry at ``until_ns``."""
+        nan = float("nan")
+        xs = [(p.t_ns - since_ns) / NS_PER_S for p in self.points]
+        ys = [nan if p.value_num is None else float(p.value_num) for p in self.points]
+        return [*xs, (until_ns - since_ns) / NS_PER_S], [*ys, ys[-1] if ys else nan]
+
+
 class Divergence(NamedTuple):
     """A span where ``agent`` believed ``value`` while ``reference`` believed another."""
 
@@ -69,11 +119,25 @@ class Lane:
     key: FactKey
     values: list[str]
     series: list[Series] = field(default_factory=list)
+    signals: list[Signal] = field(default_factory=list)  # agents that held a number here
 
     @property
     def label(self) -> str:
         """``subject property target`` with owners and sub-property when they are set."""
         return fact_label(self.key)
+
+    @property
+    def unit(self) -> str | None:
+        """The unit of the lane's numbers (:data:`UNITS`), None when unknown."""
+        return number_unit(self.key)
+
+    @property
+    def number_label(self) -> str:
+        """The y-axis label of the numbers: ``Distance (m)``, ``IsMovingToward/direction (rad)``."""
+        prop = (f"{self.key.property}/{self.key.sub_property}" if self.key.sub_property
+                else self.key.property)
+        unit = self.unit
+        return f"{prop} ({unit})" if unit else prop
 
 
 @dataclass
@@ -86,6 +150,41 @@ class Timeline:
     reference: str
     lanes: list[Lane]
     divergences: list[Divergence]
+
+    @property
+    def number_lanes(self) -> list[Lane]:
+        """The lanes whose facts carry numbers (with at least one :class:`Signal`)."""
+        return [lane for lane in self.lanes if lane.signals]
+
+
+def number_unit(key: FactKey) -> str | None:
+    """The unit of ``key``'s ``value_num`` (metres, m/s, radians), None when unknown."""
+    return UNITS.get((key.property, key.sub_property), UNITS.get(key.property))
+
+
+def check_numbers(numbers: str) -> str:
+    """``numbers`` if it is one of :data:`NUMBERS`, else a one-line error."""
+    if numbers not in NUMBERS:
+        msg = f"unknown numbers mode {numbers!r}: use one of {', '.join(NUMBERS)}"
+        raise InvalidInputError(msg)
+    return numbers
+
+
+def panels(timeline: Timeline, numbers: str = "both") -> list[tuple[str, Lane]]:
+    """What a picture draws (and a data file holds), top to bottom: ``("bars", lane)`` for a
+    fact's values per agent, ``("numbers", lane)`` for its numbers (see :data:`NUMBERS`)."""
+    check_numbers(numbers)
+    out: list[tuple[str, Lane]] = []
+    for lane in timeline.lanes:
+        if numbers != "only":
+            out.append(("bars", lane))
+        if numbers != "off" and lane.signals:
+            out.append(("numbers", lane))
+    if not out:
+        msg = ("no numbers among the matching facts (none has a value_num): plot them "
+               "without --numbers only")
+        raise InvalidInputError(msg)
+    return out
 
 
 def fact_label(key: FactKey) -> str:
@@ -128,13 +227,16 @@ def build_timeline(db: Any, *, subject: str | Sequence[str] | None = None,
                    property: str | Sequence[str] | None = None,
                    target: str | Sequence[str] | None = None,
                    agents: str | Sequence[str] | None = None, since: int | None = None,
-                   until: int | None = None, reference: str | None = None) -> Timeline:
+                   until: int | None = None, reference: str | None = None,
+                   numbers: bool = True) -> Timeline:
     """Read the matching intervals and turn them into a :class:`Timeline`.
 
     ``since``/``until`` default to the first and last time found in the matching intervals.
     ``reference`` (default: the robot, else the first agent) is whose beliefs the others are
     compared with. Agents named in ``agents`` get a row in every lane; by default a lane shows
-    only the agents concerned (see :func:`timeline_from_rows`).
+    only the agents concerned (see :func:`timeline_from_rows`). With ``numbers`` (default)
+    the lanes whose facts carry numbers get their :class:`Signal` per agent (see
+    :func:`add_signals`).
     """
     from toaster.queries import history
 
@@ -155,8 +257,72 @@ def build_timeline(db: Any, *, subject: str | Sequence[str] | None = None,
                " check the names with toaster get-info facts")
         raise InvalidInputError(msg)
     since, until = _window(rows, since, until)
-    return timeline_from_rows(rows, since, until, names, reference or default_ref,
-                              show_all=agents is not None)
+    timeline = timeline_from_rows(rows, since, until, names, reference or default_ref,
+                                  show_all=agents is not None)
+    if numbers:
+        add_signals(db, timeline, subject=_as_list(subject), property=_as_list(property),
+                    target=_as_list(target))
+    return timeline
+
+
+def add_signals(db: Any, timeline: Timeline, **filters: Any) -> None:
+    """Give each lane of ``timeline`` the :class:`Signal` of every plotted agent that held a
+    number there, read with :func:`toaster.queries.signal` (``filters``: subject, property,
+    target, as for the timeline) and clipped to the window."""
+    from toaster.queries import signal
+
+    def read(**more: Any) -> dict[tuple[str, ...], list[Any]]:
+        found: dict[tuple[str, ...], list[Any]] = {}
+        for point in signal(db, timeline.agents, since=timeline.since_ns,
+                            until=timeline.until_ns, **filters, **more):
+            found.setdefault(tuple(point[:5]), []).append(point)
+        return found
+
+    def short(key: FactKey) -> tuple[str, ...]:  # a signal point's key lacks the owners
+        return (key.subject_id, key.property, key.sub_property, key.target_id)
+
+    counts: dict[tuple[str, ...], int] = {}
+    for lane in timeline.lanes:
+        counts[short(lane.key)] = counts.get(short(lane.key), 0) + 1
+    everything = read()
+    for lane in timeline.lanes:
+        points = everything
+        if counts[short(lane.key)] > 1:  # keys that differ by their owners only: one query each
+            points = read(subject_owner=lane.key.subject_owner_id,
+                          target_owner=lane.key.target_owner_id)
+        for series in lane.series:
+            held = points.get((series.agent, *short(lane.key)), [])
+            clipped = signal_points(held, timeline.since_ns, timeline.until_ns)
+            if any(p.value_num is not None for p in clipped):
+                lane.signals.append(Signal(series.agent, clipped))
+                _numbers_then(series, lane.signals[-1])
+
+
+def _numbers_then(series: Series, signal: Signal) -> None:
+    """A change's ``value_num`` is its interval's last stored number: make it the number held
+    at the change's time (the interval may have been refreshed since)."""
+    for i, change in enumerate(series.changes):
+        if change.value is not None:
+            series.changes[i] = change._replace(value_num=signal.value_at(change.t_ns).value_num)
+
+
+def signal_points(points: Iterable[Any], since: int, until: int) -> list[Point]:
+    """Step points (anything with ``t_ns``, ``value_num``, ``confidence``, in time order)
+    clipped to ``[since, until)``: the first is the number held at ``since`` (None if none);
+    at one instant the last point wins; repeats of the same number and confidence are dropped."""
+    out = [Point(since, None, None)]
+    for point in points:
+        t_ns = max(point.t_ns, since)
+        if t_ns >= until:
+            break
+        value = point.value_num
+        new = Point(t_ns, value, None if value is None else point.confidence)
+        if out and out[-1].t_ns == t_ns:
+            out.pop()  # a later point at the same instant wins (an end, then the next start)
+        if out and (out[-1].value_num, out[-1].confidence) == (new.value_num, new.confidence):
+            continue
+        out.append(new)
+    return out
 
 
 def _window(rows: Sequence[FactRow], since: int | None, until: int | None) -> tuple[int, int]:

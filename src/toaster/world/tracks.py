@@ -44,6 +44,9 @@ class TrackSource:
         self.start_ns = int(self.t[0]) if len(self.t) else 0
         self.end_ns = int(self.t[-1]) if len(self.t) else 0
         self.sample_hz: float | None = None  # the annotation rate, when the file tells it
+        if len(self.t) > 1:  # else the median step between distinct sample times
+            steps = np.diff(np.unique(self.t))
+            self.sample_hz = NS_PER_S / float(np.median(steps))
 
     def setup(self, world: World) -> None:
         """Register every track id (not yet perceived, so not live until its first sample)."""
