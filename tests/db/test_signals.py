@@ -138,3 +138,22 @@ def test_get_info_value_at_a_past_time_gives_the_number_then(db_url: str) -> Non
                                      "--at", f"2026-11-22T{at}Z", "--json"])
         assert result.exit_code == 0, result.output
         assert json.loads(result.output.splitlines()[0])["value_num"] == want
+
+
+def test_tolerance_command_shows_and_sets(db_url: str) -> None:
+    """`toaster tolerance` lists the table, sets one property (kept by the database), and
+    refuses a bad value in one line without changing it."""
+    from click.testing import CliRunner
+
+    from toaster.cli import cli
+
+    runner = CliRunner()
+    shown = runner.invoke(cli, ["--db", db_url, "tolerance"])
+    assert shown.exit_code == 0 and json.loads(shown.output)["Distance"]["value"] == 0.05
+    done = runner.invoke(cli, ["--db", db_url, "tolerance", "Distance", '{"value": 0.02}'])
+    assert done.exit_code == 0, done.output
+    bad = runner.invoke(cli, ["--db", db_url, "tolerance", "Distance", '"far"'])
+    assert bad.exit_code == 1 and len(bad.output.strip().splitlines()) == 1
+    assert "tolerance" in bad.output
+    with toaster.connect(db_url) as db:
+        assert db.store().tolerances()["Distance"] == (0.02, 0.05, 0.0)

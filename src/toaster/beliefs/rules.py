@@ -187,8 +187,18 @@ class BeliefRule:
                 self._run(conn, steps, ("20_perceive",), {**params, "phase": phase,
                                                           "everything": 1})
             self._run(conn, steps, ("40_refresh", "42_keep_max"), params)
-        self._run(conn, steps, _STEPS_WRITE + _STEPS_SHARE[bool(config["share_rows"])], params)
+        if conn.execute(_ANY_WORK).scalar():
+            self._run(conn, steps, _STEPS_WRITE + _STEPS_SHARE[bool(config["share_rows"])],
+                      params)
         self._run(conn, steps, ("99_clear",), params)
+
+
+#: Whether the write steps have anything to do: a holder takes a change (or sees something
+#: again), or a holder follows a changed key (and, not perceiving the change, must stop). When
+#: nobody perceives anything, as in a crowd replay with holders and no rooms, they are skipped.
+_ANY_WORK = text(
+    "SELECT EXISTS (SELECT 1 FROM belief_in) OR EXISTS (SELECT 1 FROM belief_changed b "
+    "JOIN belief_follow w ON w.self_key = b.key_id AND w.to_ns IS NULL)")
 
 
 def _check_sql(sql: str) -> bool:

@@ -72,9 +72,10 @@ def _register() -> None:
     from toaster.cli.info import get_info, set_info
     from toaster.cli.plot import plot_facts
     from toaster.cli.run import area, relpos, run
+    from toaster.cli.tolerance import tolerance
 
     for command in (area, beliefs, db_group, demo, execute, export, get_info, plot_facts,
-                    record, relpos, run, set_info):
+                    record, relpos, run, set_info, tolerance):
         cli.add_command(command)
 
 

@@ -231,7 +231,7 @@ class AgentMonitor:
         heading = bearing(ref_dir, now)
         theta = cfg[f"{part}_toward_angle"]
         obs = cfg["observability_monitor"]
-        dev = wrap_angle(heading[mi] - np.arctan2(dy, dx))
+        dev = np.asarray(wrap_angle(heading[mi] - np.arctan2(dy, dx)))
         conf = (theta - np.abs(dev)) / theta
         pairs = movers[mi] * _PAIR + targets[ti]
         clock = world.t_ns[movers[mi]]

@@ -226,7 +226,8 @@ def load_session(path: str | Path, areas: dict[str, dict[str, Any]] | None = Non
 
     Recordings: ``obsmat.txt`` (ETH/UCY; frame numbers at ``fps``, default 25, checked against
     the annotated velocities; ticks at the annotation rate, 2.5 Hz), ``.csv`` or ``.jsonl``
-    tracks (ticks at their median sample step). ``areas`` (for instance those kept in the store) are added to the file's own areas.
+    tracks (ticks at their median sample step). ``areas`` (for instance those kept in the
+    store) are added to the file's own areas.
     ``holders`` ("none", "humans" or ids) overrides the file's ``belief_holders`` (config of a
     scenario); by default the humans of a scenario hold beliefs, those of a recording do not.
     """

@@ -6,6 +6,7 @@ tuples. Ids are always bound parameters; only column names from a fixed list rea
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 from toaster.model import FactRow
@@ -24,7 +25,8 @@ _KEY_COLS = (f"{_KEY_ONLY}, f.value_text, f.value_num, f.confidence, f.observabi
 
 
 def _where(filters: dict[str, Any], prefix: str = "") -> tuple[str, dict[str, Any]]:
-    clauses, params = [], {}
+    clauses: list[str] = []
+    params: dict[str, Any] = {}
     for arg, value in filters.items():
         if value is None or value == "NULL":
             continue
@@ -65,7 +67,7 @@ def _select(db: Any, view: str, filters: dict[str, Any], *, since: int | None,
     return _rows(db, sql, params, raw=bool(extra))
 
 
-def current_facts(db: Any, agent: str | None = None, *, limit: int | None = None,
+def current_facts(db: Any, agent: str | Sequence[str] | None = None, *, limit: int | None = None,
                   **filters: Any) -> list[FactRow]:
     """Facts currently believed (open intervals), filtered by agent, subject, property, target,
     sub_property, source, value... (a list matches any of its items)."""
@@ -73,7 +75,7 @@ def current_facts(db: Any, agent: str | None = None, *, limit: int | None = None
                    limit=limit, order="agent_id, subject_id, property, target_id, fact_id")
 
 
-def memory(db: Any, agent: str | None = None, *, since: int | None = None,
+def memory(db: Any, agent: str | Sequence[str] | None = None, *, since: int | None = None,
            until: int | None = None, limit: int | None = None, **filters: Any) -> list[FactRow]:
     """Past beliefs (closed intervals), oldest first; ``since``/``until`` keep intervals that
     overlap the window."""
@@ -81,7 +83,7 @@ def memory(db: Any, agent: str | None = None, *, since: int | None = None,
                    limit=limit, order="valid_from_ns, fact_id")
 
 
-def history(db: Any, agent: str | None = None, *, since: int | None = None,
+def history(db: Any, agent: str | Sequence[str] | None = None, *, since: int | None = None,
             until: int | None = None, limit: int | None = None, **filters: Any) -> list[FactRow]:
     """Every interval, current and past, oldest first (the timeline of the matching facts)."""
     return _select(db, "fact_history", {"agent": agent, **filters}, since=since, until=until,
@@ -140,7 +142,7 @@ class SignalPoint(NamedTuple):
     confidence: float | None
 
 
-def signal(db: Any, agent: str | None = None, *, since: int | None = None,
+def signal(db: Any, agent: str | Sequence[str] | None = None, *, since: int | None = None,
            until: int | None = None, **filters: Any) -> list[SignalPoint]:
     """The numbers of the matching facts over time, as step points: each interval's start,
     each stored refresh (``fact_samples``) and its end (``value_num`` None). Sorted by key,

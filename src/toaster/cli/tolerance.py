@@ -1,0 +1,39 @@
+"""``toaster tolerance``: how much a number may move before it is written (settings as data)."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import click
+
+
+@click.command("tolerance")
+@click.argument("property", required=False)
+@click.argument("value", required=False)
+@click.pass_obj
+def tolerance(app: Any, property: str | None, value: str | None) -> None:
+    """Show the tolerances of continuous values, or set PROPERTY's to VALUE.
+
+    VALUE is JSON: a number (the value's tolerance, in the property's unit) or
+    '{"value": 0.05, "confidence": 0.05, "observability": 0}'. PROPERTY '*' is every property
+    without its own. Running stores of the database take the change at their next tick.
+    """
+    from toaster.db import tolerance as tol
+
+    store = app.db.store()
+    if value is None:
+        table = store.tolerances()
+        shown = {p: t._asdict() for p, t in sorted(table.items())
+                 if property is None or p == property}
+        if property is not None and not shown:
+            shown = {property: table["*"]._asdict()}
+        click.echo(json.dumps(shown, indent=2))
+        return
+    try:
+        parsed = json.loads(value)
+    except json.JSONDecodeError:
+        raise click.UsageError(f"VALUE {value!r} is not JSON: give 0.05 or "
+                               '\'{"value": 0.05, "confidence": 0.05}\'') from None
+    store.put_setting(tol.SCOPE, property, parsed)
+    click.echo(f"tolerance {property} = {json.dumps(store.tolerances()[property]._asdict())}")
