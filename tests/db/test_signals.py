@@ -157,3 +157,34 @@ def test_tolerance_command_shows_and_sets(db_url: str) -> None:
     assert "tolerance" in bad.output
     with toaster.connect(db_url) as db:
         assert db.store().tolerances()["Distance"] == (0.02, 0.05, 0.0)
+
+
+def test_batch_refresh_of_a_fact_another_writer_ended_reopens_it(db_url: str) -> None:
+    """A producer's batch refreshes numbers without reading them back; when another process
+    ended that interval meanwhile, the tick is redone from the database: the fact reopens."""
+    from toaster.producers.batch import FactBatch
+
+    world = World()
+    for name in ("BOB", "MUG"):
+        world.add_entity(name, "human" if name == "BOB" else "object")
+
+    def batch(value: float) -> FactBatch:
+        out = FactBatch(world)
+        out.add("Distance", np.array([0]), np.array([1]), value_text="medium",
+                value_num=np.array([value]), conf=0.9, obs=0.0, sub_property="3D")
+        return out
+
+    with toaster.connect(db_url) as db, toaster.connect(db_url) as other_db:
+        store, other = db.store(), other_db.store()
+        store.add_entity("R", "robot", is_self=True, t_ns=0)
+        store.sync_snapshot("am", "R", 1 * S, batch(1.0))
+        store.sync_snapshot("am", "R", 2 * S, batch(1.5))  # the array path from here on
+        fact = q.current_facts(db, "R")[0].to_fact()
+        other.sync_snapshot("x", "R", 3 * S, [fact])  # adopts the open interval...
+        other.sync_snapshot("x", "R", 4 * S, [])  # ...and ends it (no cache epoch bump)
+        assert q.current_facts(db, "R") == []
+        store.sync_snapshot("am", "R", 5 * S, batch(2.0))
+        (row,) = q.current_facts(db, "R")
+        assert (row.value_num, row.valid_from_ns) == (2.0, 5 * S)
+        assert [(r.valid_from_ns, r.valid_to_ns) for r in q.history(db, "R")] == [
+            (1 * S, 4 * S), (5 * S, None)]

@@ -251,6 +251,7 @@ class Store:
             except _StaleCache:
                 if attempt:
                     raise
+                self.forget()  # inside a caller's transaction nothing else forgets
         msg = "unreachable"
         raise AssertionError(msg)
 
