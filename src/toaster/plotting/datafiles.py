@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import csv
 from pathlib import Path
+from typing import Any
 
 from toaster.plotting.timeline import Signal, Timeline, check_numbers, panels
 from toaster.timeutil import NS_PER_S, format_ns
@@ -145,31 +146,22 @@ def write_csv(timeline: Timeline, path: str | Path, numbers: str = "both") -> Pa
     with path.open("w", newline="", encoding="utf-8") as handle:
         writer = csv.writer(handle)
         writer.writerow(CSV_COLUMNS)
+        def row(label: str, agent: str, t_ns: int, state: Any, number: Any, kind: str) -> None:
+            writer.writerow([
+                label, agent, t_ns, _seconds(t_ns, timeline.since_ns),
+                *("" if v is None else v for v in (state.value, number.value_num,
+                                                   number.confidence)),
+                state.level, int(_diverges(timeline, label, agent, t_ns)), kind])
+
         for kind, lane in panels(timeline, numbers):
             if kind == "numbers":
                 for signal in lane.signals:
                     series = next(s for s in lane.series if s.agent == signal.agent)
                     for point in signal.points:
-                        state = series.value_at(point.t_ns)
-                        writer.writerow([
-                            lane.label, signal.agent, point.t_ns,
-                            _seconds(point.t_ns, timeline.since_ns),
-                            "" if state.value is None else state.value,
-                            "" if point.value_num is None else point.value_num,
-                            "" if point.confidence is None else point.confidence,
-                            state.level,
-                            int(_diverges(timeline, lane.label, signal.agent, point.t_ns)),
-                            "number"])
+                        row(lane.label, signal.agent, point.t_ns, series.value_at(point.t_ns),
+                            point, "number")
                 continue
             for series in lane.series:
                 for change in series.changes:
-                    writer.writerow([
-                        lane.label, series.agent, change.t_ns,
-                        _seconds(change.t_ns, timeline.since_ns),
-                        "" if change.value is None else change.value,
-                        "" if change.value_num is None else change.value_num,
-                        "" if change.confidence is None else change.confidence,
-                        change.level,
-                        int(_diverges(timeline, lane.label, series.agent, change.t_ns)),
-                        "state"])
+                    row(lane.label, series.agent, change.t_ns, change, change, "state")
     return path

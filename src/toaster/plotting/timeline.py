@@ -49,6 +49,17 @@ class Change(NamedTuple):
     level: int  # 0 = not believed, k = the lane's k-th distinct value (1-based)
 
 
+def _in_force(steps: list[Any], t_ns: int) -> Any:
+    """The last of time-sorted ``steps`` (each with ``t_ns``) at or before ``t_ns``, else the
+    first."""
+    current = steps[0]
+    for step in steps:
+        if step.t_ns > t_ns:
+            break
+        current = step
+    return current
+
+
 class Series(NamedTuple):
     """The step function of one fact as one agent believed it."""
 
@@ -57,12 +68,7 @@ class Series(NamedTuple):
 
     def value_at(self, t_ns: int) -> Change:
         """The change in force at ``t_ns`` (the first one before the window start)."""
-        current = self.changes[0]
-        for change in self.changes:
-            if change.t_ns > t_ns:
-                break
-            current = change
-        return current
+        return _in_force(self.changes, t_ns)
 
 
 class Point(NamedTuple):
@@ -83,12 +89,7 @@ class Signal(NamedTuple):
 
     def value_at(self, t_ns: int) -> Point:
         """The point in force at ``t_ns`` (the first one before the window start)."""
-        current = self.points[0]
-        for point in self.points:
-            if point.t_ns > t_ns:
-                break
-            current = point
-        return current
+        return _in_force(self.points, t_ns)
 
     def steps(self, since_ns: int, until_ns: int) -> tuple[list[float], list[float]]:
         """x (seconds since ``since_ns``) and y (NaN where nothing is held) of a post-step
