@@ -1,7 +1,7 @@
 """Ticks and replays with the database, the way users run them (``Runner`` / ``toaster run``).
 
 Run: .venv/bin/python benchmarks/bench_run.py [--pg URL] [--no-pg] [--only tick|crowd|size]
-     [--repeats N]
+     [--repeats N] [--long SECONDS]
 
 1. **One full tick**: the producer benchmark's scene (1,000 entities, 100 areas, 20 humans with
    a head and a hand; every entity jitters 2 cm a tick at 30 Hz) and a 10,000-entity scene with
@@ -14,6 +14,9 @@ Run: .venv/bin/python benchmarks/bench_run.py [--pg URL] [--no-pg] [--only tick|
    :mod:`crowd`: 400 people crossing the scene over 200 s like the ETH/UCY recordings (about
    27 in it at once), at 2.5 Hz and at 30 Hz, and 400 people all present at once (stress, no
    target); SQLite and PostgreSQL; the × real time it prints, against ``--no-db``.
+4. **PostgreSQL over a long run** (``--long`` input seconds, default 600): the ``facts`` table's
+   size, dead rows, share of HOT updates and autovacuum runs every minute of input, with the
+   fill factor and autovacuum thresholds of migration 0004 and, same run, without them.
 3. **Size**: 100 people all present at once, at 30 Hz with 2 cm of tracker noise, and the
    recordings-like crowd with the same noise, replayed for 40 s and 120 s; growth per hour
    from the difference (bytes, rows; PostgreSQL: dead tuples at the end).
@@ -285,13 +288,71 @@ def _size_row(label: str, csv: Path, backend: str, pg: str | None, tmp: str) -> 
           flush=True)
 
 
+# -- 4. PostgreSQL over a long run ----------------------------------------------------------------
+def bench_pg_long(pg: str, seconds: float) -> None:
+    print(f"\n4. PostgreSQL over {seconds:.0f} s of a 100-person crowd at 30 Hz with 2 cm noise "
+          "(Runner as `toaster run`): facts table and dead rows as the run goes;\n   baseline in "
+          "the same run: `facts` with the default fill factor and autovacuum thresholds")
+    print(f"{'facts options':<14} {'input s':>8} {'wall s':>7} {'facts MB':>9} {'all MB':>8}"
+          f" {'facts dead':>11} {'HOT share of updates':>21} {'autovacuums':>12}")
+
+    with tempfile.TemporaryDirectory() as tmp:
+        csv = Path(tmp) / "crowd100.csv"
+        crowd.write_crowd(csv, 100, 30.0, seconds, noise=0.02, seed=2, arrivals=0.0)
+        for label in ("0004 (ff 85)", "defaults"):
+            _pg_long_run(pg, csv, label)
+
+
+def _pg_long_run(pg: str, csv: Path, label: str) -> None:
+    """One replay of section 4, a report line every minute of input."""
+    from toaster.producers import load_session
+
+    schema = PgSchema(pg)
+    try:
+        db = toaster.connect(schema.url)
+        if label == "defaults":
+            schema.conn.execute(f"ALTER TABLE {schema.name}.facts RESET (fillfactor, "
+                                "autovacuum_vacuum_scale_factor, "
+                                "autovacuum_analyze_scale_factor)")
+        store = db.store()
+        session = load_session(csv)
+        session.register(store)
+        runner = Runner(session.world, session.sources, session.producers, store=store,
+                        agent_id=session.self_id)
+        wall = time.perf_counter()
+        next_report = session.start_ns + 60 * S
+
+        def report(t_ns: int) -> None:
+            nonlocal next_report
+            if t_ns < next_report:
+                return
+            next_report += 60 * S
+            schema.conn.execute("SELECT pg_stat_clear_snapshot()")
+            row = schema.conn.execute(
+                "SELECT pg_total_relation_size(relid), n_dead_tup, n_tup_hot_upd, n_tup_upd, "
+                "autovacuum_count FROM pg_stat_user_tables WHERE schemaname = %s "
+                "AND relname = 'facts'", (schema.name,)).fetchone()
+            total = schema.size()[0]
+            hot = row[2] / row[3] if row[3] else 0.0
+            print(f"{label:<14} {(t_ns - session.start_ns) / S:>8.0f}"
+                  f" {time.perf_counter() - wall:>7.1f} {row[0] / 1e6:>9.1f}"
+                  f" {total / 1e6:>8.1f} {row[1]:>11,} {hot:>20.0%} {row[4]:>12}", flush=True)
+
+        runner.run(session.start_ns, session.end_ns, session.rate_hz, on_tick=report)
+        db.close()
+    finally:
+        schema.drop()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--pg", default=os.environ.get("TOASTER_BENCH_PG", PG_DEFAULT))
     parser.add_argument("--no-pg", action="store_true")
     parser.add_argument("--ticks", type=int, default=15)
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--only", choices=("tick", "crowd", "size"))
+    parser.add_argument("--only", choices=("tick", "crowd", "size", "pg-long"))
+    parser.add_argument("--long", type=float, default=600.0,
+                        help="input seconds of the PostgreSQL long run (section 4)")
     args = parser.parse_args()
     pg = None if args.no_pg else args.pg
     if pg:
@@ -307,6 +368,8 @@ def main() -> None:
         bench_crowd(backends, pg, args.repeats)
     if args.only in (None, "size"):
         bench_size(backends, pg)
+    if args.only in (None, "pg-long") and pg:
+        bench_pg_long(pg, args.long)
 
 
 if __name__ == "__main__":

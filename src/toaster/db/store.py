@@ -98,6 +98,7 @@ class Store:
         self._epoch: int | None = None
         self._rules: list[Rule] = []
         self._tolerances: dict[str, Tolerance] | None = None
+        self._pending: list[ChangeSet] | None = None  # changes whose rules wait (sync_many)
         self._in_tx = False
 
     # ------------------------------------------------------------------ transactions, caches
@@ -451,10 +452,30 @@ class Store:
         if writes.retyped:
             conn.execute(text("UPDATE fact_keys SET property_type = :p WHERE id = :k"),
                          [{"p": p, "k": k} for k, p in writes.retyped])
-        if self._rules:
-            changes = writes.change_set()
-            for rule in self._rules:
-                rule(conn, changes)
+        if self._rules and not writes.empty:
+            if self._pending is not None:  # sync_many: the rules run once, at its end
+                self._pending.append(writes.change_set())
+            else:
+                self._run_rules(conn, writes.change_set())
+
+    def _run_rules(self, conn: Connection, changes: ChangeSet) -> None:
+        for rule in self._rules:
+            rule(conn, changes)
+
+    def sync_many(self, agent_id: str, t_ns: int,
+                  snapshots: Iterable[tuple[str, Iterable[Fact] | Any]]) -> list[SyncResult]:
+        """:meth:`sync_snapshot` of several sources for one agent at one time, in one
+        transaction, the rules running once over all their changes (a producer tick)."""
+        with self.transaction() as conn:
+            self._pending = []
+            try:
+                results = [self.sync_snapshot(source, agent_id, t_ns, facts)
+                           for source, facts in snapshots]
+                for changes in _merged(self._pending):
+                    self._run_rules(conn, changes)
+            finally:
+                self._pending = None
+        return results
 
     # ------------------------------------------------------------------ single writes
     def assert_fact(self, agent_id: str, fact: Fact, *, t_ns: int | None = None,
@@ -637,11 +658,32 @@ class _Writes:
         return ChangeSet(self.agent_id, self.source, self.t_ns, self.appeared, self.changed,
                          self.refreshed, self.ended)
 
+    @property
+    def empty(self) -> bool:
+        """True when the write changes no fact."""
+        return not (self.appeared or self.changed or self.refreshed or self.ended)
+
     def outcome(self) -> str:
         for name in ("appeared", "changed", "refreshed"):
             if getattr(self, name):
                 return name
         return "unchanged"
+
+
+def _merged(pending: list[ChangeSet]) -> list[ChangeSet]:
+    """Change sets of several sources as one per agent (the same time), unless two of them
+    touch the same key (then each stays alone, in order)."""
+    if len(pending) < 2:
+        return pending
+    seen: set[int] = set()
+    for changes in pending:
+        keys = {item[0] for part in changes[3:] for item in part}
+        if keys & seen or changes.agent_id != pending[0].agent_id:
+            return pending
+        seen |= keys
+    first = pending[0]
+    return [ChangeSet(first.agent_id, "+".join(c.source for c in pending), first.t_ns,
+                      *([item for c in pending for item in c[i]] for i in range(3, 7)))]
 
 
 def _is_integrity_error(exc: Exception) -> bool:

@@ -105,8 +105,9 @@ class Runner:
         return out
 
     def _write(self, t_ns: int, out: dict[str, list[Fact] | FactBatch]) -> None:
-        """All producers' snapshots in one transaction (one commit per tick); fact batches go
-        to the store as they are (diffed as arrays there).
+        """All producers' snapshots in one transaction (one commit per tick, the belief rules
+        run once over all of them); fact batches go to the store as they are (diffed as arrays
+        there).
 
         If that fails (the store's caches went stale under a concurrent writer, …) it has been
         rolled back and the store has forgotten its caches: write again one snapshot per
@@ -114,9 +115,7 @@ class Runner:
         """
         store, agent = self.store, self.agent_id
         try:
-            with store.transaction():
-                for name, facts in out.items():
-                    store.sync_snapshot(name, agent, t_ns, facts)
+            store.sync_many(agent, t_ns, list(out.items()))
         except Exception:
             for name, facts in out.items():
                 store.sync_snapshot(name, agent, t_ns, facts)
