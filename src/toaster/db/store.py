@@ -296,14 +296,6 @@ class Store:
                 self._tolerances = tolerance.read(conn)
         return self._tolerances
 
-    def _within(self, conn: Connection, new: Fact, held: Fact | None) -> bool:
-        """``new`` only moved ``held``'s numbers within their tolerance (nothing to write)."""
-        if held is None or new[:4] != held[:4] or new[7:] != held[7:]:
-            return False
-        table = self.tolerances(conn)
-        tol = table.get(new.property) or table["*"]
-        return not tolerance.beyond(tol, new[4:7], held[4:7])
-
     def _sync(self, conn: Connection, source: str, agent_id: str, t_ns: int,
               given: list[Fact]) -> SyncResult:
         state = self._begin(conn, source, agent_id, t_ns)
@@ -317,8 +309,9 @@ class Store:
             state.last_list, state.last_t = given, t_ns
             return SyncResult(0, 0, 0, 0, len(new))
         held_get = old.get
+        table = self.tolerances(conn)
         touched = [(key, check_fact(fact)) for key, fact in new.items()
-                   if held_get(key) != fact and not self._within(conn, fact, held_get(key))]
+                   if (held := held_get(key)) != fact and not _within(table, fact, held)]
         gone = [key for key in old if key not in new]
         result = self._write_diff(conn, state, agent_id, source, t_ns, touched,
                                   [(key, old[key]) for key in gone], len(new))
@@ -668,6 +661,13 @@ class _Writes:
             if getattr(self, name):
                 return name
         return "unchanged"
+
+
+def _within(table: dict[str, Tolerance], new: Fact, held: Fact | None) -> bool:
+    """``new`` only moved ``held``'s numbers within their tolerance (nothing to write)."""
+    if held is None or new[:4] != held[:4] or new[7:] != held[7:]:
+        return False
+    return not tolerance.beyond(table.get(new[1]) or table["*"], new[4:7], held[4:7])
 
 
 def _merged(pending: list[ChangeSet]) -> list[ChangeSet]:
