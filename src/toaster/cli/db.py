@@ -1,4 +1,4 @@
-"""``toaster db``: schema revision management."""
+"""``toaster db``: schema revision management and maintenance."""
 
 from __future__ import annotations
 
@@ -83,3 +83,15 @@ def check(ctx: click.Context) -> None:
         msg = f"missing per-agent views {missing}: re-register the agents with set-info ENTITY"
         raise SchemaOutdatedError(msg)
     say(f"ok: database at revision {migrate.head_revision()}, {len(views)} views")
+
+
+@db_group.command()
+@click.pass_context
+def maintain(ctx: click.Context) -> None:
+    """Reclaim dead rows (PostgreSQL VACUUM ANALYZE of the hot tables; SQLite: fold the WAL).
+
+    `toaster run` does it every minute by itself; use this for databases that other writers
+    fill, on servers whose autovacuum is off.
+    """
+    ctx.obj.db.maintain()
+    say("maintained")

@@ -60,6 +60,16 @@ class Database:
         """A raw DBAPI cursor on the shared connection (inside a transaction)."""
         return self.connection.connection.dbapi_connection.cursor()  # type: ignore[union-attr]
 
+    def maintain(self) -> None:
+        """Reclaim what long runs leave behind, outside any transaction: PostgreSQL vacuums
+        and analyzes the hot tables (dead row versions of closed and refreshed intervals, for
+        servers whose autovacuum is off or late); SQLite folds its WAL into the file."""
+        if self.connection.in_transaction():
+            msg = "maintain() runs outside a transaction: call it between ticks"
+            raise RuntimeError(msg)
+        raw = self.connection.connection.dbapi_connection
+        self.backend.maintain(raw)
+
     def store(self) -> Store:
         """The write API (one per database handle, it remembers what each source wrote), with
         the belief rules installed."""

@@ -63,6 +63,9 @@ class Backend(Protocol):
     def insert_entities(self, cur: Any, rows: list[tuple[str, str, int]]) -> None:
         """``(id, owner_id, created_ns)``: register entities (kind '') unless they exist."""
 
+    def maintain(self, raw: Any) -> None:
+        """Housekeeping of long runs on an idle DBAPI connection ``raw`` (no transaction)."""
+
     def set_read_only(self, cur: Any) -> None:
         """Make the current transaction read-only, enforced by the database."""
 

@@ -117,6 +117,15 @@ class PostgreSQLBackend:
             _columns(rows, 3),
         )
 
+    def maintain(self, raw: Any) -> None:
+        raw.autocommit = True  # VACUUM cannot run in a transaction block
+        try:
+            with raw.cursor() as cur:
+                cur.execute("VACUUM (ANALYZE) facts, fact_samples, events, fact_keys, "
+                            "belief_follow")
+        finally:
+            raw.autocommit = False
+
     def set_read_only(self, cur: Any) -> None:
         cur.execute("SET TRANSACTION READ ONLY")
 

@@ -141,6 +141,12 @@ class SQLiteBackend:
             [(entity_id, entity_id, owner, t) for entity_id, owner, t in rows],
         )
 
+    def maintain(self, raw: Any) -> None:
+        cur = raw.cursor()
+        cur.execute("PRAGMA optimize")  # may write statistics: before the checkpoint
+        cur.execute("PRAGMA wal_checkpoint(TRUNCATE)")  # the WAL back to zero bytes
+        cur.close()
+
     def set_read_only(self, cur: Any) -> None:
         cur.execute("PRAGMA query_only = ON")
 
