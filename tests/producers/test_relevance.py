@@ -115,11 +115,13 @@ def test_distance_and_looking_pairs_are_every_pair_in_range(monkeypatch):
         assert np.linalg.norm(point - world.pos[head]) <= 2.0
 
 
-def walk_toward(target_x: float, config: dict | None = None) -> set[tuple[str, str]]:
-    """Bob walks along +x at 1 m/s toward a door at target_x; (sub_property, target) pairs."""
+def walk_toward(target_x: float, config: dict | None = None, kind: str = "object"
+                ) -> set[tuple[str, str]]:
+    """Bob walks along +x at 1 m/s toward a "door" (of ``kind``) at target_x; (sub_property,
+    target) pairs."""
     world = World()
     world.add_entity("bob", "human")
-    world.add_entity("door", "object")
+    world.add_entity("door", kind)
     world.add_entity("cup", "object")
     monitor = AgentMonitor(config)
     t = 10 * S
@@ -127,6 +129,7 @@ def walk_toward(target_x: float, config: dict | None = None) -> set[tuple[str, s
     world.set_pose("cup", (3.0, -0.1, 0.0), t)
     for k in range(20):
         world.set_pose("bob", (k / 10, 0.0, 0.0), t)
+        world.set_pose("door", (target_x, 0.2, 0.0), t)  # agents are seen every tick
         world.commit()
         facts = monitor.compute(world, t)
         t += S // 10
@@ -139,6 +142,17 @@ def test_target_beyond_toward_range_gets_no_moving_toward():
     assert walk_toward(7.0) == both | near_cup  # 5.1 m ahead of bob
     assert walk_toward(10.5) == near_cup  # 8.6 m ahead: beyond the 8 m default
     assert walk_toward(10.5, {"toward_range": 10.0}) == both | near_cup
+
+
+def test_people_are_moved_toward_within_social_distance_only():
+    """Toward a person the range is toward_range_humans (3.6 m, Hall's social distance); the
+    robot and objects keep toward_range."""
+    both = {("direction", "door"), ("distance", "door")}
+    near_cup = {("direction", "cup"), ("distance", "cup")}
+    assert walk_toward(7.0, kind="human") == near_cup  # a person 5.1 m ahead: not approached
+    assert walk_toward(5.0, kind="human") == both | near_cup  # 3.1 m ahead
+    assert walk_toward(7.0, kind="robot") == both | near_cup
+    assert walk_toward(7.0, {"toward_range_humans": 8.0}, kind="human") == both | near_cup
 
 
 def test_toward_range_is_validated():

@@ -37,6 +37,9 @@ DEFAULTS: dict[str, Any] = {
     # relevance: IsMovingToward only toward targets nearer than this (2D, metres), the upper
     # bound of Distance "far" (dist_far): nobody moves toward something "out" of range
     "toward_range": 8.0,
+    # ... and toward a *person* only nearer than this: Hall's social distance (3.6 m), beyond
+    # which people passing in a crowd are not approaching each other (docs/producers.md)
+    "toward_range_humans": 3.6,
     # debounce: a reported state flips only after this much consistent evidence (seconds per
     # property; docs/producers.md). 0.3 s: a standing person with 2 cm noise at 30 Hz flips
     # IsMoving ~890 times a minute undebounced, 1-3 with it (0.2 s: 5-8); a walk start is

@@ -225,7 +225,8 @@ class AgentMonitor:
         owner = world.owner[movers]
         body = np.where(owner >= 0, owner, movers)
         t_rows = targets[ti]
-        keep = (after < rng) & (t_rows != body[mi]) & (t_rows != movers[mi])
+        reach = np.where(world.kind[t_rows] == HUMAN, cfg["toward_range_humans"], rng)
+        keep = (after < reach) & (t_rows != body[mi]) & (t_rows != movers[mi])
         mi, ti, dx, dy, after = mi[keep], ti[keep], dx[keep], dy[keep], after[keep]
         _, ref_dir, _ = _speed(world, movers, ns(cfg, f"{part}_direction_window"), gap)
         heading = bearing(ref_dir, now)
