@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import os
 import uuid
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
@@ -74,15 +74,21 @@ def build_run(db: toaster.Database) -> None:
     store.sync_snapshot("monitor", "pr2", T0 + 20 * S, [])
 
 
-@pytest.fixture
-def run_db(db_url: str) -> Iterator[toaster.Database]:
-    """An open database holding :func:`build_run`."""
+def open_built(db_url: str, build: Callable[[toaster.Database], None]
+               ) -> Iterator[toaster.Database]:
+    """Open ``db_url``, fill it with ``build``, yield it, close it (fixture body)."""
     db = toaster.connect(db_url)
     try:
-        build_run(db)
+        build(db)
         yield db
     finally:
         db.close()
+
+
+@pytest.fixture
+def run_db(db_url: str) -> Iterator[toaster.Database]:
+    """An open database holding :func:`build_run`."""
+    yield from open_built(db_url, build_run)
 
 
 def run_scenario(db: toaster.Database, name: str, seconds: float) -> list[tuple[Any, ...]]:

@@ -21,7 +21,7 @@ import pytest
 from click.testing import CliRunner
 
 import toaster
-from tests.output.conftest import T0, S
+from tests.output.conftest import T0, S, open_built
 from toaster import Fact
 from toaster.cli.plot import plot_facts as plot_command
 from toaster.errors import InvalidInputError
@@ -60,12 +60,7 @@ def build_signals(db: toaster.Database) -> None:
 @pytest.fixture
 def signal_db(db_url: str) -> Iterator[toaster.Database]:
     """An open database (SQLite and PostgreSQL) holding :func:`build_signals`."""
-    db = toaster.connect(db_url)
-    try:
-        build_signals(db)
-        yield db
-    finally:
-        db.close()
+    yield from open_built(db_url, build_signals)
 
 
 def _same(got: list[float], expected: list[float | None]) -> bool:
