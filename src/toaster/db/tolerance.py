@@ -14,13 +14,13 @@ number stated through the API is stored exactly unless a tolerance is set for it
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from typing import Any, NamedTuple
 
-from sqlalchemy import Connection, text
+from sqlalchemy import Connection
 
+from toaster.db import catalog
 from toaster.errors import InvalidInputError
 
 SCOPE = "tolerance"
@@ -87,11 +87,9 @@ def validate(prop: str, raw: object) -> object:
 
 def read(conn: Connection) -> dict[str, Tolerance]:
     """Defaults updated with the stored settings, in one query."""
-    rows = conn.execute(text("SELECT key, value_json FROM settings WHERE scope = :s"),
-                        {"s": SCOPE}).all()
     table = dict(DEFAULTS)
-    for prop, body in rows:
-        table[prop] = parse(prop, json.loads(body), DEFAULTS.get(prop, DEFAULTS["*"]))
+    for prop, raw in catalog.settings(conn, SCOPE).items():
+        table[prop] = parse(prop, raw, DEFAULTS.get(prop, DEFAULTS["*"]))
     return table
 
 

@@ -19,6 +19,17 @@ import numpy as np
 from toaster.world.history import NO_TIME
 
 
+def _step(state: np.ndarray, since: np.ndarray, raw: np.ndarray, clock: np.ndarray,
+          min_ns: int) -> tuple[np.ndarray, np.ndarray]:
+    """The rule of the module for aligned arrays: (new reported state, new time of the last
+    evidence agreeing with it)."""
+    differ = raw != state
+    timed = (since != NO_TIME) & (clock != NO_TIME)
+    elapsed = np.where(timed, clock, 0) - np.where(timed, since, 0)
+    flip = differ & (~timed | (elapsed >= min_ns) | (elapsed < 0))
+    return np.where(flip, raw, state), np.where(~differ | flip, clock, since)
+
+
 class Debouncer:
     """Reported state and time of the last agreeing evidence, indexed by world row."""
 
@@ -47,17 +58,11 @@ class Debouncer:
         if n > old:
             self.state = np.concatenate([self.state, np.zeros(n - old, bool)])
             self.since = np.concatenate([self.since, np.full(n - old, NO_TIME, np.int64)])
-        state, since = self.state[:n], self.since[:n]
         full = np.zeros(n, bool)
         full[rows] = raw
-        differ = full != state
-        timed = (since != NO_TIME) & (clock != NO_TIME)
-        elapsed = np.where(timed, clock, 0) - np.where(timed, since, 0)
-        flip = differ & (~timed | (elapsed >= self.min_ns) | (elapsed < 0))
-        state[flip] = full[flip]
-        agree = ~differ | flip
-        since[agree] = clock[agree]
-        return state[rows].copy()
+        self.state[:n], self.since[:n] = _step(self.state[:n], self.since[:n], full, clock,
+                                               self.min_ns)
+        return self.state[rows].copy()
 
 
 class PairDebouncer:
@@ -95,12 +100,7 @@ class PairDebouncer:
             since = np.where(found, self.since[pos], NO_TIME)
         else:
             state, since = r.copy(), np.full(len(k), NO_TIME, np.int64)
-        differ = r != state
-        timed = (since != NO_TIME) & (c != NO_TIME)
-        elapsed = np.where(timed, c, 0) - np.where(timed, since, 0)
-        flip = differ & (~timed | (elapsed >= self.min_ns) | (elapsed < 0))
-        state = np.where(flip, r, state)
-        since = np.where(~differ | flip, c, since)
+        state, since = _step(state, since, r, c, self.min_ns)
         self.keys, self.state, self.since = k, state, since
         out = np.empty(len(k), bool)
         out[order] = state

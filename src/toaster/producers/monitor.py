@@ -29,7 +29,7 @@ from toaster.model import Fact
 from toaster.producers.batch import FactBatch
 from toaster.producers.config import make_config, ns
 from toaster.producers.debounce import Debouncer, PairDebouncer
-from toaster.producers.relevance import PlanarIndex, pair_distance
+from toaster.producers.relevance import PlanarIndex, pair_distance, pairs_within
 from toaster.timeutil import NS_PER_S
 from toaster.world.geometry import bearing, gaze_axis, wrap_angle
 from toaster.world.state import HUMAN, JOINT, ROBOT, World
@@ -266,10 +266,8 @@ class AgentMonitor:
             ti = np.tile(np.arange(len(targets)), len(joints))
             d = pair_distance(jp, tp, ji, ti)
         else:
-            ji, ti = index.candidates(jp, bounds[3])  # 2D ball ⊇ 3D ball
-            d = pair_distance(jp, tp, ji, ti)
-            near = d < bounds[3]  # label < 4 (searchsorted right)
-            ji, ti, d = ji[near], ti[near], d[near]
+            # label < 4 (searchsorted right): strictly nearer than dist_far
+            ji, ti, d = pairs_within(jp, tp, bounds[3], strict=True, index=index)
         label = np.searchsorted(bounds, d, side="right")
         out.add("Distance", joints[ji], targets[ti], value_text=(label, DIST_LABELS),
                 value_num=d, conf=cfg["confidence_distance"], obs=cfg["observability_monitor"],
