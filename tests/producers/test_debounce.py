@@ -229,3 +229,45 @@ def test_moving_toward_pairs_resist_noise_at_the_cone_edge():
     # genuine: the pair appears once the walk is seen, and leaves the cone once
     assert debounced == 2
     assert raw >= debounced + 4
+
+
+def toward_births(hz: float, seconds: float = 4.0) -> list[tuple[int, float]]:
+    """A walker at 1.2 m/s along x reaching toward_range (8 m) of a door straight ahead with
+    2 cm noise: the (tick, time since the door was first within range) of every tick whose
+    IsMovingToward(direction) set changed."""
+    rng = np.random.default_rng(7)
+    world = World()
+    world.add_entity("bob", "human")
+    world.add_entity("door", "object")
+    t = 10 * S
+    world.set_pose("door", (10.0, 0.0, 0.0), t)
+    monitor = AgentMonitor()
+    step = round(S / hz)
+    entered, reported, changes = None, False, []
+    for k in range(int(seconds * hz)):
+        x = 1.2 * k / hz
+        world.set_pose("bob", (x + rng.normal(0, 0.02), rng.normal(0, 0.02), 0.0), t)
+        world.commit()
+        now = ("door", "direction") in {(f.target_id, f.sub_property)
+                                        for f in monitor.compute(world, t)
+                                        if f.property == "IsMovingToward"}
+        if entered is None and 10.0 - world.pos[world.row("bob"), 0] < 8.0:
+            entered = t
+        if now != reported:
+            changes.append((k, (t - entered) / S if entered is not None else float("nan")))
+            reported = now
+        t += step
+    return changes
+
+
+def test_a_pair_entering_range_is_reported_after_min_duration_not_at_once():
+    """A continuing walker's new pair (a target coming within range) needs min_duration of
+    evidence at 30 Hz, so noise at the range edge cannot make it flicker; at 2.5 Hz the
+    previous sample 0.4 s earlier is that evidence and it is reported at once."""
+    fast = toward_births(30.0)
+    assert len(fast) == 1  # reported once, never dropped again
+    # min_duration counts from the last contrary evidence: the sample before the entry
+    assert 0.3 - 1 / 30 - 1e-6 <= fast[0][1] <= 0.3 + 1 / 30
+    slow = toward_births(2.5)
+    assert len(slow) == 1
+    assert slow[0][1] <= 0.4 + 1e-9

@@ -144,13 +144,15 @@ def test_target_beyond_toward_range_gets_no_moving_toward():
     assert walk_toward(10.5, {"toward_range": 10.0}) == both | near_cup
 
 
-def test_people_are_moved_toward_within_social_distance_only():
-    """Toward a person the range is toward_range_humans (3.6 m, Hall's social distance); the
-    robot and objects keep toward_range."""
+def test_people_are_moved_toward_only_when_asked_and_within_their_range():
+    """Toward a person the range is toward_range_humans: 0 by default (not computed: crowds),
+    e.g. 3.6 m (Hall's social distance) when asked; the robot and objects keep toward_range."""
     both = {("direction", "door"), ("distance", "door")}
     near_cup = {("direction", "cup"), ("distance", "cup")}
-    assert walk_toward(7.0, kind="human") == near_cup  # a person 5.1 m ahead: not approached
-    assert walk_toward(5.0, kind="human") == both | near_cup  # 3.1 m ahead
+    social = {"toward_range_humans": 3.6}
+    assert walk_toward(5.0, kind="human") == near_cup  # a person 3.1 m ahead: off by default
+    assert walk_toward(7.0, social, kind="human") == near_cup  # 5.1 m ahead: not approached
+    assert walk_toward(5.0, social, kind="human") == both | near_cup  # 3.1 m ahead
     assert walk_toward(7.0, kind="robot") == both | near_cup
     assert walk_toward(7.0, {"toward_range_humans": 8.0}, kind="human") == both | near_cup
 

@@ -36,6 +36,10 @@ def _database(ctx: click.Context, url: str | None) -> Any:
 @click.option("--holders", metavar="none|humans|ID[,ID...]", help="Humans that hold beliefs "
               "(store agents). Default: a scenario's config belief_holders, else humans; none "
               "for recordings.")
+@click.option("--config", "config_file", type=click.Path(exists=True, dir_okay=False,
+                                                         path_type=Path),
+              metavar="FILE", help="Producer thresholds (YAML/JSON mapping, e.g. "
+              "toward_range_humans: 3.6) laid over the file's own config.")
 @click.option("--no-db", is_flag=True, help="Compute only; write nothing.")
 @click.option("--record", "record_dir", type=click.Path(path_type=Path), metavar="DIR",
               help="Also write the run as a rosbag2/MCAP recording in the new folder DIR "
@@ -43,22 +47,32 @@ def _database(ctx: click.Context, url: str | None) -> Any:
                    "needs toaster[rosbag].")
 @click.pass_context
 def run(ctx: click.Context, path: Path, url: str | None, rate: float | None, until: str | None,
-        realtime: bool, fps: float | None, holders: str | None, no_db: bool,
-        record_dir: Path | None) -> None:
+        realtime: bool, fps: float | None, holders: str | None, config_file: Path | None,
+        no_db: bool, record_dir: Path | None) -> None:
     """Tick a scenario (.yaml/.json) or recording (obsmat .txt, .csv, .jsonl) into the store.
 
     Areas stored in the database are added to the file's; the file's areas are stored.
     Same input into a fresh database gives the same facts and events.
     """
-    from toaster.producers import Runner, load_session
+    from toaster.producers import Runner, load_session, make_config
     from toaster.timeutil import parse_duration
 
     if record_dir is not None and record_dir.exists():
         msg = f"cannot record into {str(record_dir)!r}: it exists; give a new folder name"
         raise InvalidInputError(msg)
+    overrides = None
+    if config_file is not None:
+        from toaster.documents import read_document
+
+        overrides = read_document(config_file, "config")
+        if not isinstance(overrides, dict):
+            msg = (f"config {str(config_file)!r} must be a mapping of thresholds such as "
+                   "'toward_range_humans: 3.6'")
+            raise InvalidInputError(msg)
+        make_config(overrides)  # refused before the database is opened
     store = None if no_db else _database(ctx, url).store()
     session = load_session(path, store.areas() if store is not None else None, fps=fps,
-                           holders=holders)
+                           holders=holders, config=overrides)
     if rate is not None and rate <= 0:
         msg = f"--rate {rate} must be a positive number of ticks per second"
         raise InvalidInputError(msg)

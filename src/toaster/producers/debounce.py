@@ -69,8 +69,12 @@ class PairDebouncer:
     """The same rule for pair facts (mover × target), keyed by an int64 pair key.
 
     Only the pairs evaluated in a tick are kept (within range, mover moving): a pair that is
-    not evaluated is dropped at once (there is no value to report for it), and one evaluated
-    for the first time takes its raw state at once, as a row never seen does.
+    not evaluated is dropped at once (there is no value to report for it). A pair evaluated
+    anew starts as not reported, with ``before`` (the mover's previous sample time: the pair
+    was absent then) as its last contrary evidence, so at 30 Hz it is reported after
+    ``min_duration`` of consistent evidence and noise at a range edge does not flicker; at
+    2.5 Hz (samples 0.4 s apart) it is reported at once. Without ``before`` it takes its raw
+    state at once, as a row never seen does.
     """
 
     __slots__ = ("keys", "min_ns", "since", "state")
@@ -85,21 +89,28 @@ class PairDebouncer:
         self.state = np.zeros(0, bool)
         self.since = np.zeros(0, np.int64)
 
-    def update(self, keys: np.ndarray, raw: np.ndarray, clock: np.ndarray) -> np.ndarray:
-        """The reported state of the pairs ``keys`` (unique) given their raw state and the
-        time of that evidence (ns, one per pair)."""
+    def update(self, keys: np.ndarray, raw: np.ndarray, clock: np.ndarray,
+               before: np.ndarray | None = None) -> np.ndarray:
+        """The reported state of the pairs ``keys`` (unique) given their raw state, the time
+        of that evidence (ns, one per pair) and, optionally, the time of the evidence before
+        it (``NO_TIME`` where there is none)."""
         raw = np.asarray(raw, bool)
         if self.min_ns <= 0:
             return raw
         order = np.argsort(keys, kind="stable")
         k, r, c = keys[order], raw[order], clock[order]
+        if before is None:
+            new_state, new_since = r, np.full(len(k), NO_TIME, np.int64)
+        else:
+            b = np.asarray(before, np.int64)[order]
+            new_state, new_since = np.where(b == NO_TIME, r, False), b
         if len(self.keys):
             pos = np.minimum(np.searchsorted(self.keys, k), len(self.keys) - 1)
             found = self.keys[pos] == k
-            state = np.where(found, self.state[pos], r)
-            since = np.where(found, self.since[pos], NO_TIME)
+            state = np.where(found, self.state[pos], new_state)
+            since = np.where(found, self.since[pos], new_since)
         else:
-            state, since = r.copy(), np.full(len(k), NO_TIME, np.int64)
+            state, since = new_state.copy(), new_since.copy()
         state, since = _step(state, since, r, c, self.min_ns)
         self.keys, self.state, self.since = k, state, since
         out = np.empty(len(k), bool)

@@ -32,6 +32,7 @@ from toaster.producers.debounce import Debouncer, PairDebouncer
 from toaster.producers.relevance import PlanarIndex, pair_distance, pairs_within
 from toaster.timeutil import NS_PER_S
 from toaster.world.geometry import bearing, gaze_axis, wrap_angle
+from toaster.world.history import NO_TIME
 from toaster.world.state import HUMAN, JOINT, ROBOT, World
 
 _PAIR = 1 << 21  # pair key = mover row × _PAIR + target row (rows < 2M)
@@ -63,6 +64,9 @@ class AgentMonitor:
         toward_ns = ns(self.config, "min_duration", "IsMovingToward")
         self._toward_state = {(part, sub): PairDebouncer(toward_ns) for part in ("body", "joint")
                               for sub in ("direction", "distance")}
+        # per part ("body", "joint"), the movers of this and of the last computed tick
+        self._movers: dict[str, np.ndarray] = {}
+        self._last_movers: dict[str, np.ndarray] = {}
         self._world: weakref.ref[World] | None = None
 
     # -- selection --------------------------------------------------------------------------
@@ -129,6 +133,7 @@ class AgentMonitor:
         n = world.n
         out = FactBatch(world)
         live = world.live_mask(t_ns, ns(cfg, "presence_timeout"))
+        self._last_movers, self._movers = self._movers, {}
         agents = self.monitored_agents(world, live)
         if agents.size == 0:
             return out
@@ -138,6 +143,7 @@ class AgentMonitor:
             self._joint_moving.reset()
             for debouncer in self._toward_state.values():
                 debouncer.reset()
+            self._last_movers.clear()
         clock = world.t_ns[:n]
         targets = np.flatnonzero(live & (world.kind[:n] != JOINT))
         index = PlanarIndex(world.pos[targets, :2])  # KD-tree built on first need, this tick
@@ -236,7 +242,12 @@ class AgentMonitor:
         conf = (theta - np.abs(dev)) / theta
         pairs = movers[mi] * _PAIR + targets[ti]
         clock = world.t_ns[movers[mi]]
-        ok = self._toward_state[(part, "direction")].update(pairs, conf > 0, clock)
+        # a continuing mover's new pair was absent at its previous sample: debounce its birth
+        found, prev, _, _ = world.history.latest_at_or_before(movers, world.t_ns[movers] - 1)
+        continuing = found & np.isin(movers, self._last_movers.get(part, ()))
+        self._movers[part] = movers
+        before = np.where(continuing, prev, NO_TIME)[mi]
+        ok = self._toward_state[(part, "direction")].update(pairs, conf > 0, clock, before)
         out.add("IsMovingToward", movers[mi[ok]], targets[ti[ok]], value_num=dev[ok],
                 conf=np.maximum(conf[ok], 0.0), obs=obs, property_type="motion",
                 sub_property="direction")
@@ -247,7 +258,7 @@ class AgentMonitor:
         step = np.linalg.norm(now - ref, axis=1)
         limit = cfg[f"{part}_toward_speed_threshold"] * secs
         raw = (delta > limit[mi]) & (step[mi] > 0)
-        ok = self._toward_state[(part, "distance")].update(pairs, raw, clock)
+        ok = self._toward_state[(part, "distance")].update(pairs, raw, clock, before)
         mi, ti, delta = mi[ok], ti[ok], delta[ok]
         with np.errstate(divide="ignore", invalid="ignore"):
             share = np.where(step[mi] > 0, delta / step[mi], 0.0)

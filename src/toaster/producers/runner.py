@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -12,6 +12,7 @@ from toaster.errors import FileFormatError, InvalidInputError
 from toaster.model import Fact
 from toaster.producers.areas import AreaManager
 from toaster.producers.batch import FactBatch
+from toaster.producers.config import make_config, overlay_config
 from toaster.producers.diff import SnapshotDiff
 from toaster.producers.monitor import AgentMonitor
 from toaster.producers.perception import PerceptionFacts
@@ -233,8 +234,8 @@ def _belief_holders(value: Any, kinds: dict[str, str], name: str) -> str | tuple
 
 
 def load_session(path: str | Path, areas: dict[str, dict[str, Any]] | None = None, *,
-                 fps: float | None = None, holders: str | Sequence[str] | None = None
-                 ) -> Session:
+                 fps: float | None = None, holders: str | Sequence[str] | None = None,
+                 config: Mapping[str, Any] | None = None) -> Session:
     """Build world, sources and producers from a scenario (.yaml/.yml/.json) or recording.
 
     Recordings: ``obsmat.txt`` (ETH/UCY; frame numbers at ``fps``, default 25, checked against
@@ -243,8 +244,11 @@ def load_session(path: str | Path, areas: dict[str, dict[str, Any]] | None = Non
     store) are added to the file's own areas.
     ``holders`` ("none", "humans" or ids) overrides the file's ``belief_holders`` (config of a
     scenario); by default the humans of a scenario hold beliefs, those of a recording do not.
+    ``config`` (producer thresholds, see :mod:`toaster.producers.config`) is laid over the
+    file's own config; it is validated here, before anything is stored.
     """
     path = Path(path)
+    config_over = config
     world = World()
     suffix = path.suffix.lower()
     if fps is not None and suffix != ".txt":
@@ -275,6 +279,9 @@ def load_session(path: str | Path, areas: dict[str, dict[str, Any]] | None = Non
         msg = (f"cannot run {path.name!r}: give a scenario (.yaml, .yml, .json) or a recording "
                "(obsmat .txt, .csv, .jsonl)")
         raise FileFormatError(msg)
+    if config_over:
+        config = overlay_config(config, config_over)
+    make_config(config)  # a bad threshold fails here, before anything is stored
     choice = holders if holders is not None else config.get("belief_holders")
     belief_holders = _belief_holders(default_holders if choice is None else choice, kinds,
                                      path.name)
