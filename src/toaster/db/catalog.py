@@ -192,11 +192,23 @@ def put_area(conn: Connection, area_id: str, spec: dict[str, Any], owner_id: str
     conn.execute(delete(s.areas).where(s.areas.c.id == area_id))
     conn.execute(insert(s.areas).values(id=area_id, owner_id=owner_id or "", spec_json=body,
                                         updated_ns=now_ns()))
+    bump_control(conn)
 
 
 def remove_area(conn: Connection, area_id: str) -> bool:
     """Delete an area; False when it did not exist."""
-    return bool(conn.execute(delete(s.areas).where(s.areas.c.id == area_id)).rowcount)
+    found = bool(conn.execute(delete(s.areas).where(s.areas.c.id == area_id)).rowcount)
+    if found:
+        bump_control(conn)
+    return found
+
+
+def remove_all_areas(conn: Connection) -> int:
+    """Delete every area; return how many there were."""
+    count = int(conn.execute(delete(s.areas)).rowcount or 0)
+    if count:
+        bump_control(conn)
+    return count
 
 
 def areas(conn: Connection) -> dict[str, dict[str, Any]]:
@@ -233,3 +245,24 @@ def settings(conn: Connection, scope: str) -> dict[str, Any]:
     rows = conn.execute(select(table.c.key, table.c.value_json).where(table.c.scope == scope))
     return {row[0]: json.loads(row[1]) for row in rows}
 
+
+
+# -- control plane (revision 0005; see toaster.live.control) ---------------------------------
+CONTROL_CHANNEL = "toaster_control"
+
+
+def bump_control(conn: Connection) -> None:
+    """Mark a change a running node must apply, in this transaction (PostgreSQL also sends
+    ``NOTIFY toaster_control`` on commit)."""
+    state = s.store_state
+    conn.execute(update(state).where(state.c.id == 1)
+                 .values(control_version=state.c.control_version + 1))
+    if conn.dialect.name == "postgresql":
+        conn.execute(select(func.pg_notify(CONTROL_CHANNEL, "")))
+
+
+def control_version(conn: Connection) -> int:
+    """The number bumped by every control change."""
+    state = s.store_state
+    return int(conn.execute(select(state.c.control_version).where(state.c.id == 1))
+               .scalar_one())

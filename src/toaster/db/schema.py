@@ -30,7 +30,12 @@ Tables
                 the value at any past time is known within the tolerance (first sample of the
                 interval after t, else the interval's own values).
 ``store_state`` one row; ``cache_epoch`` is bumped by writes that bypass snapshot sync so that
-                every store process reloads what it remembers of the open facts.
+                every store process reloads what it remembers of the open facts;
+                ``control_version`` by every change of what a running node must apply
+                (areas, monitored agents, streams, held objects, commands; revision 0005).
+``control_commands`` one-shot requests to a running node (set an entity's pose, pointing,
+                relative positions) with their answers; pending ones wait for the next node
+                (revision 0005, see :mod:`toaster.live.control`).
 
 No foreign keys on ``facts`` and ``events``: they are the hot tables (thousands of rows per
 second) and a per-row foreign-key check there cost more than the insert itself (PostgreSQL runs
@@ -224,7 +229,22 @@ store_state = Table(
     metadata,
     Column("id", Integer, primary_key=True),
     Column("cache_epoch", BigInteger, nullable=False, server_default=text("0")),
+    Column("control_version", BigInteger, nullable=False, server_default=text("0")),
     CheckConstraint("id = 1", name="single_row"),
+)
+
+control_commands = Table(
+    "control_commands",
+    metadata,
+    Column("id", RowId, primary_key=True, autoincrement=True),
+    Column("kind", Text, nullable=False),
+    Column("args_json", Text, nullable=False),
+    Column("created_ns", BigInteger, nullable=False),
+    Column("state", Text, nullable=False, server_default=text("'pending'")),
+    Column("answer_json", Text, nullable=True),
+    Column("done_ns", BigInteger, nullable=True),
+    CheckConstraint("state IN ('pending', 'done', 'failed')", name="state_known"),
+    Index("ix_control_commands_pending", "state", "id"),
 )
 
 belief_chain = Table(

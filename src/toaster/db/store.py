@@ -581,6 +581,11 @@ class Store:
         with self.transaction() as conn:
             return catalog.remove_area(conn, area_id)
 
+    def remove_all_areas(self) -> int:
+        """Remove every area; return how many there were."""
+        with self.transaction() as conn:
+            return catalog.remove_all_areas(conn)
+
     def areas(self) -> dict[str, dict[str, Any]]:
         """Every stored area: id -> spec."""
         with self.db.transaction() as conn:

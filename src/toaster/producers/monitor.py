@@ -36,6 +36,8 @@ from toaster.world.history import NO_TIME
 from toaster.world.state import HUMAN, JOINT, ROBOT, World
 
 _PAIR = 1 << 21  # pair key = mover row × _PAIR + target row (rows < 2M)
+_CLASSES = {"humans": (HUMAN,), "robots": (ROBOT,), "agents": (HUMAN, ROBOT),
+            "human": (HUMAN,), "robot": (ROBOT,), "agent": (HUMAN, ROBOT)}
 DIST_LABELS = np.array(["reach", "close", "medium", "far", "out"], dtype=object)
 
 
@@ -71,23 +73,32 @@ class AgentMonitor:
 
     # -- selection --------------------------------------------------------------------------
     def monitored_agents(self, world: World, live: np.ndarray) -> np.ndarray:
-        """Rows of the live monitored agents (default: all humans)."""
+        """Rows of the live monitored agents (default: all humans).
+
+        ``monitored_agents`` is a class (humans, robots, agents) or a list of classes and ids;
+        ``-ID`` in the list excludes an agent a class brought in. Unknown ids are skipped (an
+        agent may be monitored before it is first seen).
+        """
         which = self.config["monitored_agents"]
         kind = world.kind[: world.n]
-        if isinstance(which, str):
-            kinds = {"humans": (HUMAN,), "robots": (ROBOT,), "agents": (HUMAN, ROBOT),
-                     "human": (HUMAN,), "robot": (ROBOT,), "agent": (HUMAN, ROBOT)}.get(which)
-            if kinds is None:
+        items = [which] if isinstance(which, str) else list(which)
+        table = np.zeros(4, bool)
+        mask = np.zeros(world.n, bool)
+        for item in items:
+            kinds = _CLASSES.get(item)
+            if kinds is not None:
+                table[list(kinds)] = True
+            elif isinstance(which, str):
                 msg = (f"monitored_agents {which!r} is not understood: use humans, robots, "
                        "agents or a list of agent ids")
                 raise InvalidInputError(msg)
-            table = np.zeros(4, bool)
-            table[list(kinds)] = True
-            mask = table[kind]
-        else:
-            mask = np.zeros(world.n, bool)
-            mask[world.rows_of(which)] = True
-            mask &= (kind == HUMAN) | (kind == ROBOT)
+            elif not str(item).startswith("-") and item in world.index:
+                mask[world.index[item]] = True
+        mask |= table[kind]
+        for item in items:
+            if str(item).startswith("-") and item[1:] in world.index:
+                mask[world.index[item[1:]]] = False
+        mask &= (kind == HUMAN) | (kind == ROBOT)
         return np.flatnonzero(mask & live)
 
     def _joint_names(self, world: World) -> np.ndarray:

@@ -63,6 +63,8 @@ class History:
 
     def clear_rows(self, rows: np.ndarray) -> None:
         """Forget the samples of entity rows (an entity that left and comes back)."""
+        rows = np.asarray(rows)
+        rows = rows[rows < self.t.shape[0]]  # rows never recorded have nothing to forget
         self.t[rows] = NO_TIME
         self.last_t[rows] = NO_TIME
 

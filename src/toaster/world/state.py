@@ -183,8 +183,8 @@ class World:
         """Switch a source on or off (observations of a disabled source are dropped)."""
         self.sources_enabled[source] = bool(enabled)
 
-    def observe(self, source: str, ids: Sequence[str], t_ns: Sequence[int] | np.ndarray,
-                pos: np.ndarray, rpy: np.ndarray | None = None,
+    def observe(self, source: str, ids: Sequence[str] | np.ndarray,
+                t_ns: Sequence[int] | np.ndarray, pos: np.ndarray, rpy: np.ndarray | None = None,
                 conf: np.ndarray | None = None) -> int:
         """Apply a batch of poses from one source with the newest-then-most-confident rule.
 

@@ -1,0 +1,268 @@
+"""The control plane of a running node, kept as data in the database (revision 0005).
+
+Everything a running node (``toaster serve``) must apply lives in the database, so that the
+``toaster`` CLI, a ROS service or a SQL script can change it, from any process, with or without
+a node running (a node reads it at start-up and again whenever it changed):
+
+* areas: the ``areas`` table (:meth:`toaster.db.Store.put_area`);
+* monitored agents and joints: setting ``monitor.agents`` (classes ``humans`` / ``robots`` /
+  ``agents`` and ids), ``monitor.except`` (ids removed from a class) and ``monitor.joints``
+  ({agent: [joint names]}; absent: every joint of a monitored agent);
+* streams on/off (the original's ``manage_stream``): scope ``streams``, one boolean per source;
+* objects in a hand (``put_in_hand`` / ``remove_from_hand``): scope ``in_hand``,
+  object -> {"agent", "joint"};
+* one-shot commands (``set_entity_pose``, ``add_entity``, ``remove_entity``) and on-request
+  queries (``pointing``, ``get_relative_position``, ...): rows of ``control_commands`` that
+  the node answers within a tick. Commands wait for the next node; a query nobody answered in
+  time is withdrawn.
+
+Every change bumps ``store_state.control_version`` in its own transaction; the node compares
+that number once per tick (PostgreSQL also gets ``NOTIFY toaster_control``). Choice written
+down: ``monitor all humans`` is kept as the class, so humans that appear later are monitored
+too (the original added only those present at that moment, which surprised its users).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from sqlalchemy import Connection, text
+
+from toaster.db import catalog
+from toaster.errors import InvalidInputError, ToasterError
+from toaster.timeutil import now_ns
+
+MONITOR, STREAMS, IN_HAND = "monitor", "streams", "in_hand"
+CLASSES = ("humans", "robots", "agents")
+#: kinds of one-shot commands the node applies, and of queries it answers
+COMMANDS = ("set_entity_pose", "add_entity", "remove_entity")
+QUERIES = ("pointing", "get_relative_position", "get_multiple_relative_position",
+           "relative_position_from")
+CHANNEL = catalog.CONTROL_CHANNEL
+
+
+class NoNodeError(ToasterError):
+    """No running node answered a query in time."""
+
+
+bump = catalog.bump_control
+version = catalog.control_version
+
+
+# -- state ------------------------------------------------------------------------------------
+@dataclass
+class ControlState:
+    """What the node applies: monitored agents, streams, held objects (areas are read apart)."""
+
+    agents: list[str] | None = None  # None: the producers' config decides
+    excluded: list[str] = field(default_factory=list)
+    joints: dict[str, list[str]] | None = None
+    streams: dict[str, bool] = field(default_factory=dict)
+    in_hand: dict[str, tuple[str, str]] = field(default_factory=dict)
+
+    def monitored_agents(self, default: object) -> object:
+        """The AgentMonitor ``monitored_agents`` value: stored choice, else ``default``."""
+        return default if self.agents is None else list(self.agents)
+
+
+def read_state(conn: Connection) -> ControlState:
+    """The stored control state."""
+    monitor = catalog.settings(conn, MONITOR)
+    hands = {obj: (str(v["agent"]), str(v["joint"]))
+             for obj, v in catalog.settings(conn, IN_HAND).items()}
+    return ControlState(agents=monitor.get("agents"), excluded=list(monitor.get("except", [])),
+                        joints=monitor.get("joints"),
+                        streams={k: bool(v) for k, v in catalog.settings(conn, STREAMS).items()},
+                        in_hand=hands)
+
+
+def _put(conn: Connection, scope: str, key: str, value: object) -> None:
+    catalog.put_setting(conn, scope, key, value)
+
+
+def _delete(conn: Connection, scope: str, key: str | None = None) -> int:
+    sql = "DELETE FROM settings WHERE scope = :scope"
+    params = {"scope": scope}
+    if key is not None:
+        sql += " AND key = :key"
+        params["key"] = key
+    return int(conn.execute(text(sql), params).rowcount or 0)
+
+
+# -- monitored agents (agent_monitor services) ---------------------------------------------------
+def monitor_add(db: Any, agent_id: str, joints: Sequence[str] = ()) -> ControlState:
+    """Monitor an agent (``add_agent``), optionally naming joints (``add_joint_to_agent``)."""
+    catalog.check_id(agent_id, "agent id")
+    with db.transaction() as conn:
+        state = read_state(conn)
+        agents = [a for a in (state.agents or []) if a != agent_id] + [agent_id]
+        _put(conn, MONITOR, "agents", agents)
+        _put(conn, MONITOR, "except", [a for a in state.excluded if a != agent_id])
+        if joints:
+            table = dict(state.joints or {})
+            table[agent_id] = sorted({*table.get(agent_id, []), *joints})
+            _put(conn, MONITOR, "joints", table)
+        bump(conn)
+        return read_state(conn)
+
+
+def monitor_remove(db: Any, agent_id: str, joint: str | None = None) -> ControlState:
+    """Stop monitoring an agent (``remove_agent``) or one of its joints
+    (``remove_joint_to_agent``)."""
+    with db.transaction() as conn:
+        state = read_state(conn)
+        if joint is not None:
+            table = dict(state.joints or {})
+            if joint not in table.get(agent_id, []):
+                msg = (f"joint {joint!r} of {agent_id!r} is not monitored: see "
+                       "'toaster monitor list'")
+                raise InvalidInputError(msg)
+            table[agent_id] = [j for j in table[agent_id] if j != joint]
+            _put(conn, MONITOR, "joints", table)
+        else:
+            agents = [a for a in (state.agents or ["humans"]) if a != agent_id]
+            _put(conn, MONITOR, "agents", agents)
+            if any(a in CLASSES for a in agents):
+                _put(conn, MONITOR, "except", sorted({*state.excluded, agent_id}))
+        bump(conn)
+        return read_state(conn)
+
+
+def monitor_all(db: Any, which: str, on: bool = True) -> ControlState:
+    """Monitor every human / robot / agent, now and later (``monitor_all_*``); ``on=False``
+    stops monitoring that class (ids added one by one stay)."""
+    if which not in CLASSES:
+        msg = f"cannot monitor all {which!r}: use one of {', '.join(CLASSES)}"
+        raise InvalidInputError(msg)
+    with db.transaction() as conn:
+        state = read_state(conn)
+        agents = [a for a in (state.agents if state.agents is not None else ["humans"])
+                  if a != which] + ([which] if on else [])
+        _put(conn, MONITOR, "agents", agents)
+        if on:
+            _put(conn, MONITOR, "except", [])
+        bump(conn)
+        return read_state(conn)
+
+
+def monitor_clear(db: Any, joints_only: bool = False) -> ControlState:
+    """Monitor nobody (``remove_all_agents``), or only forget joint choices
+    (``remove_all_joints_to_agent``: every joint of a monitored agent again)."""
+    with db.transaction() as conn:
+        if joints_only:
+            _delete(conn, MONITOR, "joints")
+        else:
+            _put(conn, MONITOR, "agents", [])
+            _put(conn, MONITOR, "except", [])
+            _delete(conn, MONITOR, "joints")
+        bump(conn)
+        return read_state(conn)
+
+
+# -- streams, hands ------------------------------------------------------------------------------
+def set_stream(db: Any, name: str, on: bool) -> None:
+    """Switch an input stream on or off (``manage_stream``)."""
+    catalog.check_id(name, "stream name")
+    with db.transaction() as conn:
+        _put(conn, STREAMS, name, bool(on))
+        bump(conn)
+
+
+def put_in_hand(db: Any, object_id: str, agent_id: str, joint: str) -> None:
+    """An object follows an agent's joint until removed (``put_in_hand``)."""
+    for value, what in ((object_id, "object id"), (agent_id, "agent id"), (joint, "joint")):
+        catalog.check_id(value, what)
+    with db.transaction() as conn:
+        _put(conn, IN_HAND, object_id, {"agent": agent_id, "joint": joint})
+        bump(conn)
+
+
+def remove_from_hand(db: Any, object_id: str) -> bool:
+    """Release an object (``remove_from_hand``); False if it was in no hand."""
+    with db.transaction() as conn:
+        found = _delete(conn, IN_HAND, object_id) > 0
+        bump(conn)
+        return found
+
+
+def touch(db: Any) -> None:
+    """Tell a running node that areas or entities changed (their writers call it)."""
+    with db.transaction() as conn:
+        bump(conn)
+
+
+# -- commands and queries ------------------------------------------------------------------------
+@dataclass
+class Command:
+    """One pending row of ``control_commands``."""
+
+    id: int
+    kind: str
+    args: dict[str, Any]
+
+
+def submit(db: Any, kind: str, args: Mapping[str, Any]) -> int:
+    """Queue a command or query for the node; return its id."""
+    if kind not in COMMANDS + QUERIES:
+        msg = f"unknown control command {kind!r}: use one of {', '.join(COMMANDS + QUERIES)}"
+        raise InvalidInputError(msg)
+    with db.transaction() as conn:
+        new_id = conn.execute(
+            text("INSERT INTO control_commands (kind, args_json, created_ns, state) "
+                 "VALUES (:kind, :args, :t, 'pending') RETURNING id"),
+            {"kind": kind, "args": json.dumps(dict(args)), "t": now_ns()}).scalar_one()
+        bump(conn)
+        return int(new_id)
+
+
+def ask(db: Any, kind: str, args: Mapping[str, Any], timeout_s: float = 2.0) -> Any:
+    """Submit a query and wait for the node's answer; withdraw it if none came in time."""
+    command_id = submit(db, kind, args)
+    deadline = time.monotonic() + timeout_s
+    while True:
+        with db.transaction() as conn:
+            row = conn.execute(text("SELECT state, answer_json FROM control_commands "
+                                    "WHERE id = :id"), {"id": command_id}).one()
+            if row.state != "pending":
+                conn.execute(text("DELETE FROM control_commands WHERE id = :id"),
+                             {"id": command_id})
+                answer = json.loads(row.answer_json or "null")
+                if row.state == "failed":
+                    raise InvalidInputError(str(answer))
+                return answer
+            if time.monotonic() >= deadline:
+                conn.execute(text("DELETE FROM control_commands WHERE id = :id"),
+                             {"id": command_id})
+                msg = (f"no node answered {kind} within {timeout_s:g} s: start "
+                       "'toaster serve' on this database (queries need a running node)")
+                raise NoNodeError(msg)
+        time.sleep(0.01)
+
+
+def pending(conn: Connection, kinds: Iterable[str] | None = None) -> list[Command]:
+    """Pending commands, oldest first (the node's side)."""
+    rows = conn.execute(text("SELECT id, kind, args_json FROM control_commands "
+                             "WHERE state = 'pending' ORDER BY id")).all()
+    wanted = set(kinds) if kinds is not None else None
+    return [Command(int(r.id), str(r.kind), json.loads(r.args_json)) for r in rows
+            if wanted is None or r.kind in wanted]
+
+
+def finish(conn: Connection, command_id: int, answer: object = None, *,
+           error: str | None = None) -> None:
+    """Record the node's answer (or the one-line error) of a command."""
+    conn.execute(text("UPDATE control_commands SET state = :state, answer_json = :answer, "
+                      "done_ns = :t WHERE id = :id"),
+                 {"state": "failed" if error is not None else "done",
+                  "answer": json.dumps(error if error is not None else answer),
+                  "t": now_ns(), "id": command_id})
+
+
+def forget_done(conn: Connection, older_than_ns: int) -> None:
+    """Delete answered commands older than a time (queries are deleted by their askers)."""
+    conn.execute(text("DELETE FROM control_commands WHERE state <> 'pending' "
+                      "AND done_ns < :t"), {"t": older_than_ns})

@@ -1,0 +1,342 @@
+"""A live node: sources in, producers ticked at a rate, the store written once per tick,
+outputs published, control changes applied between ticks (``toaster serve``).
+
+One tick: apply the control plane if its version moved (areas, monitored agents, streams, held
+objects, commands), let every source apply its newest poses, register entities seen for the
+first time, compute the producers and write all their snapshots in one transaction, publish
+the facts to the outputs, then answer pending queries from the world as it is now. The loop
+never queues input (sources keep the newest pose per entity), counts ticks that overran their
+period, and stops between two ticks when asked (SIGINT/SIGTERM in :func:`serve`): the last
+tick is committed whole or not at all. A restart on the same database carries on: entities,
+areas and control state are read back, and the store's open intervals continue.
+"""
+
+from __future__ import annotations
+
+import logging
+import signal
+import threading
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+from sqlalchemy.exc import SQLAlchemyError
+
+from toaster.db import catalog
+from toaster.errors import ToasterError
+from toaster.live import control
+from toaster.model import Fact
+from toaster.producers.areas import AreaManager, multiple_relative_position, relative_position
+from toaster.producers.batch import FactBatch
+from toaster.producers.config import make_config
+from toaster.producers.monitor import AgentMonitor, pointing
+from toaster.producers.perception import PerceptionFacts
+from toaster.producers.runner import DEFAULT_SELF, MAINTAIN_EVERY_S, Runner, Source
+from toaster.producers.spatial import SpatialFacts, relative_position_from
+from toaster.timeutil import now_ns
+from toaster.world.live import LiveSource
+from toaster.world.state import World
+
+log = logging.getLogger("toaster.live")
+
+
+class Output(Protocol):
+    """Something that publishes each tick's facts (ROS topics, a test's list, ...)."""
+
+    def publish(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None: ...
+
+
+@dataclass
+class LiveStats:
+    """Counters of a live run."""
+
+    ticks: int = 0
+    overruns: int = 0
+    worst_ms: float = 0.0
+    warnings: int = 0
+    commands: int = 0
+    tick_ms: list[float] = field(default_factory=list)  # the last 1,000 tick durations
+
+
+class LiveNode:
+    """World, producers, store and control plane of one running toaster."""
+
+    def __init__(self, db: Any, *, config: Mapping[str, Any] | None = None,
+                 self_id: str = DEFAULT_SELF, holders: str | Sequence[str] = "none",
+                 sources: Sequence[Source] | None = None,
+                 outputs: Sequence[Output] = ()) -> None:
+        self.db = db
+        self.store = db.store() if db is not None else None
+        self.config = make_config(config)
+        self.self_id = self_id
+        self.holders = holders
+        self.world = World()
+        self.api = LiveSource("api")
+        self.sources: list[Source] = list(sources) if sources is not None else [self.api]
+        self.outputs = list(outputs)
+        self.monitor = AgentMonitor(self.config)
+        self.areas = AreaManager({}, self.config)
+        self.producers: list[Any] = [PerceptionFacts(self.config), self.areas, self.monitor]
+        if self.config.get("spatial"):
+            self.producers.append(SpatialFacts(self.config))
+        self.runner = Runner(self.world, [], self.producers, store=self.store, agent_id=self_id)
+        self.stats = LiveStats()
+        self._version = -1
+        self._last_t = 0
+        self._registered: set[str] = set()
+        self._hands: dict[str, tuple[str, str]] = {}
+        self._default_monitored = self.config["monitored_agents"]
+        for source in self.sources:
+            source.setup(self.world)
+        if self.store is not None:
+            self._load()
+
+    # -- start-up -------------------------------------------------------------------------------
+    def _load(self) -> None:
+        """Register the self agent and read back what the database holds (a restart)."""
+        store = self.store
+        assert store is not None
+        store.add_entity(self.self_id, "robot", is_self=True)
+        with self.db.transaction() as conn:
+            rows = conn.exec_driver_sql(
+                "SELECT id, kind, name, owner_id FROM entities ORDER BY owner_id <> '', id").all()
+        for entity_id, kind, name, owner in rows:
+            if kind in ("human", "robot", "object") or (kind == "joint" and owner):
+                try:
+                    self.world.add_entity(entity_id, kind, owner_id=owner if kind == "joint"
+                                          else "", name=name or entity_id)
+                except ToasterError as exc:
+                    self.warn(f"entity {entity_id!r} from the database ignored: {exc}")
+                    continue
+                self.world.active[self.world.row(entity_id)] = False  # until it is seen
+                self._registered.add(entity_id)
+
+    # -- control plane -------------------------------------------------------------------------
+    def apply_control(self) -> bool:
+        """Apply the control plane if it changed since the last look; True if it did."""
+        if self.db is None:
+            return False
+        with self.db.transaction() as conn:
+            version = control.version(conn)
+            if version == self._version:
+                return False
+            state = control.read_state(conn)
+            stored_areas = catalog.areas(conn)
+            commands = control.pending(conn, control.COMMANDS)
+            for command in commands:
+                try:
+                    self._command(command)
+                    control.finish(conn, command.id, "ok")
+                except (ToasterError, KeyError, TypeError, ValueError) as exc:
+                    self.warn(f"command {command.kind} {command.args} refused: {exc}")
+                    control.finish(conn, command.id, error=str(exc))
+                self.stats.commands += 1
+            self._version = version
+        self._apply_state(state, stored_areas)
+        return True
+
+    def _apply_state(self, state: control.ControlState,
+                     stored_areas: dict[str, dict[str, Any]]) -> None:
+        current = self.areas.areas
+        for area_id in set(current) - set(stored_areas):
+            self.areas.remove_area(area_id)
+        for area_id, spec in stored_areas.items():
+            if area_id not in current or current[area_id] != spec:
+                try:
+                    self.areas.set_area(area_id, spec)
+                except ToasterError as exc:
+                    self.warn(f"area {area_id!r} ignored: {exc}")
+        agents = state.monitored_agents(self._default_monitored)
+        if isinstance(agents, list) and state.excluded:
+            agents = agents + [f"-{a}" for a in state.excluded]
+        self.monitor.config["monitored_agents"] = agents
+        self.monitor.config["monitored_joints"] = state.joints
+        for name, on in state.streams.items():
+            self.world.set_source_enabled(name, on)
+        for obj in set(self._hands) - set(state.in_hand):
+            if obj in self.world.index:
+                self.world.remove_from_hand(obj)
+        for obj, (agent, joint) in state.in_hand.items():
+            try:
+                self.world.put_in_hand(obj, agent, joint)
+            except ToasterError as exc:
+                self.warn(f"put_in_hand {obj!r} -> {agent}/{joint} waits: {exc}")
+                continue
+        self._hands = dict(state.in_hand)
+
+    def _command(self, command: control.Command) -> None:
+        args, world = command.args, self.world
+        if command.kind == "set_entity_pose":
+            entity_id = str(args["id"])
+            kind = (world.kind_text[world.row(entity_id)] if entity_id in world.index
+                    else str(args.get("kind", "object")))
+            if not self.api.push(entity_id, args["position"], rpy=args.get("rpy"),
+                                 yaw=float(args.get("yaw", 0.0)), kind=kind):
+                raise ValueError(self.api.take_warnings()[-1])
+        elif command.kind == "add_entity":
+            world.add_entity(str(args["id"]), str(args.get("kind", "object")),
+                             owner_id=str(args.get("owner_id", "")),
+                             name=str(args.get("name", "")))
+        elif command.kind == "remove_entity":
+            world.remove_entity(str(args["id"]))
+            if self.store is not None:
+                self.store.remove_entity(str(args["id"]))
+            self._registered.discard(str(args["id"]))
+
+    def answer_queries(self) -> int:
+        """Answer pending on-request queries from the world as it is now."""
+        if self.db is None:
+            return 0
+        with self.db.transaction() as conn:
+            queries = control.pending(conn, control.QUERIES)
+            for query in queries:
+                try:
+                    control.finish(conn, query.id, self.query(query.kind, query.args))
+                except (ToasterError, KeyError, TypeError, ValueError) as exc:
+                    control.finish(conn, query.id, error=str(exc))
+        return len(queries)
+
+    def query(self, kind: str, args: Mapping[str, Any]) -> Any:
+        """One on-request query (the original's services) against the current world."""
+        world = self.world
+        if kind == "pointing":
+            at = args.get("t_ns")
+            found = pointing(world, str(args["agent"]), str(args.get("joint", "rightHand")),
+                             t_ns=int(at) if at is not None else None, config=self.config)
+            return [[entity_id, conf] for entity_id, conf in found]
+        if kind == "get_relative_position":
+            label, angle = relative_position(world, str(args["subject"]), str(args["target"]))
+            return {"direction": label, "angle": angle}
+        if kind == "get_multiple_relative_position":
+            label, angle = multiple_relative_position(world, str(args["agent"]),
+                                                      str(args["object"]), str(args["target"]))
+            return {"direction": label, "angle": angle}
+        if kind == "relative_position_from":
+            words, xyz = relative_position_from(world, str(args["viewer"]), str(args["object"]),
+                                                args.get("reference"), config=self.config)
+            return {"words": words, "forward_left_up": list(xyz)}
+        msg = f"unknown query {kind!r}"
+        raise ValueError(msg)
+
+    # -- ticks ----------------------------------------------------------------------------------
+    def warn(self, line: str) -> None:
+        """One warning line (logged, counted); the node keeps running."""
+        self.stats.warnings += 1
+        log.warning("%s", line)
+
+    def _register_new(self, t_ns: int) -> None:
+        world, store = self.world, self.store
+        assert store is not None
+        new = [r for r, eid in enumerate(world.ids)
+               if eid not in self._registered and world.active[r]]
+        if not new:
+            return
+        holders = self.holders
+        with store.transaction():
+            for r in new:
+                eid, kind = world.ids[r], world.kind_text[r]
+                owner = world.ids[world.owner[r]] if world.owner[r] >= 0 else ""
+                agent = None
+                if kind == "human":
+                    agent = holders == "humans" or (not isinstance(holders, str)
+                                                     and eid in holders)
+                store.add_entity(eid, kind, name=world.names[r], owner_id=owner, agent=agent,
+                                 t_ns=t_ns)
+        self._registered.update(world.ids[r] for r in new)
+
+    def tick(self, t_ns: int | None = None) -> dict[str, list[Fact]]:
+        """One tick at ``t_ns`` (default: now); returns the facts per producer."""
+        t = max(now_ns() if t_ns is None else t_ns, self._last_t + 1)  # time only moves on
+        self._last_t = t
+        self.apply_control()
+        for source in self.sources:
+            try:
+                source.advance(self.world, t)
+            except ToasterError as exc:  # a source's bad batch loses that batch only
+                self.warn(f"source {getattr(source, 'name', '?')}: {exc}")
+            take = getattr(source, "take_warnings", None)
+            for line in take() if take is not None else ():
+                self.warn(f"source {getattr(source, 'name', '?')}: {line}")
+        if self.store is not None:
+            self._register_new(t)
+        try:
+            out = self.runner.tick(t)
+        except (ToasterError, SQLAlchemyError) as exc:  # rolled back: nothing of it is stored
+            self.warn(f"tick at {t} not stored: {str(exc).splitlines()[0]}")
+            return {}
+        facts = {name: (f.facts() if isinstance(f, FactBatch) else f) for name, f in out.items()}
+        for output in self.outputs:
+            try:
+                output.publish(t, facts, self.world)
+            except Exception as exc:  # an output failing must not stop the node
+                self.warn(f"output {type(output).__name__}: {exc}")
+        self.answer_queries()
+        self.stats.ticks += 1
+        return facts
+
+    def run(self, rate_hz: float = 30.0, *, stop: threading.Event | None = None,
+            ticks: int | None = None, seconds: float | None = None,
+            maintain_every_s: float | None = MAINTAIN_EVERY_S) -> LiveStats:
+        """Tick at ``rate_hz`` until ``stop`` is set (or ``ticks`` / ``seconds`` ran out).
+
+        A tick that takes longer than the period counts as an overrun; the next one starts at
+        once (no burst of catch-up ticks).
+        """
+        if rate_hz <= 0:
+            msg = f"rate {rate_hz} must be a positive number of ticks per second"
+            raise ValueError(msg)
+        period = 1.0 / rate_hz
+        stop = stop or threading.Event()
+        begin = last_maintained = time.monotonic()
+        due = begin
+        count = 0
+        while not stop.is_set():
+            if ticks is not None and count >= ticks:
+                break
+            if seconds is not None and time.monotonic() - begin >= seconds:
+                break
+            start = time.monotonic()
+            self.tick()
+            count += 1
+            took = time.monotonic() - start
+            self._record(took, period)
+            now = time.monotonic()
+            if (self.db is not None and maintain_every_s is not None
+                    and now - last_maintained >= maintain_every_s):
+                self.db.maintain()
+                last_maintained = time.monotonic()
+            due = max(due + period, now)
+            if due > now:
+                stop.wait(due - now)
+        return self.stats
+
+    def _record(self, took: float, period: float) -> None:
+        ms = took * 1e3
+        self.stats.tick_ms.append(ms)
+        del self.stats.tick_ms[:-1000]
+        self.stats.worst_ms = max(self.stats.worst_ms, ms)
+        if took > period:
+            self.stats.overruns += 1
+            if self.stats.overruns in (1, 10, 100) or self.stats.overruns % 1000 == 0:
+                self.warn(f"tick overran its period: {ms:.1f} ms > {period * 1e3:.1f} ms "
+                          f"({self.stats.overruns} overruns so far)")
+
+
+def serve(node: LiveNode, rate_hz: float = 30.0, *, seconds: float | None = None) -> LiveStats:
+    """Run a node until SIGINT or SIGTERM (or ``seconds``), stopping between two ticks."""
+    stop = threading.Event()
+
+    def ask_stop(signum: int, _frame: object) -> None:
+        log.info("signal %d: stopping after this tick", signum)
+        stop.set()
+
+    previous = {sig: signal.signal(sig, ask_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        return node.run(rate_hz, stop=stop, seconds=seconds)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+__all__ = ["LiveNode", "LiveStats", "Output", "serve"]
