@@ -65,6 +65,7 @@ def cli(ctx: click.Context, url: str | None, debug: bool) -> None:
 
 def _register() -> None:
     from toaster.cli.beliefs import beliefs
+    from toaster.cli.control import entity, hand, monitor, pointing_cmd, relative_position, stream
     from toaster.cli.db import db_group
     from toaster.cli.demo import demo
     from toaster.cli.execute import execute
@@ -72,10 +73,13 @@ def _register() -> None:
     from toaster.cli.info import get_info, set_info
     from toaster.cli.plot import plot_facts
     from toaster.cli.run import area, relpos, run
+    from toaster.cli.serve import serve
     from toaster.cli.tolerance import tolerance
+    from toaster.cli.watch import watch
 
-    for command in (area, beliefs, db_group, demo, execute, export, get_info, plot_facts,
-                    record, relpos, run, set_info, tolerance):
+    for command in (area, beliefs, db_group, demo, entity, execute, export, get_info, hand,
+                    monitor, plot_facts, pointing_cmd, record, relative_position, relpos, run,
+                    serve, set_info, stream, tolerance, watch):
         cli.add_command(command)
 
 

@@ -54,22 +54,14 @@ def run(ctx: click.Context, path: Path, url: str | None, rate: float | None, unt
     Areas stored in the database are added to the file's; the file's areas are stored.
     Same input into a fresh database gives the same facts and events.
     """
-    from toaster.producers import Runner, load_session, make_config
+    from toaster.producers import Runner, load_session
+    from toaster.producers.config import read_config_file
     from toaster.timeutil import parse_duration
 
     if record_dir is not None and record_dir.exists():
         msg = f"cannot record into {str(record_dir)!r}: it exists; give a new folder name"
         raise InvalidInputError(msg)
-    overrides = None
-    if config_file is not None:
-        from toaster.documents import read_document
-
-        overrides = read_document(config_file, "config")
-        if not isinstance(overrides, dict):
-            msg = (f"config {str(config_file)!r} must be a mapping of thresholds such as "
-                   "'toward_range_humans: 3.6'")
-            raise InvalidInputError(msg)
-        make_config(overrides)  # refused before the database is opened
+    overrides = read_config_file(config_file) if config_file is not None else None
     store = None if no_db else _database(ctx, url).store()
     session = load_session(path, store.areas() if store is not None else None, fps=fps,
                            holders=holders, config=overrides)
@@ -155,6 +147,14 @@ def area_add(ctx: click.Context, name: str, spec_text: str | None, spec_file: Pa
     spec = normalize_area(name, raw)
     _database(ctx, None).store().put_area(name, spec, spec["owner"])
     click.echo(f"area {name} stored")
+
+
+@area.command("clear")
+@click.pass_context
+def area_clear(ctx: click.Context) -> None:
+    """Remove every area (remove_all_areas)."""
+    count = _database(ctx, None).store().remove_all_areas()
+    click.echo(f"{count} areas removed")
 
 
 @area.command("remove")

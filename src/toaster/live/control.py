@@ -227,19 +227,19 @@ def ask(db: Any, kind: str, args: Mapping[str, Any], timeout_s: float = 2.0) -> 
         with db.transaction() as conn:
             row = conn.execute(text("SELECT state, answer_json FROM control_commands "
                                     "WHERE id = :id"), {"id": command_id}).one()
-            if row.state != "pending":
+            late = row.state == "pending" and time.monotonic() >= deadline
+            if row.state != "pending" or late:
                 conn.execute(text("DELETE FROM control_commands WHERE id = :id"),
                              {"id": command_id})
-                answer = json.loads(row.answer_json or "null")
-                if row.state == "failed":
-                    raise InvalidInputError(str(answer))
-                return answer
-            if time.monotonic() >= deadline:
-                conn.execute(text("DELETE FROM control_commands WHERE id = :id"),
-                             {"id": command_id})
-                msg = (f"no node answered {kind} within {timeout_s:g} s: start "
-                       "'toaster serve' on this database (queries need a running node)")
-                raise NoNodeError(msg)
+        if late:
+            msg = (f"no node answered {kind} within {timeout_s:g} s: start "
+                   "'toaster serve' on this database (queries need a running node)")
+            raise NoNodeError(msg)
+        if row.state != "pending":
+            answer = json.loads(row.answer_json or "null")
+            if row.state == "failed":
+                raise InvalidInputError(str(answer))
+            return answer
         time.sleep(0.01)
 
 

@@ -73,7 +73,12 @@ class LiveNode:
         self.holders = holders
         self.world = World()
         self.api = LiveSource("api")
-        self.sources: list[Source] = list(sources) if sources is not None else [self.api]
+        # entities placed with set_entity_pose are simulated, as toaster_simu publishes them:
+        # their pose is sent again every tick until moved or removed
+        self.simu = LiveSource("toaster_simu")
+        self._simulated: dict[str, dict[str, Any]] = {}
+        self.sources: list[Source] = [self.simu] + (list(sources) if sources is not None
+                                                    else [self.api])
         self.outputs = list(outputs)
         self.monitor = AgentMonitor(self.config)
         self.areas = AreaManager({}, self.config)
@@ -113,8 +118,9 @@ class LiveNode:
                 self._registered.add(entity_id)
 
     # -- control plane -------------------------------------------------------------------------
-    def apply_control(self) -> bool:
-        """Apply the control plane if it changed since the last look; True if it did."""
+    def apply_control(self, t_ns: int | None = None) -> bool:
+        """Apply the control plane if it changed since the last look; True if it did.
+        Commands take effect at ``t_ns`` (default: now)."""
         if self.db is None:
             return False
         with self.db.transaction() as conn:
@@ -126,7 +132,7 @@ class LiveNode:
             commands = control.pending(conn, control.COMMANDS)
             for command in commands:
                 try:
-                    self._command(command)
+                    self._command(command, now_ns() if t_ns is None else t_ns)
                     control.finish(conn, command.id, "ok")
                 except (ToasterError, KeyError, TypeError, ValueError) as exc:
                     self.warn(f"command {command.kind} {command.args} refused: {exc}")
@@ -165,20 +171,23 @@ class LiveNode:
                 continue
         self._hands = dict(state.in_hand)
 
-    def _command(self, command: control.Command) -> None:
+    def _command(self, command: control.Command, t_ns: int) -> None:
         args, world = command.args, self.world
         if command.kind == "set_entity_pose":
             entity_id = str(args["id"])
             kind = (world.kind_text[world.row(entity_id)] if entity_id in world.index
                     else str(args.get("kind", "object")))
-            if not self.api.push(entity_id, args["position"], rpy=args.get("rpy"),
-                                 yaw=float(args.get("yaw", 0.0)), kind=kind):
-                raise ValueError(self.api.take_warnings()[-1])
+            pose = {"position": args["position"], "rpy": args.get("rpy"),
+                    "yaw": float(args.get("yaw", 0.0)), "kind": kind}
+            if not self.simu.push(entity_id, t_ns=t_ns, **pose):
+                raise ValueError(self.simu.take_warnings()[-1])
+            self._simulated[entity_id] = pose
         elif command.kind == "add_entity":
             world.add_entity(str(args["id"]), str(args.get("kind", "object")),
                              owner_id=str(args.get("owner_id", "")),
                              name=str(args.get("name", "")))
         elif command.kind == "remove_entity":
+            self._simulated.pop(str(args["id"]), None)
             world.remove_entity(str(args["id"]))
             if self.store is not None:
                 self.store.remove_entity(str(args["id"]))
@@ -249,7 +258,9 @@ class LiveNode:
         """One tick at ``t_ns`` (default: now); returns the facts per producer."""
         t = max(now_ns() if t_ns is None else t_ns, self._last_t + 1)  # time only moves on
         self._last_t = t
-        self.apply_control()
+        self.apply_control(t)
+        for entity_id, pose in self._simulated.items():
+            self.simu.push(entity_id, t_ns=t, **pose)
         for source in self.sources:
             try:
                 source.advance(self.world, t)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 from toaster.errors import InvalidInputError
@@ -145,6 +146,19 @@ def make_config(overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
             value = float(value)
         config[key] = value
     return config
+
+
+def read_config_file(path: str | Path) -> dict[str, Any]:
+    """Producer thresholds from a YAML/JSON mapping file, validated (one-line errors)."""
+    from toaster.documents import read_document
+
+    overrides = read_document(path, "config")
+    if not isinstance(overrides, dict):
+        msg = (f"config {str(path)!r} must be a mapping of thresholds such as "
+               "'toward_range_humans: 3.6'")
+        raise InvalidInputError(msg)
+    make_config(overrides)
+    return overrides
 
 
 def overlay_config(base: Mapping[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:

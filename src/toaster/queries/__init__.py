@@ -18,6 +18,7 @@ from toaster.queries.facts import (
 )
 from toaster.queries.frames import to_dataframe
 from toaster.queries.sql import SQLResult, are_in_table, execute
+from toaster.queries.watch import watch
 
 __all__ = [
     "SQLResult",
@@ -37,4 +38,5 @@ __all__ = [
     "properties",
     "signal",
     "to_dataframe",
+    "watch",
 ]

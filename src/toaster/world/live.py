@@ -5,8 +5,11 @@ at most ``max_pending`` poses not yet applied, so memory never grows with the in
 stamped after the tick waits for a later tick. A bad pose (non-finite numbers, empty id, unknown
 kind) is refused by :meth:`LiveSource.push` with a one-line reason (``False``; counted in
 ``rejected`` and kept in ``last_error``), never inside the tick. Time going backwards for an
-entity by more than ``rewind_ns`` (a looping bag, a restarted sensor) forgets that entity's
-history, so that its new poses are taken instead of being ignored as older.
+entity by more than ``rewind_ns`` (a restarted sensor) forgets that entity's history, so that
+its new poses are taken instead of being ignored as older. Stamps more than ``max_skew_ns`` away
+from the tick's clock (simulated time, a looping bag, an unsynchronised machine) are shifted by
+one offset per source so that the newest lands on the tick: relative times, hence speeds, stay
+exact; each new offset is one warning line.
 """
 
 from __future__ import annotations
@@ -44,12 +47,14 @@ class LiveSource:
     """Thread-safe buffer of the newest poses per entity; ``advance`` applies them."""
 
     def __init__(self, name: str = "live", *, max_pending: int = 8,
-                 rewind_ns: int = NS_PER_S) -> None:
+                 rewind_ns: int = NS_PER_S, max_skew_ns: int = 5 * NS_PER_S) -> None:
         self.name = name
         self.start_ns: int | None = None
         self.end_ns: int | None = None
         self.max_pending = max(1, int(max_pending))
         self.rewind_ns = int(rewind_ns)
+        self.max_skew_ns = int(max_skew_ns)
+        self.offset_ns = 0  # added to every stamp (see the module's doc)
         self.rejected = 0
         self.last_error = ""
         self.warnings: list[str] = []  # one line per problem met while applying (drained)
@@ -110,14 +115,15 @@ class LiveSource:
     def advance(self, world: World, t_ns: int) -> None:
         """Apply, per entity, the newest buffered pose stamped at or before ``t_ns``."""
         with self._lock:
+            self._align(t_ns)
             ready: list[_Pose] = []
             for eid in list(self._pending):
                 queue = self._pending[eid]
-                due = [p for p in queue if p[4] <= t_ns]
+                due = [p for p in queue if p[4] + self.offset_ns <= t_ns]
                 if not due:
                     continue
                 ready.append(max(due, key=lambda p: p[4]))
-                later = [p for p in queue if p[4] > t_ns]
+                later = [p for p in queue if p[4] + self.offset_ns > t_ns]
                 if later:
                     self._pending[eid] = later
                 else:
@@ -144,7 +150,7 @@ class LiveSource:
         if not applied:
             return
         rows = world.rows_of([p[0] for p in applied])
-        stamps = np.array([p[4] for p in applied], np.int64)
+        stamps = np.array([p[4] for p in applied], np.int64) + self.offset_ns
         known = world.t_ns[rows]
         rewound = (known != NO_TIME) & (known > stamps + self.rewind_ns)
         if rewound.any():
@@ -156,6 +162,17 @@ class LiveSource:
             world.t_ns[back] = NO_TIME
         world.observe(self.name, rows, stamps, np.array([p[5] for p in applied]),
                       np.array([p[6] for p in applied]), np.array([p[7] for p in applied]))
+
+    def _align(self, t_ns: int) -> None:
+        """Shift stamps far from the tick's clock (lock held)."""
+        newest = max((p[4] for queue in self._pending.values() for p in queue), default=None)
+        if newest is None or abs(newest + self.offset_ns - t_ns) <= self.max_skew_ns:
+            return
+        self.offset_ns = t_ns - newest
+        self.warnings.append(f"stamps are {abs(self.offset_ns) / NS_PER_S:.1f} s "
+                             f"{'behind' if self.offset_ns > 0 else 'ahead of'} the node's "
+                             "clock (simulated time, a looping bag or an unsynchronised "
+                             "clock?): shifted to it")
 
     def take_warnings(self) -> list[str]:
         """The warnings met since the last call (and refused pushes, once each)."""

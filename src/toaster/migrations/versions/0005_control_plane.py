@@ -6,6 +6,10 @@ and new commands. The node compares it once per tick (PostgreSQL also sends
 ``NOTIFY toaster_control``). ``control_commands`` keeps one-shot requests (set an entity's
 pose, pointing, relative positions) and the node's answers.
 
+PostgreSQL only: a statement trigger on ``events`` sends ``NOTIFY toaster_events`` so that
+subscribers (:func:`toaster.queries.watch`) wake when any writer commits events (one
+notification per transaction: PostgreSQL folds identical ones).
+
 Revision ID: 0005
 Revises: 0004
 Create Date: 2026-11-23
@@ -41,9 +45,17 @@ def upgrade() -> None:
         sa.PrimaryKeyConstraint("id", name=op.f("pk_control_commands")),
     )
     op.create_index("ix_control_commands_pending", "control_commands", ["state", "id"])
+    if op.get_bind().dialect.name == "postgresql":
+        op.execute("CREATE FUNCTION toaster_notify_events() RETURNS trigger LANGUAGE plpgsql "
+                   "AS $$ BEGIN PERFORM pg_notify('toaster_events', ''); RETURN NULL; END $$")
+        op.execute("CREATE TRIGGER events_notify AFTER INSERT ON events FOR EACH STATEMENT "
+                   "EXECUTE FUNCTION toaster_notify_events()")
 
 
 def downgrade() -> None:
+    if op.get_bind().dialect.name == "postgresql":
+        op.execute("DROP TRIGGER events_notify ON events")
+        op.execute("DROP FUNCTION toaster_notify_events()")
     op.drop_index("ix_control_commands_pending", table_name="control_commands")
     op.drop_table("control_commands")
     with op.batch_alter_table("store_state") as batch:

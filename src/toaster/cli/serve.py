@@ -1,0 +1,93 @@
+"""``toaster serve``: a live node beside a robot (the loop lives in :mod:`toaster.live`)."""
+
+from __future__ import annotations
+
+import logging
+import sys
+from pathlib import Path
+from typing import Any
+
+import click
+
+from toaster.errors import InvalidInputError
+
+
+def _pose_topics(values: tuple[str, ...]) -> dict[str, tuple[str, str]]:
+    """``TOPIC=ID[:KIND]`` options as {topic: (entity id, kind)}."""
+    out: dict[str, tuple[str, str]] = {}
+    for value in values:
+        topic, sep, target = value.partition("=")
+        entity_id, _, kind = target.partition(":")
+        if not sep or not topic or not entity_id:
+            msg = (f"--pose-topic {value!r}: give TOPIC=ID or TOPIC=ID:KIND, e.g. "
+                   "/mocap/bob=bob:human")
+            raise InvalidInputError(msg)
+        out[topic] = (entity_id, kind or "object")
+    return out
+
+
+@click.command("serve")
+@click.option("--rate", type=float, default=30.0, show_default=True,
+              help="Ticks per second (the original's nodes run at 30 Hz).")
+@click.option("--config", "config_file", metavar="FILE",
+              type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Producer thresholds (YAML/JSON mapping).")
+@click.option("--self", "self_id", default="toaster", show_default=True,
+              help="The robot whose perception the world state is.")
+@click.option("--holders", default="none", show_default=True, metavar="none|humans|ID[,ID...]",
+              help="Humans that hold beliefs (store agents).")
+@click.option("--seconds", type=float, default=None,
+              help="Stop after this many seconds (default: until SIGINT/SIGTERM).")
+@click.option("--ros1", is_flag=True, help="Bridge to ROS 1 (needs Debian's ROS 1 packages; "
+              "see docs/ros1.md).")
+@click.option("--tf-map", "tf_map", metavar="FILE",
+              type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="With --ros1: which /tf frames are which entities and joints (YAML/JSON).")
+@click.option("--pose-topic", "pose_topics", multiple=True, metavar="TOPIC=ID[:KIND]",
+              help="With --ros1: a geometry_msgs/PoseStamped topic giving one entity's pose "
+                   "(repeatable).")
+@click.pass_obj
+def serve(app: Any, rate: float, config_file: Path | None, self_id: str, holders: str,
+          seconds: float | None, ros1: bool, tf_map: Path | None,
+          pose_topics: tuple[str, ...]) -> None:
+    """Run toaster live: poses in, facts and beliefs stored and published every tick.
+
+    Change it while it runs from another shell: `toaster area add`, `toaster monitor`,
+    `toaster stream`, `toaster hand`, `toaster entity`; ask it `toaster pointing` and
+    `toaster relative-position`. Stops cleanly on Ctrl-C or SIGTERM (the last tick is stored
+    whole or not at all); started again on the same database, it carries on.
+    """
+    from toaster.live import LiveNode
+    from toaster.live import serve as serve_node
+
+    if rate <= 0:
+        msg = f"--rate {rate} must be a positive number of ticks per second"
+        raise InvalidInputError(msg)
+    if (tf_map is not None or pose_topics) and not ros1:
+        msg = "--tf-map and --pose-topic are ROS 1 inputs: add --ros1"
+        raise InvalidInputError(msg)
+    from toaster.producers.config import read_config_file
+
+    config = read_config_file(config_file) if config_file is not None else None
+    topics = _pose_topics(pose_topics)
+    choice: str | list[str] = holders
+    if holders not in ("none", "humans"):
+        choice = [h.strip() for h in holders.split(",") if h.strip()]
+    logging.basicConfig(stream=sys.stderr, level=logging.WARNING,
+                        format="toaster serve: %(message)s")
+    node = LiveNode(app.db, config=config, self_id=self_id, holders=choice)
+    bridge = None
+    if ros1:
+        from toaster.ros1.bridge import start_bridge
+
+        bridge = start_bridge(node, tf_map=tf_map, pose_topics=topics)
+    click.echo(f"toaster serve: {rate:g} Hz on {app.db.url} (Ctrl-C stops)", err=True)
+    try:
+        stats = serve_node(node, rate, seconds=seconds)
+    finally:
+        if bridge is not None:
+            bridge.shutdown()
+    p50 = sorted(stats.tick_ms)[len(stats.tick_ms) // 2] if stats.tick_ms else 0.0
+    click.echo(f"toaster serve: stopped after {stats.ticks} ticks ({stats.overruns} overran "
+               f"{1e3 / rate:.1f} ms; median {p50:.1f} ms, worst {stats.worst_ms:.1f} ms); "
+               f"{stats.commands} commands, {stats.warnings} warnings", err=True)
