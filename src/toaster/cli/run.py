@@ -10,6 +10,8 @@ from typing import Any
 
 import click
 
+from toaster.cli.rosopts import pose_topics as parse_pose_topics
+from toaster.cli.rosopts import ros_input_options
 from toaster.errors import InvalidInputError
 
 
@@ -26,7 +28,7 @@ def _database(ctx: click.Context, url: str | None) -> Any:
 
 @click.command("run")
 @click.argument("path", metavar="SCENARIO_OR_RECORDING",
-                type=click.Path(exists=True, dir_okay=False, path_type=Path))
+                type=click.Path(exists=True, path_type=Path))
 @click.option("--db", "url", metavar="URL", help="Database URL (default: the group's --db).")
 @click.option("--rate", type=float, help="Ticks per second (default: the file's, 30 / 2.5 Hz).")
 @click.option("--until", "until", metavar="T", help="Stop after this much input time (20s).")
@@ -40,6 +42,7 @@ def _database(ctx: click.Context, url: str | None) -> Any:
                                                          path_type=Path),
               metavar="FILE", help="Producer thresholds (YAML/JSON mapping, e.g. "
               "toward_range_humans: 3.6) laid over the file's own config.")
+@ros_input_options
 @click.option("--no-db", is_flag=True, help="Compute only; write nothing.")
 @click.option("--record", "record_dir", type=click.Path(path_type=Path), metavar="DIR",
               help="Also write the run as a rosbag2/MCAP recording in the new folder DIR "
@@ -48,8 +51,10 @@ def _database(ctx: click.Context, url: str | None) -> Any:
 @click.pass_context
 def run(ctx: click.Context, path: Path, url: str | None, rate: float | None, until: str | None,
         realtime: bool, fps: float | None, holders: str | None, config_file: Path | None,
-        no_db: bool, record_dir: Path | None) -> None:
-    """Tick a scenario (.yaml/.json) or recording (obsmat .txt, .csv, .jsonl) into the store.
+        tf_map: Path | None, pose_topics: tuple[str, ...], no_db: bool,
+        record_dir: Path | None) -> None:
+    """Tick a scenario (.yaml/.json), recording (obsmat .txt, .csv, .jsonl) or ROS bag
+    (.bag, .mcap, .db3 or a rosbag2 folder) into the store.
 
     Areas stored in the database are added to the file's; the file's areas are stored.
     Same input into a fresh database gives the same facts and events.
@@ -64,7 +69,8 @@ def run(ctx: click.Context, path: Path, url: str | None, rate: float | None, unt
     overrides = read_config_file(config_file) if config_file is not None else None
     store = None if no_db else _database(ctx, url).store()
     session = load_session(path, store.areas() if store is not None else None, fps=fps,
-                           holders=holders, config=overrides)
+                           holders=holders, config=overrides, tf_map=tf_map,
+                           pose_topics=parse_pose_topics(pose_topics))
     if rate is not None and rate <= 0:
         msg = f"--rate {rate} must be a positive number of ticks per second"
         raise InvalidInputError(msg)

@@ -9,21 +9,9 @@ from typing import Any
 
 import click
 
+from toaster.cli.rosopts import pose_topics as parse_pose_topics
+from toaster.cli.rosopts import ros_input_options
 from toaster.errors import InvalidInputError
-
-
-def _pose_topics(values: tuple[str, ...]) -> dict[str, tuple[str, str]]:
-    """``TOPIC=ID[:KIND]`` options as {topic: (entity id, kind)}."""
-    out: dict[str, tuple[str, str]] = {}
-    for value in values:
-        topic, sep, target = value.partition("=")
-        entity_id, _, kind = target.partition(":")
-        if not sep or not topic or not entity_id:
-            msg = (f"--pose-topic {value!r}: give TOPIC=ID or TOPIC=ID:KIND, e.g. "
-                   "/mocap/bob=bob:human")
-            raise InvalidInputError(msg)
-        out[topic] = (entity_id, kind or "object")
-    return out
 
 
 @click.command("serve")
@@ -40,12 +28,7 @@ def _pose_topics(values: tuple[str, ...]) -> dict[str, tuple[str, str]]:
               help="Stop after this many seconds (default: until SIGINT/SIGTERM).")
 @click.option("--ros1", is_flag=True, help="Bridge to ROS 1 (needs Debian's ROS 1 packages; "
               "see docs/ros1.md).")
-@click.option("--tf-map", "tf_map", metavar="FILE",
-              type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="With --ros1: which /tf frames are which entities and joints (YAML/JSON).")
-@click.option("--pose-topic", "pose_topics", multiple=True, metavar="TOPIC=ID[:KIND]",
-              help="With --ros1: a geometry_msgs/PoseStamped topic giving one entity's pose "
-                   "(repeatable).")
+@ros_input_options
 @click.pass_obj
 def serve(app: Any, rate: float, config_file: Path | None, self_id: str, holders: str,
           seconds: float | None, ros1: bool, tf_map: Path | None,
@@ -69,7 +52,7 @@ def serve(app: Any, rate: float, config_file: Path | None, self_id: str, holders
     from toaster.producers.config import read_config_file
 
     config = read_config_file(config_file) if config_file is not None else None
-    topics = _pose_topics(pose_topics)
+    topics = parse_pose_topics(pose_topics)
     choice: str | list[str] = holders
     if holders not in ("none", "humans"):
         choice = [h.strip() for h in holders.split(",") if h.strip()]

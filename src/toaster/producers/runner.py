@@ -18,6 +18,7 @@ from toaster.producers.monitor import AgentMonitor
 from toaster.producers.perception import PerceptionFacts
 from toaster.producers.spatial import SpatialFacts
 from toaster.timeutil import NS_PER_S
+from toaster.world.bags import is_bag, read_bag
 from toaster.world.scenario import ScenarioSource, load_scenario
 from toaster.world.state import World
 from toaster.world.tracks import read_obsmat, read_tracks
@@ -235,7 +236,8 @@ def _belief_holders(value: Any, kinds: dict[str, str], name: str) -> str | tuple
 
 def load_session(path: str | Path, areas: dict[str, dict[str, Any]] | None = None, *,
                  fps: float | None = None, holders: str | Sequence[str] | None = None,
-                 config: Mapping[str, Any] | None = None) -> Session:
+                 config: Mapping[str, Any] | None = None, tf_map: str | Path | None = None,
+                 pose_topics: Mapping[str, tuple[str, str]] | None = None) -> Session:
     """Build world, sources and producers from a scenario (.yaml/.yml/.json) or recording.
 
     Recordings: ``obsmat.txt`` (ETH/UCY; frame numbers at ``fps``, default 25, checked against
@@ -245,12 +247,22 @@ def load_session(path: str | Path, areas: dict[str, dict[str, Any]] | None = Non
     ``holders`` ("none", "humans" or ids) overrides the file's ``belief_holders`` (config of a
     scenario); by default the humans of a scenario hold beliefs, those of a recording do not.
     ``config`` (producer thresholds, see :mod:`toaster.producers.config`) is laid over the
-    file's own config; it is validated here, before anything is stored.
+    file's own config; it is validated here, before anything is stored. ROS bags (``.bag``,
+    ``.mcap``, ``.db3``, a rosbag2 folder) are read whole first (:mod:`toaster.world.bags`,
+    with ``tf_map`` and ``pose_topics`` as ``toaster serve --ros1``) and tick at the rate
+    their entities are seen.
     """
     path = Path(path)
     config_over = config
     world = World()
     suffix = path.suffix.lower()
+    if (tf_map is not None or pose_topics) and not is_bag(path):
+        msg = f"--tf-map and --pose-topic are for ROS bags, not {path.name}"
+        raise InvalidInputError(msg)
+    if path.is_dir() and not is_bag(path):
+        msg = (f"cannot run the folder {path.name!r}: give a file, or a rosbag2 folder (with "
+               "metadata.yaml)")
+        raise FileFormatError(msg)
     if fps is not None and suffix != ".txt":
         msg = (f"--fps is for obsmat .txt recordings (frame numbers): {path.name} gives its own "
                "times; use --rate for ticks per second")
@@ -263,6 +275,12 @@ def load_session(path: str | Path, areas: dict[str, dict[str, Any]] | None = Non
         start, end = scenario.start_ns, scenario.end_ns
         kinds = {str(e["id"]): str(e.get("kind", "object")).lower() for e in scenario.entities}
         default_holders = "humans"
+    elif is_bag(path):
+        source = read_bag(path, tf_map=tf_map, pose_topics=pose_topics)
+        all_areas, config, self_id = dict(areas or {}), {}, ""
+        rate = source.sample_hz or 30.0
+        start, end = source.start_ns, source.end_ns
+        kinds, default_holders = source.kinds, "none"
     elif suffix == ".txt":
         source = read_obsmat(path) if fps is None else read_obsmat(path, fps=fps)
         all_areas, config, self_id = dict(areas or {}), {}, ""
