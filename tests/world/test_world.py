@@ -163,3 +163,34 @@ def test_obsmat_reader():
     assert len(src.t) == 5024
     assert len(src.kinds) == 148
     assert np.all(np.diff(src.t) >= 0)
+
+
+def test_quaternions_are_accepted_in_scenarios_and_tracks(tmp_path):
+    """ROS gives orientations as quaternions: scenario poses and track rows take them."""
+    half = math.sqrt(0.5)
+    sc = load_scenario_text(tmp_path, {
+        "entities": [{"id": "bob", "kind": "human", "position": [0, 0],
+                      "orientation": [0, 0, half, half]}]})
+    w = World()
+    src = ScenarioSource(sc)
+    src.setup(w)
+    src.advance(w, 0)
+    assert w.rpy[w.row("bob"), 2] == pytest.approx(math.pi / 2)
+    csv_path = tmp_path / "t.csv"
+    csv_path.write_text(f"t_s,id,x,y,qx,qy,qz,qw\n0,ann,1,2,0,0,{half},{-half}\n")
+    tracks = read_tracks(csv_path)
+    assert tracks.rpy[0, 2] == pytest.approx(-math.pi / 2)
+    csv_path.write_text("t_s,id,x,y,qx,qy,qz,qw\n0,ann,1,2,0,0,0,0\n")
+    with pytest.raises(FileFormatError, match="line 2: quaternion"):
+        read_tracks(csv_path)
+    with pytest.raises(FileFormatError, match="orientation"):
+        load_scenario_text(tmp_path, {"entities": [{"id": "bob", "kind": "human",
+                                                    "orientation": [0, 0, 1]}]})
+
+
+def load_scenario_text(tmp_path, doc):
+    import yaml
+
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return load_scenario(path)

@@ -147,19 +147,28 @@ def entity() -> None:
 @click.argument("entity_id", metavar="ID")
 @click.argument("position", nargs=-1, type=float, required=True)
 @click.option("--yaw", type=float, default=0.0, help="Heading in radians.")
+@click.option("--quat", type=float, nargs=4, default=None, metavar="X Y Z W",
+              help="Orientation as a quaternion (instead of --yaw).")
 @click.option("--kind", default="object", show_default=True,
               type=click.Choice(["human", "robot", "object"]), help="Kind, if it is new.")
 @click.pass_obj
 def entity_pose(app: Any, entity_id: str, position: tuple[float, ...], yaw: float,
-                kind: str) -> None:
+                quat: tuple[float, float, float, float] | None, kind: str) -> None:
     """Set ID's pose to X Y [Z] (set_entity_pose); applied by the running node or the next."""
     from toaster.live import control
+    from toaster.world.live import quaternion_to_rpy
 
     if len(position) not in (2, 3):
         msg = f"give X Y or X Y Z for {entity_id!r}, not {len(position)} numbers"
         raise InvalidInputError(msg)
-    control.submit(app.db, "set_entity_pose",
-                   {"id": entity_id, "position": list(position), "yaw": yaw, "kind": kind})
+    args: dict[str, Any] = {"id": entity_id, "position": list(position), "yaw": yaw,
+                            "kind": kind}
+    if quat is not None:
+        try:
+            args["rpy"] = list(quaternion_to_rpy(*quat))
+        except ValueError as exc:
+            raise InvalidInputError(str(exc)) from None
+    control.submit(app.db, "set_entity_pose", args)
     click.echo(f"pose of {entity_id} sent")
 
 

@@ -41,8 +41,24 @@ def _vec(value: Any, where: str, size: int = 3) -> list[float]:
 
 
 def _rpy(item: Mapping[str, Any], where: str) -> list[float]:
+    """Orientation of a pose: ``rpy``, ``orientation`` (a quaternion x, y, z, w, as ROS gives
+    it) or ``yaw`` (radians)."""
     if "rpy" in item:
         return _vec(item["rpy"], f"{where} rpy")
+    if "orientation" in item:
+        from toaster.world.live import quaternion_to_rpy
+
+        q = item["orientation"]
+        if (not isinstance(q, list | tuple) or len(q) != 4
+                or not all(isinstance(v, int | float) and not isinstance(v, bool)
+                           and math.isfinite(v) for v in q)):
+            msg = f"{where}: orientation {q!r} must be a quaternion [x, y, z, w] of numbers"
+            raise FileFormatError(msg)
+        try:
+            return list(quaternion_to_rpy(*map(float, q)))
+        except ValueError as exc:
+            msg = f"{where}: {exc}"
+            raise FileFormatError(msg) from None
     yaw = item.get("yaw", 0.0)
     if isinstance(yaw, bool) or not isinstance(yaw, int | float):
         msg = f"{where}: yaw {yaw!r} must be a number in radians"

@@ -6,6 +6,7 @@ Generic format, one sample per row (CSV with a header, or one JSON object per li
 
 ``t_ns`` is integer nanoseconds, ``t_s`` float seconds (exactly one of them). ``kind`` is
 human, robot or object (default human); z, yaw, roll, pitch default to 0, confidence to 1.
+The orientation may instead be a quaternion ``qx, qy, qz, qw`` (as ROS gives it).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import numpy as np
 
 from toaster.errors import FileFormatError, InvalidInputError
 from toaster.timeutil import NS_PER_S
+from toaster.world.live import quaternion_to_rpy
 from toaster.world.state import World
 
 OBSMAT_FPS = 25.0  # ETH/UCY videos: 25 fps, annotated every 10 frames (0.4 s, 2.5 Hz)
@@ -288,7 +290,17 @@ def read_tracks(path: str | Path) -> TrackSource:
         t[i] = _time_ns(row, where)
         pos[i] = [_number(row, key, None if key != "z" else 0.0, where, "metres")
                   for key in ("x", "y", "z")]
-        rpy[i] = [_number(row, key, 0.0, where, "radians") for key in ("roll", "pitch", "yaw")]
+        if "qw" in row:  # a quaternion, as ROS gives orientations
+            q = [_number(row, key, None, where, "a quaternion component")
+                 for key in ("qx", "qy", "qz", "qw")]
+            try:
+                rpy[i] = quaternion_to_rpy(*q)
+            except ValueError as exc:
+                msg = f"{where}: {exc}"
+                raise FileFormatError(msg) from None
+        else:
+            rpy[i] = [_number(row, key, 0.0, where, "radians")
+                      for key in ("roll", "pitch", "yaw")]
         conf[i] = _number(row, "confidence", 1.0, where, "between 0 and 1")
         if not 0 <= conf[i] <= 1:
             msg = f"{where}: confidence {conf[i]:g} must be between 0 and 1: fix the line"
