@@ -175,10 +175,13 @@ class LiveNode:
         args, world = command.args, self.world
         if command.kind == "set_entity_pose":
             entity_id = str(args["id"])
-            kind = (world.kind_text[world.row(entity_id)] if entity_id in world.index
-                    else str(args.get("kind", "object")))
+            row = world.index.get(entity_id)
+            kind = world.kind_text[row] if row is not None else str(args.get("kind", "object"))
+            owner = (world.ids[world.owner[row]] if row is not None and world.owner[row] >= 0
+                     else str(args.get("owner_id", "")))
             pose = {"position": args["position"], "rpy": args.get("rpy"),
-                    "yaw": float(args.get("yaw", 0.0)), "kind": kind}
+                    "yaw": float(args.get("yaw", 0.0)), "kind": kind, "owner_id": owner,
+                    "joint": str(args.get("joint", ""))}
             if not self.simu.push(entity_id, t_ns=t_ns, **pose):
                 raise ValueError(self.simu.take_warnings()[-1])
             self._simulated[entity_id] = pose
@@ -211,8 +214,13 @@ class LiveNode:
         world = self.world
         if kind == "pointing":
             at = args.get("t_ns")
+            config = dict(self.config)  # the request's thresholds, when given
+            if args.get("joint_distance"):
+                config["pointing_joint_distance"] = float(args["joint_distance"])
+            if args.get("angle"):
+                config["pointing_angle"] = float(args["angle"])
             found = pointing(world, str(args["agent"]), str(args.get("joint", "rightHand")),
-                             t_ns=int(at) if at is not None else None, config=self.config)
+                             t_ns=int(at) if at is not None else None, config=config)
             return [[entity_id, conf] for entity_id, conf in found]
         if kind == "get_relative_position":
             label, angle = relative_position(world, str(args["subject"]), str(args["target"]))

@@ -1,0 +1,394 @@
+"""The ROS 1 transport of a live node: subscribers feed named LiveSources, an output publishes
+each tick's facts, TF frames and markers, and the original's services call the control plane.
+
+Threads: rospy runs callbacks and services on its own threads. Callbacks only push poses into
+thread-safe LiveSources and queue warning lines; services use their own database connections
+(:class:`~toaster.ros1.services.DbPool`). Everything that reads the world runs on the node's
+thread (the output, and the queries the node answers between ticks).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from toaster.db import catalog
+from toaster.errors import InvalidInputError
+from toaster.model import Fact
+from toaster.ros1 import import_rospy, markers, messages
+from toaster.ros1.dbcalls import AREA_KEY, AREA_SCOPE
+from toaster.ros1.mapping import (
+    FIXED_FRAME,
+    FrameTarget,
+    PoseUpdate,
+    TfTree,
+    area_fields,
+    fact_fields,
+    frame_target,
+    hri_target,
+    list_updates,
+    pose_stamped_update,
+    read_frame_map,
+    tf_updates,
+    tracked_ids,
+)
+from toaster.ros1.services import DbPool, Handlers
+from toaster.world.live import LiveSource
+from toaster.world.state import World
+
+PRODUCERS = ("pdg", "area_manager", "agent_monitor", "move3d_facts")
+MARKER_TOPICS = ("marker_object", "marker_area", "marker_human", "marker_robot",
+                 "marker_motion")
+SIMU_LISTS = {"toaster_simu_human": ("/toaster_simu/humanList", "HumanListStamped"),
+              "toaster_simu_robot": ("/toaster_simu/robotList", "RobotListStamped"),
+              "toaster_simu_object": ("/toaster_simu/objectList", "ObjectListStamped")}
+PDG_LISTS = {"human": ("/pdg/humanList", "HumanListStamped", "humanList"),
+             "robot": ("/pdg/robotList", "RobotListStamped", "robotList"),
+             "object": ("/pdg/objectList", "ObjectListStamped", "objectList")}
+
+
+class Warnings:
+    """Warning lines from rospy threads, each key at most once per ``every_s``; the node's
+    thread drains them into ``node.warn``."""
+
+    def __init__(self, every_s: float = 10.0) -> None:
+        self.every_s = every_s
+        self._lines: list[str] = []
+        self._last: dict[str, float] = {}
+        self._lock = threading.Lock()
+
+    def add(self, key: str, line: str) -> None:
+        now = time.monotonic()
+        with self._lock:
+            if now - self._last.get(key, -1e18) >= self.every_s:
+                self._last[key] = now
+                self._lines.append(line)
+
+    def drain(self) -> list[str]:
+        with self._lock:
+            out, self._lines = self._lines, []
+        return out
+
+
+def _one_line(exc: BaseException) -> str:
+    lines = str(exc).strip().splitlines()
+    return lines[0] if lines else type(exc).__name__
+
+
+def pose_topic_targets(topics: Mapping[str, Any] | None) -> dict[str, FrameTarget]:
+    """``{topic: "id" | "id:kind" | (id, kind) | {id, kind, owner?, joint?}}`` as targets."""
+    out: dict[str, FrameTarget] = {}
+    for topic, value in (topics or {}).items():
+        if isinstance(value, str):
+            entity_id, _, kind = value.partition(":")
+            value = {"id": entity_id, "kind": kind or "object"}
+        elif isinstance(value, tuple | list):
+            value = {"id": value[0], "kind": value[1] if len(value) > 1 else "object"}
+        out[topic] = frame_target(topic, value)
+    return out
+
+
+class Bridge:
+    """A running ROS 1 bridge; :meth:`shutdown` detaches it from the node."""
+
+    def __init__(self, node: Any, rospy: Any, registry: messages.Registry, *,
+                 tf_map: Any = None, pose_topics: Mapping[str, Any] | None = None,
+                 publish_tf: bool = True, markers: bool = True,
+                 fixed_frame: str = FIXED_FRAME, toaster_simu: bool = True,
+                 pdg_lists: bool = False, publish_lists: bool = True, ros4hri: bool = True,
+                 services: bool = True) -> None:
+        self.node, self.rospy, self.registry = node, rospy, registry
+        self.warnings = Warnings()
+        self.tree = TfTree(fixed_frame)
+        self.frames = read_frame_map(tf_map)
+        self.topics = pose_topic_targets(pose_topics)
+        self.publish_tf, self.markers = publish_tf, markers
+        self.publish_lists = publish_lists and not pdg_lists  # never read back what we publish
+        self.ros4hri = ros4hri
+        self.tracked: dict[str, set[str] | None] = {"body": None, "face": None}
+        self.sources: dict[str, LiveSource] = {}
+        self.subscribers: list[Any] = []
+        self.services: list[Any] = []
+        self.pool: DbPool | None = None
+        self._caller = rospy.get_name()
+        self._area_numbers: tuple[frozenset[str], dict[str, int]] = (frozenset(), {})
+        self._subscribe(toaster_simu, pdg_lists)
+        self._advertise()
+        if services:
+            self._serve()
+        self.output = _Output(self)
+        node.outputs.append(self.output)
+
+    # -- inputs --------------------------------------------------------------------------------
+    def source(self, name: str) -> LiveSource:
+        """The LiveSource of an input stream (made and added to the node on first use)."""
+        if name not in self.sources:
+            self.sources[name] = LiveSource(name)
+            self.node.sources.append(self.sources[name])
+        return self.sources[name]
+
+    def push(self, source: str, update: PoseUpdate) -> None:
+        self.source(source).push(update.entity_id, update.position, quat=update.quat,
+                                 t_ns=update.t_ns, kind=update.kind, owner_id=update.owner_id,
+                                 joint=update.joint)
+
+    def _sub(self, topic: str, cls: Any, callback: Any, *args: Any) -> None:
+        def guarded(msg: Any) -> None:
+            try:
+                callback(msg, *args)
+            except Exception as exc:  # a callback never raises into rospy
+                self.warnings.add(f"{topic}:{type(exc).__name__}",
+                                  f"{topic}: message ignored: {_one_line(exc)}")
+
+        self.subscribers.append(self.rospy.Subscriber(topic, cls, guarded, queue_size=10))
+
+    def _subscribe(self, toaster_simu: bool, pdg_lists: bool) -> None:
+        from geometry_msgs.msg import PoseStamped  # type: ignore[import-not-found]
+        from tf2_msgs.msg import TFMessage  # type: ignore[import-not-found]
+
+        reg = self.registry
+        for name in ("tf", "pose_topics", "ros4hri"):
+            self.source(name)
+        self._sub("/tf", TFMessage, self._on_tf)
+        self._sub("/tf_static", TFMessage, self._on_tf)
+        for topic, target in self.topics.items():
+            self._sub(topic, PoseStamped, self._on_pose, topic, target)
+        if toaster_simu:
+            for name, (topic, type_name) in SIMU_LISTS.items():
+                self._sub(topic, reg.msg(type_name), self._on_list, name)
+        if pdg_lists:
+            for topic, type_name, _ in PDG_LISTS.values():
+                self._sub(topic, reg.msg(type_name), self._on_list, "pdg_lists")
+        if self.ros4hri:
+            ids = reg.msg("hri_msgs/IdsList")
+            self._sub("/humans/bodies/tracked", ids, self._on_tracked, "body")
+            self._sub("/humans/faces/tracked", ids, self._on_tracked, "face")
+
+    def _own(self, msg: Any) -> bool:
+        header = getattr(msg, "_connection_header", None) or {}
+        return header.get("callerid") == self._caller
+
+    def _on_tf(self, msg: Any) -> None:
+        if self._own(msg):
+            return
+        changed, bad = self.tree.update(msg)
+        for line in bad:
+            self.warnings.add(line, f"/tf: {line}")
+        updates, lost = tf_updates(self.tree, self.frames, changed)
+        for update in updates:
+            self.push("tf", update)
+        if self.ros4hri:
+            hri = {f: t for f in self.tree.frames() if (t := self._hri(f)) is not None}
+            found, _ = tf_updates(self.tree, hri, changed)
+            for update in found:
+                self.push("ros4hri", update)
+        for frame in lost:
+            self.warnings.add(f"lost:{frame}", f"/tf: frame {frame!r} "
+                              f"({self.frames[frame].entity_id}) does not reach "
+                              f"{self.tree.fixed!r}: its pose is not known")
+
+    def _hri(self, frame: str) -> FrameTarget | None:
+        target = hri_target(frame)
+        if target is None:
+            return None
+        which = "body" if frame.startswith("body_") else "face"
+        tracked = self.tracked[which]
+        human = target.owner_id or target.entity_id
+        return target if tracked is None or human in tracked else None
+
+    def _on_tracked(self, msg: Any, which: str) -> None:
+        self.tracked[which] = tracked_ids(msg)
+
+    def _on_pose(self, msg: Any, topic: str, target: FrameTarget) -> None:
+        try:
+            update = pose_stamped_update(msg, target.entity_id, target.kind, tree=self.tree)
+        except ValueError as exc:
+            reason = " ".join(str(exc).split()[:2])  # one line per topic and kind of problem
+            self.warnings.add(f"pose:{topic}:{reason}", f"{topic}: pose ignored: {exc}")
+            return
+        self.push("pose_topics", update._replace(owner_id=target.owner_id,
+                                                 joint=target.joint))
+
+    def _on_list(self, msg: Any, source: str) -> None:
+        updates, bad = list_updates(msg)
+        for line in bad:
+            self.warnings.add(f"{source}:{line}", f"{source}: {line}")
+        for update in updates:
+            self.push(source, update)
+
+    # -- outputs and services ------------------------------------------------------------------
+    def _advertise(self) -> None:
+        from tf2_msgs.msg import TFMessage  # type: ignore[import-not-found]
+        from visualization_msgs.msg import MarkerArray  # type: ignore[import-not-found]
+
+        pub, reg = self.rospy.Publisher, self.registry
+        self.fact_pubs = {p: pub(f"/{p}/factList", reg.msg("FactList"), queue_size=10)
+                          for p in PRODUCERS}
+        self.area_pub = pub("/area_manager/areaList", reg.msg("AreaList"), queue_size=10)
+        self.tf_pub = pub("/tf", TFMessage, queue_size=100) if self.publish_tf else None
+        self.marker_pubs = ({t: pub(f"/toaster_visualizer/{t}", MarkerArray, queue_size=10)
+                             for t in MARKER_TOPICS} if self.markers else {})
+        self.list_pubs = ({k: pub(topic, reg.msg(type_name), queue_size=10)
+                           for k, (topic, type_name, _) in PDG_LISTS.items()}
+                          if self.publish_lists else {})
+
+    def _serve(self) -> None:
+        db = self.node.db
+        url = getattr(db, "url", "") if db is not None else ""
+        if not url or ":memory:" in url:
+            self.node.warn("ROS services are off: they need a database file or server that "
+                           "a second connection can open (not :memory:)")
+            return
+        self.pool = DbPool(url)
+        handlers = Handlers(self.pool, self.registry, lambda line: self.warnings.add(line, line),
+                            log=self.rospy.loginfo)
+        for name, type_name, handler in handlers.table():
+            srv = self.registry.srv(type_name)
+            self.services.append(self.rospy.Service(name, srv, self._guard(name, srv, handler)))
+
+    def _guard(self, name: str, srv: Any, handler: Any) -> Any:
+        def call(req: Any) -> Any:
+            resp = srv._response_class()
+            try:
+                return handler(req, resp)
+            except Exception as exc:  # a bad request fails this call only
+                line = f"{name}: {_one_line(exc)}"
+                self.warnings.add(line, line)
+                for field in ("answer", "boolAnswer"):
+                    if hasattr(resp, field):
+                        setattr(resp, field, False)
+                        return resp
+                raise self.rospy.ServiceException(line) from None
+        return call
+
+    def area_numbers(self, names: frozenset[str]) -> dict[str, int]:
+        """The original's numeric ids of the areas (re-read when the set of areas changes)."""
+        if names != self._area_numbers[0] and self.node.db is not None:
+            with self.node.db.transaction() as conn:
+                stored = catalog.get_setting(conn, AREA_SCOPE, AREA_KEY, {}) or {}
+            self._area_numbers = (names, {k: int(v) for k, v in stored.items()})
+        return self._area_numbers[1]
+
+    def shutdown(self) -> None:
+        """Stop subscribers, services and publishers; detach from the node."""
+        for sub in self.subscribers:
+            sub.unregister()
+        for srv in self.services:
+            srv.shutdown("toaster bridge stopped")
+        for pub in [*self.fact_pubs.values(), self.area_pub, self.tf_pub,
+                    *self.marker_pubs.values(), *self.list_pubs.values()]:
+            if pub is not None:
+                pub.unregister()
+        if self.output in self.node.outputs:
+            self.node.outputs.remove(self.output)
+        for source in self.sources.values():
+            if source in self.node.sources:
+                self.node.sources.remove(source)
+        if self.pool is not None:
+            self.pool.close()
+        self.rospy.signal_shutdown("toaster bridge stopped")
+
+
+class _Output:
+    """Publishes one tick: fact lists, TF, markers, areas and entity lists."""
+
+    def __init__(self, bridge: Bridge) -> None:
+        self.bridge = bridge
+
+    def publish(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None:
+        b = self.bridge
+        for line in b.warnings.drain():
+            b.node.warn(line)
+        reg = b.registry
+        fact_cls, fact_list = reg.msg("Fact"), reg.msg("FactList")
+        for producer, pub in b.fact_pubs.items():
+            if pub.get_num_connections():
+                pub.publish(fact_list(factList=[fact_cls(**fact_fields(f, t_ns))
+                                                for f in facts.get(producer, [])]))
+        if b.tf_pub is not None:
+            b.tf_pub.publish(self._tf(t_ns, world))
+        inside: dict[str, list[str]] = {}
+        for fact in facts.get("area_manager", []):
+            if fact.property in ("IsInArea", "IsInRoom", "IsAt"):
+                inside.setdefault(fact.target_id, []).append(fact.subject_id)
+        areas = b.node.areas.areas
+        if b.area_pub.get_num_connections():
+            numbers = b.area_numbers(frozenset(areas))
+            b.area_pub.publish(messages.to_msg(reg.msg("AreaList"), {"areaList": [
+                area_fields(name, spec, numbers.get(name, 0), inside.get(name, []))
+                for name, spec in sorted(areas.items())]}, reg))
+        self._markers(t_ns, facts, world, areas, set(inside))
+        if any(p.get_num_connections() for p in b.list_pubs.values()):
+            lists = markers.entity_list_fields(world, t_ns)
+            header = {"frame_id": "/map", "stamp": t_ns}
+            for kind, (_, type_name, field) in PDG_LISTS.items():
+                b.list_pubs[kind].publish(messages.to_msg(
+                    reg.msg(type_name), {"header": header, field: lists[kind]}, reg))
+
+    def _tf(self, t_ns: int, world: World) -> Any:
+        from geometry_msgs.msg import TransformStamped  # type: ignore[import-not-found]
+        from tf2_msgs.msg import TFMessage  # type: ignore[import-not-found]
+
+        stamp = self.bridge.rospy.Time(t_ns // 1_000_000_000, t_ns % 1_000_000_000)
+        out = []
+        for child, (x, y, z), (qx, qy, qz, qw), _ in markers.transforms(world):
+            tr = TransformStamped()
+            tr.header.frame_id, tr.header.stamp, tr.child_frame_id = "map", stamp, child
+            t, r = tr.transform.translation, tr.transform.rotation
+            t.x, t.y, t.z, r.x, r.y, r.z, r.w = x, y, z, qx, qy, qz, qw
+            out.append(tr)
+        return TFMessage(transforms=out)
+
+    def _markers(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World,
+                 areas: Mapping[str, Any], occupied: set[str]) -> None:
+        from visualization_msgs.msg import MarkerArray  # type: ignore[import-not-found]
+
+        pubs = self.bridge.marker_pubs
+        wanted = {t for t, p in pubs.items() if p.get_num_connections()}
+        if not wanted:
+            return
+        arrays: dict[str, list[dict[str, Any]]] = {}
+        if wanted & {"marker_object", "marker_human", "marker_robot"}:
+            arrays |= markers.entity_markers(world, t_ns)
+        if "marker_area" in wanted:
+            arrays["marker_area"] = markers.area_markers(world, areas, occupied, t_ns)
+        if "marker_motion" in wanted:
+            arrays["marker_motion"] = markers.motion_markers(
+                world, facts.get("agent_monitor", []), t_ns)
+        for topic in wanted:
+            pubs[topic].publish(messages.to_msg(MarkerArray, {"markers": arrays[topic]}))
+
+
+def start_bridge(node: Any, *, node_name: str = "toaster", tf_map: str | Path | Mapping[
+        str, Any] | None = None, pose_topics: Mapping[str, Any] | None = None,
+                 publish_tf: bool = True, markers: bool = True, **options: Any) -> Bridge:
+    """Connect a :class:`~toaster.live.LiveNode` to ROS 1 (a roscore must be running).
+
+    ``tf_map``: frame -> {id, kind, owner?, joint?} (a YAML/JSON file or a mapping) for
+    ``/tf``; ``pose_topics``: PoseStamped topic -> "id[:kind]". Other options:
+    ``fixed_frame`` ("map"), ``toaster_simu`` (read the toaster_simu lists, True),
+    ``pdg_lists`` (read /pdg lists instead of publishing them, False), ``publish_lists``
+    (True), ``ros4hri`` (True), ``services`` (True). rospy handles no signal: the live loop
+    stops on SIGINT/SIGTERM and the caller calls :meth:`Bridge.shutdown`.
+    """
+    rospy = import_rospy()
+    registry = messages.load()
+    frames = read_frame_map(tf_map)  # bad maps fail before anything starts
+    unknown = set(options) - {"fixed_frame", "toaster_simu", "pdg_lists", "publish_lists",
+                              "ros4hri", "services"}
+    if unknown:
+        msg = f"start_bridge: unknown option(s) {sorted(unknown)}"
+        raise InvalidInputError(msg)
+    root = logging.getLogger()
+    handlers, level = list(root.handlers), root.level
+    rospy.init_node(node_name, anonymous=False, disable_signals=True)
+    for handler in handlers:  # rospy's logging set-up replaces them: keep the caller's too
+        if handler not in root.handlers:
+            handler.setLevel(max(handler.level, level))  # without rospy's INFO chatter
+            root.addHandler(handler)
+    return Bridge(node, rospy, registry, tf_map=frames, pose_topics=pose_topics,
+                  publish_tf=publish_tf, markers=markers, **options)

@@ -1,0 +1,273 @@
+"""Database side of the services: the library calls behind database_manager's execute,
+get_info and set_info, the original's numeric area ids, and node commands waited for.
+
+Plain toaster code (no rospy): results are dicts of toaster_msgs fields.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Iterable
+from typing import Any
+
+from sqlalchemy import text
+
+from toaster import queries as q
+from toaster.db import catalog
+from toaster.errors import InvalidInputError
+from toaster.live import control
+from toaster.model import Entity, EventRow, Fact, FactRow
+from toaster.ros1.mapping import fact_fields, fact_from_msg
+
+AREA_SCOPE, AREA_KEY = "ros1", "area_ids"  # {area name: the original's numeric id}
+
+
+def control_state(db: Any) -> control.ControlState:
+    """The stored control state (monitored agents, streams, held objects)."""
+    with db.transaction() as conn:
+        return control.read_state(conn)
+
+
+def run_command(db: Any, kind: str, args: dict[str, Any], wait_s: float) -> str | None:
+    """Queue a node command; wait up to ``wait_s`` for it. The node's error, else None (also
+    when no node took it in time: it stays queued for the next node)."""
+    command_id = control.submit(db, kind, args)
+    deadline = time.monotonic() + wait_s
+    while time.monotonic() < deadline:
+        with db.transaction() as conn:
+            row = conn.execute(text("SELECT state, answer_json FROM control_commands "
+                                    "WHERE id = :id"), {"id": command_id}).one_or_none()
+        if row is None or row.state == "done":
+            return None
+        if row.state == "failed":
+            return str(json.loads(row.answer_json or '""'))
+        time.sleep(0.01)
+    return None
+
+
+# -- the original's numeric area ids -----------------------------------------------------------
+def area_numbers(db: Any) -> dict[str, int]:
+    """{area name: number} for every stored area (areas made elsewhere get the first free
+    numbers, kept from then on)."""
+    with db.transaction(write=True) as conn:
+        numbers = dict(catalog.get_setting(conn, AREA_SCOPE, AREA_KEY, {}) or {})
+        names = set(catalog.areas(conn))
+        numbers = {name: int(n) for name, n in numbers.items() if name in names}
+        for name in sorted(names - set(numbers)):
+            numbers[name] = _first_free(numbers.values())
+        catalog.put_setting(conn, AREA_SCOPE, AREA_KEY, numbers)
+    return numbers
+
+
+def _first_free(used: Iterable[int]) -> int:
+    taken, n = set(used), 1
+    while n in taken:
+        n += 1
+    return n
+
+
+def area_number(db: Any, requested: int, name: str) -> int:
+    """The number an added area gets: the one asked for, the one its name has, else the first
+    free one (the original's id 0)."""
+    numbers = area_numbers(db)
+    if requested > 0:
+        return requested
+    return numbers.get(name) or _first_free(numbers.values())
+
+
+def area_name(db: Any, number: int) -> str | None:
+    """The name of the area with that number."""
+    return next((name for name, n in area_numbers(db).items() if n == number), None)
+
+
+def put_area(db: Any, name: str, spec: dict[str, Any], number: int) -> None:
+    """Store an area under its name; an area that had the same number is replaced (as the
+    original's add_area with an existing id)."""
+    numbers = area_numbers(db)
+    with db.transaction(write=True) as conn:
+        for other, n in list(numbers.items()):
+            if n == number and other != name:
+                catalog.remove_area(conn, other)
+                del numbers[other]
+        catalog.put_area(conn, name, spec, spec.get("owner", ""))
+        numbers[name] = number
+        catalog.put_setting(conn, AREA_SCOPE, AREA_KEY, numbers)
+
+
+def forget_area(db: Any, name: str | None) -> None:
+    """Drop one area's number (None: all of them)."""
+    with db.transaction(write=True) as conn:
+        numbers = dict(catalog.get_setting(conn, AREA_SCOPE, AREA_KEY, {}) or {})
+        numbers = {} if name is None else {k: v for k, v in numbers.items() if k != name}
+        catalog.put_setting(conn, AREA_SCOPE, AREA_KEY, numbers)
+
+
+# -- rows as message fields ---------------------------------------------------------------------
+def row_fields(row: FactRow) -> dict[str, Any]:
+    """toaster_msgs/Fact fields of a stored interval (timeEnd 0 while it holds)."""
+    out = fact_fields(row.to_fact(), row.valid_from_ns)
+    out["timeEnd"] = row.valid_to_ns or 0
+    return out
+
+
+def event_fields(row: EventRow) -> dict[str, Any]:
+    """toaster_msgs/Event fields; an ended fact is "!property", as the original wrote it."""
+    fact = Fact(row.subject_id, row.property, row.target_id, row.value_text or "",
+                row.value_num, row.confidence if row.confidence is not None else 1.0,
+                row.observability if row.observability is not None else 1.0,
+                row.property_type, row.sub_property, row.subject_owner_id, row.target_owner_id)
+    out = fact_fields(fact, row.stamp_ns)
+    if row.kind == "ended":
+        out["property"] = "!" + row.property
+    for key in ("timeStart", "timeEnd"):
+        del out[key]
+    return out
+
+
+def id_fields(entity: Entity) -> dict[str, Any]:
+    return {"id": entity.id, "name": entity.name, "type": entity.kind,
+            "owner_id": entity.owner_id}
+
+
+def _number(value: str) -> int:
+    return int(value) if value.isdigit() and int(value) < 2**32 else 0
+
+
+def property_fields(db: Any, entity_id: str | None) -> list[dict[str, Any]]:
+    """Static properties as toaster_msgs/Property (one per entity; known keys only)."""
+    grouped: dict[str, dict[str, str]] = {}
+    for row in q.properties(db, entity_id):
+        grouped.setdefault(row.entity_id, {})[row.key] = str(row.value)
+    return [{"id": _number(eid), "color": p.get("color", ""), "height": p.get("height", ""),
+             "linkedToId": _number(p.get("linkedToId", "")), "linkType": p.get("linkType", "")}
+            for eid, p in grouped.items()]
+
+
+# -- database_manager ---------------------------------------------------------------------------
+def _agent(db: Any, agent: str) -> str:
+    store = db.store()
+    return store.check_agent(agent) if agent else store.self_agent(
+        "give agentId (no single self agent)")
+
+
+def _facts(db: Any, req: Any, sub: str) -> list[dict[str, Any]]:
+    agent = _agent(db, req.agentId)
+    if sub == "VALUE":
+        f = req.reqFact
+        row = q.fact_value(db, agent, f.subjectId, f.property, f.targetId,
+                           sub_property=f.subProperty or None,
+                           subject_owner=f.subjectOwnerId or None,
+                           target_owner=f.targetOwnerId or None)
+        return [row_fields(row)] if row else []
+    reader = {"ALL": q.history, "CURRENT": q.current_facts, "OLD": q.memory}.get(sub)
+    if reader is None:
+        msg = f"get_info FACT {sub}: use ALL, CURRENT, OLD or VALUE"
+        raise InvalidInputError(msg)
+    return [row_fields(r) for r in reader(db, agent)]
+
+
+def _events(db: Any, req: Any, sub: str) -> list[dict[str, Any]]:
+    agent = req.agentId or None
+    if sub == "VALUE":
+        e = req.reqEvent
+        rows = q.events(db, agent, subject=e.subjectId or None, target=e.targetId or None,
+                        property=e.property.lstrip("!") or None, limit=1)
+    else:
+        rows = q.events(db, agent)
+    return [event_fields(r) for r in rows]
+
+
+def _ontology(db: Any, req: Any, sub: str) -> list[dict[str, Any]]:
+    if sub == "LEAVE":
+        rows = q.descendants(db, req.entityClass)
+    else:
+        rows = q.ontology(db, req.entityClass if sub == "VALUE" else None)
+    return [{"entityClass": r.entity_class, "individual": r.individual,
+             "instantiated": r.instantiated} for r in rows]
+
+
+def _ids(db: Any, req: Any, sub: str) -> list[dict[str, Any]]:
+    if sub == "VALUE":
+        return [id_fields(e) for e in q.entities(db, req.idString or None,
+                                                 name=req.name or None)]
+    return [id_fields(e) for e in q.entities(db)]
+
+
+def get_info(db: Any, req: Any) -> dict[str, list[dict[str, Any]]]:
+    """The original's get_info by type and subType (FACT, EVENT, ONTOLOGY, ID/ENTITY, AGENT,
+    PROPERTY)."""
+    kind, sub = str(req.type).upper(), (str(req.subType).upper() or "ALL")
+    if kind == "FACT":
+        return {"facts": _facts(db, req, sub)}
+    if kind == "EVENT":
+        return {"events": _events(db, req, sub)}
+    if kind == "ONTOLOGY":
+        return {"ontology": _ontology(db, req, sub)}
+    if kind in ("ID", "ENTITY"):
+        return {"ids": _ids(db, req, sub)}
+    if kind == "AGENT":
+        agents = {a.id for a in q.agents(db)}
+        return {"ids": [id_fields(e) for e in q.entities(db) if e.id in agents]}
+    if kind == "PROPERTY":
+        wanted = (req.idString or (str(req.id) if req.id else None)) if sub == "VALUE" else None
+        return {"properties": property_fields(db, wanted)}
+    msg = f"get_info type {req.type!r}: use FACT, EVENT, ONTOLOGY, ID, AGENT or PROPERTY"
+    raise InvalidInputError(msg)
+
+
+def set_info(db: Any, req: Any) -> None:
+    """The original's set_info: ENTITY, FACT (add or remove; "NULL" wildcards), EVENT."""
+    store = db.store()
+    kind = str(req.infoType).upper()
+    if kind == "ENTITY":
+        store.add_entity(req.id, req.type or "object", req.name, req.ownerId)
+        return
+    if kind not in ("FACT", "EVENT"):
+        msg = f"set_info {req.infoType!r}: use ENTITY, FACT or EVENT"
+        raise InvalidInputError(msg)
+    if req.agentId == "PLANNING":
+        msg = "set_info: the PLANNING table is not kept by toaster"
+        raise InvalidInputError(msg)
+    agent = _agent(db, req.agentId)
+    if kind == "EVENT":
+        store.record_event(agent, fact_from_msg(req.event), t_ns=int(req.event.time) or None)
+        return
+    for f in req.facts:
+        if req.add:
+            store.assert_fact(agent, fact_from_msg(f), t_ns=int(f.time) or None, source="ros",
+                              strict=False)
+        else:
+            store.retract_facts(agent, f.property, f.subjectId or None, f.targetId or None,
+                                sub_property=f.subProperty or None,
+                                subject_owner_id=f.subjectOwnerId or None,
+                                target_owner_id=f.targetOwnerId or None, source="ros")
+
+
+def execute(db: Any, req: Any) -> tuple[bool, list[str]]:
+    """The original's execute: SQL (read-only here), ARE_IN_TABLE, EMPTY, PRINT."""
+    command = str(req.command).upper()
+    if command == "SQL":
+        result = q.execute(db, req.order)
+        return True, ["NULL" if v is None else str(v) for row in result.rows for v in row]
+    if command == "ARE_IN_TABLE":
+        facts = [Fact(f.subjectId, f.property, f.targetId, sub_property=f.subProperty,
+                      property_type=f.propertyType) for f in req.facts]
+        answers = q.are_in_table(db, _agent(db, req.agent), facts)
+        if str(req.type).upper() == "INDIV":
+            return True, ["true" if a else "false" for a in answers]
+        return all(answers), []
+    if command == "EMPTY":
+        scope = str(req.type).upper()
+        if scope not in ("ALL", "AGENT"):
+            msg = f"execute EMPTY {req.type!r}: use ALL or AGENT"
+            raise InvalidInputError(msg)
+        db.store().empty(_agent(db, req.agent) if scope == "AGENT" else None)
+        return True, []
+    if command == "PRINT":
+        agent = _agent(db, req.agent) if str(req.type).upper() == "AGENT" else None
+        return True, [f"{r.agent_id} {r.subject_id} {r.property} {r.target_id} {r.value_text}"
+                      for r in q.current_facts(db, agent)]
+    msg = (f"execute {req.command!r}: use SQL, ARE_IN_TABLE, EMPTY or PRINT (toaster stores "
+           "every producer's facts, so SET_TOPICS and RESET_TABLES have no equivalent)")
+    raise InvalidInputError(msg)

@@ -1,0 +1,417 @@
+"""Pure mapping between ROS messages and toaster values (no rospy import).
+
+Everything here is duck-typed on message attributes, so a ROS 2 transport or a bag reader can
+reuse it: stamps with ``secs``/``nsecs`` (ROS 1) or ``sec``/``nanosec`` (ROS 2), ``/tf``
+transforms through a frame map and a small transform tree, ``PoseStamped`` per entity, the
+original's HumanListStamped / RobotListStamped / ObjectListStamped (pdg, toaster_simu),
+ROS4HRI (REP-155) ``body_<id>`` / ``face_<id>`` frames, and facts and areas as the fields of
+toaster_msgs/Fact and toaster_msgs/Area (plain dicts; the transport builds the messages).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import threading
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from toaster.errors import InvalidInputError
+from toaster.model import Fact
+
+FIXED_FRAME = "map"
+ENTITY_KINDS = ("human", "robot", "object", "joint")
+Vec = tuple[float, float, float]
+Quat = tuple[float, float, float, float]  # x, y, z, w
+IDENTITY: Quat = (0.0, 0.0, 0.0, 1.0)
+
+
+class PoseUpdate(NamedTuple):
+    """One pose for a LiveSource push: world position, quaternion (x, y, z, w), stamp (None:
+    now); joints carry their agent (``owner_id``) and skeleton name (``joint``)."""
+
+    entity_id: str
+    kind: str
+    position: Vec
+    quat: Quat
+    t_ns: int | None
+    owner_id: str = ""
+    joint: str = ""
+
+
+class FrameTarget(NamedTuple):
+    """What a TF frame is: an entity, or a joint of an agent."""
+
+    entity_id: str
+    kind: str
+    owner_id: str = ""
+    joint: str = ""
+
+
+# -- stamps and small maths ---------------------------------------------------------------------
+def stamp_ns(stamp: Any) -> int:
+    """ns since the epoch of a ROS 1 (secs/nsecs) or ROS 2 (sec/nanosec) stamp, or an int."""
+    if stamp is None:
+        return 0
+    if isinstance(stamp, int):
+        return stamp
+    if hasattr(stamp, "secs"):
+        return int(stamp.secs) * 1_000_000_000 + int(stamp.nsecs)
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def quat_mul(a: Quat, b: Quat) -> Quat:
+    """Hamilton product a·b of (x, y, z, w) quaternions."""
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
+
+
+def rotate(q: Quat, v: Vec) -> Vec:
+    """Vector ``v`` rotated by the unit quaternion ``q``."""
+    x, y, z, _ = quat_mul(quat_mul(q, (v[0], v[1], v[2], 0.0)), (-q[0], -q[1], -q[2], q[3]))
+    return (x, y, z)
+
+
+def normalised(q: Quat) -> Quat:
+    """``q`` of unit length; ValueError for a zero or non-finite quaternion."""
+    norm = math.sqrt(sum(c * c for c in q))
+    if not math.isfinite(norm) or norm == 0.0:
+        msg = f"quaternion {q} has no orientation: give a non-zero quaternion"
+        raise ValueError(msg)
+    return (q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm)
+
+
+def rpy_to_quat(roll: float, pitch: float, yaw: float) -> Quat:
+    """Quaternion (x, y, z, w) of roll, pitch, yaw (ZYX, as ROS)."""
+    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+    return (sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy)
+
+
+def vec(p: Any) -> Vec:
+    """(x, y, z) of a Point / Vector3; ValueError when not finite."""
+    out = (float(p.x), float(p.y), float(p.z))
+    if not all(math.isfinite(c) for c in out):
+        msg = f"position {list(out)} must be finite numbers (metres)"
+        raise ValueError(msg)
+    return out
+
+
+def quat(q: Any) -> Quat:
+    """(x, y, z, w) of a Quaternion; an all-zero quaternion (a message default) is identity."""
+    out = (float(q.x), float(q.y), float(q.z), float(q.w))
+    if out == (0.0, 0.0, 0.0, 0.0):
+        return IDENTITY
+    return normalised(out)
+
+
+def strip_frame(frame: str) -> str:
+    """A frame id without its leading slash (tf2 drops it too)."""
+    return frame.lstrip("/")
+
+
+# -- frame map ----------------------------------------------------------------------------------
+def read_frame_map(source: str | Path | Mapping[str, Any] | None) -> dict[str, FrameTarget]:
+    """Frame -> target from a YAML/JSON file or a mapping ``{frame: {id, kind, owner?, joint?}}``
+    (also accepted under a top-level ``frames:`` key). A joint needs ``owner`` (its agent);
+    its id is ``<owner>/<joint>`` and ``joint`` defaults to ``id``."""
+    if source is None:
+        return {}
+    if isinstance(source, str | Path):
+        path = Path(source)
+        try:
+            text = path.read_text()
+        except OSError as exc:
+            msg = f"cannot read the frame map {str(path)!r}: {exc.strerror}"
+            raise InvalidInputError(msg) from None
+        data = _parse_map_text(text, path)
+    else:
+        data = source
+    if isinstance(data, Mapping) and isinstance(data.get("frames"), Mapping):
+        data = data["frames"]
+    if not isinstance(data, Mapping):
+        msg = "the frame map must be a mapping {frame: {id, kind, owner?, joint?}}"
+        raise InvalidInputError(msg)
+    return {strip_frame(str(frame)): frame_target(str(frame), entry)
+            for frame, entry in data.items()}
+
+
+def _parse_map_text(text: str, path: Path) -> Any:
+    import yaml  # type: ignore[import-untyped]
+
+    try:
+        return json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
+    except (ValueError, yaml.YAMLError) as exc:
+        first = str(exc).splitlines()[0]
+        msg = f"the frame map {str(path)!r} is not valid YAML/JSON: {first}"
+        raise InvalidInputError(msg) from None
+
+
+def frame_target(frame: str, entry: Any) -> FrameTarget:
+    """One frame-map entry (a mapping, or a bare entity id meaning an object)."""
+    if isinstance(entry, FrameTarget):
+        return entry
+    if isinstance(entry, str):
+        entry = {"id": entry}
+    if not isinstance(entry, Mapping):
+        msg = f"frame {frame!r}: give {{id, kind, owner?, joint?}}, not {entry!r}"
+        raise InvalidInputError(msg)
+    kind = str(entry.get("kind", "object")).lower()
+    if kind not in ENTITY_KINDS:
+        msg = f"frame {frame!r}: unknown kind {kind!r} (use {', '.join(ENTITY_KINDS)})"
+        raise InvalidInputError(msg)
+    owner = str(entry.get("owner", "") or "")
+    if kind == "joint":
+        joint = str(entry.get("joint") or entry.get("id") or "")
+        if not owner or not joint:
+            msg = f"frame {frame!r}: a joint needs owner (its agent) and joint (or id)"
+            raise InvalidInputError(msg)
+        return FrameTarget(f"{owner}/{joint}", "joint", owner, joint)
+    entity_id = str(entry.get("id") or "")
+    if not entity_id:
+        msg = f"frame {frame!r}: missing id"
+        raise InvalidInputError(msg)
+    return FrameTarget(entity_id, kind)
+
+
+def hri_target(frame: str) -> FrameTarget | None:
+    """ROS4HRI frames: ``body_<id>`` is human ``<id>``, ``face_<id>`` its ``head`` joint."""
+    if frame.startswith("body_") and len(frame) > 5:
+        return FrameTarget(frame[5:], "human")
+    if frame.startswith("face_") and len(frame) > 5:
+        human = frame[5:]
+        return FrameTarget(f"{human}/head", "joint", human, "head")
+    return None
+
+
+def tracked_ids(msg: Any) -> set[str]:
+    """The ids of an hri_msgs/IdsList."""
+    return {str(i) for i in msg.ids}
+
+
+# -- transform tree -----------------------------------------------------------------------------
+class TfTree:
+    """The newest transform per child frame; poses composed up to the fixed frame.
+
+    Thread-safe (``/tf`` and ``/tf_static`` arrive on different threads).
+    """
+
+    MAX_DEPTH = 64
+
+    def __init__(self, fixed_frame: str = FIXED_FRAME) -> None:
+        self.fixed = strip_frame(fixed_frame)
+        self._edges: dict[str, tuple[str, Vec, Quat, int]] = {}
+        self._lock = threading.Lock()
+
+    def update(self, msg: Any) -> tuple[set[str], list[str]]:
+        """Store the transforms of a TFMessage; return (children set, one line per bad one)."""
+        changed: set[str] = set()
+        bad: list[str] = []
+        with self._lock:
+            for tr in msg.transforms:
+                child = strip_frame(tr.child_frame_id)
+                parent = strip_frame(tr.header.frame_id)
+                try:
+                    t, q = vec(tr.transform.translation), quat(tr.transform.rotation)
+                except ValueError as exc:
+                    bad.append(f"transform {parent} -> {child} ignored: {exc}")
+                    continue
+                if not child or child == parent:
+                    bad.append(f"transform {parent!r} -> {child!r} ignored: not a tree edge")
+                    continue
+                self._edges[child] = (parent, t, q, stamp_ns(tr.header.stamp))
+                changed.add(child)
+        return changed, bad
+
+    def chain(self, frame: str) -> list[str]:
+        """Frames from ``frame`` up to its root (``frame`` first)."""
+        out, current = [frame], frame
+        with self._lock:
+            while current in self._edges and len(out) <= self.MAX_DEPTH:
+                current = self._edges[current][0]
+                out.append(current)
+        return out
+
+    def lookup(self, frame: str) -> tuple[Vec, Quat, int | None] | None:
+        """Pose of ``frame`` in the fixed frame and its newest stamp (None when all stamps
+        are 0, as static transforms); None when no chain of transforms reaches the fixed
+        frame."""
+        frame = strip_frame(frame)
+        t: Vec = (0.0, 0.0, 0.0)
+        q: Quat = IDENTITY
+        newest = 0
+        current = frame
+        with self._lock:
+            for _ in range(self.MAX_DEPTH):
+                if current == self.fixed:
+                    return t, q, (newest or None)
+                edge = self._edges.get(current)
+                if edge is None:
+                    return None
+                parent, et, eq, stamp = edge
+                r = rotate(eq, t)
+                t = (et[0] + r[0], et[1] + r[1], et[2] + r[2])
+                q = quat_mul(eq, q)
+                newest = max(newest, stamp)
+                current = parent
+        return None
+
+    def frames(self) -> list[str]:
+        """Every child frame known."""
+        with self._lock:
+            return list(self._edges)
+
+
+def tf_updates(tree: TfTree, targets: Mapping[str, FrameTarget], changed: Iterable[str]
+               ) -> tuple[list[PoseUpdate], list[str]]:
+    """Poses of the mapped frames whose chain contains a changed frame, and the mapped frames
+    that do not reach the fixed frame."""
+    changed = set(changed)
+    updates: list[PoseUpdate] = []
+    lost: list[str] = []
+    for frame, target in targets.items():
+        if not changed.intersection(tree.chain(frame)):
+            continue
+        found = tree.lookup(frame)
+        if found is None:
+            lost.append(frame)
+            continue
+        position, q, t_ns = found
+        updates.append(PoseUpdate(target.entity_id, target.kind, position, q, t_ns,
+                                  target.owner_id, target.joint))
+    return updates, lost
+
+
+def pose_stamped_update(msg: Any, entity_id: str, kind: str = "object", *,
+                        tree: TfTree | None = None, fixed_frame: str = FIXED_FRAME) -> PoseUpdate:
+    """A PoseStamped as the entity's world pose; a frame other than the fixed one is composed
+    through ``tree``. ValueError for non-finite numbers or a frame that does not reach it."""
+    position, q = vec(msg.pose.position), quat(msg.pose.orientation)
+    frame = strip_frame(msg.header.frame_id)
+    t_ns = stamp_ns(msg.header.stamp) or None
+    if frame and frame != strip_frame(fixed_frame):
+        found = tree.lookup(frame) if tree is not None else None
+        if found is None:
+            msg_text = f"frame {frame!r} does not reach {fixed_frame!r} through /tf"
+            raise ValueError(msg_text)
+        ft, fq, _ = found
+        r = rotate(fq, position)
+        position, q = (ft[0] + r[0], ft[1] + r[1], ft[2] + r[2]), quat_mul(fq, q)
+    return PoseUpdate(entity_id, kind, position, q, t_ns)
+
+
+# -- the original's entity lists ----------------------------------------------------------------
+def _entity_update(entity: Any, kind: str, header_ns: int, owner: str = "",
+                   joint: str = "", entity_id: str | None = None) -> PoseUpdate:
+    t_ns = int(entity.time) or header_ns or None
+    return PoseUpdate(entity_id or str(entity.id), kind, vec(entity.pose.position),
+                      quat(entity.pose.orientation), t_ns, owner, joint)
+
+
+def agent_updates(agent: Any, kind: str, header_ns: int) -> list[PoseUpdate]:
+    """An Agent (meAgent of a Human / Robot) and its skeleton joints."""
+    me = agent.meEntity
+    agent_id = str(me.id)
+    out = [_entity_update(me, kind, header_ns)]
+    names = list(agent.skeletonNames)
+    for i, joint in enumerate(agent.skeletonJoint):
+        name = (names[i] if i < len(names) and names[i] else
+                str(joint.meEntity.name or joint.meEntity.id))
+        out.append(_entity_update(joint.meEntity, "joint", header_ns, agent_id, name,
+                                  f"{agent_id}/{name}"))
+    return out
+
+
+def list_updates(msg: Any) -> tuple[list[PoseUpdate], list[str]]:
+    """Poses of a HumanListStamped, RobotListStamped or ObjectListStamped (one bad entity
+    is skipped with a line saying why)."""
+    header_ns = stamp_ns(msg.header.stamp)
+    updates: list[PoseUpdate] = []
+    bad: list[str] = []
+    items: list[tuple[str, Any]] = (
+        [("human", h.meAgent) for h in getattr(msg, "humanList", ())]
+        + [("robot", r.meAgent) for r in getattr(msg, "robotList", ())]
+        + [("object", o) for o in getattr(msg, "objectList", ())])
+    for kind, item in items:
+        try:
+            if kind == "object":
+                updates.append(_entity_update(item.meEntity, "object", header_ns))
+            else:
+                updates.extend(agent_updates(item, kind, header_ns))
+        except ValueError as exc:
+            entity = item.meEntity
+            bad.append(f"{kind} {entity.id!r} ignored: {exc}")
+    return updates, bad
+
+
+# -- facts and areas ----------------------------------------------------------------------------
+def fact_fields(fact: Fact, t_ns: int) -> dict[str, Any]:
+    """toaster_msgs/Fact fields of a fact held at ``t_ns`` (valueType 1 when it has a
+    number)."""
+    num = fact.value_num
+    has_num = num is not None
+    return {"property": fact.property, "propertyType": fact.property_type,
+            "subProperty": fact.sub_property, "subjectId": fact.subject_id,
+            "targetId": fact.target_id, "subjectOwnerId": fact.subject_owner_id,
+            "targetOwnerId": fact.target_owner_id, "valueType": has_num,
+            "factObservability": float(fact.observability),
+            "doubleValue": float(num) if num is not None else 0.0,
+            "stringValue": fact.value_text, "confidence": float(fact.confidence),
+            "time": t_ns, "timeStart": t_ns, "timeEnd": 0}
+
+
+def fact_from_msg(msg: Any) -> Fact:
+    """A toaster Fact from a toaster_msgs/Fact (or Event): a number only when valueType is
+    1; an empty string value means "true"."""
+    return Fact(str(msg.subjectId), str(msg.property), str(msg.targetId),
+                str(msg.stringValue) or "true",
+                float(msg.doubleValue) if msg.valueType else None,
+                float(msg.confidence), float(msg.factObservability), str(msg.propertyType),
+                str(msg.subProperty), str(msg.subjectOwnerId), str(msg.targetOwnerId))
+
+
+def area_from_msg(msg: Any) -> tuple[str, dict[str, Any]]:
+    """(name, spec) of a toaster_msgs/Area, as the original read it: zmin = zmax = 0 and a
+    circle's height 0 mean no vertical band; factType interaction / density."""
+    from toaster.producers.areas import area_from_original, normalize_area
+
+    record = {"name": str(msg.name), "myOwner": str(msg.myOwner), "areaType": str(msg.areaType),
+              "factType": str(msg.factType), "entityType": str(msg.entityType),
+              "isCircle": bool(msg.isCircle), "ray": float(msg.ray),
+              "center": {"x": float(msg.center.x), "y": float(msg.center.y)},
+              "poly": [[float(p.x), float(p.y)] for p in msg.poly.points],
+              "zmin": float(msg.zmin), "zmax": float(msg.zmax)}
+    name, spec = area_from_original(record)
+    extra: dict[str, Any] = {"enter_hysteresis": float(msg.enterHysteresis),
+                             "leave_hysteresis": float(msg.leaveHysteresis)}
+    if msg.isCircle and float(msg.height) > 0:
+        extra |= {"center": [float(msg.center.x), float(msg.center.y), float(msg.center.z)],
+                  "height": float(msg.height)}
+    return name, normalize_area(name, {**spec, **extra})
+
+
+def area_fields(area_id: str, spec: Mapping[str, Any], number: int,
+                inside: Iterable[str] = ()) -> dict[str, Any]:
+    """toaster_msgs/Area fields (nested dicts) of a stored area spec."""
+    circle = spec.get("shape") == "circle"
+    center = [*spec.get("center", [0.0, 0.0]), 0.0][:3]
+    z_min, z_max = spec.get("z_min"), spec.get("z_max")
+    facts = list(spec.get("facts") or [])
+    return {
+        "id": number, "name": area_id, "myOwner": spec.get("owner", ""),
+        "areaType": spec.get("area_type", ""), "factType": facts[0] if facts else "",
+        "entityType": " ".join(spec.get("entity_types") or ["entities"]), "isCircle": circle,
+        "center": {"x": center[0], "y": center[1], "z": center[2]},
+        "ray": float(spec.get("radius") or 0.0), "height": float(spec.get("height") or 0.0),
+        "poly": {"points": [{"x": p[0], "y": p[1], "z": 0.0} for p in spec.get("points", [])]},
+        "zmin": float(z_min) if z_min is not None else 0.0,
+        "zmax": float(z_max) if z_max is not None else 0.0,
+        "enterHysteresis": float(spec.get("enter_hysteresis") or 0.0),
+        "leaveHysteresis": float(spec.get("leave_hysteresis") or 0.0),
+        "insideEntities_": sorted(inside), "upcomingEntities_": [], "leavingEntities_": [],
+    }

@@ -1,0 +1,370 @@
+"""The original's services, each a thin call into the control plane or the store.
+
+Handlers run on rospy's threads, so they never touch the node's world or its database
+handle: each call borrows a connection of its own (:class:`DbPool`); queries about the world
+go through :func:`toaster.live.control.ask`, which the node answers between two ticks. A bad
+request gives one warning line and a failed answer (``answer``/``boolAnswer`` false, or a
+service error for the services whose response is empty), never an exception in the node.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
+
+from toaster.live import control
+from toaster.ros1 import dbcalls
+from toaster.ros1.mapping import area_from_msg, quat, vec
+from toaster.ros1.messages import to_msg
+
+#: manage_stream flags (toaster_msgs/AddStream) -> toaster's ROS input streams
+STREAM_FLAGS = {
+    "tf": ("morseHuman", "pr2Robot", "spencerRobot"),
+    "pose_topics": ("mocapObject", "adreamMocapHuman"),
+    "ros4hri": ("mocapHuman", "groupHuman", "niutHuman"),
+    "toaster_simu_human": ("toasterSimuHuman",),
+    "toaster_simu_robot": ("toasterSimuRobot",),
+    "toaster_simu_object": ("toasterSimuObject",),
+}
+CLASS_OF = {"monitor_all_agents": "agents", "monitor_all_humans": "humans",
+            "monitor_all_robots": "robots"}
+AREA_IDS = ("ros1", "area_ids")  # settings scope and key: {area name: the original's number}
+
+
+class DbPool:
+    """Connections to the node's database for service threads (one per concurrent call)."""
+
+    def __init__(self, url: str) -> None:
+        self.url = url
+        self._free: list[Any] = []
+        self._all: list[Any] = []
+        self._lock = threading.Lock()
+
+    @contextmanager
+    def db(self) -> Iterator[Any]:
+        """Borrow a connection."""
+        import toaster
+
+        with self._lock:
+            db = self._free.pop() if self._free else None
+        if db is None:
+            db = toaster.connect(self.url)
+            with self._lock:
+                self._all.append(db)
+        try:
+            yield db
+        finally:
+            with self._lock:
+                self._free.append(db)
+
+    def close(self) -> None:
+        """Close every connection."""
+        with self._lock:
+            for db in self._all:
+                db.close()
+            self._all, self._free = [], []
+
+
+class ServiceError(Exception):
+    """A request refused with a one-line reason."""
+
+
+def _pose_args(req: Any) -> dict[str, Any]:
+    from toaster.world.live import quaternion_to_rpy
+
+    try:
+        position, q = vec(req.pose.position), quat(req.pose.orientation)
+    except ValueError as exc:
+        msg = f"pose of {req.id!r} refused: {exc}"
+        raise ServiceError(msg) from None
+    return {"position": list(position), "rpy": list(quaternion_to_rpy(*q))}
+
+
+def _entity_id(req: Any, kind: str) -> str:
+    """Joints are named "<agent>/<joint>" in toaster."""
+    if not req.id:
+        msg = "an entity id is required"
+        raise ServiceError(msg)
+    if kind == "joint":
+        if not req.ownerId:
+            msg = f"joint {req.id!r} needs its agent (ownerId)"
+            raise ServiceError(msg)
+        return f"{req.ownerId}/{req.id}"
+    return str(req.id)
+
+
+class Handlers:
+    """Service handlers over a connection pool; ``ask_timeout`` bounds world queries."""
+
+    def __init__(self, pool: DbPool, registry: Any, warn: Callable[[str], None], *,
+                 ask_timeout: float = 2.0, log: Callable[[str], None] | None = None) -> None:
+        self.pool = pool
+        self.registry = registry
+        self.warn = warn
+        self.ask_timeout = ask_timeout
+        self.log = log or warn
+
+    def _ask(self, kind: str, args: dict[str, Any]) -> Any:
+        with self.pool.db() as db:
+            return control.ask(db, kind, args, self.ask_timeout)
+
+    def _command(self, kind: str, args: dict[str, Any], wait_s: float = 1.0) -> None:
+        """Queue a node command and wait (briefly) for its outcome; a failure raises."""
+        with self.pool.db() as db:
+            error = dbcalls.run_command(db, kind, args, wait_s)
+        if error:
+            msg = f"{kind} {args.get('id', '')!r}: {error}"
+            raise ServiceError(msg)
+
+    # -- pdg -----------------------------------------------------------------------------------
+    def manage_stream(self, req: Any, resp: Any) -> Any:
+        with self.pool.db() as db:
+            for name, flags in STREAM_FLAGS.items():
+                control.set_stream(db, name, any(bool(getattr(req, f)) for f in flags))
+        return resp
+
+    def put_in_hand(self, req: Any, resp: Any) -> Any:
+        with self.pool.db() as db:
+            control.put_in_hand(db, req.objectId, req.agentId, req.jointName)
+        return resp
+
+    def remove_from_hand(self, req: Any, resp: Any) -> Any:
+        with self.pool.db() as db:
+            if not control.remove_from_hand(db, req.objectId):
+                self.warn(f"remove_from_hand: {req.objectId!r} was in no hand")
+        return resp
+
+    def set_entity_pose(self, req: Any, resp: Any) -> Any:
+        kind = str(req.type).lower() or "object"
+        entity_id = _entity_id(req, kind)
+        args = {"id": entity_id, "kind": kind, **_pose_args(req)}
+        if kind == "joint":
+            args |= {"owner_id": req.ownerId, "joint": req.id}
+        self._command("set_entity_pose", args)
+        resp.answer = True
+        return resp
+
+    # -- toaster_simu --------------------------------------------------------------------------
+    def add_entity(self, req: Any, resp: Any) -> Any:
+        kind = str(req.type).lower()
+        if kind not in ("human", "robot", "object", "joint"):
+            msg = f"add_entity {req.id!r}: type {req.type!r} is not object, human, robot or joint"
+            raise ServiceError(msg)
+        entity_id = _entity_id(req, kind)
+        name = req.id if kind == "joint" else (req.name or req.id)  # a joint's skeleton name
+        self._command("add_entity", {"id": entity_id, "kind": kind, "owner_id": req.ownerId,
+                                     "name": name})
+        resp.answer = True
+        return resp
+
+    def remove_entity(self, req: Any, resp: Any) -> Any:
+        kind = str(req.type).lower()
+        self._command("remove_entity", {"id": _entity_id(req, kind)})
+        resp.answer = True
+        return resp
+
+    # -- agent_monitor -------------------------------------------------------------------------
+    def add_agent(self, req: Any, resp: Any) -> Any:
+        with self.pool.db() as db:
+            control.monitor_add(db, req.id)
+        resp.answer = True
+        return resp
+
+    def remove_agent(self, req: Any, resp: Any) -> Any:
+        with self.pool.db() as db:
+            control.monitor_remove(db, req.id)
+        resp.answer = True
+        return resp
+
+    def add_joint_to_agent(self, req: Any, resp: Any) -> Any:
+        with self.pool.db() as db:
+            state = dbcalls.control_state(db)
+            agents = state.agents if state.agents is not None else ["humans"]
+            if req.agentId not in agents and not set(agents) & set(control.CLASSES):
+                msg = (f"add_joint_to_agent: {req.agentId!r} is not monitored: "
+                       "call add_agent first")
+                raise ServiceError(msg)
+            control.monitor_add(db, req.agentId, joints=[req.jointName])
+        resp.answer = True
+        return resp
+
+    def remove_joint_to_agent(self, req: Any, resp: Any) -> Any:
+        with self.pool.db() as db:
+            control.monitor_remove(db, req.agentId, joint=req.jointName)
+        resp.answer = True
+        return resp
+
+    def remove_all_joints_to_agent(self, req: Any, resp: Any) -> Any:
+        with self.pool.db() as db:
+            for joint in (dbcalls.control_state(db).joints or {}).get(req.agentId, []):
+                control.monitor_remove(db, req.agentId, joint=joint)
+        resp.answer = True
+        return resp
+
+    def remove_all_agents(self, req: Any, resp: Any) -> Any:
+        with self.pool.db() as db:
+            control.monitor_clear(db)
+        return resp
+
+    def monitor_all(self, which: str) -> Callable[[Any, Any], Any]:
+        def handler(req: Any, resp: Any) -> Any:
+            with self.pool.db() as db:
+                control.monitor_all(db, which, bool(req.monitorAll))
+            return resp
+        return handler
+
+    def print_all_monitored_agents(self, req: Any, resp: Any) -> Any:
+        with self.pool.db() as db:
+            state = dbcalls.control_state(db)
+        self.log(f"monitored agents: {state.agents if state.agents is not None else 'default'}"
+                 f"; except {state.excluded}; joints {state.joints or 'all'}")
+        return resp
+
+    def pointing(self, req: Any, resp: Any) -> Any:
+        if not req.pointingAgentId:
+            msg = "pointing: pointingAgentId is empty"
+            raise ServiceError(msg)
+        args: dict[str, Any] = {"agent": req.pointingAgentId,
+                                "joint": req.pointingJoint or "rightHand"}
+        for field, key in (("pointingJointDistThreshold", "joint_distance"),
+                           ("angleThreshold", "angle")):
+            value = float(getattr(req, field))
+            if math.isfinite(value) and value > 0:
+                args[key] = value
+        if getattr(req, "timePointing", 0):
+            args["t_ns"] = int(req.timePointing)
+        found = self._ask("pointing", args)
+        resp.pointedId = [str(entity_id) for entity_id, _ in found]
+        resp.confidence = [float(conf) for _, conf in found]
+        resp.answer = True
+        return resp
+
+    # -- area_manager --------------------------------------------------------------------------
+    def add_area(self, req: Any, resp: Any) -> Any:
+        area = req.myArea
+        with self.pool.db() as db:
+            number = dbcalls.area_number(db, int(area.id), str(area.name))
+            if not area.name:
+                area.name = f"area{number}"
+            name, spec = area_from_msg(area)
+            dbcalls.put_area(db, name, spec, number)
+        resp.answer = True
+        return resp
+
+    def remove_area(self, req: Any, resp: Any) -> Any:
+        with self.pool.db() as db:
+            name = dbcalls.area_name(db, int(req.id))
+            if name is None or not db.store().remove_area(name):
+                msg = f"remove_area: no area with id {req.id}"
+                raise ServiceError(msg)
+            dbcalls.forget_area(db, name)
+        resp.answer = True
+        return resp
+
+    def remove_all_areas(self, req: Any, resp: Any) -> Any:
+        with self.pool.db() as db:
+            db.store().remove_all_areas()
+            dbcalls.forget_area(db, None)
+        return resp
+
+    def print_area(self, req: Any, resp: Any) -> Any:
+        with self.pool.db() as db:
+            name = dbcalls.area_name(db, int(req.id))
+            spec = db.store().areas().get(name) if name is not None else None
+        if spec is None:
+            msg = f"print_area: no area with id {req.id}"
+            raise ServiceError(msg)
+        self.log(f"area {req.id} {name!r}: {spec}")
+        resp.answer = True
+        return resp
+
+    def print_all_areas(self, req: Any, resp: Any) -> Any:
+        with self.pool.db() as db:
+            numbers = dbcalls.area_numbers(db)
+            for name, spec in db.store().areas().items():
+                self.log(f"area {numbers.get(name, '?')} {name!r}: {spec}")
+        return resp
+
+    def get_relative_position(self, req: Any, resp: Any) -> Any:
+        found = self._ask("get_relative_position", {"subject": req.subjectId,
+                                                     "target": req.targetId})
+        resp.direction, resp.angleValue, resp.answer = found["direction"], found["angle"], True
+        return resp
+
+    def get_multiple_relative_position(self, req: Any, resp: Any) -> Any:
+        found = self._ask("get_multiple_relative_position", {
+            "agent": req.agentSubjectId, "object": req.objectSubjectId,
+            "target": req.targetId})
+        resp.direction, resp.angleValue, resp.answer = found["direction"], found["angle"], True
+        return resp
+
+    # -- database_manager ----------------------------------------------------------------------
+    def execute(self, req: Any, resp: Any) -> Any:
+        with self.pool.db() as db:
+            resp.boolAnswer, resp.results = dbcalls.execute(db, req)
+        return resp
+
+    def get_info(self, req: Any, resp: Any) -> Any:
+        with self.pool.db() as db:
+            found = dbcalls.get_info(db, req)
+        reg = self.registry
+
+        def build(key: str, type_name: str) -> list[Any]:
+            return [to_msg(reg.msg(type_name), d, reg) for d in found.get(key, [])]
+
+        resp.resFactList.factList = build("facts", "Fact")
+        resp.resEventList = build("events", "Event")
+        resp.resId = build("ids", "Id")
+        resp.resOntology = build("ontology", "Ontology")
+        resp.resProperties = build("properties", "Property")
+        resp.boolAnswer = any(found.get(k) for k in ("facts", "events", "ids", "ontology",
+                                                      "properties"))
+        return resp
+
+    def set_info(self, req: Any, resp: Any) -> Any:
+        with self.pool.db() as db:
+            dbcalls.set_info(db, req)
+        resp.answer = True
+        return resp
+
+    def table(self) -> list[tuple[str, str, Callable[[Any, Any], Any]]]:
+        """(service name, toaster_msgs service type, handler) of every service."""
+        out: list[tuple[str, str, Callable[[Any, Any], Any]]] = [
+            ("/pdg/manage_stream", "AddStream", self.manage_stream),
+            ("/pdg/put_in_hand", "PutInHand", self.put_in_hand),
+            ("/pdg/remove_from_hand", "RemoveFromHand", self.remove_from_hand),
+            ("/pdg/set_entity_pose", "SetEntityPose", self.set_entity_pose),
+            ("/toaster_simu/add_entity", "AddEntity", self.add_entity),
+            ("/toaster_simu/remove_entity", "RemoveEntity", self.remove_entity),
+            ("/toaster_simu/set_entity_pose", "SetEntityPose", self.set_entity_pose),
+            ("/agent_monitor/add_agent", "AddAgent", self.add_agent),
+            ("/agent_monitor/remove_agent", "RemoveAgent", self.remove_agent),
+            ("/agent_monitor/add_joint_to_agent", "AddJointToAgent", self.add_joint_to_agent),
+            ("/agent_monitor/remove_joint_to_agent", "RemoveJointToAgent",
+             self.remove_joint_to_agent),
+            ("/agent_monitor/remove_all_joints_to_agent", "RemoveAllJointsToAgent",
+             self.remove_all_joints_to_agent),
+            ("/agent_monitor/remove_all_agents", "Empty", self.remove_all_agents),
+            ("/agent_monitor/print_all_monitored_agents", "Empty",
+             self.print_all_monitored_agents),
+            ("/agent_monitor/pointing", "Pointing", self.pointing),
+            ("/agent_monitor/pointing_time", "PointingTime", self.pointing),
+            ("/area_manager/add_area", "AddArea", self.add_area),
+            ("/area_manager/remove_area", "RemoveArea", self.remove_area),
+            ("/area_manager/remove_all_areas", "Empty", self.remove_all_areas),
+            ("/area_manager/print_area", "PrintArea", self.print_area),
+            ("/area_manager/print_all_areas", "Empty", self.print_all_areas),
+            ("/area_manager/get_relative_position", "GetRelativePosition",
+             self.get_relative_position),
+            ("/area_manager/get_multiple_relative_position", "GetMultiRelativePosition",
+             self.get_multiple_relative_position),
+            ("/database_manager/execute", "ExecuteDB", self.execute),
+            ("/database_manager/get_info", "GetInfoDB", self.get_info),
+            ("/database_manager/set_info", "SetInfoDB", self.set_info),
+        ]
+        out += [(f"/agent_monitor/{name}", "MonitorAll", self.monitor_all(which))
+                for name, which in CLASS_OF.items()]
+        return out

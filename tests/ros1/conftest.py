@@ -1,0 +1,222 @@
+"""Fixtures of the ROS 1 bridge tests: a real roscore on a free port, the toaster node in a
+process of its own (``toaster serve --ros1``) and a rospy client under Debian's Python
+(``client.py``), all on 127.0.0.1 with ROS_HOME in a temporary folder.
+
+Without roscore or rospy the tests skip with the reason; under CI (``CI`` set) they fail.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+import xmlrpc.client
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+HERE = Path(__file__).resolve().parent
+ROSCORE = "/usr/bin/roscore"
+SYSTEM_PYTHON = "/usr/bin/python3"
+
+
+def ros_unavailable() -> str | None:
+    """None when roscore and rospy are there, else what is missing."""
+    if not Path(ROSCORE).exists():
+        return f"{ROSCORE} is missing"
+    if not Path(SYSTEM_PYTHON).exists():
+        return f"{SYSTEM_PYTHON} is missing"
+    probe = subprocess.run([SYSTEM_PYTHON, "-c", "import rospy, genpy, tf2_msgs.msg, "
+                            "visualization_msgs.msg, geometry_msgs.msg"],
+                           capture_output=True, text=True, check=False)
+    if probe.returncode != 0:
+        lines = probe.stderr.strip().splitlines()
+        return f"rospy is not importable ({lines[-1] if lines else 'unknown error'})"
+    return None
+
+
+def require_ros() -> None:
+    """Skip (or fail under CI) when ROS 1 is not installed."""
+    reason = ros_unavailable()
+    if reason is None:
+        return
+    message = (f"ROS 1 is not installed: {reason} (apt-get install --no-install-recommends "
+               "ros-core python3-rospy python3-tf2-msgs python3-visualization-msgs ...)")
+    if os.environ.get("CI"):
+        pytest.fail(message + "; CI must install it (.ci/run)")
+    pytest.skip(message)
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def stop(proc: subprocess.Popen[Any], timeout: float = 10.0) -> None:
+    """SIGINT, then SIGKILL if it lingers (the process group: roscore has children)."""
+    if proc.poll() is not None:
+        return
+    os.killpg(proc.pid, signal.SIGINT)
+    try:
+        proc.wait(timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(5)
+
+
+@pytest.fixture(scope="session")
+def ros_env(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, str]]:
+    """A running roscore; the environment that points processes at it."""
+    require_ros()
+    home = tmp_path_factory.mktemp("ros_home")
+    port = free_port()
+    env = {k: v for k, v in os.environ.items() if not k.startswith("ROS")}
+    env |= {"ROS_MASTER_URI": f"http://127.0.0.1:{port}", "ROS_HOME": str(home),
+            "ROS_LOG_DIR": str(home / "log"), "ROS_HOSTNAME": "127.0.0.1",
+            "PYTHONUNBUFFERED": "1"}
+    core = subprocess.Popen([ROSCORE, "-p", str(port)], env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, start_new_session=True)
+    deadline = time.monotonic() + 30
+    while True:
+        try:
+            with xmlrpc.client.ServerProxy(env["ROS_MASTER_URI"]) as master:
+                master.getSystemState("/probe")
+            break
+        except OSError:
+            if core.poll() is not None or time.monotonic() > deadline:
+                err = core.stderr.read().decode() if core.stderr else ""
+                stop(core)
+                pytest.fail(f"roscore did not start on port {port}: {err.strip()[-500:]}")
+            time.sleep(0.1)
+    try:
+        yield env
+    finally:
+        stop(core)
+        if core.stderr is not None:
+            core.stderr.close()
+
+
+class NodeProcess:
+    """``toaster serve --ros1`` as users run it (its stderr is kept for the warning lines)."""
+
+    def __init__(self, env: dict[str, str], url: str, args: list[str], log: Path) -> None:
+        self.url, self.log = url, log
+        self.err = log.open("w")
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "toaster", "--db", url, "serve", "--ros1", *args], cwd=ROOT,
+            env=env, stdout=subprocess.PIPE, stderr=self.err, text=True,
+            start_new_session=True)
+        deadline = time.monotonic() + 60
+        while "(Ctrl-C stops)" not in self.stderr():  # printed once the bridge is up
+            if self.proc.poll() is not None or time.monotonic() > deadline:
+                self.close()
+                pytest.fail(f"the toaster node did not start: {self.stderr()[-2000:]}")
+            time.sleep(0.05)
+
+    def stderr(self) -> str:
+        self.err.flush()
+        return self.log.read_text()
+
+    def alive(self) -> bool:
+        return self.proc.poll() is None
+
+    def close(self) -> str:
+        """Stop it (SIGTERM, as a service manager would); its closing summary (stderr)."""
+        if self.proc.poll() is None:
+            os.killpg(self.proc.pid, signal.SIGTERM)
+            try:
+                self.proc.wait(15)
+            except subprocess.TimeoutExpired:
+                os.killpg(self.proc.pid, signal.SIGKILL)
+                self.proc.wait(5)
+        self.err.close()
+        if self.proc.stdout:
+            self.proc.stdout.close()
+        return self.log.read_text()
+
+
+class RosClient:
+    """The rospy client process: call services, publish, read topics."""
+
+    def __init__(self, env: dict[str, str]) -> None:
+        self.proc = subprocess.Popen([SYSTEM_PYTHON, str(HERE / "client.py")], env=env,
+                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                     stderr=subprocess.PIPE, text=True,
+                                     start_new_session=True)
+        first = self._read()
+        assert first.get("ready"), first
+
+    def _read(self) -> dict[str, Any]:
+        assert self.proc.stdout is not None
+        line = self.proc.stdout.readline()
+        if not line:
+            err = self.proc.stderr.read() if self.proc.stderr else ""
+            pytest.fail(f"the ROS client died: {err[-2000:]}")
+        return json.loads(line)
+
+    def send(self, op: str, **fields: Any) -> dict[str, Any]:
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(json.dumps({"op": op, **fields}) + "\n")
+        self.proc.stdin.flush()
+        return self._read()
+
+    def call(self, service: str, srv_type: str, **request: Any) -> dict[str, Any]:
+        """The response fields; fails the test when the service answered an error."""
+        answer = self.send("call", service=service, type=srv_type, request=request)
+        assert answer["ok"], answer
+        return answer["response"]
+
+    def call_raw(self, service: str, srv_type: str, **request: Any) -> dict[str, Any]:
+        return self.send("call", service=service, type=srv_type, request=request)
+
+    def publish(self, topic: str, msg_type: str, msg: dict[str, Any], *, rate: float = 0.0,
+                key: str | None = None) -> None:
+        answer = self.send("publish", topic=topic, type=msg_type, msg=msg, rate=rate,
+                           key=key or topic)
+        assert answer["ok"], answer
+
+    def stop(self, key: str) -> None:
+        self.send("stop", key=key)
+
+    def subscribe(self, topic: str, msg_type: str) -> None:
+        assert self.send("subscribe", topic=topic, type=msg_type)["ok"]
+
+    def latest(self, topic: str, *, after: int = 0, timeout: float = 5.0) -> dict[str, Any]:
+        answer = self.send("latest", topic=topic, after=after, timeout=timeout)
+        assert answer["ok"], answer
+        return answer
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            try:
+                self.send_quit()
+                self.proc.wait(10)
+            except (OSError, subprocess.TimeoutExpired):
+                os.killpg(self.proc.pid, signal.SIGKILL)
+                self.proc.wait(5)
+        for pipe in (self.proc.stdin, self.proc.stdout, self.proc.stderr):
+            if pipe is not None:
+                pipe.close()
+
+    def send_quit(self) -> None:
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(json.dumps({"op": "quit"}) + "\n")
+        self.proc.stdin.flush()
+
+
+@pytest.fixture(scope="module")
+def client(ros_env: dict[str, str]) -> Iterator[RosClient]:
+    """A rospy client connected to the test roscore."""
+    ros = RosClient(ros_env)
+    try:
+        yield ros
+    finally:
+        ros.close()
