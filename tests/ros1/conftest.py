@@ -10,16 +10,17 @@ from __future__ import annotations
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
-import xmlrpc.client
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
+
+from toaster.ros1 import RosUnavailableError
+from toaster.ros1.core import RosCore, stop_group
 
 ROOT = Path(__file__).resolve().parents[2]
 HERE = Path(__file__).resolve().parent
@@ -54,22 +55,7 @@ def require_ros() -> None:
     pytest.skip(message)
 
 
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
-
-
-def stop(proc: subprocess.Popen[Any], timeout: float = 10.0) -> None:
-    """SIGINT, then SIGKILL if it lingers (the process group: roscore has children)."""
-    if proc.poll() is not None:
-        return
-    os.killpg(proc.pid, signal.SIGINT)
-    try:
-        proc.wait(timeout)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait(5)
+stop = stop_group
 
 
 @pytest.fixture(scope="session")
@@ -77,31 +63,11 @@ def ros_env(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, str]
     """A running roscore; the environment that points processes at it."""
     require_ros()
     home = tmp_path_factory.mktemp("ros_home")
-    port = free_port()
-    env = {k: v for k, v in os.environ.items() if not k.startswith("ROS")}
-    env |= {"ROS_MASTER_URI": f"http://127.0.0.1:{port}", "ROS_HOME": str(home),
-            "ROS_LOG_DIR": str(home / "log"), "ROS_HOSTNAME": "127.0.0.1",
-            "PYTHONUNBUFFERED": "1"}
-    core = subprocess.Popen([ROSCORE, "-p", str(port)], env=env, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, start_new_session=True)
-    deadline = time.monotonic() + 30
-    while True:
-        try:
-            with xmlrpc.client.ServerProxy(env["ROS_MASTER_URI"]) as master:
-                master.getSystemState("/probe")
-            break
-        except OSError:
-            if core.poll() is not None or time.monotonic() > deadline:
-                err = core.stderr.read().decode() if core.stderr else ""
-                stop(core)
-                pytest.fail(f"roscore did not start on port {port}: {err.strip()[-500:]}")
-            time.sleep(0.1)
     try:
-        yield env
-    finally:
-        stop(core)
-        if core.stderr is not None:
-            core.stderr.close()
+        with RosCore(home) as env:
+            yield env
+    except RosUnavailableError as exc:
+        pytest.fail(str(exc))
 
 
 class NodeProcess:

@@ -187,6 +187,24 @@ def test_put_in_hand_gives_is_in_hand(world: RosClient, db: toaster.Database) ->
     wait_for(lambda: not holds(db, "IsInHand", "cup"), message="cup released")
 
 
+def test_watch_service_pushes_matching_events_on_its_topic(world: RosClient) -> None:
+    """Subscriptions on ROS: /database_manager/watch opens a topic of BeliefEvents."""
+    answer = world.call("/database_manager/watch", "Watch", agentId="", subjectId="cup",
+                        property="IsInHand", targetId="*")
+    assert answer["answer"]
+    topic = answer["topic"]
+    world.subscribe(topic, "toaster_msgs/BeliefEvent")
+    time.sleep(0.5)  # the subscriber connects
+    world.call("/pdg/put_in_hand", "PutInHand", objectId="cup", agentId="bob",
+               jointName="rightHand")
+    got = world.latest(topic, timeout=10.0)["msg"]
+    assert (got["kind"], got["fact"]["subjectId"], got["fact"]["property"],
+            got["fact"]["targetId"]) == ("appeared", "cup", "IsInHand", "bob")
+    world.call("/pdg/remove_from_hand", "RemoveFromHand", objectId="cup")
+    got = world.latest(topic, after=1, timeout=10.0)["msg"]
+    assert got["kind"] == "ended"
+
+
 def test_manage_stream_off_stops_updates(world: RosClient, db: toaster.Database) -> None:
     world.publish("/mocap/box", "geometry_msgs/PoseStamped", pose_msg(1, 1), rate=20)
     wait_for(lambda: holds(db, "IsInRoom", "box", "kitchen"), message="box in the kitchen")

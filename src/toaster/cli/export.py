@@ -44,11 +44,16 @@ def export(kind: str, output: str, agent: tuple[str, ...], subject: tuple[str, .
 @window_options
 @click.option("--frame-id", default="map", show_default=True, help="Fixed frame of the markers.")
 @click.option("--distro", default="humble", show_default=True,
-              help="ROS 2 message definitions (humble, jazzy...).")
+              help="ROS 2 distro: message definitions and rosbag2 metadata version (humble 5, "
+                   "iron 8, jazzy/kilted 9).")
+@click.option("--toaster-names", type=click.Choice(["ros2", "ros1"]), default="ros2",
+              show_default=True, help="toaster_msgs field names: ros2 (snake_case, decoded by "
+              "Foxglove and ROS 2 tools) or ros1 (the original's camelCase); toaster run "
+              "reads both.")
 @click.option("--no-facts", is_flag=True, help="Leave the database's events out.")
 @db_option
 def record(frames: str, output: str, agent: tuple[str, ...], since: str | None,
-           until: str | None, frame_id: str, distro: str, no_facts: bool,
+           until: str | None, frame_id: str, distro: str, toaster_names: str, no_facts: bool,
            url: str | None) -> None:
     """Record FRAMES (JSON lines of poses) and the database's events into the bag OUTPUT.
 
@@ -63,5 +68,5 @@ def record(frames: str, output: str, agent: tuple[str, ...], since: str | None,
         lo, hi = parse_window(since, until)
         result = write(output, read_frames(frames), db=None if no_facts else db,
                        agent=_many(agent), since=lo, until=hi, frame_id=frame_id,
-                       distro=distro)
+                       distro=distro, toaster_names=toaster_names)
     click.echo(f"wrote {result.frames} frames and {result.facts} fact lines to {result.mcap}")

@@ -45,8 +45,9 @@ def _database(ctx: click.Context, url: str | None) -> Any:
 @ros_input_options
 @click.option("--no-db", is_flag=True, help="Compute only; write nothing.")
 @click.option("--record", "record_dir", type=click.Path(path_type=Path), metavar="DIR",
-              help="Also write the run as a rosbag2/MCAP recording in the new folder DIR "
-                   "(entities, areas, the facts' events) for Foxglove, Lichtblick or RViz 2; "
+              help="Also write the run as a rosbag2/MCAP recording in the new folder DIR (/tf, "
+                   "pdg's entity lists, markers, the producers' fact lists, the facts' events; "
+                   "docs/recordings.md) for Foxglove, Lichtblick, RViz 2 or `toaster run DIR`; "
                    "needs toaster[rosbag].")
 @click.pass_context
 def run(ctx: click.Context, path: Path, url: str | None, rate: float | None, until: str | None,

@@ -174,17 +174,31 @@ class Session:
     belief_holders: str | tuple[str, ...] = "humans"
 
     def frame(self, t_ns: int, *, with_areas: bool = False) -> tuple[Any, ...]:
-        """A recording frame of the world now (:mod:`toaster.recording`): humans, robots and
-        objects as ``(id, kind, x, y, z, yaw)``, and the fixed polygon areas when asked."""
-        world = self.world
-        entities = [(entity_id, world.kind_text[r], *map(float, world.pos[r]),
-                     float(world.rpy[r][2]))
-                    for r, entity_id in enumerate(world.ids)
-                    if world.active[r] and world.kind_text[r] in ("human", "robot", "object")]
-        areas = ([(area_id, spec["points"]) for area_id, spec in self.areas.items()
-                  if spec.get("shape") == "polygon" and not spec.get("owner")]
-                 if with_areas else None)
-        return (t_ns, entities, areas)
+        """A recording frame of the world now (:mod:`toaster.recording`): every entity the
+        producers see (perceived; agents within ``presence_timeout``, as pdg publishes them) as
+        an ``EntityPose`` (full pose, size, joints with their agent, held objects with their
+        hand, perception time), and every area's spec ``(id, spec)`` when asked."""
+        import numpy as np
+
+        from toaster.producers.config import ns
+        from toaster.recording import EntityPose
+
+        world, ids = self.world, self.world.ids
+        timeout = ns(make_config(self.config), "presence_timeout")
+
+        def pose(r: int) -> EntityPose:
+            owner, hand = int(world.owner[r]), int(world.held_by[r])
+            x, y, z = (float(v) for v in world.pos[r])
+            roll, pitch, yaw = (float(v) for v in world.rpy[r])
+            sx, sy, sz = (float(v) for v in world.size[r])
+            return EntityPose(ids[r], world.kind_text[r], x, y, z, yaw, roll, pitch,
+                              (sx, sy, sz) if np.isfinite(world.size[r]).all() else None,
+                              ids[owner] if owner >= 0 else "", world.names[r],
+                              ids[hand] if hand >= 0 else "", int(world.t_ns[r]))
+
+        live = np.flatnonzero(world.live_mask(t_ns, timeout)).tolist()
+        areas = [(area_id, dict(spec)) for area_id, spec in self.areas.items()]
+        return (t_ns, [pose(r) for r in live], areas if with_areas else None)
 
     def register(self, store: Any) -> None:
         """Put the areas and entities in the store before the first tick (the self agent as a
@@ -277,7 +291,7 @@ def load_session(path: str | Path, areas: dict[str, dict[str, Any]] | None = Non
         default_holders = "humans"
     elif is_bag(path):
         source = read_bag(path, tf_map=tf_map, pose_topics=pose_topics)
-        all_areas, config, self_id = dict(areas or {}), {}, ""
+        all_areas, config, self_id = {**source.areas, **(areas or {})}, {}, ""
         rate = source.sample_hz or 30.0
         start, end = source.start_ns, source.end_ns
         kinds, default_holders = source.kinds, "none"

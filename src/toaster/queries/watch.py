@@ -12,6 +12,7 @@ connection commits) every ``poll_s``.
 from __future__ import annotations
 
 import fnmatch
+import threading
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -76,9 +77,11 @@ def _matches(row: EventRow, patterns: dict[str, str | None]) -> bool:
 def watch(db: Any, *, agent: str | None = None, subject: str | None = None,
           property: str | None = None, target: str | None = None,
           after_id: int | None = None, poll_s: float = 0.02,
-          timeout_s: float | None = None) -> Iterator[EventRow]:
+          timeout_s: float | None = None,
+          stop: threading.Event | None = None) -> Iterator[EventRow]:
     """Events committed from now on (or after event ``after_id``) that match the patterns,
-    oldest first, as they are committed; stops after ``timeout_s`` without a match (None: never).
+    oldest first, as they are committed; stops after ``timeout_s`` without a match (None: never)
+    or within half a second of ``stop`` being set.
     """
     patterns = {"agent_id": agent, "subject_id": subject, "property": property,
                 "target_id": target}
@@ -90,7 +93,7 @@ def watch(db: Any, *, agent: str | None = None, subject: str | None = None,
     sql = text(f"SELECT {EVENT_COLUMNS} FROM event_log WHERE id > :last ORDER BY id, agent_id")
     quiet_since = time.monotonic()
     try:
-        while True:
+        while stop is None or not stop.is_set():
             with db.transaction() as conn:
                 rows = [EventRow(*r) for r in conn.execute(sql, {"last": last})]
             if rows:

@@ -9,16 +9,14 @@ package imports rospy. :mod:`toaster.ros1.mapping` has no rospy import at all.
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from toaster.errors import ToasterError
+from toaster.ros1.messages import DEBIAN_DIST, ros_path
 
 if TYPE_CHECKING:
     from toaster.ros1.bridge import Bridge
 
-DEBIAN_DIST = "/usr/lib/python3/dist-packages"
 INSTALL_HINT = ("ROS 1 is not installed: apt-get install --no-install-recommends ros-core "
                 "python3-rospy python3-rosbag python3-geometry-msgs python3-visualization-msgs "
                 "python3-tf2-msgs python3-sensor-msgs python3-std-msgs")
@@ -26,12 +24,6 @@ INSTALL_HINT = ("ROS 1 is not installed: apt-get install --no-install-recommends
 
 class RosUnavailableError(ToasterError):
     """rospy (Debian's ROS 1 packages) cannot be imported."""
-
-
-def ros_path() -> None:
-    """Make Debian's ROS 1 Python packages importable (appended once, at the end)."""
-    if DEBIAN_DIST not in sys.path and Path(DEBIAN_DIST).is_dir():
-        sys.path.append(DEBIAN_DIST)
 
 
 def import_rospy() -> Any:
@@ -56,4 +48,5 @@ def start_bridge(node: Any, **kwargs: Any) -> Bridge:
     return start(node, **kwargs)
 
 
-__all__ = ["INSTALL_HINT", "RosUnavailableError", "import_rospy", "ros_path", "start_bridge"]
+__all__ = ["DEBIAN_DIST", "INSTALL_HINT", "RosUnavailableError", "import_rospy", "ros_path",
+           "start_bridge"]

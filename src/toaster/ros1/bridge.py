@@ -10,6 +10,7 @@ thread (the output, and the queries the node answers between ticks).
 from __future__ import annotations
 
 import logging
+import sys
 import threading
 import time
 from collections.abc import Mapping
@@ -37,10 +38,14 @@ from toaster.ros1.mapping import (
     tracked_ids,
 )
 from toaster.ros1.services import DbPool, Handlers
+from toaster.ros1.watchers import Watchers
 from toaster.world.live import LiveSource
 from toaster.world.state import World
 
 PRODUCERS = ("pdg", "area_manager", "agent_monitor", "move3d_facts")
+#: /tf, markers, area and entity lists go out every VIEW_EVERY ticks (10 Hz at 30 Hz): they
+#: are for eyes and RViz, and at 30 Hz they doubled a tick and the node read its own /tf back
+VIEW_EVERY = 3
 MARKER_TOPICS = ("marker_object", "marker_area", "marker_human", "marker_robot",
                  "marker_motion")
 SIMU_LISTS = {"toaster_simu_human": ("/toaster_simu/humanList", "HumanListStamped"),
@@ -114,6 +119,7 @@ class Bridge:
         self.subscribers: list[Any] = []
         self.services: list[Any] = []
         self.pool: DbPool | None = None
+        self.watchers: Watchers | None = None
         self._caller = rospy.get_name()
         self._area_numbers: tuple[frozenset[str], dict[str, int]] = (frozenset(), {})
         self._subscribe(toaster_simu, pdg_lists)
@@ -144,7 +150,9 @@ class Bridge:
                 self.warnings.add(f"{topic}:{type(exc).__name__}",
                                   f"{topic}: message ignored: {_one_line(exc)}")
 
-        self.subscribers.append(self.rospy.Subscriber(topic, cls, guarded, queue_size=10))
+        # tcp_nodelay: no Nagle wait on the sender's side for a pose (tens of ms otherwise)
+        self.subscribers.append(self.rospy.Subscriber(topic, cls, guarded, queue_size=10,
+                                                      tcp_nodelay=True))
 
     def _subscribe(self, toaster_simu: bool, pdg_lists: bool) -> None:
         from geometry_msgs.msg import PoseStamped  # type: ignore[import-not-found]
@@ -246,7 +254,15 @@ class Bridge:
         self.pool = DbPool(url)
         handlers = Handlers(self.pool, self.registry, lambda line: self.warnings.add(line, line),
                             log=self.rospy.loginfo)
-        for name, type_name, handler in handlers.table():
+        watchers = self.watchers = Watchers(self.rospy, self.registry, url)
+
+        def open_watch(req: Any, resp: Any) -> Any:
+            resp.topic = watchers.open(req.agentId, req.subjectId, req.property, req.targetId)
+            resp.answer = True
+            return resp
+
+        table = [*handlers.table(), ("/database_manager/watch", "Watch", open_watch)]
+        for name, type_name, handler in table:
             srv = self.registry.srv(type_name)
             self.services.append(self.rospy.Service(name, srv, self._guard(name, srv, handler)))
 
@@ -288,6 +304,8 @@ class Bridge:
         for source in self.sources.values():
             if source in self.node.sources:
                 self.node.sources.remove(source)
+        if self.watchers is not None:
+            self.watchers.close()
         if self.pool is not None:
             self.pool.close()
         self.rospy.signal_shutdown("toaster bridge stopped")
@@ -298,6 +316,7 @@ class _Output:
 
     def __init__(self, bridge: Bridge) -> None:
         self.bridge = bridge
+        self.ticks = 0
 
     def publish(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None:
         b = self.bridge
@@ -309,6 +328,9 @@ class _Output:
             if pub.get_num_connections():
                 pub.publish(fact_list(factList=[fact_cls(**fact_fields(f, t_ns))
                                                 for f in facts.get(producer, [])]))
+        self.ticks += 1
+        if (self.ticks - 1) % VIEW_EVERY:  # fact lists every tick; views at 1/VIEW_EVERY
+            return
         if b.tf_pub is not None:
             b.tf_pub.publish(self._tf(t_ns, world))
         inside: dict[str, list[str]] = {}
@@ -385,6 +407,10 @@ def start_bridge(node: Any, *, node_name: str = "toaster", tf_map: str | Path | 
         raise InvalidInputError(msg)
     root = logging.getLogger()
     handlers, level = list(root.handlers), root.level
+    # rospy threads receive while the tick thread computes: hand the interpreter over every
+    # 1 ms instead of 5 so that a pose does not wait behind a tick (bench_live.py, 10 humans:
+    # p99 pose -> fact 45-55 ms before, see docs/ros1.md for after)
+    sys.setswitchinterval(0.001)
     rospy.init_node(node_name, anonymous=False, disable_signals=True)
     for handler in handlers:  # rospy's logging set-up replaces them: keep the caller's too
         if handler not in root.handlers:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import threading
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -50,6 +51,15 @@ class FrameTarget(NamedTuple):
 
 
 # -- stamps and small maths ---------------------------------------------------------------------
+def field(msg: Any, name: str, default: Any = None) -> Any:
+    """A message field by its original (camelCase) name or its ROS 2 snake_case one
+    (``humanList`` / ``human_list``, ``insideEntities_`` / ``inside_entities``)."""
+    if hasattr(msg, name):
+        return getattr(msg, name)
+    snake = re.sub(r"(?<!^)(?=[A-Z])", "_", name).lower().strip("_")
+    return getattr(msg, snake, default)
+
+
 def stamp_ns(stamp: Any) -> int:
     """ns since the epoch of a ROS 1 (secs/nsecs) or ROS 2 (sec/nanosec) stamp, or an int."""
     if stamp is None:
@@ -315,14 +325,15 @@ def _entity_update(entity: Any, kind: str, header_ns: int, owner: str = "",
 
 def agent_updates(agent: Any, kind: str, header_ns: int) -> list[PoseUpdate]:
     """An Agent (meAgent of a Human / Robot) and its skeleton joints."""
-    me = agent.meEntity
+    me = field(agent, "meEntity")
     agent_id = str(me.id)
     out = [_entity_update(me, kind, header_ns)]
-    names = list(agent.skeletonNames)
-    for i, joint in enumerate(agent.skeletonJoint):
+    names = list(field(agent, "skeletonNames", ()))
+    for i, joint in enumerate(field(agent, "skeletonJoint", ())):
+        me_joint = field(joint, "meEntity")
         name = (names[i] if i < len(names) and names[i] else
-                str(joint.meEntity.name or joint.meEntity.id))
-        out.append(_entity_update(joint.meEntity, "joint", header_ns, agent_id, name,
+                str(me_joint.name or me_joint.id))
+        out.append(_entity_update(me_joint, "joint", header_ns, agent_id, name,
                                   f"{agent_id}/{name}"))
     return out
 
@@ -334,17 +345,17 @@ def list_updates(msg: Any) -> tuple[list[PoseUpdate], list[str]]:
     updates: list[PoseUpdate] = []
     bad: list[str] = []
     items: list[tuple[str, Any]] = (
-        [("human", h.meAgent) for h in getattr(msg, "humanList", ())]
-        + [("robot", r.meAgent) for r in getattr(msg, "robotList", ())]
-        + [("object", o) for o in getattr(msg, "objectList", ())])
+        [("human", field(h, "meAgent")) for h in field(msg, "humanList", ())]
+        + [("robot", field(r, "meAgent")) for r in field(msg, "robotList", ())]
+        + [("object", o) for o in field(msg, "objectList", ())])
     for kind, item in items:
         try:
             if kind == "object":
-                updates.append(_entity_update(item.meEntity, "object", header_ns))
+                updates.append(_entity_update(field(item, "meEntity"), "object", header_ns))
             else:
                 updates.extend(agent_updates(item, kind, header_ns))
         except ValueError as exc:
-            entity = item.meEntity
+            entity = field(item, "meEntity")
             bad.append(f"{kind} {entity.id!r} ignored: {exc}")
     return updates, bad
 
@@ -380,16 +391,18 @@ def area_from_msg(msg: Any) -> tuple[str, dict[str, Any]]:
     circle's height 0 mean no vertical band; factType interaction / density."""
     from toaster.producers.areas import area_from_original, normalize_area
 
-    record = {"name": str(msg.name), "myOwner": str(msg.myOwner), "areaType": str(msg.areaType),
-              "factType": str(msg.factType), "entityType": str(msg.entityType),
-              "isCircle": bool(msg.isCircle), "ray": float(msg.ray),
+    f = field
+    record = {"name": str(msg.name), "myOwner": str(f(msg, "myOwner")),
+              "areaType": str(f(msg, "areaType")), "factType": str(f(msg, "factType")),
+              "entityType": str(f(msg, "entityType")), "isCircle": bool(f(msg, "isCircle")),
+              "ray": float(msg.ray),
               "center": {"x": float(msg.center.x), "y": float(msg.center.y)},
               "poly": [[float(p.x), float(p.y)] for p in msg.poly.points],
               "zmin": float(msg.zmin), "zmax": float(msg.zmax)}
     name, spec = area_from_original(record)
-    extra: dict[str, Any] = {"enter_hysteresis": float(msg.enterHysteresis),
-                             "leave_hysteresis": float(msg.leaveHysteresis)}
-    if msg.isCircle and float(msg.height) > 0:
+    extra: dict[str, Any] = {"enter_hysteresis": float(f(msg, "enterHysteresis")),
+                             "leave_hysteresis": float(f(msg, "leaveHysteresis"))}
+    if f(msg, "isCircle") and float(msg.height) > 0:
         extra |= {"center": [float(msg.center.x), float(msg.center.y), float(msg.center.z)],
                   "height": float(msg.height)}
     return name, normalize_area(name, {**spec, **extra})

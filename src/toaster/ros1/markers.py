@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from toaster.model import Fact
-from toaster.ros1.mapping import Quat, rpy_to_quat
+from toaster.ros1.mapping import Quat, rotate, rpy_to_quat
 from toaster.world.history import NO_TIME
 from toaster.world.state import HUMAN, JOINT, OBJECT, ROBOT, World
 
@@ -145,8 +145,11 @@ def entity_markers(world: World, t_ns: int) -> dict[str, list[dict[str, Any]]]:
         yaw = float(world.rpy[r, 2])
         items = out[topic]
         if kind == OBJECT:
-            items.append(marker(eid, 0, CUBE, t_ns, pose=_pose((x, y, z), quat_of(world, r)),
-                                scale=(sx, sy, sz), color=color))
+            # an object's box stands on its position (as the spatial producer sees it)
+            q = quat_of(world, r)
+            lift = rotate(q, (0.0, 0.0, sz / 2))
+            items.append(marker(eid, 0, CUBE, t_ns, pose=_pose(
+                (x + lift[0], y + lift[1], z + lift[2]), q), scale=(sx, sy, sz), color=color))
         else:
             shape = CYLINDER if kind == HUMAN else CUBE
             items.append(marker(eid, 0, shape, t_ns, scale=(sx, sy, sz), color=color,

@@ -9,7 +9,10 @@ as the live ROS bridge (:mod:`toaster.ros1.mapping`):
   to ``map``;
 * ``geometry_msgs/PoseStamped`` topics named in ``pose_topics`` ({topic: (id, kind)});
 * the original's ``toaster_msgs/HumanListStamped`` / ``RobotListStamped`` /
-  ``ObjectListStamped`` on any topic (pdg, toaster_simu), joints included.
+  ``ObjectListStamped`` on any topic (pdg, toaster_simu), joints included, with the
+  original's camelCase field names or ROS 2 snake_case ones;
+* ``toaster_msgs/AreaList`` (``/area_manager/areaList``): the last one gives the areas, so
+  toaster's own recordings replay with their areas.
 
 Poses are replayed by their stamps (the header's, else the bag's receive time), deterministically:
 the same bag gives the same facts at any speed. Messages that cannot be used are counted and
@@ -32,6 +35,7 @@ from toaster.world.state import World
 TF_TYPES = ("tf2_msgs/msg/TFMessage",)
 POSE_TYPE = "geometry_msgs/msg/PoseStamped"
 LIST_TYPES = tuple(f"toaster_msgs/msg/{k}ListStamped" for k in ("Human", "Robot", "Object"))
+AREA_TYPE = "toaster_msgs/msg/AreaList"
 MSG_DIR = Path(__file__).resolve().parent.parent / "ros1" / "msgs"
 
 
@@ -65,10 +69,11 @@ class BagSource:
     """Poses of a bag in stamp order; ``advance`` applies those stamped up to the tick."""
 
     def __init__(self, name: str, times: np.ndarray, updates: list[Any],
-                 problems: Counter[str]) -> None:
+                 problems: Counter[str], areas: dict[str, dict[str, Any]] | None = None) -> None:
         from toaster.world.live import quaternion_to_rpy
 
         self.name = name
+        self.areas = dict(areas or {})  # the last AreaList of the bag (toaster's recordings)
         self.problems = problems
         rpy, good = [], []
         for i, update in enumerate(updates):
@@ -123,7 +128,7 @@ def _sample_hz(times: np.ndarray, updates: list[Any]) -> float | None:
     ids = np.array([u.entity_id for u in updates], dtype=object)
     steps = []
     for entity_id in np.unique(ids)[:50]:
-        t = times[ids == entity_id]
+        t = np.unique(times[ids == entity_id])  # objects not seen again repeat their stamp
         if len(t) > 1:
             steps.append(np.median(np.diff(t)))
     step = float(np.median(steps)) if steps else 0.0
@@ -147,6 +152,7 @@ def read_bag(path: str | Path, *, tf_map: str | Path | Mapping[str, Any] | None 
     times: list[int] = []
     updates: list[Any] = []
     problems: Counter[str] = Counter()
+    areas: dict[str, dict[str, Any]] = {}
 
     def keep(found: list[Any], received_ns: int) -> None:
         for update in found:
@@ -156,7 +162,7 @@ def read_bag(path: str | Path, *, tf_map: str | Path | Mapping[str, Any] | None 
     try:
         with AnyReader([path], default_typestore=typestore()) as reader:
             wanted = [c for c in reader.connections
-                      if c.msgtype in TF_TYPES + LIST_TYPES
+                      if c.msgtype in (*TF_TYPES, *LIST_TYPES, AREA_TYPE)
                       or (c.msgtype == POSE_TYPE and c.topic in topics)]
             for topic in set(topics) - {c.topic for c in reader.connections}:
                 problems[f"topic {topic} is not in the bag"] += 1
@@ -173,6 +179,9 @@ def read_bag(path: str | Path, *, tf_map: str | Path | Mapping[str, Any] | None 
                         for frame in lost:
                             problems[f"frame {frame} does not reach map"] += 1
                         keep(found, received_ns)
+                    elif conn.msgtype == AREA_TYPE:
+                        areas = dict(mapping.area_from_msg(a)
+                                     for a in mapping.field(msg, "areaList", ()))
                     elif conn.msgtype in LIST_TYPES:
                         found, bad = mapping.list_updates(msg)
                         for line in bad:
@@ -196,4 +205,4 @@ def read_bag(path: str | Path, *, tf_map: str | Path | Mapping[str, Any] | None 
         msg = (f"bag {path.name!r} holds no pose toaster can use: give --tf-map for its /tf "
                "frames or --pose-topic TOPIC=ID for PoseStamped topics")
         raise FileFormatError(msg)
-    return BagSource(path.name, np.array(times, np.int64), updates, problems)
+    return BagSource(path.name, np.array(times, np.int64), updates, problems, areas)

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -60,6 +60,8 @@ class LiveSource:
         self.warnings: list[str] = []  # one line per problem met while applying (drained)
         self._lock = threading.Lock()
         self._pending: dict[str, list[_Pose]] = {}
+        #: called after each accepted pose (a live node sets it to wake its loop)
+        self.on_push: Callable[[], None] | None = None
 
     def _refuse(self, reason: str) -> bool:
         with self._lock:
@@ -107,6 +109,8 @@ class LiveSource:
             if len(queue) > self.max_pending:
                 queue.sort(key=lambda p: p[4])
                 del queue[: len(queue) - self.max_pending]
+        if self.on_push is not None:
+            self.on_push()
         return True
 
     def setup(self, world: World) -> None:

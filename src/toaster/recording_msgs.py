@@ -1,0 +1,300 @@
+"""What a recording holds, as rosbags messages (helpers of :mod:`toaster.recording`).
+
+* :class:`Messages` turns the plain field dicts of :mod:`toaster.ros1.markers` and
+  :mod:`toaster.ros1.mapping` into messages of a rosbags typestore (missing fields at zero);
+* :class:`Scene` keeps the recorded entities in a :class:`~toaster.world.state.World` (poses
+  set, never simulated), so that the live bridge's code draws them: one definition of frame
+  names, shapes, sizes and colours;
+* :class:`FactTimeline` replays the store's intervals as the producers' fact lists;
+* :func:`fit_metadata` makes ``metadata.yaml`` the version of the distro the bag claims.
+"""
+
+from __future__ import annotations
+
+import heapq
+import re
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from toaster.errors import InvalidInputError
+from toaster.model import FactRow
+from toaster.ros1 import markers
+from toaster.ros1.mapping import strip_frame
+from toaster.world.state import World
+
+TIME = "builtin_interfaces/msg/Time"
+#: rosbag2 metadata version each distro's ``ros2 bag`` writes (and the newest it reads): Humble
+#: 5 (``files``), Iron 8 (``custom_data``, ``type_description_hash``, ``ros_distro``), Jazzy 9
+#: (QoS profiles as a YAML list); Kilted keeps 9.
+METADATA_VERSIONS = {"humble": 5, "iron": 8, "jazzy": 9, "kilted": 9}
+#: The original's fact producers, each on ``/<name>/factList``.
+PRODUCERS = ("pdg", "area_manager", "agent_monitor", "move3d_facts")
+_NP = {"bool": np.bool_, "float32": np.float32, "float64": np.float64, "byte": np.uint8,
+       "char": np.uint8, "octet": np.uint8}
+
+
+class EntityPose(NamedTuple):
+    """One entity in a frame: position (m), yaw / roll / pitch (rad), box size (m, None: the
+    kind's default), a joint's agent (``owner``) and skeleton name (``name``; else the display
+    name), the hand joint holding an object, its perception time (None: the frame's)."""
+
+    id: str
+    kind: str
+    x: float
+    y: float
+    z: float
+    yaw: float
+    roll: float = 0.0
+    pitch: float = 0.0
+    size: tuple[float, float, float] | None = None
+    owner: str = ""
+    name: str = ""
+    held_by: str = ""
+    t_ns: int | None = None
+
+
+# -- dicts to messages --------------------------------------------------------------------------
+def toaster_types(names: str = "ros1") -> dict[str, Any]:
+    """toaster_msgs as rosbags types: the original's field names (``ros1``: ``humanList``, what
+    ``toaster run`` reads back) or ROS 2 ones (``ros2``: ``human_list``, as rosidl and Foxglove
+    require of ROS 2 interfaces; same CDR layout)."""
+    from toaster.world.bags import toaster_types as shipped
+
+    if names not in ("ros1", "ros2"):
+        msg = f"unknown toaster_msgs field names {names!r}: use ros1 or ros2"
+        raise InvalidInputError(msg)
+    types = shipped()
+    if names == "ros1":
+        return types
+    return {name: (consts, [(snake(field), spec) for field, spec in fields])
+            for name, (consts, fields) in types.items()}
+
+
+def snake(name: str) -> str:
+    """A ROS 2 field name for an original one: ``insideEntities_`` → ``inside_entities``."""
+    return re.sub(r"(?<!^)(?=[A-Z])", "_", name).lower().strip("_")
+
+
+class Messages:
+    """Builds messages of a rosbags typestore from nested dicts: missing fields at zero, ints
+    accepted for times (ns), original toaster_msgs field names filling ROS 2 ones."""
+
+    def __init__(self, store: Any) -> None:
+        self.store = store
+        self._plans: dict[str, list[tuple[str, str, Any]]] = {}
+        self._zeros: dict[str, Any] = {}
+
+    def build(self, msgtype: str, value: Any) -> Any:
+        """A ``msgtype`` message from ``value`` (a dict; a message passes through)."""
+        if not isinstance(value, Mapping):
+            if msgtype == TIME and isinstance(value, int | np.integer):
+                return self.store.types[TIME](sec=int(value) // 1_000_000_000,
+                                              nanosec=int(value) % 1_000_000_000)
+            return value
+        plan = self._plan(msgtype)
+        if msgtype.startswith("toaster_msgs/") and any(name not in value for name, *_ in plan):
+            value = {snake(key): item for key, item in value.items()} | dict(value)
+        fields = {name: (self._convert(node, spec, value[name]) if name in value
+                         else self._zero(node, spec))
+                  for name, node, spec in plan}
+        return self.store.types[msgtype](**fields)
+
+    def _plan(self, msgtype: str) -> list[tuple[str, str, Any]]:
+        if msgtype not in self._plans:
+            self._plans[msgtype] = [(name, node.name, spec)
+                                    for name, (node, spec) in self.store.fielddefs[msgtype][1]]
+        return self._plans[msgtype]
+
+    def _convert(self, node: str, spec: Any, value: Any) -> Any:
+        if node == "NAME":
+            return self.build(spec, value)
+        if node == "BASE":
+            return _base(spec[0], value)
+        (inner, inner_spec), _ = spec  # SEQUENCE or ARRAY
+        if inner.name == "BASE" and inner_spec[0] != "string":
+            return np.asarray(value, dtype=_dtype(inner_spec[0]))
+        return [self._convert(inner.name, inner_spec, v) for v in value]
+
+    def _zero(self, node: str, spec: Any) -> Any:
+        """A field's zero value (messages built once and shared: they are only serialised)."""
+        if node == "NAME":
+            if spec not in self._zeros:
+                self._zeros[spec] = self.build(spec, {})
+            return self._zeros[spec]
+        if node == "BASE":
+            return _base(spec[0], "" if spec[0] == "string" else 0)
+        (inner, inner_spec), count = spec
+        size = count if node == "ARRAY" else 0
+        if inner.name == "BASE" and inner_spec[0] != "string":
+            return np.zeros(size, dtype=_dtype(inner_spec[0]))
+        return [self._zero(inner.name, inner_spec) for _ in range(size)]
+
+
+def _base(kind: str, value: Any) -> Any:
+    if kind == "string":
+        return str(value)
+    if kind == "bool":
+        return bool(value)
+    return float(value) if kind.startswith("float") else int(value)
+
+
+def _dtype(kind: str) -> Any:
+    return _NP.get(kind) or getattr(np, kind, np.uint8)
+
+
+# -- the recorded world -------------------------------------------------------------------------
+class Scene:
+    """The entities of the last frame as a World, drawn and listed by :mod:`markers`."""
+
+    def __init__(self, frame_id: str = "map") -> None:
+        self.world = World(history_capacity=1)
+        self.frame_id = frame_id
+
+    def update(self, t_ns: int, poses: Sequence[EntityPose]) -> None:
+        """Make the world hold exactly ``poses`` (agents before joints; owners are checked by
+        :func:`toaster.recording.entity_poses`)."""
+        world = self.world
+        world.active[: world.n] = False
+        world.held_by[: world.n] = -1
+        for pose in sorted(poses, key=lambda p: p.kind == "joint"):
+            row = self._row(pose)
+            world.pos[row] = (pose.x, pose.y, pose.z)
+            world.rpy[row] = (pose.roll, pose.pitch, pose.yaw)
+            world.size[row] = pose.size if pose.size is not None else np.nan
+            world.t_ns[row] = pose.t_ns if pose.t_ns is not None else t_ns
+        for pose in poses:
+            if pose.held_by in world.index:
+                world.held_by[world.index[pose.id]] = world.index[pose.held_by]
+
+    def _row(self, pose: EntityPose) -> int:
+        return self.world.add_entity(pose.id, pose.kind, owner_id=pose.owner,
+                                     name=pose.name or pose.id)
+
+    def poses_of(self, ids: Iterable[str]) -> dict[str, tuple[float, ...]]:
+        """(x, y, z, yaw) of those of ``ids`` in the frame."""
+        world = self.world
+        rows = {i: world.index[i] for i in ids if i in world.index}
+        return {i: (*world.pos[r].tolist(), float(world.rpy[r, 2]))
+                for i, r in rows.items() if world.active[r]}
+
+    def _header(self, item: dict[str, Any]) -> dict[str, Any]:
+        item["header"] = {**item["header"], "frame_id": self.frame_id}
+        return item
+
+    def transforms(self, t_ns: int) -> dict[str, Any]:
+        """tf2_msgs/TFMessage fields: every entity under the fixed frame, pdg's frame names
+        without leading slashes, stamped with the frame's time."""
+        return {"transforms": [
+            {"header": {"stamp": t_ns, "frame_id": self.frame_id},
+             "child_frame_id": strip_frame(child),
+             "transform": {"translation": dict(zip("xyz", position, strict=True)),
+                           "rotation": dict(zip("xyzw", quat, strict=True))}}
+            for child, position, quat, _ in markers.transforms(self.world)]}
+
+    def lists(self, t_ns: int) -> dict[str, dict[str, Any]]:
+        """HumanListStamped / RobotListStamped / ObjectListStamped fields by kind."""
+        header = {"stamp": t_ns, "frame_id": self.frame_id}
+        items = markers.entity_list_fields(self.world, t_ns)
+        return {kind: {"header": header, f"{kind}List": items[kind]} for kind in items}
+
+    def entity_markers(self, t_ns: int) -> list[dict[str, Any]]:
+        """Bodies, heading arrows, joints and names, after one DELETEALL."""
+        arrays = markers.entity_markers(self.world, t_ns).values()
+        out = [next(iter(arrays))[0]] + [m for array in arrays for m in array[1:]]
+        return [self._header(m) for m in out]
+
+    def area_markers(self, areas: Mapping[str, Mapping[str, Any]], occupied: set[str],
+                     t_ns: int) -> list[dict[str, Any]]:
+        """Polygons, discs and names; owner-relative areas where their owner is now."""
+        return [self._header(m) for m in markers.area_markers(self.world, areas, occupied,
+                                                               t_ns)]
+
+
+# -- facts --------------------------------------------------------------------------------------
+class FactTimeline:
+    """The self agent's intervals of each producer, as the fact lists it held over time."""
+
+    def __init__(self, rows: Iterable[FactRow]) -> None:
+        self.by_source: dict[str, list[FactRow]] = {}
+        for row in rows:
+            self.by_source.setdefault(row.source, []).append(row)
+
+    @classmethod
+    def from_db(cls, db: Any, since: int | None, until: int | None) -> FactTimeline:
+        """The intervals of the store's self agent from the four producers in the window."""
+        from toaster import queries
+
+        selves = queries.agents(db, only_self=True)
+        if not selves:
+            return cls([])
+        return cls(queries.history(db, selves[0].id, since=since, until=until,
+                                   source=list(PRODUCERS)))
+
+    def boundaries(self) -> list[int]:
+        """Every time a fact started or ended."""
+        return sorted({t for rows in self.by_source.values() for r in rows
+                       for t in (r.valid_from_ns, r.valid_to_ns) if t is not None})
+
+    def snapshots(self, times: Sequence[int]) -> Iterator[tuple[int, str, list[FactRow]]]:
+        """(t, source, facts held at t) at the first time and whenever a source's facts
+        changed (valid_from ≤ t < valid_to), in time order."""
+        streams = [_changes(source, rows, times) for source, rows in sorted(self.by_source.items())]
+        yield from heapq.merge(*streams, key=lambda item: item[0])
+
+
+def _changes(source: str, rows: list[FactRow], times: Sequence[int]
+             ) -> Iterator[tuple[int, str, list[FactRow]]]:
+    starts = sorted(range(len(rows)), key=lambda k: rows[k].valid_from_ns)
+    ends: list[tuple[int, int]] = []
+    active: set[int] = set()
+    last: frozenset[int] | None = None
+    i = 0
+    for t in times:
+        while i < len(starts) and rows[starts[i]].valid_from_ns <= t:
+            k = starts[i]
+            active.add(k)
+            end = rows[k].valid_to_ns
+            if end is not None:
+                heapq.heappush(ends, (end, k))
+            i += 1
+        while ends and ends[0][0] <= t:
+            active.discard(heapq.heappop(ends)[1])
+        if last != (now := frozenset(active)):
+            last = now
+            held = sorted((rows[k] for k in now),
+                          key=lambda r: (r.subject_id, r.property, r.target_id))
+            yield t, source, held
+
+
+# -- metadata -----------------------------------------------------------------------------------
+def metadata_version(distro: str) -> int:
+    """The rosbag2 metadata version of ``distro``, or a one-line error."""
+    try:
+        return METADATA_VERSIONS[distro.lower()]
+    except KeyError:
+        msg = f"unknown ROS 2 distro {distro!r}: use one of {', '.join(METADATA_VERSIONS)}"
+        raise InvalidInputError(msg) from None
+
+
+def fit_metadata(bag: Path, version: int, distro: str) -> None:
+    """Rewrite ``bag/metadata.yaml`` as ``distro`` writes it: its version, only the fields it
+    knows, ``ros_distro`` the distro's name (rosbags writes "rosbags")."""
+    import yaml  # type: ignore[import-untyped]
+
+    path = bag / "metadata.yaml"
+    data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    info = data["rosbag2_bagfile_information"]
+    info["version"] = version
+    if version < 8:
+        info.pop("ros_distro", None)
+    else:
+        info["ros_distro"] = distro.lower()
+    if version < 6:
+        info.pop("custom_data", None)
+    if version < 7:
+        for topic in info["topics_with_message_count"]:
+            topic["topic_metadata"].pop("type_description_hash", None)
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
