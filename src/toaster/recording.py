@@ -111,8 +111,9 @@ class Recorder:
 
     ``distro`` (humble, iron, jazzy, kilted) names the ROS 2 message definitions and the
     rosbag2 metadata version written (5, 8, 9, 9: what that distro's ``ros2 bag`` reads).
-    ``toaster_names`` spells toaster_msgs' fields as the original (``ros1``, read back by
-    ``toaster run``) or as ROS 2 requires (``ros2``, decoded by Foxglove and rosidl tools).
+    ``toaster_names`` spells toaster_msgs' fields as ROS 2 requires (``ros2``, the default:
+    decoded by Foxglove and rosidl tools) or as the original (``ros1``); ``toaster run`` reads
+    both.
     """
 
     def __init__(self, path: str | Path, *, frame_id: str = "map", distro: str = "humble",
