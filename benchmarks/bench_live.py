@@ -31,14 +31,13 @@ from typing import Any
 import numpy as np
 
 import toaster
-from live_scene import human_pose, object_pose
+from live_scene import human_pose, joint_offsets, object_pose, zone
 from toaster.live import LiveNode
 from toaster.queries import watch
 from toaster.ros1.core import RosCore
 
 HERE = Path(__file__).resolve().parent
 PG_DEFAULT = "postgresql://postgres@127.0.0.1:5432/test"
-ZONE = {"shape": "circle", "center": [0.0, 0.0], "radius": 1.0, "area_type": "interaction"}
 
 
 class Database:
@@ -62,19 +61,28 @@ class Database:
                 conn.exec_driver_sql(f'DROP SCHEMA "{self.schema}" CASCADE')
 
 
+def put_zones(url: str, humans: int) -> None:
+    """Each human's zone, stored before the node starts."""
+    with toaster.connect(url) as db:
+        store = db.store()
+        for i in range(humans):
+            store.put_area(f"zone_h{i}", zone(i))
+
+
 def frame_map(humans: int, objects: int) -> dict[str, Any]:
     frames: dict[str, Any] = {}
     for i in range(humans):
         frames[f"h{i}_base"] = {"id": f"h{i}", "kind": "human"}
-        frames[f"h{i}_head"] = {"kind": "joint", "owner": f"h{i}", "joint": "head"}
-        frames[f"h{i}_hand"] = {"kind": "joint", "owner": f"h{i}", "joint": "rightHand"}
+        for joint in joint_offsets():
+            frames[f"h{i}_{joint}"] = {"kind": "joint", "owner": f"h{i}", "joint": joint}
     for j in range(objects):
         frames[f"o{j}"] = {"id": f"o{j}", "kind": "object"}
     return frames
 
 
 class Watcher:
-    """Arrival wall times of IsInArea zone changes, read by a third connection."""
+    """Arrival wall times of each human's IsInArea zone_<human> changes, read by a third
+    connection."""
 
     def __init__(self, url: str) -> None:
         self.seen: list[tuple[str, bool, int]] = []
@@ -84,9 +92,10 @@ class Watcher:
         self.thread.start()
 
     def _run(self) -> None:
-        for row in watch(self.db, property="IsInArea", target="zone", poll_s=0.002,
+        for row in watch(self.db, property="IsInArea", target="zone_*", poll_s=0.002,
                          stop=self.stop):
-            self.seen.append((row.subject_id, row.kind == "appeared", time.time_ns()))
+            if row.target_id == f"zone_{row.subject_id}":
+                self.seen.append((row.subject_id, row.kind == "appeared", time.time_ns()))
 
     def close(self) -> None:
         self.stop.set()
@@ -114,8 +123,7 @@ def ros_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dic
     frames = Path(tmp) / f"frames{humans}.json"
     frames.write_text(json.dumps(frame_map(humans, 50)))
     try:
-        with toaster.connect(database.url) as db:
-            db.store().put_area("zone", ZONE)
+        put_zones(database.url, humans)
         with RosCore(Path(tmp) / f"ros-{uuid.uuid4().hex[:6]}") as env:
             log = Path(tmp) / "serve.log"
             with log.open("w") as err:
@@ -152,8 +160,8 @@ def api_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dic
     """Baseline: the same scene pushed in-process (no ROS), database latency only."""
     database = Database(backend, pg, tmp)
     try:
+        put_zones(database.url, humans)
         with toaster.connect(database.url) as db:
-            db.store().put_area("zone", ZONE)
             node = LiveNode(db)
             stop = threading.Event()
             loop = threading.Thread(target=node.run, kwargs={"stop": stop})
@@ -171,6 +179,9 @@ def api_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dic
                         inside[i] = want
                         toggles.append([f"h{i}", want, wall])
                     node.api.push(f"h{i}", (x, y, 0.0), t_ns=wall)
+                    for joint, (dx, dy, dz) in joint_offsets().items():
+                        node.api.push(f"h{i}/{joint}", (x + dx, y + dy, dz), kind="joint",
+                                      owner_id=f"h{i}", joint=joint, t_ns=wall)
                 for j in range(50):
                     node.api.push(f"o{j}", object_pose(j), kind="object", t_ns=wall)
                 tick += 1

@@ -1,11 +1,13 @@
 """The external side of bench_live.py, run by Debian's /usr/bin/python3 (rospy): publishes
 /tf for H humans (head and right hand joints) and N objects at 30 Hz, moves each human into
-and out of a zone once a second at staggered times, and listens to /area_manager/factList.
+and out of its zone once a second at staggered times (live_scene.py), and listens to
+/area_manager/factList.
 
     /usr/bin/python3 benchmarks/live_client.py HUMANS OBJECTS SECONDS
 
 Prints one JSON object: ``toggles`` [[human, inside, publish wall ns]] and ``seen``
-[[human, inside, receive wall ns]] (a change of the human's IsInArea zone in a FactList).
+[[human, inside, receive wall ns]] (a change of the human's IsInArea zone_<human> in a
+FactList).
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ import rospy
 from geometry_msgs.msg import TransformStamped
 from tf2_msgs.msg import TFMessage
 
-from live_scene import human_pose, object_pose
+from live_scene import human_pose, joint_offsets, object_pose
 
 ROOT = Path(__file__).resolve().parents[1]
 _spec = importlib.util.spec_from_file_location(
@@ -51,7 +53,7 @@ def main() -> None:
     def on_facts(msg) -> None:
         now = time.time_ns()
         current = {f.subjectId for f in msg.factList
-                   if f.property == "IsInArea" and f.targetId == "zone"}
+                   if f.property == "IsInArea" and f.targetId == f"zone_{f.subjectId}"}
         for human in current ^ inside_now:
             seen.append([human, human in current, now])
         inside_now.clear()
@@ -76,9 +78,9 @@ def main() -> None:
             if want != inside[i]:
                 inside[i] = want
                 toggles.append([f"h{i}", want, wall])
-            transforms += [transform(f"h{i}_base", x, y, 0.0, stamp),
-                           transform(f"h{i}_head", x, y, 1.7, stamp),
-                           transform(f"h{i}_hand", x + 0.3, y, 1.1, stamp)]
+            transforms.append(transform(f"h{i}_base", x, y, 0.0, stamp))
+            transforms += [transform(f"h{i}_{joint}", x + dx, y + dy, dz, stamp)
+                           for joint, (dx, dy, dz) in joint_offsets().items()]
         transforms += [transform(f"o{j}", *object_pose(j), stamp) for j in range(objects)]
         pub.publish(TFMessage(transforms=transforms))
         tick += 1
