@@ -224,3 +224,14 @@ def test_quaternions_give_the_heading():
     roll, pitch, yaw = quaternion_to_rpy(0.0, 0.0, 0.7071068, 0.7071068)
     assert (roll, pitch) == pytest.approx((0.0, 0.0), abs=1e-6)
     assert yaw == pytest.approx(1.5707963, abs=1e-6)
+
+
+def test_monitor_commands_start_from_the_default_and_respect_a_clear(db):
+    """add/remove start from what a node monitors by default (every human); after a clear,
+    removing one agent does not bring the others back."""
+    state = control.monitor_add(db, "robby")
+    assert state.agents == ["humans", "robby"]
+    control.monitor_clear(db)
+    state = control.monitor_remove(db, "bob")
+    assert state.agents == []
+    assert state.excluded == []

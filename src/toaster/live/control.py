@@ -34,10 +34,12 @@ from sqlalchemy import Connection, text
 
 from toaster.db import catalog
 from toaster.errors import InvalidInputError, ToasterError
+from toaster.producers.config import DEFAULTS
 from toaster.timeutil import now_ns
 
 MONITOR, STREAMS, IN_HAND = "monitor", "streams", "in_hand"
 CLASSES = ("humans", "robots", "agents")
+DEFAULT_MONITORED = DEFAULTS["monitored_agents"]  # what a node monitors until told otherwise
 #: kinds of one-shot commands the node applies, and of queries it answers
 COMMANDS = ("set_entity_pose", "add_entity", "remove_entity")
 QUERIES = ("pointing", "get_relative_position", "get_multiple_relative_position",
@@ -67,6 +69,11 @@ class ControlState:
     def monitored_agents(self, default: object) -> object:
         """The AgentMonitor ``monitored_agents`` value: stored choice, else ``default``."""
         return default if self.agents is None else list(self.agents)
+
+
+def _agents(state: ControlState) -> list[str]:
+    """The stored choice, or the producers' default (every human) when none was made."""
+    return list(state.agents) if state.agents is not None else [DEFAULT_MONITORED]
 
 
 def read_state(conn: Connection) -> ControlState:
@@ -99,7 +106,7 @@ def monitor_add(db: Any, agent_id: str, joints: Sequence[str] = ()) -> ControlSt
     catalog.check_id(agent_id, "agent id")
     with db.transaction() as conn:
         state = read_state(conn)
-        agents = [a for a in (state.agents or []) if a != agent_id] + [agent_id]
+        agents = [a for a in _agents(state) if a != agent_id] + [agent_id]
         _put(conn, MONITOR, "agents", agents)
         _put(conn, MONITOR, "except", [a for a in state.excluded if a != agent_id])
         if joints:
@@ -124,7 +131,7 @@ def monitor_remove(db: Any, agent_id: str, joint: str | None = None) -> ControlS
             table[agent_id] = [j for j in table[agent_id] if j != joint]
             _put(conn, MONITOR, "joints", table)
         else:
-            agents = [a for a in (state.agents or ["humans"]) if a != agent_id]
+            agents = [a for a in _agents(state) if a != agent_id]
             _put(conn, MONITOR, "agents", agents)
             if any(a in CLASSES for a in agents):
                 _put(conn, MONITOR, "except", sorted({*state.excluded, agent_id}))
@@ -140,8 +147,7 @@ def monitor_all(db: Any, which: str, on: bool = True) -> ControlState:
         raise InvalidInputError(msg)
     with db.transaction() as conn:
         state = read_state(conn)
-        agents = [a for a in (state.agents if state.agents is not None else ["humans"])
-                  if a != which] + ([which] if on else [])
+        agents = [a for a in _agents(state) if a != which] + ([which] if on else [])
         _put(conn, MONITOR, "agents", agents)
         if on:
             _put(conn, MONITOR, "except", [])
