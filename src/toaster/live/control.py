@@ -16,7 +16,9 @@ a node running (a node reads it at start-up and again whenever it changed):
   the node answers within a tick. Commands wait for the next node; a query nobody answered in
   time is withdrawn.
 
-Every change bumps ``store_state.control_version`` in its own transaction; the node compares
+Every change bumps ``store_state.control_version`` in its own write transaction (SQLite: BEGIN
+IMMEDIATE, so a change that reads before it writes never meets a busy node half-way); the node
+compares
 that number once per tick (PostgreSQL also gets ``NOTIFY toaster_control``). Choice written
 down: ``monitor all humans`` is kept as the class, so humans that appear later are monitored
 too (the original added only those present at that moment, which surprised its users).
@@ -104,7 +106,7 @@ def _delete(conn: Connection, scope: str, key: str | None = None) -> int:
 def monitor_add(db: Any, agent_id: str, joints: Sequence[str] = ()) -> ControlState:
     """Monitor an agent (``add_agent``), optionally naming joints (``add_joint_to_agent``)."""
     catalog.check_id(agent_id, "agent id")
-    with db.transaction() as conn:
+    with db.transaction(write=True) as conn:
         state = read_state(conn)
         agents = [a for a in _agents(state) if a != agent_id] + [agent_id]
         _put(conn, MONITOR, "agents", agents)
@@ -120,7 +122,7 @@ def monitor_add(db: Any, agent_id: str, joints: Sequence[str] = ()) -> ControlSt
 def monitor_remove(db: Any, agent_id: str, joint: str | None = None) -> ControlState:
     """Stop monitoring an agent (``remove_agent``) or one of its joints
     (``remove_joint_to_agent``)."""
-    with db.transaction() as conn:
+    with db.transaction(write=True) as conn:
         state = read_state(conn)
         if joint is not None:
             table = dict(state.joints or {})
@@ -145,7 +147,7 @@ def monitor_all(db: Any, which: str, on: bool = True) -> ControlState:
     if which not in CLASSES:
         msg = f"cannot monitor all {which!r}: use one of {', '.join(CLASSES)}"
         raise InvalidInputError(msg)
-    with db.transaction() as conn:
+    with db.transaction(write=True) as conn:
         state = read_state(conn)
         agents = [a for a in _agents(state) if a != which] + ([which] if on else [])
         _put(conn, MONITOR, "agents", agents)
@@ -158,7 +160,7 @@ def monitor_all(db: Any, which: str, on: bool = True) -> ControlState:
 def monitor_clear(db: Any, joints_only: bool = False) -> ControlState:
     """Monitor nobody (``remove_all_agents``), or only forget joint choices
     (``remove_all_joints_to_agent``: every joint of a monitored agent again)."""
-    with db.transaction() as conn:
+    with db.transaction(write=True) as conn:
         if joints_only:
             _delete(conn, MONITOR, "joints")
         else:
@@ -173,7 +175,7 @@ def monitor_clear(db: Any, joints_only: bool = False) -> ControlState:
 def set_stream(db: Any, name: str, on: bool) -> None:
     """Switch an input stream on or off (``manage_stream``)."""
     catalog.check_id(name, "stream name")
-    with db.transaction() as conn:
+    with db.transaction(write=True) as conn:
         _put(conn, STREAMS, name, bool(on))
         bump(conn)
 
@@ -182,14 +184,14 @@ def put_in_hand(db: Any, object_id: str, agent_id: str, joint: str) -> None:
     """An object follows an agent's joint until removed (``put_in_hand``)."""
     for value, what in ((object_id, "object id"), (agent_id, "agent id"), (joint, "joint")):
         catalog.check_id(value, what)
-    with db.transaction() as conn:
+    with db.transaction(write=True) as conn:
         _put(conn, IN_HAND, object_id, {"agent": agent_id, "joint": joint})
         bump(conn)
 
 
 def remove_from_hand(db: Any, object_id: str) -> bool:
     """Release an object (``remove_from_hand``); False if it was in no hand."""
-    with db.transaction() as conn:
+    with db.transaction(write=True) as conn:
         found = _delete(conn, IN_HAND, object_id) > 0
         bump(conn)
         return found
@@ -197,7 +199,7 @@ def remove_from_hand(db: Any, object_id: str) -> bool:
 
 def touch(db: Any) -> None:
     """Tell a running node that areas or entities changed (their writers call it)."""
-    with db.transaction() as conn:
+    with db.transaction(write=True) as conn:
         bump(conn)
 
 
@@ -216,7 +218,7 @@ def submit(db: Any, kind: str, args: Mapping[str, Any]) -> int:
     if kind not in COMMANDS + QUERIES:
         msg = f"unknown control command {kind!r}: use one of {', '.join(COMMANDS + QUERIES)}"
         raise InvalidInputError(msg)
-    with db.transaction() as conn:
+    with db.transaction(write=True) as conn:
         new_id = conn.execute(
             text("INSERT INTO control_commands (kind, args_json, created_ns, state) "
                  "VALUES (:kind, :args, :t, 'pending') RETURNING id"),
@@ -230,11 +232,12 @@ def ask(db: Any, kind: str, args: Mapping[str, Any], timeout_s: float = 2.0) -> 
     command_id = submit(db, kind, args)
     deadline = time.monotonic() + timeout_s
     while True:
-        with db.transaction() as conn:
+        with db.transaction() as conn:  # a read while waiting
             row = conn.execute(text("SELECT state, answer_json FROM control_commands "
                                     "WHERE id = :id"), {"id": command_id}).one()
-            late = row.state == "pending" and time.monotonic() >= deadline
-            if row.state != "pending" or late:
+        late = row.state == "pending" and time.monotonic() >= deadline
+        if row.state != "pending" or late:
+            with db.transaction(write=True) as conn:
                 conn.execute(text("DELETE FROM control_commands WHERE id = :id"),
                              {"id": command_id})
         if late:

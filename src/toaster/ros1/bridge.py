@@ -122,6 +122,9 @@ class Bridge:
         self.watchers: Watchers | None = None
         self._caller = rospy.get_name()
         self._area_numbers: tuple[frozenset[str], dict[str, int]] = (frozenset(), {})
+        self._tf_lock = threading.Lock()
+        self._tf_changed: set[str] = set()
+        self._flush = _TfFlush(self)
         self._subscribe(toaster_simu, pdg_lists)
         self._advertise()
         if services:
@@ -159,6 +162,7 @@ class Bridge:
         from tf2_msgs.msg import TFMessage  # type: ignore[import-not-found]
 
         reg = self.registry
+        self.node.sources.append(self._flush)  # before the tf and ros4hri sources it feeds
         for name in ("tf", "pose_topics", "ros4hri"):
             self.source(name)
         self._sub("/tf", TFMessage, self._on_tf)
@@ -181,11 +185,26 @@ class Bridge:
         return header.get("callerid") == self._caller
 
     def _on_tf(self, msg: Any) -> None:
+        """Only store the transforms here (rospy's receive thread): the poses of the frames
+        they moved are computed once per tick on the tick's thread (:class:`_TfFlush`), so the
+        two threads do not fight over the interpreter for every message."""
         if self._own(msg):
             return
         changed, bad = self.tree.update(msg)
         for line in bad:
             self.warnings.add(line, f"/tf: {line}")
+        with self._tf_lock:
+            self._tf_changed |= changed
+        wake = self.sources["tf"].on_push
+        if wake is not None:
+            wake()
+
+    def flush_tf(self) -> None:
+        """Push the poses of the mapped (and ROS4HRI) frames moved since the last tick."""
+        with self._tf_lock:
+            changed, self._tf_changed = self._tf_changed, set()
+        if not changed:
+            return
         updates, lost = tf_updates(self.tree, self.frames, changed)
         for update in updates:
             self.push("tf", update)
@@ -301,7 +320,7 @@ class Bridge:
                 pub.unregister()
         if self.output in self.node.outputs:
             self.node.outputs.remove(self.output)
-        for source in self.sources.values():
+        for source in [self._flush, *self.sources.values()]:
             if source in self.node.sources:
                 self.node.sources.remove(source)
         if self.watchers is not None:
@@ -309,6 +328,21 @@ class Bridge:
         if self.pool is not None:
             self.pool.close()
         self.rospy.signal_shutdown("toaster bridge stopped")
+
+
+class _TfFlush:
+    """A node source that turns the /tf received since the last tick into poses."""
+
+    name = "tf_flush"
+
+    def __init__(self, bridge: Bridge) -> None:
+        self.bridge = bridge
+
+    def setup(self, world: World) -> None:
+        """Nothing to register."""
+
+    def advance(self, world: World, t_ns: int) -> None:
+        self.bridge.flush_tf()
 
 
 class _Output:
