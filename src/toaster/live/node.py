@@ -292,6 +292,9 @@ class LiveNode:
             take = getattr(source, "take_warnings", None)
             for line in take() if take is not None else ():
                 self.warn(f"source {getattr(source, 'name', '?')}: {line}")
+        # what arrived so far is applied: only poses arriving from now on call for a tick (not
+        # those pushed while the sources advanced, e.g. /tf mapped on this thread)
+        self.wake.clear()
         if self.store is not None:
             self._register_new(t)
         try:
@@ -341,7 +344,6 @@ class LiveNode:
             if seconds is not None and time.monotonic() - begin >= seconds:
                 break
             start = time.monotonic()
-            self.wake.clear()
             self.tick()
             count += 1
             took = time.monotonic() - start
