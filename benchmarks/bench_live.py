@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 import toaster
+from bench_run import Database
 from live_scene import human_pose, joint_offsets, object_pose, zone
 from toaster.live import LiveNode
 from toaster.queries import watch
@@ -38,27 +39,6 @@ from toaster.ros1.core import RosCore
 
 HERE = Path(__file__).resolve().parent
 PG_DEFAULT = "postgresql://postgres@127.0.0.1:5432/test"
-
-
-class Database:
-    """A fresh SQLite file or PostgreSQL schema."""
-
-    def __init__(self, backend: str, pg: str, tmp: str) -> None:
-        self.backend, self.schema = backend, ""
-        if backend == "sqlite":
-            self.url = f"sqlite:///{tmp}/live-{uuid.uuid4().hex[:8]}.db"
-        else:
-            self.schema = f"bench_live_{uuid.uuid4().hex[:8]}"
-            with toaster.connect(pg, create=False, check=False) as db, db.transaction() as c:
-                c.exec_driver_sql(f'CREATE SCHEMA "{self.schema}"')
-            self.url = f"{pg}?options=-csearch_path%3D{self.schema}"
-        self.pg = pg
-
-    def drop(self) -> None:
-        if self.schema:
-            with toaster.connect(self.pg, create=False, check=False) as db, \
-                    db.transaction() as conn:
-                conn.exec_driver_sql(f'DROP SCHEMA "{self.schema}" CASCADE')
 
 
 def put_zones(url: str, humans: int) -> None:
@@ -147,7 +127,7 @@ def ros_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dic
             out = json.loads(client.stdout.strip().splitlines()[-1])
             summary = log.read_text()
     finally:
-        database.drop()
+        database.close()
     found = re.search(r"stopped after (\d+) ticks \((\d+) overran [\d.]+ ms; median "
                       r"([\d.]+) ms", summary)
     ticks, overruns, median = (found.groups() if found else ("nan", "nan", "nan"))
@@ -192,7 +172,7 @@ def api_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dic
             loop.join()
             stats = node.stats
     finally:
-        database.drop()
+        database.close()
     return {"db": latencies(toggles, watcher.seen), "ros": [], "toggles": len(toggles),
             "ticks": stats.ticks, "overruns": stats.overruns,
             "tick_ms": statistics.median(stats.tick_ms) if stats.tick_ms else float("nan")}

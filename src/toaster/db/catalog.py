@@ -231,6 +231,15 @@ def put_setting(conn: Connection, scope: str, key: str, value: object) -> None:
     conn.execute(insert(table).values(scope=scope, key=key, value_json=body))
 
 
+def delete_setting(conn: Connection, scope: str, key: str | None = None) -> int:
+    """Delete one setting, or every setting of a scope; return how many there were."""
+    table = s.settings
+    query = delete(table).where(table.c.scope == scope)
+    if key is not None:
+        query = query.where(table.c.key == key)
+    return int(conn.execute(query).rowcount or 0)
+
+
 def get_setting(conn: Connection, scope: str, key: str, default: object) -> Any:
     """One setting's value, or ``default``."""
     table = s.settings

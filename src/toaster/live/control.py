@@ -46,15 +46,10 @@ DEFAULT_MONITORED = DEFAULTS["monitored_agents"]  # what a node monitors until t
 COMMANDS = ("set_entity_pose", "add_entity", "remove_entity")
 QUERIES = ("pointing", "get_relative_position", "get_multiple_relative_position",
            "relative_position_from")
-CHANNEL = catalog.CONTROL_CHANNEL
 
 
 class NoNodeError(ToasterError):
     """No running node answered a query in time."""
-
-
-bump = catalog.bump_control
-version = catalog.control_version
 
 
 # -- state ------------------------------------------------------------------------------------
@@ -89,19 +84,6 @@ def read_state(conn: Connection) -> ControlState:
                         in_hand=hands)
 
 
-def _put(conn: Connection, scope: str, key: str, value: object) -> None:
-    catalog.put_setting(conn, scope, key, value)
-
-
-def _delete(conn: Connection, scope: str, key: str | None = None) -> int:
-    sql = "DELETE FROM settings WHERE scope = :scope"
-    params = {"scope": scope}
-    if key is not None:
-        sql += " AND key = :key"
-        params["key"] = key
-    return int(conn.execute(text(sql), params).rowcount or 0)
-
-
 # -- monitored agents (agent_monitor services) ---------------------------------------------------
 def monitor_add(db: Any, agent_id: str, joints: Sequence[str] = ()) -> ControlState:
     """Monitor an agent (``add_agent``), optionally naming joints (``add_joint_to_agent``)."""
@@ -109,13 +91,13 @@ def monitor_add(db: Any, agent_id: str, joints: Sequence[str] = ()) -> ControlSt
     with db.transaction(write=True) as conn:
         state = read_state(conn)
         agents = [a for a in _agents(state) if a != agent_id] + [agent_id]
-        _put(conn, MONITOR, "agents", agents)
-        _put(conn, MONITOR, "except", [a for a in state.excluded if a != agent_id])
+        catalog.put_setting(conn, MONITOR, "agents", agents)
+        catalog.put_setting(conn, MONITOR, "except", [a for a in state.excluded if a != agent_id])
         if joints:
             table = dict(state.joints or {})
             table[agent_id] = sorted({*table.get(agent_id, []), *joints})
-            _put(conn, MONITOR, "joints", table)
-        bump(conn)
+            catalog.put_setting(conn, MONITOR, "joints", table)
+        catalog.bump_control(conn)
         return read_state(conn)
 
 
@@ -131,13 +113,13 @@ def monitor_remove(db: Any, agent_id: str, joint: str | None = None) -> ControlS
                        "'toaster monitor list'")
                 raise InvalidInputError(msg)
             table[agent_id] = [j for j in table[agent_id] if j != joint]
-            _put(conn, MONITOR, "joints", table)
+            catalog.put_setting(conn, MONITOR, "joints", table)
         else:
             agents = [a for a in _agents(state) if a != agent_id]
-            _put(conn, MONITOR, "agents", agents)
+            catalog.put_setting(conn, MONITOR, "agents", agents)
             if any(a in CLASSES for a in agents):
-                _put(conn, MONITOR, "except", sorted({*state.excluded, agent_id}))
-        bump(conn)
+                catalog.put_setting(conn, MONITOR, "except", sorted({*state.excluded, agent_id}))
+        catalog.bump_control(conn)
         return read_state(conn)
 
 
@@ -150,10 +132,10 @@ def monitor_all(db: Any, which: str, on: bool = True) -> ControlState:
     with db.transaction(write=True) as conn:
         state = read_state(conn)
         agents = [a for a in _agents(state) if a != which] + ([which] if on else [])
-        _put(conn, MONITOR, "agents", agents)
+        catalog.put_setting(conn, MONITOR, "agents", agents)
         if on:
-            _put(conn, MONITOR, "except", [])
-        bump(conn)
+            catalog.put_setting(conn, MONITOR, "except", [])
+        catalog.bump_control(conn)
         return read_state(conn)
 
 
@@ -162,12 +144,12 @@ def monitor_clear(db: Any, joints_only: bool = False) -> ControlState:
     (``remove_all_joints_to_agent``: every joint of a monitored agent again)."""
     with db.transaction(write=True) as conn:
         if joints_only:
-            _delete(conn, MONITOR, "joints")
+            catalog.delete_setting(conn, MONITOR, "joints")
         else:
-            _put(conn, MONITOR, "agents", [])
-            _put(conn, MONITOR, "except", [])
-            _delete(conn, MONITOR, "joints")
-        bump(conn)
+            catalog.put_setting(conn, MONITOR, "agents", [])
+            catalog.put_setting(conn, MONITOR, "except", [])
+            catalog.delete_setting(conn, MONITOR, "joints")
+        catalog.bump_control(conn)
         return read_state(conn)
 
 
@@ -176,8 +158,8 @@ def set_stream(db: Any, name: str, on: bool) -> None:
     """Switch an input stream on or off (``manage_stream``)."""
     catalog.check_id(name, "stream name")
     with db.transaction(write=True) as conn:
-        _put(conn, STREAMS, name, bool(on))
-        bump(conn)
+        catalog.put_setting(conn, STREAMS, name, bool(on))
+        catalog.bump_control(conn)
 
 
 def put_in_hand(db: Any, object_id: str, agent_id: str, joint: str) -> None:
@@ -185,22 +167,16 @@ def put_in_hand(db: Any, object_id: str, agent_id: str, joint: str) -> None:
     for value, what in ((object_id, "object id"), (agent_id, "agent id"), (joint, "joint")):
         catalog.check_id(value, what)
     with db.transaction(write=True) as conn:
-        _put(conn, IN_HAND, object_id, {"agent": agent_id, "joint": joint})
-        bump(conn)
+        catalog.put_setting(conn, IN_HAND, object_id, {"agent": agent_id, "joint": joint})
+        catalog.bump_control(conn)
 
 
 def remove_from_hand(db: Any, object_id: str) -> bool:
     """Release an object (``remove_from_hand``); False if it was in no hand."""
     with db.transaction(write=True) as conn:
-        found = _delete(conn, IN_HAND, object_id) > 0
-        bump(conn)
+        found = catalog.delete_setting(conn, IN_HAND, object_id) > 0
+        catalog.bump_control(conn)
         return found
-
-
-def touch(db: Any) -> None:
-    """Tell a running node that areas or entities changed (their writers call it)."""
-    with db.transaction(write=True) as conn:
-        bump(conn)
 
 
 # -- commands and queries ------------------------------------------------------------------------
@@ -223,7 +199,7 @@ def submit(db: Any, kind: str, args: Mapping[str, Any]) -> int:
             text("INSERT INTO control_commands (kind, args_json, created_ns, state) "
                  "VALUES (:kind, :args, :t, 'pending') RETURNING id"),
             {"kind": kind, "args": json.dumps(dict(args)), "t": now_ns()}).scalar_one()
-        bump(conn)
+        catalog.bump_control(conn)
         return int(new_id)
 
 
@@ -269,9 +245,3 @@ def finish(conn: Connection, command_id: int, answer: object = None, *,
                  {"state": "failed" if error is not None else "done",
                   "answer": json.dumps(error if error is not None else answer),
                   "t": now_ns(), "id": command_id})
-
-
-def forget_done(conn: Connection, older_than_ns: int) -> None:
-    """Delete answered commands older than a time (queries are deleted by their askers)."""
-    conn.execute(text("DELETE FROM control_commands WHERE state <> 'pending' "
-                      "AND done_ns < :t"), {"t": older_than_ns})

@@ -33,7 +33,13 @@ from toaster.producers.batch import FactBatch
 from toaster.producers.config import make_config
 from toaster.producers.monitor import AgentMonitor, pointing
 from toaster.producers.perception import PerceptionFacts
-from toaster.producers.runner import DEFAULT_SELF, MAINTAIN_EVERY_S, Runner, Source
+from toaster.producers.runner import (
+    DEFAULT_SELF,
+    MAINTAIN_EVERY_S,
+    Runner,
+    Source,
+    register_row,
+)
 from toaster.producers.spatial import SpatialFacts, relative_position_from
 from toaster.timeutil import now_ns
 from toaster.world.live import LiveSource
@@ -135,10 +141,10 @@ class LiveNode:
         if self.db is None:
             return False
         with self.db.transaction() as conn:  # a read, every tick
-            if control.version(conn) == self._version:
+            if catalog.control_version(conn) == self._version:
                 return False
         with self.db.transaction(write=True) as conn:  # commands are answered in it
-            version = control.version(conn)
+            version = catalog.control_version(conn)
             state = control.read_state(conn)
             stored_areas = catalog.areas(conn)
             commands = control.pending(conn, control.COMMANDS)
@@ -264,17 +270,9 @@ class LiveNode:
                if eid not in self._registered and world.active[r]]
         if not new:
             return
-        holders = self.holders
         with store.transaction():
             for r in new:
-                eid, kind = world.ids[r], world.kind_text[r]
-                owner = world.ids[world.owner[r]] if world.owner[r] >= 0 else ""
-                agent = None
-                if kind == "human":
-                    agent = holders == "humans" or (not isinstance(holders, str)
-                                                     and eid in holders)
-                store.add_entity(eid, kind, name=world.names[r], owner_id=owner, agent=agent,
-                                 t_ns=t_ns)
+                register_row(store, world, r, self.holders, t_ns)
         self._registered.update(world.ids[r] for r in new)
 
     def tick(self, t_ns: int | None = None) -> dict[str, list[Fact]]:

@@ -214,14 +214,20 @@ class Session:
             store.add_entity(self.self_id, "robot", is_self=True, t_ns=start)
             for row, entity_id in enumerate(world.ids):
                 if entity_id != self.self_id:
-                    owner = world.ids[world.owner[row]] if world.owner[row] >= 0 else ""
-                    kind = world.kind_text[row]
-                    agent = None
-                    if kind == "human":
-                        agent = holders == "humans" or (not isinstance(holders, str)
-                                                         and entity_id in holders)
-                    store.add_entity(entity_id, kind, name=world.names[row],
-                                     owner_id=owner, agent=agent, t_ns=start)
+                    register_row(store, world, row, holders, start)
+
+
+def register_row(store: Any, world: World, row: int, holders: str | Sequence[str],
+                 t_ns: int) -> None:
+    """Put a world row in the store as an entity (joints with their owner); a human becomes an
+    agent (a belief holder) only as ``holders`` ("none", "humans" or ids) says."""
+    entity_id, kind = world.ids[row], world.kind_text[row]
+    owner = world.ids[world.owner[row]] if world.owner[row] >= 0 else ""
+    agent = None
+    if kind == "human":
+        agent = holders == "humans" or (not isinstance(holders, str) and entity_id in holders)
+    store.add_entity(entity_id, kind, name=world.names[row], owner_id=owner, agent=agent,
+                     t_ns=t_ns)
 
 
 def _belief_holders(value: Any, kinds: dict[str, str], name: str) -> str | tuple[str, ...]:
