@@ -22,7 +22,6 @@ import pytest
 from toaster.ros1 import RosUnavailableError
 from toaster.ros1.core import RosCore, stop_group
 
-ROOT = Path(__file__).resolve().parents[2]
 HERE = Path(__file__).resolve().parent
 ROSCORE = "/usr/bin/roscore"
 SYSTEM_PYTHON = "/usr/bin/python3"
@@ -77,7 +76,8 @@ class NodeProcess:
         self.url, self.log = url, log
         self.err = log.open("w")
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "toaster", "--db", url, "serve", "--ros1", *args], cwd=ROOT,
+            [sys.executable, "-m", "toaster", "--db", url, "serve", "--ros1", *args],
+            cwd=log.parent,  # files the node writes (plot_fact/) land beside its log
             env=env, stdout=subprocess.PIPE, stderr=self.err, text=True,
             start_new_session=True)
         deadline = time.monotonic() + 60

@@ -262,6 +262,22 @@ def test_database_manager_services(world: RosClient, db: toaster.Database) -> No
     assert "!IsOn" in {e["property"] for e in events["resEventList"]}
 
 
+def test_plot_facts_writes_the_timeline_under_plot_fact(world: RosClient,
+                                                        node: NodeProcess) -> None:
+    """database_manager/plot_facts with the original's fields writes plot_fact/<reqFact>.dat
+    (the directory created) holding the fact's level: 1 while bob is in the kitchen."""
+    assert world.call("/database_manager/plot_facts", "PlotFactsDB", subjectID="bob",
+                      targetID="kitchen", fullTime=True, reqFact="IsInRoom")["boolAnswer"]
+    data = (node.log.parent / "plot_fact" / "IsInRoom.dat").read_text()
+    rows = [line.split() for line in data.splitlines() if line and not line.startswith("#")]
+    assert rows and rows[0][2] == "1"
+    assert (node.log.parent / "plot_fact" / "IsInRoom.gp").exists()
+    assert not world.call("/database_manager/plot_facts", "PlotFactsDB", subjectID="bob",
+                          targetID="nowhere", fullTime=True, reqFact="IsInRoom")["boolAnswer"]
+    wait_for(lambda: "/database_manager/plot_facts: no fact matches" in node.stderr(),
+             message="the refusal's warning line")
+
+
 def test_ros4hri_and_toaster_simu_lists_become_entities(world: RosClient,
                                                          db: toaster.Database) -> None:
     world.publish("/humans/bodies/tracked", "hri_msgs/IdsList",

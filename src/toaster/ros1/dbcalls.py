@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Iterable
+from pathlib import Path
 from typing import Any
 
 from sqlalchemy import text
@@ -271,3 +272,31 @@ def execute(db: Any, req: Any) -> tuple[bool, list[str]]:
     msg = (f"execute {req.command!r}: use SQL, ARE_IN_TABLE, EMPTY or PRINT (toaster stores "
            "every producer's facts, so SET_TOPICS and RESET_TABLES have no equivalent)")
     raise InvalidInputError(msg)
+
+
+PLOT_DIR = "plot_fact"  # the original's <package dir>/plot_fact, here under the working directory
+
+
+def plot_facts(db: Any, req: Any, directory: str | Path = PLOT_DIR) -> Path:
+    """The original's plot_facts: ``reqFact``'s timeline between ``subjectID`` and ``targetID``
+    written as gnuplot data to ``directory/<reqFact>.dat`` (script ``.gp`` beside it).
+
+    Fixes the original's defects: the directory is created, no matching fact is a clear error
+    (not a crash), and the level plotted after each change is the fact's, not its inverse.
+    """
+    from toaster.plotting import plot_facts as plot
+
+    fact = str(req.reqFact).lstrip("!")
+    if not fact or "/" in fact or fact.startswith("."):
+        msg = f"plot_facts reqFact {req.reqFact!r}: give a fact name such as IsLookingToward"
+        raise InvalidInputError(msg)
+    since, until = (None, None) if req.fullTime else (int(req.timeStart), int(req.timeEnd))
+    if until is not None and since is not None and until <= since:
+        msg = f"plot_facts timeEnd {until} is not after timeStart {since}: or set fullTime"
+        raise InvalidInputError(msg)
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / f"{fact}.dat"
+    plot(db, path, subject=req.subjectID or None, property=fact,
+         target=req.targetID or None, since=since, until=until)
+    return path

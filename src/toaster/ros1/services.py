@@ -330,6 +330,13 @@ class Handlers:
         resp.answer = True
         return resp
 
+    def plot_facts(self, req: Any, resp: Any) -> Any:
+        with self.pool.db() as db:
+            path = dbcalls.plot_facts(db, req)
+        self.log(f"plot_facts: wrote {path.resolve()} (draw it with gnuplot -p {path.stem}.gp)")
+        resp.boolAnswer = True
+        return resp
+
     def table(self) -> list[tuple[str, str, Callable[[Any, Any], Any]]]:
         """(service name, toaster_msgs service type, handler) of every service."""
         out: list[tuple[str, str, Callable[[Any, Any], Any]]] = [
@@ -364,6 +371,7 @@ class Handlers:
             ("/database_manager/execute", "ExecuteDB", self.execute),
             ("/database_manager/get_info", "GetInfoDB", self.get_info),
             ("/database_manager/set_info", "SetInfoDB", self.set_info),
+            ("/database_manager/plot_facts", "PlotFactsDB", self.plot_facts),
         ]
         out += [(f"/agent_monitor/{name}", "MonitorAll", self.monitor_all(which))
                 for name, which in CLASS_OF.items()]
