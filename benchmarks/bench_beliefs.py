@@ -10,7 +10,12 @@ belief_follow rows inserted for holders per changed self fact (the straightforwa
 inserts 2 and updates 1 per perceiving holder). "churn" keeps one holder out of the room two
 ticks in four: it misses every change of one tick (1,000 beliefs stop following) and catches
 up on the next (1,000 start again), the expensive transitions.
-Usage: python benchmarks/bench_beliefs.py [--ticks 10] [--entities 1000] [--pg URL]
+"single writes" compares one change per transaction written by the library
+(Store.assert_fact) with the same change written by a plain SQL client (INSERT INTO fact_inbox,
+a separate connection): both run the database's rule; the inbox also applies the write itself
+in SQL.
+Usage: python benchmarks/bench_beliefs.py [--ticks 10] [--entities 1000] [--writes 300]
+       [--pg URL]
 """
 
 from __future__ import annotations
@@ -77,10 +82,41 @@ def run(url: str, agents: int, depth: int, rules: bool, ticks: int, entities: in
         return ticks * entities / elapsed, (_holder_rows(db) - rows) / (ticks * entities)
 
 
+def single_writes(url: str, agents: int, writes: int, raw: bool) -> float:
+    """Changes per second, one per transaction, by the library or through fact_inbox."""
+    with toaster.connect(url) as db:
+        st = db.store()
+        st.add_entity("R", "robot", is_self=True, t_ns=0)
+        for i in range(agents):
+            st.add_entity(f"H{i}", "human", t_ns=0)
+        st.sync_snapshot("room", "R", 1, [toaster.Fact(f"H{i}", "IsInRoom", "LAB")
+                                          for i in range(agents)]
+                         + [toaster.Fact(f"O{i}", "IsInRoom", "LAB") for i in range(50)])
+        changes = [(f"O{k % 50}", "near" if (k // 50) % 2 else "far", k + 2)
+                   for k in range(writes)]
+        engine = sa.create_engine(db.url.replace("postgresql://", "postgresql+psycopg://"))
+        start = time.perf_counter()
+        if raw:
+            for subject, value, t in changes:
+                with engine.begin() as conn:
+                    conn.execute(sa.text(
+                        "INSERT INTO fact_inbox (agent_id, subject_id, property, target_id, "
+                        "value_text, t_ns, source) VALUES ('R', :s, 'Distance', 'R', :v, :t, "
+                        "'user')"), {"s": subject, "v": value, "t": t})
+        else:
+            for subject, value, t in changes:
+                st.assert_fact("R", toaster.Fact(subject, "Distance", "R", value), t_ns=t,
+                               strict=False)
+        elapsed = time.perf_counter() - start
+        engine.dispose()
+        return writes / elapsed
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--ticks", type=int, default=10)
     parser.add_argument("--entities", type=int, default=1000)
+    parser.add_argument("--writes", type=int, default=300)
     parser.add_argument("--pg", default=PG, help="PostgreSQL URL ('' to skip)")
     args = parser.parse_args()
     # (agents, depth, rules, churn, share_rows); the last case is the straightforward design.
@@ -106,6 +142,18 @@ def main() -> None:
                 print(f"{backend:10} {agents:6d} {depth:5d} {kind:>7} "
                       f"{'yes' if churn else 'no':>5} {rate:16,.0f} {rate / baseline:10.2f}x "
                       f"{rows:18.2f}", flush=True)
+        print(f"\nsingle writes (one change per transaction, 10 agents in the room)\n"
+              f"{'backend':10} {'library/s':>10} {'fact_inbox/s':>13} {'inbox vs library':>17}")
+        for backend in ("sqlite", "postgresql"):
+            if backend == "postgresql" and not args.pg:
+                continue
+            rates = []
+            for n, raw in enumerate((False, True)):
+                url = (f"sqlite:///{tmp}/single{n}.db" if backend == "sqlite"
+                       else _pg_schema(args.pg, f"bench_single_{n}"))
+                rates.append(single_writes(url, 10, args.writes, raw))
+            print(f"{backend:10} {rates[0]:10,.0f} {rates[1]:13,.0f} {rates[1] / rates[0]:16.2f}x",
+                  flush=True)
 
 
 if __name__ == "__main__":

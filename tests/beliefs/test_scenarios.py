@@ -108,7 +108,7 @@ def test_two_store_processes_both_apply_the_rules(db_url: str) -> None:
         second.close()
 
 
-def test_migration_0002_downgrades_and_upgrades(db_url: str) -> None:
+def test_beliefs_revision_downgrades_and_upgrades(db_url: str) -> None:
     db = toaster.connect(db_url)
     scenario.replay(db, resources.files("toaster") / "examples" / "beliefs_sally_anne.yaml")
     db.close()

@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import sqlite3
+from pathlib import Path
+from typing import Any
+
 import pytest
 from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 from sqlalchemy import inspect
 
 import toaster
+import toaster.queries as q
+from tests.db import beliefs_story
 from toaster.db import migrate
 from toaster.db.engine import make_engine
 from toaster.db.schema import metadata
@@ -77,3 +83,89 @@ def test_downgrade_with_nested_holders_named_oddly(empty_url: str) -> None:
     with engine.connect() as conn:
         assert inspect(conn).get_view_names() == []
     engine.dispose()
+
+
+# -- Databases from before the belief revisions were squashed (0002 + 0003 -> 0003) ---------
+
+LEGACY_DUMP = Path(__file__).parent / "data" / "beliefs_0005.sql"
+TICKS = [t * 10 for t in range(9)]
+
+
+def _timelines(db: toaster.Database) -> dict[str, Any]:
+    """Every holder's history, events and as-of beliefs at each tick (write times left out)."""
+    from toaster.beliefs import api
+
+    return {holder: (
+        sorted(row._replace(recorded_ns=0) for row in q.history(db, holder)),
+        sorted(row[1:17] for row in q.events(db, holder)),  # no id, no recorded_ns
+        [sorted(row._replace(recorded_ns=0) for row in q.beliefs_at(db, holder, t))
+         for t in TICKS],
+    ) for holder in ["R", *api.holders(db)]}
+
+
+def _schema_matches(engine: Any) -> None:
+    with engine.connect() as conn:
+        assert compare_metadata(MigrationContext.configure(conn), metadata) == []
+        assert "belief_rules" not in inspect(conn).get_table_names()
+
+
+def test_a_database_written_before_the_squash_upgrades(tmp_path: Path) -> None:
+    """A SQLite database written at 0005 by the code of the unsquashed 0002/0003 (data dump):
+    it upgrades to the declared schema, reads the same, and the rules go on as in a database
+    made now."""
+    old = tmp_path / "old.db"
+    raw = sqlite3.connect(old)
+    raw.executescript(LEGACY_DUMP.read_text(encoding="utf-8"))
+    raw.close()
+    engine = make_engine(f"sqlite:///{old}")
+    assert migrate.current_revision(engine) == "0005"
+    with engine.connect() as conn:
+        before = conn.exec_driver_sql("SELECT * FROM fact_history ORDER BY fact_id, key_id").all()
+    migrate.upgrade(engine)
+    _schema_matches(engine)
+    with engine.connect() as conn:
+        assert conn.exec_driver_sql(
+            "SELECT * FROM fact_history ORDER BY fact_id, key_id").all() == before
+        views: dict[str, str] = dict(conn.exec_driver_sql(
+            "SELECT name, sql FROM sqlite_master WHERE type = 'view'").all())
+    engine.dispose()
+    fresh = tmp_path / "fresh.db"
+    with toaster.connect(f"sqlite:///{fresh}") as db:
+        beliefs_story.first_half(db)
+        with db.transaction() as conn:
+            assert dict(conn.exec_driver_sql(
+                "SELECT name, sql FROM sqlite_master WHERE type = 'view'").all()) == views
+        expected = _timelines(db)
+        beliefs_story.second_half(db)
+        expected_after = _timelines(db)
+    with toaster.connect(f"sqlite:///{old}") as db:
+        assert _timelines(db) == expected
+        beliefs_story.second_half(db)
+        assert _timelines(db) == expected_after
+
+
+def test_a_database_at_the_previous_head_upgrades(empty_url: str, tmp_path: Path) -> None:
+    """Both backends: a database as 0005 left it (defaults stored as settings rows, the
+    ``belief_rules`` table of the unsquashed 0002) upgrades and the rules go on unchanged."""
+    with toaster.connect(empty_url) as db:
+        beliefs_story.first_half(db)
+        expected = _timelines(db)
+    engine = make_engine(empty_url)
+    migrate.downgrade(engine, "0005")
+    with engine.begin() as conn:
+        conn.exec_driver_sql("CREATE TABLE belief_rules (backend TEXT NOT NULL, step TEXT NOT "
+                             "NULL, sql_text TEXT NOT NULL, CONSTRAINT pk_belief_rules "
+                             "PRIMARY KEY (backend, step))")
+        conn.exec_driver_sql("INSERT INTO belief_rules VALUES ('sqlite', '99_clear', "
+                             "'DELETE FROM belief_changed')")
+    migrate.upgrade(engine)
+    _schema_matches(engine)
+    engine.dispose()
+    with toaster.connect(f"sqlite:///{tmp_path / 'fresh.db'}") as fresh:
+        beliefs_story.first_half(fresh)
+        beliefs_story.second_half(fresh)
+        expected_after = _timelines(fresh)
+    with toaster.connect(empty_url) as db:
+        assert _timelines(db) == expected
+        beliefs_story.second_half(db)
+        assert _timelines(db) == expected_after  # the same as SQLite's, written now

@@ -80,13 +80,17 @@ def test_per_agent_views_from_plain_sql(timeline: toaster.Store) -> None:
 
 
 def test_execute_is_read_only_unless_write(timeline: toaster.Store) -> None:
-    """The database refuses writes without write=True; with it they land."""
+    """The database refuses writes without write=True; with it they land, through the write
+    surface for facts (the internal tables refuse them even then)."""
     db = timeline.db
     with pytest.raises(ReadOnlyError, match="--write"):
         q.execute(db, "DELETE FROM events")
     assert q.execute(db, "SELECT count(*) FROM events").rows == [(7,)]
-    q.execute(db, "DELETE FROM events WHERE stamp_ns < :t", {"t": 30}, write=True)
-    assert q.execute(db, "SELECT count(*) FROM events").rows == [(5,)]
+    with pytest.raises(ToasterError, match="events is kept by toaster's store"):
+        q.execute(db, "DELETE FROM events WHERE stamp_ns < :t", {"t": 30}, write=True)
+    q.execute(db, "INSERT INTO fact_inbox (action, agent_id, subject_id, property, t_ns) "
+              "VALUES ('retract', 'PR2_ROBOT', 'MUG', 'IsOn', :t)", {"t": 70}, write=True)
+    assert q.execute(db, "SELECT count(*) FROM events").rows == [(8,)]
     with pytest.raises(ToasterError, match="SQL error"):
         q.execute(db, "SELEC nonsense")
 

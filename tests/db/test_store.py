@@ -207,13 +207,17 @@ def test_rules_run_in_the_same_transaction(store: toaster.Store) -> None:
     """A rule sees each change set; when it fails, the triggering write is rolled back."""
     seen = []
 
-    def rule(conn, changes) -> None:
-        seen.append((changes.agent_id, [f.property for _, f in changes.appeared]))
-        if any(f.property == "Bad" for _, f in changes.appeared):
-            msg = "rule refused"
-            raise InvalidInputError(msg)
+    class Refuses:
+        def __call__(self, conn, changes) -> None:
+            seen.append((changes.agent_id, [f.property for _, f in changes.appeared]))
+            if any(f.property == "Bad" for _, f in changes.appeared):
+                msg = "rule refused"
+                raise InvalidInputError(msg)
 
-    store.add_rule(rule)
+        def detach(self, conn, agent_id, *, keep) -> None:
+            """Shares no rows."""
+
+    store.add_rule(Refuses())
     store.sync_snapshot("pdg", "PR2_ROBOT", 1, [ON])
     with pytest.raises(InvalidInputError, match="rule refused"):
         store.sync_snapshot("pdg", "PR2_ROBOT", 2, [ON, Fact("MUG", "Bad")])

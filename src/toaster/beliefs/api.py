@@ -11,6 +11,7 @@ from sqlalchemy import text
 from toaster import queries as q
 from toaster.beliefs import config as cfg
 from toaster.beliefs.rules import SEPARATOR, holder_id
+from toaster.db import catalog
 from toaster.errors import InvalidInputError
 from toaster.model import FactRow
 
@@ -106,6 +107,15 @@ def configure(db: Any, **settings: Any) -> dict[str, Any]:
     store = db.store()
     for key, value in settings.items():
         store.put_setting(cfg.SCOPE, key, cfg.validate(key, value))
+    return config(db)
+
+
+def reset(db: Any, *keys: str) -> dict[str, Any]:
+    """Put settings back to their defaults (all of them when no key is given)."""
+
+    with db.store().transaction() as conn:
+        for key in keys or (None,):
+            catalog.delete_setting(conn, cfg.SCOPE, key and cfg.check_key(key))
     return config(db)
 
 

@@ -14,6 +14,7 @@ perceived change, the straightforward design, slower: see docs/beliefs.md).
 
 from __future__ import annotations
 
+import json
 from typing import Any
 
 from sqlalchemy import Connection, text
@@ -21,16 +22,12 @@ from sqlalchemy import Connection, text
 from toaster.errors import InvalidInputError
 
 SCOPE = "beliefs"
-DEFAULTS: dict[str, Any] = {
-    "enabled": True,
-    "depth": 2,
-    "copresence": ["IsInRoom"],
-    "containment": ["IsIn", "IsOn"],
-    "visibility": {"IsVisibleBy": "target", "CanSee": "subject", "IsLookingToward": "subject"},
-    "closed": "IsClosed",
-    "refute_by_target": ["IsOn"],
-    "self_perception": False,
-    "share_rows": True,
+#: The settings and the kind of value each takes. Their defaults live in the database (view
+#: ``belief_settings``, migration 0006), read by the rule statements and by :func:`read` alike.
+KINDS: dict[str, str] = {
+    "enabled": "bool", "depth": "depth", "copresence": "properties",
+    "containment": "properties", "visibility": "sides", "closed": "property",
+    "refute_by_target": "properties", "self_perception": "bool", "share_rows": "bool",
 }
 MAX_DEPTH = 4
 
@@ -44,38 +41,39 @@ def _str_list(key: str, value: object) -> list[str]:
 
 def validate(key: str, value: object) -> object:
     """Check one setting; return it or raise a one-line :class:`InvalidInputError`."""
-    if key not in DEFAULTS:
-        msg = f"unknown beliefs setting {key!r}: use one of {', '.join(sorted(DEFAULTS))}"
-        raise InvalidInputError(msg)
-    if key in ("enabled", "self_perception", "share_rows") and not isinstance(value, bool):
+    kind = KINDS[check_key(key)]
+    if kind == "bool" and not isinstance(value, bool):
         msg = f"invalid beliefs setting {key}={value!r}: use true or false"
         raise InvalidInputError(msg)
-    if key == "depth" and (not isinstance(value, int) or isinstance(value, bool)
+    if kind == "depth" and (not isinstance(value, int) or isinstance(value, bool)
                            or not 1 <= value <= MAX_DEPTH):
         msg = f"invalid beliefs setting depth={value!r}: use an integer from 1 to {MAX_DEPTH}"
         raise InvalidInputError(msg)
-    if key in ("copresence", "containment", "refute_by_target"):
+    if kind == "properties":
         _str_list(key, value)
-    if key == "visibility" and (not isinstance(value, dict) or any(
+    if kind == "sides" and (not isinstance(value, dict) or any(
             not isinstance(k, str) or v not in ("subject", "target") for k, v in value.items())):
         msg = (f"invalid beliefs setting visibility={value!r}: map each property to "
                "'subject' or 'target' (the side that sees)")
         raise InvalidInputError(msg)
-    if key == "closed" and (not isinstance(value, str) or not value):
+    if kind == "property" and (not isinstance(value, str) or not value):
         msg = f"invalid beliefs setting closed={value!r}: give a property name"
         raise InvalidInputError(msg)
     return value
 
 
 def read(conn: Connection) -> dict[str, Any]:
-    """The current configuration (defaults filled in) in one query."""
-    import json
+    """The current configuration, defaults filled in by the database, in one query."""
+    rows = conn.execute(text("SELECT key, value_json FROM belief_settings")).all()
+    return {key: json.loads(body) for key, body in rows}
 
-    rows = conn.execute(text("SELECT key, value_json FROM settings WHERE scope = :s"),
-                        {"s": SCOPE}).all()
-    config = dict(DEFAULTS)
-    config.update({key: json.loads(body) for key, body in rows})
-    return config
+
+def check_key(key: str) -> str:
+    """``key`` if it names a setting, else a one-line :class:`InvalidInputError`."""
+    if key not in KINDS:
+        msg = f"unknown beliefs setting {key!r}: use one of {', '.join(sorted(KINDS))}"
+        raise InvalidInputError(msg)
+    return key
 
 
 def perception_properties(config: dict[str, Any]) -> frozenset[str]:

@@ -111,16 +111,26 @@ def holders(app: Any) -> None:
 @beliefs.command("config")
 @click.argument("key", required=False)
 @click.argument("value", required=False)
+@click.option("--reset", is_flag=True,
+              help="Put KEY (or, without KEY, every setting) back to its default.")
 @click.pass_obj
-def config(app: Any, key: str | None, value: str | None) -> None:
+def config(app: Any, key: str | None, value: str | None, reset: bool) -> None:
     """Show the rule settings, or set KEY to VALUE (JSON: depth 1, enabled false...)."""
     from toaster.beliefs import api
+    from toaster.beliefs import config as cfg
 
+    if reset:
+        if value is not None:
+            raise click.UsageError("--reset takes KEY alone (no VALUE)")
+        settings = api.reset(app.db, *([key] if key else []))
+        say(f"beliefs.{key} = {json.dumps(settings[key])} (default)" if key
+            else "every beliefs setting is back to its default")
+        return
     if key is None:
         click.echo(json.dumps(api.config(app.db), indent=2, sort_keys=True))
         return
     if value is None:
-        click.echo(json.dumps(api.config(app.db).get(key)))
+        click.echo(json.dumps(api.config(app.db)[cfg.check_key(key)]))
         return
     try:
         parsed = json.loads(value)

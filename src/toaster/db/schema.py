@@ -16,9 +16,7 @@ Tables
 ``areas``       area definitions (a JSON spec) so that areas survive restarts.
 ``settings``    thresholds and rule configuration kept as data (JSON values by scope/key).
 ``belief_chain`` nested belief holders: holder ``A>B`` (an agent row) is the chain A, B
-                ("A's model of B's beliefs"), one row per position (revision 0002).
-``belief_rules`` the belief rules' SQL statements of the database's backend, by step (0002,
-                replaced by 0003).
+                ("A's model of B's beliefs"), one row per position (revision 0003).
 ``belief_follow`` periods during which a holder's belief of a key *follows* the self agent's
                 key (it perceives every change): the self's intervals clipped to
                 ``[from_ns, to_ns)`` and its events stamped in ``[events_from_ns,
@@ -230,7 +228,130 @@ store_state = Table(
     Column("id", Integer, primary_key=True),
     Column("cache_epoch", BigInteger, nullable=False, server_default=text("0")),
     Column("control_version", BigInteger, nullable=False, server_default=text("0")),
+    # The agents and depth the nested holders were registered for (step holders).
+    Column("holders_basis", Text, nullable=False, server_default=text("''")),
     CheckConstraint("id = 1", name="single_row"),
+)
+
+rule_writer = Table(  # SQLite's writer role (see toaster.db.dialects.GUARDED_TABLES)
+    "rule_writer",
+    metadata,
+    Column("id", Integer, primary_key=True),
+    Column("holder", Text, nullable=False),  # 'store' or 'inbox'
+    CheckConstraint("id = 1", name="single_row"),
+)
+
+# -- The write surface and the rule's triggers (revision 0007, toaster.beliefs.triggers) ------
+fact_inbox = Table(  # one inserted row = one write; the trigger applies it, the row is not kept
+    "fact_inbox",
+    metadata,
+    Column("id", RowId, primary_key=True, autoincrement=True),
+    Column("action", Text, nullable=False, server_default=text("'assert'")),
+    Column("agent_id", Text, nullable=False),
+    Column("subject_id", Text, nullable=True),
+    Column("subject_owner_id", Text, nullable=True),
+    Column("property", Text, nullable=False),
+    Column("property_type", Text, nullable=True),
+    Column("sub_property", Text, nullable=True),
+    Column("target_id", Text, nullable=True),
+    Column("target_owner_id", Text, nullable=True),
+    Column("value_text", Text, nullable=False, server_default=text("'true'")),
+    Column("value_num", Float, nullable=True),
+    Column("confidence", Float, nullable=False, server_default=text("1.0")),
+    Column("observability", Float, nullable=False, server_default=text("1.0")),
+    Column("t_ns", BigInteger, nullable=False),
+    Column("source", Text, nullable=False, server_default=text("'sql'")),
+)
+
+belief_runs = Table(  # inserting a row runs the belief rule over belief_changed
+    "belief_runs",
+    metadata,
+    Column("id", RowId, primary_key=True, autoincrement=True),
+    Column("self_id", Text, nullable=False),
+    Column("t_ns", BigInteger, nullable=False),
+    Column("recorded_ns", BigInteger, nullable=False),
+)
+
+belief_steps = Table(  # SQLite: the blocks of a run (a trigger each), emptied by the run
+    "belief_steps",
+    metadata,
+    Column("id", RowId, primary_key=True, autoincrement=True),
+    Column("block", Text, nullable=False),
+    Column("self_id", Text, nullable=False),
+    Column("t_ns", BigInteger, nullable=False),
+    Column("recorded_ns", BigInteger, nullable=False),
+)
+
+# Scratch tables of one rule run, empty between runs. SQLite's triggers can only read tables of
+# the main schema (one writer at a time); PostgreSQL sessions shadow the hot ones with temporary
+# tables of the same name (step 00_temp), so concurrent writers never share rows.
+belief_changed = Table(
+    "belief_changed",
+    metadata,
+    Column("key_id", BigInteger, primary_key=True, autoincrement=False),
+    Column("refreshed", Boolean, nullable=False),
+    Column("prev_num", Float),
+    Column("prev_conf", Float),
+    Column("prev_obs", Float),
+)
+belief_focus = Table("belief_focus", metadata, Column("entity_id", Text, primary_key=True))
+belief_seen = Table(
+    "belief_seen",
+    metadata,
+    Column("holder_id", Text),
+    Column("entity_id", Text),
+    Column("phase", Text),
+    Column("pconf", Float),
+    Index("ix_belief_seen_entity_holder", "entity_id", "phase", "holder_id"),
+)
+belief_in = Table(
+    "belief_in",
+    metadata,
+    Column("holder_id", Text),
+    Column("self_key", BigInteger),
+    Column("hkey", BigInteger),
+    Column("pconf", Float),
+    Column("seen_again", Integer, nullable=False, server_default=text("0")),
+    Index("ix_belief_in_key", "self_key", "holder_id"),
+)
+belief_todo = Table(
+    "belief_todo",
+    metadata,
+    Column("holder_id", Text),
+    Column("hkey", BigInteger),
+    Column("self_key", BigInteger),
+    Column("follow_id", BigInteger),
+    Column("action", Text),
+    Column("value_text", Text),
+    Column("value_num", Float),
+    Column("confidence", Float),
+    Column("observability", Float),
+    Column("previous_text", Text),
+    Column("pconf", Float),
+    Column("split_ns", BigInteger),
+)
+belief_freeze = Table(
+    "belief_freeze",
+    metadata,
+    Column("follow_id", BigInteger, primary_key=True, autoincrement=False),
+    Column("hkey", BigInteger),
+    Column("from_ns", BigInteger),
+    Column("cut_ns", BigInteger),
+    Column("value_text", Text),
+    Column("value_num", Float),
+    Column("confidence", Float),
+    Column("observability", Float),
+)
+belief_mat = Table(
+    "belief_mat", metadata,
+    Column("follow_id", BigInteger, primary_key=True, autoincrement=False),
+)
+belief_new_chain = Table(  # nested holders being registered (step holders)
+    "belief_new_chain",
+    metadata,
+    Column("holder_id", Text),
+    Column("position", Integer),
+    Column("member_id", Text),
 )
 
 control_commands = Table(
@@ -255,14 +376,6 @@ belief_chain = Table(
     Column("member_id", Text, ForeignKey("agents.id", ondelete="CASCADE"), nullable=False),
     CheckConstraint("position >= 1", name="position_positive"),
     Index("ix_belief_chain_member_id", "member_id"),
-)
-
-belief_rules = Table(
-    "belief_rules",
-    metadata,
-    Column("backend", Text, primary_key=True),
-    Column("step", Text, primary_key=True),
-    Column("sql_text", Text, nullable=False),
 )
 
 belief_follow = Table(

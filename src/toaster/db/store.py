@@ -21,10 +21,10 @@ world state re-asserts itself as in the original's EMPTY. Belief rules registere
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, Protocol
 
 from sqlalchemy import Connection, text
 from sqlalchemy.exc import IntegrityError
@@ -57,10 +57,16 @@ class ChangeSet(NamedTuple):
         return not (self.appeared or self.changed or self.refreshed or self.ended)
 
 
-#: A rule: called as ``rule(conn, changes)`` inside the transaction of the triggering write.
-#: A rule that shares rows between agents may also have ``detach(conn, agent_id, keep=...)``,
-#: called before writes that bypass it (see :meth:`Store._detach`).
-Rule = Callable[[Connection, ChangeSet], None]
+class Rule(Protocol):
+    """A rule run in the transaction of every fact write (the belief rule is one)."""
+
+    def __call__(self, conn: Connection, changes: ChangeSet) -> None:
+        """Apply the rule to what one write changed."""
+
+    def detach(self, conn: Connection, agent_id: str | None, *, keep: bool) -> None:
+        """Before a write that bypasses the rule (a direct write to a holder, emptying an
+        agent, changing who is self): turn rows shared with ``agent_id`` into its own rows
+        (``keep``), or drop them (its rows are about to be deleted; None: every agent)."""
 
 
 class SyncResult(NamedTuple):
@@ -111,8 +117,10 @@ class Store:
         self._in_tx = True
         try:
             with self.db.transaction(write=True) as conn:
-                self._check_epoch(conn)
+                cur = self.db.cursor()
+                self._check_epoch(self.backend.begin_writes(cur))
                 yield conn
+                self.backend.end_writes(cur)
         except BaseException:
             self.forget()
             raise
@@ -128,8 +136,7 @@ class Store:
         self._epoch = None
         self._tolerances = None
 
-    def _check_epoch(self, conn: Connection) -> None:
-        epoch = conn.execute(text("SELECT cache_epoch FROM store_state WHERE id = 1")).scalar_one()
+    def _check_epoch(self, epoch: int) -> None:
         if epoch != self._epoch:
             self.forget()
             self._epoch = epoch
@@ -149,9 +156,7 @@ class Store:
         """Let rules turn rows they share with ``agent_id`` into its own rows (``keep``) or
         drop them (the agent's facts are being deleted) before a write that bypasses them."""
         for rule in self._rules:
-            detach = getattr(rule, "detach", None)
-            if detach is not None:
-                detach(conn, agent_id, keep=keep)
+            rule.detach(conn, agent_id, keep=keep)
 
     # ------------------------------------------------------------------ agents and entities
     def agents(self) -> dict[str, bool]:

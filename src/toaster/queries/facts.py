@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
+from toaster.beliefs import sqltext
 from toaster.model import FactRow
 
 FACT_COLUMNS = ", ".join(FactRow._fields)
@@ -99,6 +100,14 @@ def _numbers_at(conf: str | None = None) -> str:
             "COALESCE(s.observability, f.observability) AS observability")
 
 
+def _followed_numbers(backend: str) -> str:
+    """The numbers of a followed interval at ``:t``: its sample's when there is one, the
+    confidence as the holder sees it (the followed-period definition of
+    :mod:`toaster.beliefs.sqltext`)."""
+    conf = "{{followed_conf(COALESCE(s.confidence, f.confidence))}}"
+    return _numbers_at(sqltext.expand(conf, backend))
+
+
 def beliefs_at(db: Any, agent: str, t_ns: int, **filters: Any) -> list[FactRow]:
     """Everything ``agent`` believed at ``t_ns`` (as-of): one seek per fact key of the agent,
     numbers as they were then (within their tolerance, from ``fact_samples``).
@@ -108,21 +117,19 @@ def beliefs_at(db: Any, agent: str, t_ns: int, **filters: Any) -> list[FactRow]:
     backend = db.backend
     where, params = _where({"agent": agent, **filters}, prefix="k.")
     params["t"] = t_ns
-    lo, hi = backend.least, backend.greatest
     samples = backend.sample_join.format(fact="f.id")
     own = (f"SELECT {_KEY_ONLY}, f.value_text, {_numbers_at()}, f.valid_from_ns, "
            "f.valid_to_ns, f.recorded_ns, f.source, k.id AS key_id FROM fact_keys k "
            f"{backend.as_of_join.format(key='k.id')} {samples} WHERE {where} "
            "AND (f.valid_to_ns IS NULL OR f.valid_to_ns > :t)")
     followed = (
-        f"SELECT {_KEY_ONLY}, f.value_text, "
-        f"{_numbers_at(f'{lo}(1.0, COALESCE(s.confidence, f.confidence) * w.pconf)')}, "
-        f"{hi}(f.valid_from_ns, w.from_ns), CASE WHEN w.to_ns IS NULL THEN "
-        "f.valid_to_ns WHEN f.valid_to_ns IS NULL THEN w.to_ns "
-        f"ELSE {lo}(f.valid_to_ns, w.to_ns) END, f.recorded_ns, 'beliefs', k.id "
-        "FROM fact_keys k JOIN belief_follow w ON w.hkey = k.id AND w.from_ns <= :t "
-        f"AND (w.to_ns IS NULL OR w.to_ns > :t) {backend.as_of_join.format(key='w.self_key')} "
-        f"{samples} WHERE {where} AND (f.valid_to_ns IS NULL OR f.valid_to_ns > :t)")
+        f"SELECT {_KEY_ONLY}, f.value_text, {_followed_numbers(backend.name)}, "
+        f"{sqltext.expand('{{followed_from}}, {{followed_to}}', backend.name)}, f.recorded_ns, "
+        "'beliefs', k.id FROM fact_keys k JOIN belief_follow w ON w.hkey = k.id "
+        "AND w.from_ns <= :t AND (w.to_ns IS NULL OR w.to_ns > :t) "
+        f"{backend.as_of_join.format(key='w.self_key')} {samples} WHERE {where} "
+        "AND (f.valid_to_ns IS NULL OR f.valid_to_ns > :t) AND "
+        f"{sqltext.expand('{{followed_facts}}', backend.name)}")
     sql = (f"SELECT {FACT_COLUMNS} FROM ({own} UNION ALL {followed}) AS held "
            "ORDER BY subject_id, property, target_id, key_id")
     return _rows(db, sql, params)

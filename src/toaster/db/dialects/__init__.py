@@ -14,6 +14,15 @@ from typing import Any, Protocol
 Key = tuple[str, str, str, str, str, str]
 
 
+#: Tables only toaster's store and rules write (the guard triggers of migration 0006 refuse
+#: any other write), and the one-line error a direct write gets.
+GUARDED_TABLES = ("fact_keys", "facts", "events", "fact_samples", "belief_follow",
+                  "belief_chain")
+GUARD_MESSAGE = ("{table} is kept by toaster's store and belief rules and cannot be written "
+                 "directly: write facts by inserting rows into fact_inbox (or with toaster "
+                 "set-info); see docs/beliefs.md, Writing facts from SQL")
+
+
 class Backend(Protocol):
     """What the store needs from a backend; ``cur`` is a raw DBAPI cursor in a transaction."""
 
@@ -68,6 +77,13 @@ class Backend(Protocol):
 
     def set_read_only(self, cur: Any) -> None:
         """Make the current transaction read-only, enforced by the database."""
+
+    def begin_writes(self, cur: Any) -> int:
+        """Open a store write: take the rules' writer role (the guard triggers of the
+        internal tables let this transaction through) and return ``store_state.cache_epoch``."""
+
+    def end_writes(self, cur: Any) -> None:
+        """Give the writer role back before the commit (see :data:`GUARD_MESSAGE`)."""
 
     def clear_read_only(self, cur: Any) -> None:
         """Undo :meth:`set_read_only` for a pooled connection."""

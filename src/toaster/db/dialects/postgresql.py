@@ -126,6 +126,15 @@ class PostgreSQLBackend:
         finally:
             raw.autocommit = False
 
+    def begin_writes(self, cur: Any) -> int:
+        # A transaction-local setting: other sessions never see it; one round trip in all.
+        cur.execute("SELECT cache_epoch, set_config('toaster.writer', 'rules', true) "
+                    "FROM store_state WHERE id = 1")
+        return int(cur.fetchone()[0])
+
+    def end_writes(self, cur: Any) -> None:
+        """Nothing to do: the setting ends with the transaction."""
+
     def set_read_only(self, cur: Any) -> None:
         cur.execute("SET TRANSACTION READ ONLY")
 

@@ -147,6 +147,15 @@ class SQLiteBackend:
         cur.execute("PRAGMA wal_checkpoint(TRUNCATE)")  # the WAL back to zero bytes
         cur.close()
 
+    def begin_writes(self, cur: Any) -> int:
+        # One writer at a time in SQLite: a row in rule_writer, deleted before the commit,
+        # is seen only by this transaction.
+        cur.execute("INSERT OR IGNORE INTO rule_writer (id, holder) VALUES (1, 'store')")
+        return int(cur.execute("SELECT cache_epoch FROM store_state WHERE id = 1").fetchone()[0])
+
+    def end_writes(self, cur: Any) -> None:
+        cur.execute("DELETE FROM rule_writer")
+
     def set_read_only(self, cur: Any) -> None:
         cur.execute("PRAGMA query_only = ON")
 

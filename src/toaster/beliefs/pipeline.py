@@ -1,0 +1,127 @@
+"""The belief rule as one pipeline of the database's own triggers, for every writer.
+
+:data:`PIPELINE` declares, once, which steps (templates of ``beliefs/sql``) run and under
+which conditions. It is rendered per backend into triggers on ``belief_runs``:
+
+- PostgreSQL: a row trigger running the plpgsql function ``toaster_belief_run()``, one ``IF``
+  per block;
+- SQLite: a row trigger on ``belief_runs`` and one trigger per block on ``belief_steps`` (a
+  block runs when its row is inserted, and its condition is that insert's ``WHERE``).
+
+A writer starts a run by filling ``belief_changed`` with the self keys it changed, then
+inserting ``(self_id, t_ns, recorded_ns)`` into ``belief_runs`` (the row is never kept): the
+store does so for the library (:class:`toaster.beliefs.rules.BeliefRule`) and the trigger of
+``fact_inbox`` for plain SQL clients, so both get the same intervals, events and beliefs in
+their own transaction. Inside the triggers the steps' parameters are the run's columns
+(``:self`` is ``NEW.self_id``, ``:t`` ``NEW.t_ns``, ``:recorded`` ``NEW.recorded_ns``).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+#: The run's columns the steps read, by parameter name; :data:`Step` adds constants.
+RUN_PARAMS = {"self": "NEW.self_id", "t": "NEW.t_ns", "recorded": "NEW.recorded_ns",
+              "source": "'beliefs'"}
+AROUND = {"phase": "'around'", "everything": "0"}
+
+
+@dataclass(frozen=True)
+class Step:
+    """One template of ``beliefs/sql`` with constant parameters (20_perceive's phase)."""
+
+    name: str
+    constants: tuple[tuple[str, str], ...] = ()
+
+
+@dataclass(frozen=True)
+class Block:
+    """Steps and nested blocks run in order when ``condition`` (SQL over the run, None:
+    always) holds when the block is reached."""
+
+    name: str
+    condition: str | None
+    body: tuple[Step | Block, ...]
+
+
+def _steps(*names: str, **constants: str) -> tuple[Step, ...]:
+    return tuple(Step(name, tuple(sorted(constants.items()))) for name in names)
+
+
+#: The run applies: rules enabled, a self agent's change, somebody else to hold beliefs.
+RUNS = ("{{setting(enabled)}} = 'true' "
+        "AND EXISTS (SELECT 1 FROM agents WHERE id = NEW.self_id AND is_self) "
+        "AND EXISTS (SELECT 1 FROM agents WHERE NOT is_self) "
+        "AND EXISTS (SELECT 1 FROM belief_changed)")
+#: The agents (or the depth) changed since the nested holders were last registered, and
+#: somebody perceives something (a database where nobody does keeps only its real agents).
+NEW_AGENTS = ("CAST({{setting(depth)}} AS INTEGER) >= 2 AND EXISTS (SELECT 1 FROM belief_in) "
+              "AND {{holders_basis}} <> (SELECT holders_basis FROM store_state WHERE id = 1)")
+#: The holders step registered somebody: perceive again with them.
+HOLDERS_ADDED = "{{holders_basis}} <> (SELECT holders_basis FROM store_state WHERE id = 1)"
+#: A change of who perceives what (rooms, containers, visibility, closed containers): look
+#: before and after the tick, for everything, to find what is seen again.
+PERCEPTION_CHANGED = (
+    "EXISTS (SELECT 1 FROM belief_changed b JOIN fact_keys k ON k.id = b.key_id "
+    "WHERE k.property IN (SELECT value FROM {{setting_list(copresence)}}) "
+    "OR k.property IN (SELECT value FROM {{setting_list(containment)}}) "
+    "OR k.property IN (SELECT key FROM {{setting_map(visibility)}}) "
+    "OR k.property = {{setting_text(closed)}})")
+#: A holder takes a change (or sees something again), or follows a changed key: when nobody
+#: perceives anything, as in a crowd replay with no rooms, the write steps are skipped.
+ANY_WORK = ("EXISTS (SELECT 1 FROM belief_in) OR EXISTS (SELECT 1 FROM belief_changed b "
+            "JOIN belief_follow w ON w.self_key = b.key_id AND w.to_ns IS NULL)")
+SHARE_ROWS = "{{setting(share_rows)}} = 'true'"
+
+PIPELINE = Block("run", RUNS, (
+    *_steps("10_focus"),
+    *_steps("20_perceive", **AROUND),
+    *_steps("30_changes"),
+    Block("holders", NEW_AGENTS, (
+        *_steps("holders"),
+        Block("reperceive", HOLDERS_ADDED, (
+            *_steps("reperceive"), *_steps("20_perceive", **AROUND), *_steps("30_changes"))),
+        *_steps("holders_seen"),
+    )),
+    Block("phases", PERCEPTION_CHANGED, (
+        *_steps("20_perceive", phase="'before'", everything="1"),
+        *_steps("20_perceive", phase="'after'", everything="1"),
+        *_steps("40_refresh", "42_keep_max"),
+    )),
+    Block("write", ANY_WORK, (
+        *_steps("35_freeze", "45_resolve", "50_keys", "45_resolve", "55_switch", "58_frozen",
+                "60_plan", "70_events", "80_close", "85_refresh_rows"),
+        Block("follow", SHARE_ROWS, _steps("90_follow", "92_repconf")),
+        Block("own", f"NOT ({SHARE_ROWS})", _steps("91_open", "92_repconf")),
+    )),
+))
+
+_PARAM = re.compile(r"(?<![:\w]):([a-z_]+)")
+
+
+def bind(sql: str, params: dict[str, str]) -> str:
+    """``sql`` with its ``:name`` parameters replaced by SQL expressions (unknown: error)."""
+    def value(match: re.Match[str]) -> str:
+        name = match.group(1)
+        if name not in params:
+            msg = f"no value for parameter :{name} inside a trigger"
+            raise ValueError(msg)
+        return params[name]
+
+    return _PARAM.sub(value, sql)
+
+
+def statements(sql: str) -> list[str]:
+    """The statements of rendered SQL (``--`` comment lines dropped)."""
+    lines = [line for line in sql.splitlines() if not line.lstrip().startswith("--")]
+    return [part.strip() for part in "\n".join(lines).split(";") if part.strip()]
+
+
+def blocks(block: Block = PIPELINE) -> list[Block]:
+    """``block`` and the blocks nested in it, outermost first."""
+    found = [block]
+    for part in block.body:
+        if isinstance(part, Block):
+            found += blocks(part)
+    return found

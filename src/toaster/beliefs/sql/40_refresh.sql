@@ -1,0 +1,72 @@
+-- Seeing again: entities a holder perceives after the tick but not before. Observable self facts
+-- about them (not hidden in a closed container) are learnt with confidence x observability.
+INSERT INTO belief_in (holder_id, self_key, hkey, pconf, seen_again)
+WITH RECURSIVE
+cfg_in(p) AS (SELECT value FROM {{setting_list(containment)}}),
+closed(e) AS (
+  SELECT k.subject_id FROM fact_keys k JOIN facts f ON f.key_id = k.id AND f.valid_to_ns IS NULL
+  WHERE k.agent_id = :self AND f.value_text = 'true'
+    AND k.property = {{setting_text(closed)}}
+),
+inside(e, c) AS (
+  SELECT k.subject_id, k.target_id FROM fact_keys k JOIN facts f ON f.key_id = k.id AND f.valid_to_ns IS NULL
+  WHERE k.agent_id = :self AND k.property IN (SELECT p FROM cfg_in) AND f.value_text <> 'false'
+),
+hidden(e) AS (
+  SELECT e FROM inside WHERE c IN (SELECT e FROM closed)
+  UNION SELECT i.e FROM inside i JOIN hidden h ON i.c = h.e
+),
+newly(holder_id, entity_id, pconf) AS (
+  SELECT a.holder_id, a.entity_id, a.pconf FROM belief_seen a
+  WHERE a.phase = 'after' AND NOT EXISTS (
+    SELECT 1 FROM belief_seen b WHERE b.phase = 'before'
+      AND b.holder_id = a.holder_id AND b.entity_id = a.entity_id)
+),
+-- Containers whose closed fact ended at :t, with the holders who see them afterwards: opening
+-- a container shows its content (and that what was believed inside is no longer there).
+opened(holder_id, entity_id, pconf) AS (
+  SELECT a.holder_id, a.entity_id, a.pconf FROM belief_seen a
+  WHERE a.phase = 'after' AND a.entity_id IN (
+    SELECT k.subject_id FROM belief_changed b JOIN fact_keys k ON k.id = b.key_id
+    JOIN facts f ON f.key_id = k.id AND f.valid_to_ns = :t
+    WHERE k.agent_id = :self AND f.value_text = 'true' AND k.property = {{setting_text(closed)}})
+)
+SELECT n.holder_id, k.id, NULL, n.pconf * f.observability, 1
+FROM newly n
+JOIN fact_keys k ON k.agent_id = :self AND k.subject_id = n.entity_id
+JOIN facts f ON f.key_id = k.id AND f.valid_to_ns IS NULL
+WHERE f.observability > 0 AND n.entity_id NOT IN (SELECT e FROM hidden)
+UNION ALL
+SELECT n.holder_id, NULL, hk.id, n.pconf, 1
+FROM newly n
+JOIN fact_keys hk ON hk.agent_id = n.holder_id
+  AND (hk.subject_id = n.entity_id
+       OR (hk.target_id = n.entity_id AND hk.property IN (
+           SELECT value FROM {{setting_list(refute_by_target)}})))
+JOIN facts hf ON hf.key_id = hk.id AND hf.valid_to_ns IS NULL AND hf.observability > 0
+WHERE hk.subject_id NOT IN (SELECT e FROM hidden)
+  AND NOT EXISTS (
+    SELECT 1 FROM fact_keys sk JOIN facts sf ON sf.key_id = sk.id AND sf.valid_to_ns IS NULL
+    WHERE sk.agent_id = :self AND sk.subject_id = hk.subject_id
+      AND sk.subject_owner_id = hk.subject_owner_id AND sk.property = hk.property
+      AND sk.sub_property = hk.sub_property AND sk.target_id = hk.target_id
+      AND sk.target_owner_id = hk.target_owner_id)
+UNION ALL
+SELECT o.holder_id, k.id, NULL, o.pconf * f.observability, 1
+FROM opened o
+JOIN fact_keys k ON k.agent_id = :self AND k.target_id = o.entity_id
+  AND k.property IN (SELECT p FROM cfg_in)
+JOIN facts f ON f.key_id = k.id AND f.valid_to_ns IS NULL
+WHERE f.observability > 0
+UNION ALL
+SELECT o.holder_id, NULL, hk.id, o.pconf, 1
+FROM opened o
+JOIN fact_keys hk ON hk.agent_id = o.holder_id AND hk.target_id = o.entity_id
+  AND hk.property IN (SELECT p FROM cfg_in)
+JOIN facts hf ON hf.key_id = hk.id AND hf.valid_to_ns IS NULL AND hf.observability > 0
+WHERE NOT EXISTS (
+    SELECT 1 FROM fact_keys sk JOIN facts sf ON sf.key_id = sk.id AND sf.valid_to_ns IS NULL
+    WHERE sk.agent_id = :self AND sk.subject_id = hk.subject_id
+      AND sk.subject_owner_id = hk.subject_owner_id AND sk.property = hk.property
+      AND sk.sub_property = hk.sub_property AND sk.target_id = hk.target_id
+      AND sk.target_owner_id = hk.target_owner_id)

@@ -1,0 +1,7 @@
+-- Frozen followers: their own interval continues where the period ends.
+INSERT INTO facts (key_id, value_text, value_num, confidence, observability, valid_from_ns,
+                   recorded_ns, source)
+SELECT hkey, value_text, value_num, confidence, observability, cut_ns, {{as_int8(:recorded)}}, {{as_text(:source)}}
+FROM belief_freeze WHERE value_text IS NOT NULL;
+UPDATE belief_follow SET to_ns = z.cut_ns, events_to_ns = z.cut_ns FROM belief_freeze z
+WHERE z.follow_id = belief_follow.id

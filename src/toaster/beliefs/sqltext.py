@@ -1,0 +1,238 @@
+"""The belief rule's SQL: one template per step (``beliefs/sql/NN_step.sql``), rendered per backend.
+
+A template is the step's SQL with *macros* where the backends differ: ``{{name}}`` or
+``{{name(argument)}}``, replaced by plain text substitution (no SQL contains ``{{``; ``$`` in
+JSON paths and ``:name`` parameters pass untouched). Every macro is declared in
+:data:`MACROS` (one dict per backend) or :data:`COMMON` (the same on both, may use the
+former); an unknown one fails loudly. ``{{#backend}} ... {{/backend}}`` keeps a section for
+one backend only: the few places where the plans really differ (20_perceive reads the
+perception facts through a LATERAL subquery on PostgreSQL) or where PostgreSQL needs an
+extra statement (00_temp's planner settings, 20_perceive's ``ANALYZE``).
+
+The followed period (a holder's belief shown as the self's interval clipped to a
+``belief_follow`` period, confidence x ``pconf``, and the self's events in it) is defined
+once, by the ``followed_*`` macros of :data:`FOLLOWED`: the readable views (:func:`views`,
+frozen into migration 0003 at each change), the as-of query
+(:func:`toaster.queries.facts.beliefs_at`) and step ``95_materialize`` all expand them.
+
+Settings are read through the view ``belief_settings`` (stored value or default, migration
+0006) by the ``setting*`` macros only.
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+from importlib import resources
+
+#: The steps of the rule, in order (see :class:`toaster.beliefs.rules.BeliefRule` for when each
+#: one runs).
+STEPS = ("00_temp", "10_focus", "20_perceive", "30_changes", "35_freeze", "40_refresh",
+         "42_keep_max", "45_resolve", "50_keys", "55_switch", "58_frozen", "60_plan",
+         "70_events", "80_close", "85_refresh_rows", "90_follow", "91_open", "92_repconf",
+         "95_materialize", "99_clear")
+
+#: Where a function-like macro puts its argument.
+ARG = "<arg>"
+
+#: The dialect macros: everything that differs between the backends' rule SQL.
+MACROS: dict[str, dict[str, str]] = {
+    "sqlite": {
+        "lo": "MIN",  # two-argument scalar forms
+        "hi": "MAX",
+        "is_distinct": "IS NOT",
+        "insert_or_ignore": "INSERT OR IGNORE",
+        "on_conflict_ignore": "",
+        # SQLite plans the temporary tables without statistics: CROSS JOIN keeps the written
+        # join order, INDEXED BY the open-interval indexes.
+        "pinned_join": "CROSS JOIN",
+        "open_fact": "INDEXED BY uq_facts_open_key",
+        "open_follow": "INDEXED BY uq_belief_follow_open_hkey",
+        # Bound parameters in a select list take their type from the column on SQLite.
+        "as_int8": ARG,
+        "as_text": ARG,
+        # The time now in ns (a write's recorded_ns; ms resolution on SQLite 3.40).
+        "now_ns": "CAST((julianday('now') - 2440587.5) * 86400000000000 AS INTEGER)",
+        # JSON settings: a list's items, a map's (key, value) pairs, a string.
+        "setting_list": f"json_each({{{{setting({ARG})}}}})",
+        "setting_map": f"json_each({{{{setting({ARG})}}}})",
+        "setting_text": f"json_extract({{{{setting({ARG})}}}}, '$')",
+    },
+    "postgresql": {
+        "lo": "LEAST",
+        "hi": "GREATEST",
+        "is_distinct": "IS DISTINCT FROM",
+        "insert_or_ignore": "INSERT",
+        "on_conflict_ignore": "ON CONFLICT DO NOTHING",
+        "pinned_join": "JOIN",  # the order is pinned by join_collapse_limit = 1 (00_temp)
+        "open_fact": "",
+        "open_follow": "",
+        "as_int8": f"CAST({ARG} AS bigint)",
+        "as_text": f"CAST({ARG} AS text)",
+        "now_ns": "CAST(EXTRACT(EPOCH FROM clock_timestamp()) * 1000000000 AS bigint)",
+        "setting_list": f"json_array_elements_text(CAST({{{{setting({ARG})}}}} AS json))",
+        "setting_map": f"json_each_text(CAST({{{{setting({ARG})}}}} AS json))",
+        "setting_text": f"(CAST({{{{setting({ARG})}}}} AS json) #>> '{{}}')",
+    },
+}
+
+#: The followed period: ``w`` a ``belief_follow`` row, ``f`` an interval of its self key,
+#: ``e`` an event of it.
+FOLLOWED = {
+    # A confidence as the holder sees it (the argument: the self's confidence).
+    "followed_conf": f"{{{{lo}}}}(1.0, {ARG} * w.pconf)",
+    # The self's interval clipped to the period.
+    "followed_from": "{{hi}}(f.valid_from_ns, w.from_ns)",
+    "followed_to": ("CASE WHEN w.to_ns IS NULL THEN f.valid_to_ns "
+                    "WHEN f.valid_to_ns IS NULL THEN w.to_ns "
+                    "ELSE {{lo}}(f.valid_to_ns, w.to_ns) END"),
+    # The self's intervals shown in the period (an empty closed period shows none).
+    "followed_facts": ("(w.to_ns IS NULL OR (f.valid_from_ns < w.to_ns AND w.to_ns > w.from_ns)) "
+                       "AND (f.valid_to_ns IS NULL OR f.valid_to_ns > w.from_ns)"),
+    # The self's events shown in the period (not the point events of kind 'event').
+    "followed_events": ("e.kind <> 'event' AND e.stamp_ns >= w.events_from_ns "
+                        "AND (w.events_to_ns IS NULL OR e.stamp_ns <= w.events_to_ns)"),
+}
+
+#: The write surface (template ``inbox``): ``NEW`` is the ``fact_inbox`` row.
+INBOX = {
+    # The row's key (NULL key fields mean '').
+    "inbox_key": ("(SELECT id FROM fact_keys WHERE agent_id = NEW.agent_id "
+                  "AND subject_id = NEW.subject_id "
+                  "AND subject_owner_id = COALESCE(NEW.subject_owner_id, '') "
+                  "AND property = NEW.property AND sub_property = COALESCE(NEW.sub_property, '') "
+                  "AND target_id = COALESCE(NEW.target_id, '') "
+                  "AND target_owner_id = COALESCE(NEW.target_owner_id, ''))"),
+    "inbox_self": "EXISTS (SELECT 1 FROM agents WHERE id = NEW.agent_id AND is_self)",
+    # The open interval f moved numbers only.
+    "inbox_renumbered": ("(f.value_num {{is_distinct}} NEW.value_num "
+                         "OR f.confidence <> NEW.confidence "
+                         "OR f.observability <> NEW.observability)"),
+    # The current facts a retract ends (k, f): NULL or 'NULL' fields match any, as the
+    # original's wildcard (Store.retract_facts).
+    "inbox_match": (
+        "fact_keys k JOIN facts f {{open_fact}} ON f.key_id = k.id AND f.valid_to_ns IS NULL "
+        "WHERE k.agent_id = NEW.agent_id AND k.property = NEW.property"
+        + "".join(f" AND (NEW.{c} IS NULL OR NEW.{c} = 'NULL' OR k.{c} = NEW.{c})"
+                  for c in ("subject_id", "target_id", "sub_property", "subject_owner_id",
+                            "target_owner_id"))),
+}
+
+#: The nested holders (templates ``holders`` / ``holders_seen``): the agents and depth they
+#: were registered for.
+HOLDERS = {
+    "holders_basis": ("(SELECT CAST(count(*) AS text) || ':' || CAST(COALESCE(MAX(num), 0) AS "
+                      "text) FROM agents) || ':' || {{setting(depth)}}"),
+}
+
+#: The macros that are the same on both backends.
+COMMON = {
+    **INBOX,
+    **HOLDERS,
+    # A beliefs setting as stored (JSON text), or its default.
+    "setting": f"(SELECT value_json FROM belief_settings WHERE key = '{ARG}')",
+    **FOLLOWED,
+}
+
+_SECTION = re.compile(r"\{\{#(\w+)\}\}(.*?)\{\{/\1\}\}", re.DOTALL)
+_MACRO = re.compile(r"\{\{(\w+)(?:\(([^{}]*?)\))?\}\}")
+
+
+def _macro(backend: str, match: re.Match[str]) -> str:
+    name, arg = match.group(1), match.group(2)
+    body = MACROS[backend].get(name, COMMON.get(name))
+    if body is None:
+        msg = f"unknown SQL macro {{{{{name}}}}}"
+        raise ValueError(msg)
+    if (arg is None) == (ARG in body):
+        msg = (f"SQL macro {{{{{name}}}}} takes an argument" if arg is None
+               else f"SQL macro {{{{{name}}}}} takes no argument")
+        raise ValueError(msg)
+    return body if arg is None else body.replace(ARG, arg)
+
+
+@functools.cache
+def expand(sql: str, backend: str) -> str:
+    """``sql`` with its sections and macros rendered for ``backend`` (cached)."""
+    if backend not in MACROS:
+        msg = f"unsupported database backend {backend!r}"
+        raise ValueError(msg)
+
+    def section(match: re.Match[str]) -> str:
+        if match.group(1) not in MACROS:
+            msg = f"unknown backend section {{{{#{match.group(1)}}}}}"
+            raise ValueError(msg)
+        return match.group(2) if match.group(1) == backend else ""
+
+    text = _SECTION.sub(section, sql)
+    for _ in range(4):  # macros may use macros
+        rendered = _MACRO.sub(lambda m: _macro(backend, m), text)
+        if rendered == text:
+            break
+        text = rendered
+    if "{{" in text or "}}" in text:
+        msg = f"unrendered SQL macro in {text[max(text.find('{{'), 0):][:60]!r}"
+        raise ValueError(msg)
+    return text
+
+
+#: Templates the triggers use besides the steps: registering nested holders, and the write
+#: surface (see :mod:`toaster.beliefs.pipeline`).
+TRIGGER_TEMPLATES = ("holders", "reperceive", "holders_seen", "inbox")
+
+
+def template(step: str) -> str:
+    """The template of ``step`` (``{{materialize}}``: the text of step 95_materialize)."""
+    if step not in STEPS and step not in TRIGGER_TEMPLATES:
+        msg = f"unknown belief rule step {step!r}"
+        raise ValueError(msg)
+    text = (resources.files("toaster.beliefs") / "sql" / f"{step}.sql").read_text(
+        encoding="utf-8")
+    return text.replace("{{materialize}}", template("95_materialize")) if (
+        "{{materialize}}" in text) else text
+
+
+@functools.cache
+def render(step: str, backend: str) -> str:
+    """The SQL of ``step`` for ``backend`` (``"sqlite"`` or ``"postgresql"``)."""
+    return expand(template(step), backend)
+
+
+_KEY = ("k.agent_id, k.subject_id, k.subject_owner_id, k.property, k.property_type, "
+        "k.sub_property, k.target_id, k.target_owner_id")
+_OWN = (f"SELECT {_KEY}, f.value_text, f.value_num, f.confidence, f.observability, "
+        "f.valid_from_ns, f.valid_to_ns, f.recorded_ns, f.source, f.id AS fact_id, "
+        "k.id AS key_id FROM facts f JOIN fact_keys k ON k.id = f.key_id")
+_FOLLOWED_FACTS = (
+    f"SELECT {_KEY}, f.value_text, f.value_num, {{{{followed_conf(f.confidence)}}}}, "
+    "f.observability, {{followed_from}}, {{followed_to}}, f.recorded_ns, 'beliefs', f.id, k.id "
+    "FROM belief_follow w JOIN fact_keys k ON k.id = w.hkey "
+    "JOIN facts f ON f.key_id = w.self_key AND {{followed_facts}}")
+_EVENT_KEY = ("k.subject_id, k.subject_owner_id, k.property, k.property_type, k.sub_property, "
+              "k.target_id, k.target_owner_id")
+_OWN_EVENTS = (
+    f"SELECT e.id, e.agent_id, e.kind, e.stamp_ns, {_EVENT_KEY}, e.value_text, e.value_num, "
+    "e.confidence, e.observability, e.previous_text, e.source, e.recorded_ns, e.key_id "
+    "FROM events e JOIN fact_keys k ON k.id = e.key_id")
+_FOLLOWED_EVENTS = (
+    f"SELECT e.id, k.agent_id, e.kind, e.stamp_ns, {_EVENT_KEY}, e.value_text, e.value_num, "
+    "{{followed_conf(e.confidence)}}, e.observability, e.previous_text, 'beliefs', "
+    "e.recorded_ns, k.id "
+    "FROM belief_follow w JOIN fact_keys k ON k.id = w.hkey "
+    "JOIN events e ON e.key_id = w.self_key AND {{followed_events}}")
+
+
+def views(backend: str) -> list[tuple[str, str]]:
+    """The readable views (name, body): own rows, then followed periods as the holders' rows.
+
+    Migrations freeze these bodies (a revision never imports live view text);
+    ``tests/beliefs/test_sqltext.py`` checks that the database's views are these."""
+    followed = expand(_FOLLOWED_FACTS, backend)
+    return [
+        ("fact_history", f"{_OWN} UNION ALL {followed}"),
+        ("current_facts", f"{_OWN} WHERE f.valid_to_ns IS NULL UNION ALL {followed} "
+                          "AND w.to_ns IS NULL AND f.valid_to_ns IS NULL"),
+        ("memory", f"{_OWN} WHERE f.valid_to_ns IS NOT NULL UNION ALL {followed} "
+                   "AND (w.to_ns IS NOT NULL OR f.valid_to_ns IS NOT NULL)"),
+        ("event_log", f"{_OWN_EVENTS} UNION ALL {expand(_FOLLOWED_EVENTS, backend)}"),
+    ]

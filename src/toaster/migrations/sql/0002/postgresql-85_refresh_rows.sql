@@ -1,4 +1,0 @@
-UPDATE facts 
-SET value_num = p.value_num, confidence = p.confidence, observability = p.observability
-FROM belief_plan p
-WHERE facts.key_id = p.hkey AND facts.valid_to_ns IS NULL AND p.action = 'refreshed'

@@ -1,7 +1,0 @@
--- With the setting share_rows = false (instead of 90_follow): holders that take a change get
--- their own interval, as the straightforward design does (kept as the benchmarks' baseline).
-INSERT INTO facts (key_id, value_text, value_num, confidence, observability, valid_from_ns,
-                   recorded_ns, source)
-SELECT hkey, value_text, value_num, confidence, observability, CAST(:t AS bigint),
-       CAST(:recorded AS bigint), CAST(:source AS text)
-FROM belief_todo WHERE action IN ('appeared', 'changed')

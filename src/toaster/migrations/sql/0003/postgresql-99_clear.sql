@@ -1,6 +1,0 @@
-DELETE FROM belief_changed;
-DELETE FROM belief_focus;
-DELETE FROM belief_seen;
-DELETE FROM belief_in;
-DELETE FROM belief_todo;
-DELETE FROM belief_freeze

@@ -1,6 +1,0 @@
--- The holders' own events (a follower's later events are the self's, read through the views).
-INSERT INTO events (key_id, agent_id, kind, stamp_ns, value_text, value_num, confidence,
-                    observability, previous_text, source, recorded_ns)
-SELECT hkey, holder_id, action, :t, value_text, value_num, confidence, observability,
-       previous_text, :source, :recorded
-FROM belief_todo WHERE action IN ('appeared', 'changed', 'ended')

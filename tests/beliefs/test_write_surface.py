@@ -1,0 +1,233 @@
+"""Plain SQL writes through ``fact_inbox`` keep beliefs exactly as the library's writes do.
+
+A random story (rooms, containers, visibility, closed boxes, numbers, events, nested holders,
+direct writes to a holder) is written twice on each backend: through the library
+(Store.assert_fact / retract_facts / record_event) and as raw ``INSERT INTO fact_inbox`` rows by
+a separate connection, one transaction per change. The timelines and events every agent holds
+(the readable views) must be identical.
+"""
+
+from __future__ import annotations
+
+import random
+import uuid
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+import sqlalchemy as sa
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import toaster
+import toaster.queries as q
+from tests.conftest import PG_URL, require_postgres
+from toaster.beliefs import api
+from toaster.db import migrate
+from toaster.db.engine import make_engine
+
+HUMANS = ("SALLY", "ANNE", "BOB")
+ROOMS = ("KITCHEN", "HALL")
+BOXES = ("BOX", "BASKET")
+THINGS = ("MARBLE", "BALL")
+#: A change: (action, agent, subject, property, target, value_text, value_num, t_ns).
+Change = tuple[str, str, Any, str, Any, str, Any, int]
+
+
+def story(seed: int, length: int) -> list[Change]:
+    """Random changes of the robot's world (and a few direct writes to SALLY's beliefs)."""
+    rng = random.Random(seed)
+    t = 1_000_000_000
+    out: list[Change] = [("assert", "ROBOT", h, "IsInRoom", "KITCHEN", "true", None, t)
+                         for h in HUMANS]
+    out += [("assert", "ROBOT", b, "IsInRoom", "KITCHEN", "true", None, t) for b in BOXES]
+    out += [("assert", "ROBOT", x, "IsIn", "BOX", "true", None, t) for x in THINGS]
+    where = {**dict.fromkeys(HUMANS, "KITCHEN"), **dict.fromkeys(BOXES, "KITCHEN"),
+             **dict.fromkeys(THINGS, "BOX")}
+    for _ in range(length):
+        t += rng.choice((0, 500_000_000, 1_000_000_000))
+        kind = rng.randrange(8)
+        if kind <= 1:  # someone (or a box) changes room
+            who = rng.choice(HUMANS + BOXES)
+            room = rng.choice(ROOMS)
+            out.append(("retract", "ROBOT", who, "IsInRoom", None, "true", None, t))
+            out.append(("assert", "ROBOT", who, "IsInRoom", room, "true", None, t))
+            where[who] = room
+        elif kind == 2:  # a thing moves to a box
+            thing, box = rng.choice(THINGS), rng.choice(BOXES)
+            out.append(("retract", "ROBOT", thing, "IsIn", None, "true", None, t))
+            out.append(("assert", "ROBOT", thing, "IsIn", box, "true", None, t))
+        elif kind == 3:  # looking at a box, or not any more
+            who, box = rng.choice(HUMANS), rng.choice(BOXES)
+            action = rng.choice(("assert", "retract"))
+            out.append((action, "ROBOT", who, "IsLookingToward", box, "true", None, t))
+        elif kind == 4:  # a box closes or opens
+            out.append(("assert", "ROBOT", rng.choice(BOXES), "IsClosed", "",
+                        rng.choice(("true", "false")), None, t))
+        elif kind == 5:  # a number moves (a refresh), with its confidence
+            out.append(("assert", "ROBOT", rng.choice(HUMANS), "Distance", rng.choice(BOXES),
+                        "true", round(rng.uniform(0, 5), 2), t))
+        elif kind == 6:  # a point event
+            out.append(("event", "ROBOT", rng.choice(THINGS), "WasTouched", "", "true", None, t))
+        else:  # somebody tells SALLY something: a direct write to a holder
+            out.append(("assert", "SALLY", rng.choice(THINGS), "IsIn", rng.choice(BOXES),
+                        "true", None, t))
+    return out
+
+
+def _setup(db: toaster.Database) -> None:
+    st_ = db.store()
+    st_.add_entity("ROBOT", "robot", is_self=True, t_ns=0)
+    for h in HUMANS:
+        st_.add_entity(h, "human", t_ns=0)
+
+
+def through_library(db: toaster.Database, changes: list[Change]) -> None:
+    store = db.store()
+    for action, agent, subject, prop, target, value, num, t in changes:
+        if action == "assert":
+            store.assert_fact(agent, toaster.Fact(subject, prop, target, value, num), t_ns=t,
+                              strict=False, source="sql")
+        elif action == "retract":
+            store.retract_facts(agent, prop, subject, target, t_ns=t, source="sql")
+        else:
+            store.record_event(agent, toaster.Fact(subject, prop, target, value, num), t_ns=t,
+                               source="sql")
+
+
+def through_sql(url: str, changes: list[Change]) -> None:
+    engine = make_engine(url)
+    try:
+        for action, agent, subject, prop, target, value, num, t in changes:
+            with engine.begin() as conn:
+                conn.execute(sa.text(
+                    "INSERT INTO fact_inbox (action, agent_id, subject_id, property, target_id, "
+                    "value_text, value_num, t_ns) VALUES (:a, :g, :s, :p, :tg, :v, :n, :t)"),
+                    {"a": action, "g": agent, "s": subject, "p": prop, "tg": target, "v": value,
+                     "n": num, "t": t})
+    finally:
+        engine.dispose()
+
+
+_HISTORY = ("SELECT agent_id, subject_id, subject_owner_id, property, property_type, "
+            "sub_property, target_id, target_owner_id, value_text, value_num, confidence, "
+            "observability, valid_from_ns, valid_to_ns, source FROM fact_history")
+_EVENTS = ("SELECT agent_id, kind, stamp_ns, subject_id, property, target_id, value_text, "
+           "value_num, confidence, observability, previous_text, source FROM event_log")
+_CATALOG = {"entities": "SELECT id, name, kind, owner_id FROM entities",
+            "agents": "SELECT id, num, is_self FROM agents",
+            "chains": "SELECT holder_id, position, member_id FROM belief_chain"}
+
+
+def snapshot(url: str) -> dict[str, list[tuple[Any, ...]]]:
+    engine = make_engine(url)
+    try:
+        with engine.connect() as conn:
+            queries = {"history": _HISTORY, "events": _EVENTS, **_CATALOG}
+            return {name: sorted((tuple(r) for r in conn.execute(sa.text(sql))), key=repr)
+                    for name, sql in queries.items()}
+    finally:
+        engine.dispose()
+
+
+@pytest.fixture
+def fresh_urls(request: pytest.FixtureRequest, tmp_path: Any) -> Iterator[Any]:
+    """A factory of empty databases at head on the test's backend."""
+    made: list[tuple[Any, str]] = []
+    backend = request.param
+
+    def make() -> str:
+        if backend == "sqlite":
+            url = f"sqlite:///{tmp_path / uuid.uuid4().hex}.db"
+        else:
+            schema = f"t_{uuid.uuid4().hex[:12]}"
+            admin = make_engine(PG_URL)
+            with admin.begin() as conn:
+                conn.exec_driver_sql(f'CREATE SCHEMA "{schema}"')
+            made.append((admin, schema))
+            sep = "&" if "?" in PG_URL else "?"
+            url = f"{PG_URL}{sep}options=-csearch_path%3D{schema}"
+        engine = make_engine(url)
+        migrate.upgrade(engine)
+        engine.dispose()
+        return url
+
+    if backend == "postgresql":
+        require_postgres()
+    yield make
+    for admin, schema in made:
+        with admin.begin() as conn:
+            conn.exec_driver_sql(f'DROP SCHEMA "{schema}" CASCADE')
+        admin.dispose()
+
+
+BACKENDS = ["sqlite", pytest.param("postgresql", marks=pytest.mark.postgresql)]
+
+
+@pytest.mark.parametrize("fresh_urls", BACKENDS, indirect=True)
+@settings(max_examples=6, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1), length=st.integers(5, 40))
+def test_raw_sql_writes_equal_library_writes(fresh_urls: Any, seed: int, length: int) -> None:
+    changes = story(seed, length)
+    library_url, sql_url = fresh_urls(), fresh_urls()
+    for url in (library_url, sql_url):
+        with toaster.connect(url) as db:
+            _setup(db)
+    with toaster.connect(library_url) as db:
+        through_library(db, changes)
+    through_sql(sql_url, changes)
+    expected, got = snapshot(library_url), snapshot(sql_url)
+    assert got["history"], "the story wrote nothing"
+    for name in expected:
+        assert got[name] == expected[name], name
+
+
+@pytest.mark.parametrize(("row", "message"), [
+    ({"action": "assert", "agent_id": "NOBODY", "subject_id": "CUP", "property": "IsOn"},
+     "is not a registered agent"),
+    ({"action": "assert", "agent_id": "ROBOT", "subject_id": "CUP", "property": "IsOn",
+      "confidence": 2.0}, "between 0 and 1"),
+    ({"action": "move", "agent_id": "ROBOT", "subject_id": "CUP", "property": "IsOn"},
+     "assert, retract or event"),
+    ({"action": "assert", "agent_id": "ROBOT", "subject_id": None, "property": "IsOn"},
+     "give property, and subject_id"),
+])
+def test_bad_inbox_rows_fail_in_one_line_and_write_nothing(db: toaster.Database,
+                                                           row: dict[str, Any],
+                                                           message: str) -> None:
+    _setup(db)
+    db.store().assert_fact("ROBOT", toaster.Fact("CUP", "IsOn", "TABLE"), t_ns=1, strict=False)
+    before = snapshot(db.url)
+    columns = {"confidence": 1.0, **row, "t_ns": 5}
+    engine = make_engine(db.url)
+    try:
+        with pytest.raises(sa.exc.DBAPIError) as info, engine.begin() as conn:
+            conn.execute(sa.text(
+                f"INSERT INTO fact_inbox ({', '.join(columns)}) "
+                f"VALUES ({', '.join(':' + c for c in columns)})"), columns)
+    finally:
+        engine.dispose()
+    error = str(info.value.orig).strip().splitlines()[0]
+    assert message in error and error.startswith("fact_inbox: ")
+    assert snapshot(db.url) == before
+
+
+def test_retract_and_events_through_the_inbox(db: toaster.Database) -> None:
+    """A plain SQL session: the robot's cup appears, SALLY (in the kitchen) comes to believe
+    it, it ends, and nothing stays in the inbox."""
+    _setup(db)
+    store = db.store()
+    store.assert_fact("ROBOT", toaster.Fact("SALLY", "IsInRoom", "KITCHEN"), t_ns=1,
+                      strict=False)
+    store.assert_fact("ROBOT", toaster.Fact("CUP", "IsInRoom", "KITCHEN"), t_ns=1, strict=False)
+    through_sql(db.url, [("assert", "ROBOT", "CUP", "IsHot", "", "true", 80.0, 2),
+                         ("retract", "ROBOT", "CUP", "IsHot", None, "true", None, 3)])
+    sally = [(r.valid_from_ns, r.valid_to_ns) for r in api.belief_history(db, "CUP", "IsHot")
+             if r.agent_id == "SALLY"]
+    assert sally == [(2, 3)]
+    kinds = [e.kind for e in q.events(db, "SALLY", subject="CUP")
+             if e.property == "IsHot"]
+    assert kinds == ["appeared", "ended"]
+    with db.transaction() as conn:
+        assert conn.execute(sa.text("SELECT count(*) FROM fact_inbox")).scalar_one() == 0
