@@ -103,6 +103,12 @@ INBOX = {
                   "AND property = NEW.property AND sub_property = COALESCE(NEW.sub_property, '') "
                   "AND target_id = COALESCE(NEW.target_id, '') "
                   "AND target_owner_id = COALESCE(NEW.target_owner_id, ''))"),
+    # The row's open interval, as the target of an UPDATE (SQLite: through a subquery, as it
+    # allows no INDEXED BY on an UPDATE's table inside a trigger).
+    "inbox_open_interval": ("{{#sqlite}}id = (SELECT f.id FROM facts f {{open_fact}} "
+                            "WHERE f.key_id = {{inbox_key}} AND f.valid_to_ns IS NULL){{/sqlite}}"
+                            "{{#postgresql}}key_id = {{inbox_key}} AND valid_to_ns IS NULL"
+                            "{{/postgresql}}"),
     "inbox_self": "EXISTS (SELECT 1 FROM agents WHERE id = NEW.agent_id AND is_self)",
     # The open interval f moved numbers only.
     "inbox_renumbered": ("(f.value_num {{is_distinct}} NEW.value_num "
@@ -165,8 +171,8 @@ def expand(sql: str, backend: str) -> str:
         return match.group(2) if match.group(1) == backend else ""
 
     text = _SECTION.sub(section, sql)
-    for _ in range(4):  # macros may use macros
-        rendered = _MACRO.sub(lambda m: _macro(backend, m), text)
+    for _ in range(4):  # macros may use macros (and sections)
+        rendered = _SECTION.sub(section, _MACRO.sub(lambda m: _macro(backend, m), text))
         if rendered == text:
             break
         text = rendered

@@ -87,9 +87,10 @@ WHERE f.key_id = {{inbox_key}} AND f.valid_to_ns IS NULL AND NEW.action = 'asser
 ON CONFLICT DO NOTHING;
 UPDATE facts SET value_num = NEW.value_num, confidence = NEW.confidence,
                  observability = NEW.observability
-WHERE id IN (SELECT f.id FROM facts f {{open_fact}}
-             WHERE f.key_id = {{inbox_key}} AND f.valid_to_ns IS NULL AND NEW.action = 'assert'
-               AND f.value_text = NEW.value_text AND {{inbox_renumbered}});
+WHERE {{inbox_open_interval}} AND NEW.action = 'assert'
+  AND value_text = NEW.value_text
+  AND (value_num {{is_distinct}} NEW.value_num OR confidence <> NEW.confidence
+       OR observability <> NEW.observability);
 INSERT INTO events (key_id, agent_id, kind, stamp_ns, value_text, value_num, confidence,
                     observability, previous_text, source, recorded_ns)
 SELECT k.id, NEW.agent_id, CASE WHEN f.id IS NULL THEN 'appeared' ELSE 'changed' END, NEW.t_ns,
@@ -99,9 +100,7 @@ FROM fact_keys k LEFT JOIN facts f ON f.key_id = k.id AND f.valid_to_ns IS NULL
 WHERE k.id = {{inbox_key}} AND NEW.action = 'assert'
   AND (f.id IS NULL OR f.value_text <> NEW.value_text);
 UPDATE facts SET valid_to_ns = NEW.t_ns
-WHERE id IN (SELECT f.id FROM facts f {{open_fact}}
-             WHERE f.key_id = {{inbox_key}} AND f.valid_to_ns IS NULL AND NEW.action = 'assert'
-               AND f.value_text <> NEW.value_text);
+WHERE {{inbox_open_interval}} AND NEW.action = 'assert' AND value_text <> NEW.value_text;
 INSERT INTO facts (key_id, value_text, value_num, confidence, observability, valid_from_ns,
                    recorded_ns, source)
 SELECT {{inbox_key}}, NEW.value_text, NEW.value_num, NEW.confidence, NEW.observability,
@@ -116,7 +115,8 @@ SELECT k.id, NEW.agent_id, 'ended', NEW.t_ns, f.value_text, f.value_num, f.confi
 FROM {{inbox_match}} AND NEW.action = 'retract'
 ORDER BY k.id;
 UPDATE facts SET valid_to_ns = NEW.t_ns
-WHERE id IN (SELECT f.id FROM {{inbox_match}} AND NEW.action = 'retract');
+WHERE valid_to_ns IS NULL AND NEW.action = 'retract'
+  AND key_id IN (SELECT k.id FROM {{inbox_match}});
 -- event: a point event (the original's set_info EVENT).
 INSERT INTO events (key_id, agent_id, kind, stamp_ns, value_text, value_num, confidence,
                     observability, previous_text, source, recorded_ns)
