@@ -34,6 +34,14 @@ Tables
 ``control_commands`` one-shot requests to a running node (set an entity's pose, pointing,
                 relative positions) with their answers; pending ones wait for the next node
                 (revision 0005, see :mod:`toaster.live.control`).
+``rule_writer`` SQLite: the store's writer role for one transaction; the guard triggers of
+                the tables above that only the store and the rule write refuse anyone else
+                (revision 0006, :data:`toaster.db.dialects.GUARDED_TABLES`).
+``fact_inbox``  the write surface of plain SQL clients: one inserted row is one write, applied
+                by a trigger as the store applies it, then the belief rule (revision 0007).
+``belief_runs`` inserting a row runs the belief rule over ``belief_changed``; ``belief_steps``
+                (SQLite) the blocks of a run; ``belief_changed`` ... ``belief_new_chain`` the
+                rule's scratch tables, empty between runs (:mod:`toaster.beliefs.pipeline`).
 
 No foreign keys on ``facts`` and ``events``: they are the hot tables (thousands of rows per
 second) and a per-row foreign-key check there cost more than the insert itself (PostgreSQL runs
@@ -42,8 +50,9 @@ deletions go through :func:`toaster.db.catalog.empty_facts`, which removes event
 keys together.
 
 Readable views (``current_facts``, ``memory``, ``fact_history``, ``event_log``) and one view
-per agent (``fact_table_<agent>``, ``memory_table_<agent>``, ``events_table_<agent>``) are
-created by migrations and by agent registration (see :mod:`toaster.db.views`).
+per real agent (``fact_table_<agent>``, ``memory_table_<agent>``, ``events_table_<agent>``; not
+for nested holders) are created by migrations and by agent registration (see
+:mod:`toaster.db.views`).
 """
 
 from __future__ import annotations
