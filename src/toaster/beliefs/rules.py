@@ -72,8 +72,10 @@ class BeliefRule:
     def _insert_changed(self, conn: Connection, changes: ChangeSet) -> None:
         """The tick's self keys; refreshed ones with the values they held before the tick."""
         rows: dict[int, tuple[Any, ...]] = {}
-        for item in (*changes.appeared, *changes.changed, *changes.ended):
-            rows[item[0]] = (item[0], False, None, None, None)
+        keys = ([k for k, _ in changes.appeared] + [k for k, _, _ in changes.changed]
+                + [k for k, _ in changes.ended])
+        for key_id in keys:
+            rows[key_id] = (key_id, False, None, None, None)
         for key_id, _, held in changes.refreshed:
             rows[key_id] = (key_id, True, held.value_num, held.confidence, held.observability)
         cur = self.store.db.cursor()
