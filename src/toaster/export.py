@@ -11,7 +11,7 @@ from __future__ import annotations
 import csv
 import json
 import typing
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -76,7 +76,8 @@ def select_rows(db: Any, kind: str, *, agent: str | Sequence[str] | None = None,
                    "limit intervals to a window")
             raise InvalidInputError(msg)
         return queries.current_facts(db, agent, **filters)
-    read = {"memory": queries.memory, "history": queries.history, "events": queries.events}
+    read: dict[str, Callable[..., list[FactRow] | list[EventRow]]] = {
+        "memory": queries.memory, "history": queries.history, "events": queries.events}
     return read[kind](db, agent, since=since, until=until, **filters)
 
 

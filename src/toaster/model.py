@@ -7,6 +7,7 @@ All are NamedTuples: cheap to build in bulk, comparable, and easy to turn into d
 
 from __future__ import annotations
 
+import builtins
 import math
 from typing import NamedTuple
 
@@ -51,7 +52,7 @@ class Fact(NamedTuple):
     subject_owner_id: str = ""
     target_owner_id: str = ""
 
-    @property
+    @builtins.property  # the field ``property`` hides the builtin here
     def key(self) -> FactKey:
         """The identity of this fact (owners included, value excluded)."""
         return FactKey(self.subject_id, self.subject_owner_id, self.property,
@@ -83,7 +84,7 @@ class FactRow(NamedTuple):
     recorded_ns: int
     source: str
 
-    @property
+    @builtins.property  # the field ``property`` hides the builtin here
     def is_current(self) -> bool:
         """True while the interval is open."""
         return self.valid_to_ns is None

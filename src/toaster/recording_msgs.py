@@ -282,7 +282,7 @@ def metadata_version(distro: str) -> int:
 def fit_metadata(bag: Path, version: int, distro: str) -> None:
     """Rewrite ``bag/metadata.yaml`` as ``distro`` writes it: its version, only the fields it
     knows, ``ros_distro`` the distro's name (rosbags writes "rosbags")."""
-    import yaml  # type: ignore[import-untyped]
+    import yaml
 
     path = bag / "metadata.yaml"
     data = yaml.safe_load(path.read_text(encoding="utf-8"))

@@ -128,6 +128,12 @@ def test_a_database_written_before_the_squash_upgrades(tmp_path: Path) -> None:
             "SELECT * FROM fact_history ORDER BY fact_id, key_id").all() == before
         views: dict[str, str] = dict(conn.exec_driver_sql(
             "SELECT name, sql FROM sqlite_master WHERE type = 'view'").all())
+        # Nested holders moved out of entities and agents into holders (revision 0008).
+        nested = conn.exec_driver_sql("SELECT id, depth FROM holders WHERE depth >= 2").all()
+        assert nested and all(">" in h for h, _ in nested)
+        assert conn.exec_driver_sql(
+            "SELECT count(*) FROM entities WHERE kind = 'belief' OR id LIKE '%>%'").scalar() == 0
+        assert conn.exec_driver_sql("SELECT count(*) FROM agents WHERE id LIKE '%>%'").scalar() == 0
     engine.dispose()
     fresh = tmp_path / "fresh.db"
     with toaster.connect(f"sqlite:///{fresh}") as db:

@@ -151,10 +151,16 @@ def test_shipped_scenario_plots(tmp_path: Path) -> None:
             assert out.path.stat().st_size > 0
         timeline = out.timeline
         rows = history(db, subject=["alice", "mug"], property=["IsInRoom", "IsInHand", "IsAt"])
-        assert len(_spans(timeline)) == len(rows)
+        # By default the agents are plotted, not the nested holders (alice>bob: name them).
+        assert timeline.agents == ["pr2", "alice", "bob"]
+        assert len(_spans(timeline)) == len([r for r in rows if ">" not in r.agent_id])
         keys = {(lane.key.subject_id, lane.key.property, lane.key.target_id)
                 for lane in timeline.lanes}
         assert keys >= {("mug", "IsInHand", "alice"), ("alice", "IsInRoom", "Kitchen")}
+        nested = plot_facts(db, tmp_path / "nested.dat", subject="mug",
+                            agents=["pr2", "alice>bob"]).timeline
+        assert nested.agents == ["pr2", "alice>bob"]
+        assert any(span[1] == "alice>bob" for span in _spans(nested))
     finally:
         db.close()
 

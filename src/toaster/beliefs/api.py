@@ -10,7 +10,7 @@ from sqlalchemy import text
 
 from toaster import queries as q
 from toaster.beliefs import config as cfg
-from toaster.beliefs.rules import SEPARATOR, holder_id
+from toaster.beliefs.rules import holder_id
 from toaster.db import catalog
 from toaster.errors import InvalidInputError
 from toaster.model import FactRow
@@ -33,7 +33,7 @@ def _holder(db: Any, agent: str, about: str | list[str] | tuple[str, ...] | None
     chain = [] if about is None else ([about] if isinstance(about, str) else list(about))
     holder = holder_id(agent, *chain)
     with db.transaction() as conn:
-        found = conn.execute(text("SELECT 1 FROM agents WHERE id = :a"), {"a": holder}).first()
+        found = conn.execute(text("SELECT 1 FROM holders WHERE id = :a"), {"a": holder}).first()
     if found is None:
         what = f"belief holder {holder!r}" if chain else f"agent {agent!r}"
         msg = (f"unknown {what}: register the agents as humans or robots"
@@ -96,10 +96,12 @@ def belief_history(db: Any, subject: str, property: str, target: str | None = No
 
 
 def holders(db: Any) -> list[str]:
-    """Every non-self belief holder, first order then nested (``A>B``)."""
+    """Every non-self belief holder, first order then nested (``A>B``), by depth and id."""
     with db.transaction() as conn:
-        rows = conn.execute(text("SELECT id FROM agents WHERE NOT is_self ORDER BY num")).all()
-    return sorted((r[0] for r in rows), key=lambda h: (h.count(SEPARATOR), h))
+        rows = conn.execute(text(
+            "SELECT h.id FROM holders h LEFT JOIN agents a ON a.id = h.agent_id "
+            "WHERE a.is_self IS NULL OR NOT a.is_self ORDER BY h.depth, h.id")).all()
+    return [r[0] for r in rows]
 
 
 def configure(db: Any, **settings: Any) -> dict[str, Any]:

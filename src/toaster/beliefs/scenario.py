@@ -112,7 +112,7 @@ def parse(data: object, name: str = "scenario") -> Scenario:
     """Validate a loaded YAML/JSON document into a :class:`Scenario`."""
     if not isinstance(data, dict) or not isinstance(data.get("steps"), list):
         raise _bad(name, type(data).__name__, "a scenario is a mapping with a list of steps")
-    steps = []
+    steps: list[Step] = []
     for i, raw in enumerate(data["steps"], 1):
         where = f"{name}: step {i}"
         if not isinstance(raw, dict):
@@ -213,7 +213,8 @@ def check(db: Any, scenario: Scenario) -> list[str]:
         if held != exp.get("held", True):
             failures.append(f"expectation {i}: {who} at t={t_ns / 1e9:g}s: {what} "
                             f"{'held' if held else 'not held'}, expected the opposite")
-        elif held and "confidence" in exp and abs(row.confidence - exp["confidence"]) > 1e-9:
+        elif (row is not None and held and "confidence" in exp
+              and abs(row.confidence - exp["confidence"]) > 1e-9):
             failures.append(f"expectation {i}: {who}: {what} confidence {row.confidence:g}, "
                             f"expected {exp['confidence']:g}")
     return failures

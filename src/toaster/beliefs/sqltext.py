@@ -57,6 +57,8 @@ MACROS: dict[str, dict[str, str]] = {
         "setting_list": f"json_each({{{{setting({ARG})}}}})",
         "setting_map": f"json_each({{{{setting({ARG})}}}})",
         "setting_text": f"json_extract({{{{setting({ARG})}}}}, '$')",
+        # The entity is not hidden in a closed container (the CTE ``hidden``).
+        "not_hidden": f"{ARG} NOT IN (SELECT e FROM hidden)",
     },
     "postgresql": {
         "lo": "LEAST",
@@ -73,6 +75,9 @@ MACROS: dict[str, dict[str, str]] = {
         "setting_list": f"json_array_elements_text(CAST({{{{setting({ARG})}}}} AS json))",
         "setting_map": f"json_each_text(CAST({{{{setting({ARG})}}}} AS json))",
         "setting_text": f"(CAST({{{{setting({ARG})}}}} AS json) #>> '{{}}')",
+        # An anti-join: NOT IN over the recursive CTE (estimated at a million rows) was planned
+        # as a scan of it per row, and the joins around it as nested loops.
+        "not_hidden": f"NOT EXISTS (SELECT 1 FROM hidden WHERE hidden.e = {ARG})",
     },
 }
 

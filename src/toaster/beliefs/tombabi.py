@@ -145,7 +145,7 @@ def evaluate(zip_path: Path, url: str, *, limit: int | None = None,
     db = toaster.connect(url)
     table: dict[tuple[str, str], list[int]] = defaultdict(lambda: [0, 0])
     misses: list[str] = []
-    perceivers = Counter()
+    perceivers: Counter[str] = Counter()
     try:
         with zipfile.ZipFile(zip_path) as zf:
             for name in sorted(zf.namelist()):

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from toaster.errors import ToasterError
+
+if TYPE_CHECKING:
+    from toaster.db import Database
 
 
 class AppContext:
@@ -15,13 +18,13 @@ class AppContext:
     def __init__(self, url: str | None, debug: bool) -> None:
         self.url = url
         self.debug = debug
-        self._db: Any = None
+        self._db: Database | None = None
 
     @property
-    def db(self) -> Any:
+    def db(self) -> Database:
         """The database, created and migrated on first use when it is new."""
         if self._db is None:
-            from toaster.db import connect
+            from toaster.session import connect
 
             self._db = connect(self.url)
         return self._db

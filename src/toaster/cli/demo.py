@@ -24,7 +24,7 @@ def demo(app: Any, keep: bool) -> None:
     the target must be empty.
     """
     from toaster import queries as q
-    from toaster.db import connect
+    from toaster.session import connect
     from toaster.timeutil import NS_PER_S, format_ns, parse_time
 
     if app.url is None:

@@ -65,13 +65,13 @@ def execute(app: Any, command: str, argument: str | None, write: bool, params: t
         scope = (argument or "").upper()
         if scope not in ("ALL", "AGENT"):
             raise click.UsageError("execute EMPTY needs ALL or AGENT --agent A")
-        agent = opts["agent"] if scope == "AGENT" else None
-        if scope == "AGENT" and not agent:
+        emptied: str | None = opts["agent"] if scope == "AGENT" else None
+        if scope == "AGENT" and not emptied:
             raise click.UsageError("execute EMPTY AGENT needs --agent")
-        what = f"agent {agent!r}" if agent else "every agent"
+        what = f"agent {emptied!r}" if emptied else "every agent"
         if not yes:
             click.confirm(f"delete the facts, memory and events of {what}?", abort=True)
-        db.store().empty(agent)
+        db.store().empty(emptied)
         say(f"emptied {what}")
     else:
         scope = (argument or "ALL").upper()

@@ -102,16 +102,15 @@ def get_info(app: Any, info_type: str, sub_type: str, fmt: str | None, **opts: A
     elif kind == "EVENT":
         if opts["agent"]:
             db.store().check_agent(opts["agent"])
-        rows = q.events(db, opts["agent"], since=since, until=until, kind=opts["kind"],
-                        limit=opts["limit"], **key)
-        emit(rows, fmt)
+        emit(q.events(db, opts["agent"], since=since, until=until, kind=opts["kind"],
+                      limit=opts["limit"], **key), fmt)
     elif kind == "ONTOLOGY":
         _check_sub(sub, ("ALL", "VALUE", "LEAVE"), kind)
         if sub != "ALL" and not opts["entity_class"]:
             raise click.UsageError(f"ONTOLOGY {sub} needs --class")
-        rows = (q.descendants(db, opts["entity_class"]) if sub == "LEAVE"
-                else q.ontology(db, opts["entity_class"] if sub == "VALUE" else None))
-        emit(rows, fmt)
+        edges = (q.descendants(db, opts["entity_class"]) if sub == "LEAVE"
+                 else q.ontology(db, opts["entity_class"] if sub == "VALUE" else None))
+        emit(edges, fmt)
     elif kind in ("ID", "ENTITY"):
         _check_sub(sub, ("ALL", "VALUE"), kind)
         emit(q.entities(db, opts["entity_id"], kind=opts["kind"]), fmt)

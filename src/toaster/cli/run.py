@@ -17,7 +17,7 @@ from toaster.errors import InvalidInputError
 
 def _database(ctx: click.Context, url: str | None) -> Any:
     if url:
-        from toaster.db import connect
+        from toaster.session import connect
 
         db = connect(url)
         ctx.call_on_close(db.close)
@@ -144,7 +144,8 @@ def area_add(ctx: click.Context, name: str, spec_text: str | None, spec_file: Pa
         msg = "give the area as --spec JSON or --file PATH (exactly one)"
         raise InvalidInputError(msg)
     try:
-        raw = json.loads(spec_text) if spec_text else yaml.safe_load(spec_file.read_text())
+        raw = (yaml.safe_load(spec_file.read_text()) if spec_file is not None
+               else json.loads(spec_text or ""))
     except (json.JSONDecodeError, yaml.YAMLError) as exc:
         msg = f"area spec is not valid JSON/YAML ({str(exc).splitlines()[0]})"
         raise InvalidInputError(msg) from None

@@ -10,7 +10,8 @@ number beyond its tolerance become Python tuples, and only they reach the databa
 from __future__ import annotations
 
 import operator
-from typing import Any, NamedTuple
+from collections.abc import Sequence
+from typing import Any, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -20,6 +21,30 @@ from toaster.model import Fact
 
 #: fact_key in C: (subject, subject owner, property, sub-property, target, target owner).
 key_of = operator.itemgetter(0, 9, 1, 8, 2, 10)
+
+
+class BatchGroup(Protocol):
+    """One run of a batch's facts sharing their property."""
+
+    @property
+    def prop(self) -> str: ...
+    @property
+    def size(self) -> int: ...
+
+
+@runtime_checkable
+class FactArrays(Protocol):
+    """What the store reads of a producer's :class:`~toaster.producers.batch.FactBatch`."""
+
+    @property
+    def world(self) -> object:
+        """The world whose rows the batch names (a new world: the arrays are rebuilt)."""
+    @property
+    def groups(self) -> Sequence[BatchGroup]: ...
+    def facts(self) -> list[Fact]: ...
+    def facts_at(self, positions: np.ndarray) -> list[Fact]: ...
+    def keys(self) -> tuple[np.ndarray, np.ndarray]: ...
+    def numbers(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
 
 
 class Snapshot(NamedTuple):
@@ -32,7 +57,7 @@ class Snapshot(NamedTuple):
     order: np.ndarray  # group-order position of each fact in the batch
 
     @classmethod
-    def of(cls, batch: Any, tolerances: dict[str, Tolerance]) -> Snapshot:
+    def of(cls, batch: FactArrays, tolerances: dict[str, Tolerance]) -> Snapshot:
         keys, codes = batch.keys()
         numbers = np.column_stack(batch.numbers()) if len(keys) else np.zeros((0, 3))
         default = tolerances["*"]
@@ -55,13 +80,13 @@ class BatchState:
 
     __slots__ = ("codes", "fact", "keys", "numbers", "tkey", "world")
 
-    def __init__(self, world: Any, keys: np.ndarray, codes: np.ndarray, numbers: np.ndarray,
+    def __init__(self, world: object, keys: np.ndarray, codes: np.ndarray, numbers: np.ndarray,
                  tkey: np.ndarray, fact: np.ndarray) -> None:
         self.world, self.keys, self.codes, self.numbers = world, keys, codes, numbers
         self.tkey, self.fact = tkey, fact
 
     @classmethod
-    def of(cls, batch: Any, stored: dict[Key, Fact]) -> BatchState:
+    def of(cls, batch: FactArrays, stored: dict[Key, Fact]) -> BatchState:
         """The state after ``batch`` was written through the list path (``stored``: the
         source's facts as stored, which may differ from the batch's within tolerance)."""
         snap = Snapshot.of(batch, {"*": Tolerance()})

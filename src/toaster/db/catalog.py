@@ -1,21 +1,28 @@
-"""Entities, agents, ontology, properties, areas and settings: the small tables around facts.
+"""Entities, agents, ontology, properties, areas and settings: the small tables around facts,
+read and written here only.
 
-Functions here take a connection inside the caller's transaction; :class:`toaster.db.Store`
-wraps them in one transaction per call.
+Writes (and the settings and areas reads) take a connection inside the caller's transaction;
+:class:`toaster.db.Store` wraps them in one transaction per call. The public reads
+(:func:`entities`, :func:`agents`, :func:`ontology`, :func:`descendants`, :func:`properties`,
+re-exported by :mod:`toaster.queries`) take a :class:`~toaster.db.Database` and join its open
+transaction or open a read one.
 """
 
 from __future__ import annotations
 
 import json
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from sqlalchemy import Connection, bindparam, delete, func, insert, select, update
+from sqlalchemy import Connection, bindparam, delete, func, insert, select, text, update
 
 from toaster.db import schema as s
-from toaster.db.views import create_agent_views, drop_agent_views
+from toaster.db.views import agent_view_names, create_agent_views, drop_agent_views
 from toaster.errors import InvalidInputError, UnknownEntityError
-from toaster.model import AGENT_KINDS, Fact, check_id
+from toaster.model import AGENT_KINDS, Agent, Entity, Fact, OntologyRow, PropertyRow, check_id
 from toaster.timeutil import now_ns
+
+if TYPE_CHECKING:
+    from toaster.db.database import Database
 
 _PLURALS = {"humans": "human", "robots": "robot", "objects": "object", "joints": "joint",
             "areas": "area", "agents": "agent"}
@@ -65,12 +72,23 @@ def register_agent(conn: Connection, agent_id: str, *, is_self: bool | None,
         conn.execute(update(s.agents).where(s.agents.c.id == agent_id).values(is_self=is_self))
 
 
+def nested_holders_of(conn: Connection, agent_id: str) -> list[str]:
+    """The nested holders whose chain names ``agent_id`` (``A>B`` for A and for B)."""
+    chain = s.belief_chain.c
+    return list(conn.execute(select(chain.holder_id).distinct()
+                             .where(chain.member_id == agent_id)
+                             .order_by(chain.holder_id)).scalars())
+
+
 def remove_entity(conn: Connection, entity_id: str) -> None:
-    """Delete an entity; an agent's views, keys, facts and events go with it."""
+    """Delete an entity; an agent's views, keys, facts and events go with it, and so do the
+    nested holders whose chain names it."""
     check_entities(conn, [entity_id])
     if conn.execute(select(s.agents.c.id).where(s.agents.c.id == entity_id)).first():
         drop_agent_views(conn, entity_id)
-        empty_facts(conn, entity_id)
+        for holder in (*nested_holders_of(conn, entity_id), entity_id):
+            empty_facts(conn, holder)
+            conn.execute(delete(s.holders).where(s.holders.c.id == holder))
         conn.execute(delete(s.agents).where(s.agents.c.id == entity_id))
     conn.execute(delete(s.properties).where(s.properties.c.entity_id == entity_id))
     conn.execute(delete(s.entities).where(s.entities.c.id == entity_id))
@@ -254,6 +272,74 @@ def settings(conn: Connection, scope: str) -> dict[str, Any]:
     rows = conn.execute(select(table.c.key, table.c.value_json).where(table.c.scope == scope))
     return {row[0]: json.loads(row[1]) for row in rows}
 
+
+# -- reads (toaster.queries re-exports them) --------------------------------------------------
+_MAX_DEPTH = 64
+
+
+def entities(db: Database, entity_id: str | None = None, *, kind: str | None = None,
+             name: str | None = None) -> list[Entity]:
+    """Registered entities, optionally one id, one kind or one name."""
+    table = s.entities
+    query = select(table.c.id, table.c.name, table.c.kind, table.c.owner_id).order_by(table.c.id)
+    for column, value in ((table.c.id, entity_id), (table.c.kind, kind), (table.c.name, name)):
+        if value is not None:
+            query = query.where(column == value)
+    with db.transaction() as conn:
+        return [Entity(*row) for row in conn.execute(query)]
+
+
+def agents(db: Database, *, only_self: bool = False) -> list[Agent]:
+    """Belief-holding agents with the names of their per-agent views."""
+    query = select(s.agents.c.id, s.agents.c.is_self).order_by(s.agents.c.num)
+    if only_self:
+        query = query.where(s.agents.c.is_self.is_(True))
+    with db.transaction() as conn:
+        rows = conn.execute(query).all()
+    return [Agent(row[0], bool(row[1]), *agent_view_names(row[0])) for row in rows]
+
+
+def ontology(db: Database, entity_class: str | None = None) -> list[OntologyRow]:
+    """Class-tree edges, all or those directly below ``entity_class``."""
+    table = s.ontology
+    query = select(table.c.entity_class, table.c.individual, table.c.instantiated)
+    if entity_class is not None:
+        query = query.where(table.c.entity_class == entity_class)
+    query = query.order_by(table.c.entity_class, table.c.individual)
+    with db.transaction() as conn:
+        return [OntologyRow(row[0], row[1], bool(row[2])) for row in conn.execute(query)]
+
+
+def descendants(db: Database, entity_class: str, *,
+                instantiated_only: bool = True) -> list[OntologyRow]:
+    """Every edge below ``entity_class``, recursively (the original's LEAVE). With
+    ``instantiated_only`` (the original's behaviour) only instantiated individuals are kept;
+    their ``instantiated`` flag is the stored one (the original always answered true)."""
+    sql = (
+        "WITH RECURSIVE tree(entity_class, individual, instantiated, depth) AS ("
+        "SELECT entity_class, individual, instantiated, 1 FROM ontology WHERE entity_class = :c "
+        "UNION ALL SELECT o.entity_class, o.individual, o.instantiated, t.depth + 1 "
+        "FROM ontology o JOIN tree t ON o.entity_class = t.individual WHERE t.depth < :depth) "
+        "SELECT DISTINCT entity_class, individual, instantiated FROM tree"
+    )
+    with db.transaction() as conn:
+        rows = conn.execute(text(sql), {"c": entity_class, "depth": _MAX_DEPTH}).all()
+    found = sorted(OntologyRow(r[0], r[1], bool(r[2])) for r in rows)
+    return [row for row in found if row.instantiated or not instantiated_only]
+
+
+def properties(db: Database, entity_id: str | None = None,
+               key: str | None = None) -> list[PropertyRow]:
+    """Static properties, all or of one entity, optionally one key."""
+    table = s.properties
+    query = select(table.c.entity_id, table.c.key, table.c.value).order_by(
+        table.c.entity_id, table.c.key)
+    if entity_id is not None:
+        query = query.where(table.c.entity_id == entity_id)
+    if key is not None:
+        query = query.where(table.c.key == key)
+    with db.transaction() as conn:
+        return [PropertyRow(*row) for row in conn.execute(query)]
 
 
 # -- control plane (revision 0005; see toaster.live.control) ---------------------------------

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
@@ -15,20 +15,25 @@ from toaster.db.engine import default_url, make_engine, normalise_url
 from toaster.errors import ToasterError
 
 if TYPE_CHECKING:
-    from toaster.db.store import Store
+    from toaster.db.store import RuleFactory, Store
 
 
 class Database:
     """A toaster database (SQLite file or PostgreSQL), at the code's schema revision.
 
-    Not thread-safe: give each thread its own :func:`connect`. Use it as a context manager or
-    call :meth:`close`.
+    Not thread-safe: give each thread its own :func:`toaster.connect`. Use it as a context
+    manager or call :meth:`close`.
+
+    ``rules`` make the rules its :meth:`store` runs on every fact write, each called once with
+    that store; the database layer knows none of them (:func:`toaster.connect`, the
+    composition root in :mod:`toaster.session`, hands it the belief rule).
     """
 
-    def __init__(self, engine: Engine, url: str) -> None:
+    def __init__(self, engine: Engine, url: str, *, rules: Sequence[RuleFactory] = ()) -> None:
         self.engine = engine
         self.url = url
         self.backend: Backend = backend_for(engine.dialect.name)
+        self.rules: tuple[RuleFactory, ...] = tuple(rules)
         self._conn: Connection | None = None
         self._store: Store | None = None
 
@@ -72,15 +77,16 @@ class Database:
 
     def store(self) -> Store:
         """The write API (one per database handle, it remembers what each source wrote), with
-        the belief rules installed."""
+        this handle's rules installed (the belief rule, for :func:`toaster.connect`)."""
         if self._store is None:
-            from toaster.beliefs.rules import BeliefRule
             from toaster.db.store import Store
 
-            self._store = Store(self)
-            # Every store applies the belief rules kept in the database, so that several writer
-            # processes all keep the other agents' beliefs up to date.
-            self._store.add_rule(BeliefRule(self._store))
+            store = Store(self)
+            # Every store applies the rules, so that several writer processes all keep the
+            # other agents' beliefs up to date.
+            for make_rule in self.rules:
+                store.add_rule(make_rule(store))
+            self._store = store
         return self._store
 
     def close(self) -> None:
@@ -97,8 +103,10 @@ class Database:
         self.close()
 
 
-def connect(url: str | None = None, *, create: bool = True, check: bool = True) -> Database:
-    """Open a toaster database.
+def open_database(url: str | None = None, *, create: bool = True, check: bool = True,
+                  rules: Sequence[RuleFactory] = ()) -> Database:
+    """Open a toaster database whose store runs ``rules`` (none by default: applications use
+    :func:`toaster.connect`, which gives it the belief rule).
 
     Args:
         url: ``sqlite:///file.db``, ``postgresql://host/db`` or a path ending in ``.db``;
@@ -106,6 +114,7 @@ def connect(url: str | None = None, *, create: bool = True, check: bool = True) 
         create: migrate a database that has no table yet (a new file or database) to head.
         check: raise :class:`~toaster.errors.SchemaOutdatedError` when an existing database is
             not at the code's revision (the message says to run ``toaster db upgrade``).
+        rules: what :meth:`Database.store` installs (see :class:`Database`).
     """
     shown = url or default_url()
     engine = make_engine(shown)
@@ -122,4 +131,4 @@ def connect(url: str | None = None, *, create: bool = True, check: bool = True) 
     except BaseException:
         engine.dispose()
         raise
-    return Database(engine, normalise_url(shown))
+    return Database(engine, normalise_url(shown), rules=rules)

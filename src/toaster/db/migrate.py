@@ -10,6 +10,7 @@ from alembic.runtime.migration import MigrationContext
 from alembic.script import ScriptDirectory
 from sqlalchemy import Connection, Engine
 
+from toaster.db.schema import metadata
 from toaster.errors import SchemaOutdatedError
 
 
@@ -50,10 +51,15 @@ def downgrade(engine: Engine, revision: str) -> None:
 
 
 def _analyze(engine: Engine) -> None:
-    # Fresh statistics so that PostgreSQL plans sensibly on tables that started empty.
+    # Fresh statistics so that PostgreSQL plans sensibly on tables that started empty: toaster's
+    # own tables only (a bare ANALYZE would also sample every other schema of a shared server,
+    # and record another writer's uncommitted first tick as empty tables).
     if engine.dialect.name == "postgresql":
         with engine.begin() as conn:
-            conn.exec_driver_sql("ANALYZE")
+            present = set(conn.dialect.get_table_names(conn))
+            names = [t.name for t in metadata.sorted_tables if t.name in present]
+            if names:
+                conn.exec_driver_sql("ANALYZE " + ", ".join(f'"{n}"' for n in names))
 
 
 def is_empty(engine: Engine) -> bool:

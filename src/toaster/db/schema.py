@@ -5,8 +5,12 @@ Tables
 ``entities``    every thing toaster knows (text id, name, kind, owner for joints).
 ``agents``      the entities that hold beliefs; ``is_self`` marks robots whose perception is the
                 world state. ``num`` is a small integer used to name the per-agent views.
-``fact_keys``   one row per identity of a fact for an agent:
-                (agent, subject, subject owner, property, sub-property, target, target owner).
+``holders``     everyone whose beliefs are kept (revision 0008): each agent (``agent_id`` =
+                ``id``, depth 1, added by a trigger when the agent is) and each nested holder
+                ``A>B`` ("A's model of B's beliefs", ``agent_id`` NULL, depth = chain length),
+                registered by the belief rule. Nested holders are neither entities nor agents.
+``fact_keys``   one row per identity of a fact for a holder (``agent_id`` -> ``holders.id``):
+                (holder, subject, subject owner, property, sub-property, target, target owner).
 ``facts``       validity intervals ``[valid_from_ns, valid_to_ns)`` of a key with its value,
                 confidence and observability. ``valid_to_ns`` NULL = current. At most one open
                 interval per key (partial unique index).
@@ -15,8 +19,7 @@ Tables
 ``properties``  static properties of entities, open key/value.
 ``areas``       area definitions (a JSON spec) so that areas survive restarts.
 ``settings``    thresholds and rule configuration kept as data (JSON values by scope/key).
-``belief_chain`` nested belief holders: holder ``A>B`` (an agent row) is the chain A, B
-                ("A's model of B's beliefs"), one row per position (revision 0003).
+``belief_chain`` the chains of nested holders: ``A>B`` is A, B, one row per position (0003).
 ``belief_follow`` periods during which a holder's belief of a key *follows* the self agent's
                 key (it perceives every change): the self's intervals clipped to
                 ``[from_ns, to_ns)`` and its events stamped in ``[events_from_ns,
@@ -111,11 +114,23 @@ agents = Table(
     Column("registered_ns", BigInteger, nullable=False),
 )
 
+holders = Table(
+    "holders",
+    metadata,
+    Column("id", Text, primary_key=True),
+    Column("agent_id", Text, ForeignKey("agents.id", ondelete="CASCADE"), nullable=True,
+           unique=True),
+    Column("depth", Integer, nullable=False),
+    Column("registered_ns", BigInteger, nullable=False),
+    CheckConstraint("(depth = 1 AND agent_id = id) OR (depth >= 2 AND agent_id IS NULL)",
+                    name="agent_or_nested"),
+)
+
 fact_keys = Table(
     "fact_keys",
     metadata,
     Column("id", RowId, primary_key=True, autoincrement=True),
-    Column("agent_id", Text, ForeignKey("agents.id", ondelete="CASCADE"), nullable=False),
+    Column("agent_id", Text, ForeignKey("holders.id", ondelete="CASCADE"), nullable=False),
     Column("subject_id", Text, nullable=False),
     _text("subject_owner_id"),
     Column("property", Text, nullable=False),
@@ -380,7 +395,7 @@ control_commands = Table(
 belief_chain = Table(
     "belief_chain",
     metadata,
-    Column("holder_id", Text, ForeignKey("agents.id", ondelete="CASCADE"), primary_key=True),
+    Column("holder_id", Text, ForeignKey("holders.id", ondelete="CASCADE"), primary_key=True),
     Column("position", Integer, primary_key=True),
     Column("member_id", Text, ForeignKey("agents.id", ondelete="CASCADE"), nullable=False),
     CheckConstraint("position >= 1", name="position_positive"),

@@ -27,14 +27,18 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from toaster.db.catalog import entities
 from toaster.documents import read_document
 from toaster.errors import FileFormatError, InvalidInputError
 from toaster.model import Fact
-from toaster.queries.catalog import entities
 from toaster.timeutil import parse_time
+
+if TYPE_CHECKING:
+    from toaster.db.store import Store
 
 _FACT_FIELDS = {"subject": "subject_id", "subject_id": "subject_id", "property": "property",
                 "predicate": "property", "target": "target_id", "target_id": "target_id",
@@ -55,7 +59,7 @@ class BatchReport(dict[str, int]):
         self[kind] = self.get(kind, 0) + n
 
 
-def load_file(store: Any, path: str | Path) -> BatchReport:
+def load_file(store: Store, path: str | Path) -> BatchReport:
     """Import one XML, JSON or YAML file into the store, all or nothing."""
     path = Path(path)
     if not path.is_file():
@@ -75,7 +79,7 @@ def load_file(store: Any, path: str | Path) -> BatchReport:
         return apply_document(store, data, origin=str(path))
 
 
-def apply_document(store: Any, data: dict[str, Any], *, origin: str = "batch") -> BatchReport:
+def apply_document(store: Store, data: dict[str, Any], *, origin: str = "batch") -> BatchReport:
     """Apply a parsed JSON/YAML batch (inside the caller's transaction)."""
     unknown = set(data) - _SECTIONS
     if unknown:
@@ -85,19 +89,24 @@ def apply_document(store: Any, data: dict[str, Any], *, origin: str = "batch") -
     report = BatchReport()
     base = _time(data.get("base_time", 0), 0, origin, "base_time")
     for index, row in _rows(data, "entities", origin):
-        _wrap(origin, "entities", index, lambda row=row: store.add_entity(
-            _req(row, "id"), str(row.get("kind", row.get("type", "object"))),
-            str(row.get("name", "")), str(row.get("owner", row.get("owner_id", "")) or ""),
-            is_self=row.get("self"), agent=row.get("agent"), t_ns=base))
+        def entity(row: dict[str, Any] = row) -> None:
+            store.add_entity(
+                _req(row, "id"), str(row.get("kind", row.get("type", "object"))),
+                str(row.get("name", "")), str(row.get("owner", row.get("owner_id", "")) or ""),
+                is_self=row.get("self"), agent=row.get("agent"), t_ns=base)
+        _wrap(origin, "entities", index, entity)
         report.add("entities")
     for index, row in _rows(data, "ontology", origin):
-        _wrap(origin, "ontology", index, lambda row=row: store.add_ontology(
-            _req(row, "class", "entity_class"), _req(row, "individual"),
-            row.get("instantiated", False)))
+        def edge(row: dict[str, Any] = row) -> None:
+            store.add_ontology(_req(row, "class", "entity_class"), _req(row, "individual"),
+                               row.get("instantiated", False))
+        _wrap(origin, "ontology", index, edge)
         report.add("ontology")
     for index, row in _rows(data, "properties", origin):
-        _wrap(origin, "properties", index, lambda row=row: store.set_property(
-            _req(row, "entity", "id", "entity_id"), _req(row, "key"), row.get("value")))
+        def prop(row: dict[str, Any] = row) -> None:
+            store.set_property(_req(row, "entity", "id", "entity_id"), _req(row, "key"),
+                               row.get("value"))
+        _wrap(origin, "properties", index, prop)
         report.add("properties")
     steps = [{"at": row.get("at", 0), section: [row]}
              for section in ("facts", "retract", "events")
@@ -109,7 +118,7 @@ def apply_document(store: Any, data: dict[str, Any], *, origin: str = "batch") -
     return report
 
 
-def _apply_step(store: Any, step: dict[str, Any], t_ns: int, origin: str,
+def _apply_step(store: Store, step: dict[str, Any], t_ns: int, origin: str,
                 report: BatchReport) -> None:
     for index, row in enumerate(step.get("retract") or []):
         def retract(row: dict[str, Any] = row) -> None:
@@ -149,7 +158,7 @@ def fact_from_mapping(row: dict[str, Any]) -> Fact:
     return Fact(**values)
 
 
-def _agent(store: Any, row: dict[str, Any]) -> str:
+def _agent(store: Store, row: dict[str, Any]) -> str:
     agent = row.get("agent")
     return str(agent) if agent else store.self_agent()
 
@@ -210,14 +219,16 @@ def _unquote(value: str) -> str:
     return value.strip()
 
 
-def _apply_xml(store: Any, path: Path, rows: list[dict[str, str]]) -> BatchReport:
+def _apply_xml(store: Store, path: Path, rows: list[dict[str, str]]) -> BatchReport:
     report = BatchReport()
     origin = str(path)
     had_self = any(store.agents().values())
     for index, row in enumerate(rows):
         if "entityClass" in row:
-            _wrap(origin, "ontology", index, lambda row=row: store.add_ontology(
-                row["entityClass"], _req(row, "individual"), row.get("instantiated", "false")))
+            def edge(row: dict[str, str] = row) -> None:
+                store.add_ontology(row["entityClass"], _req(row, "individual"),
+                                   row.get("instantiated", "false"))
+            _wrap(origin, "ontology", index, edge)
             report.add("ontology")
         elif "color" in row or "linkType" in row:
             entity_id = _req(row, "id")
@@ -226,14 +237,14 @@ def _apply_xml(store: Any, path: Path, rows: list[dict[str, str]]) -> BatchRepor
             for key in ("color", "height", "linkedToId", "linkType"):
                 if key in row:
                     _wrap(origin, "properties", index,
-                          lambda e=entity_id, k=key, v=row[key]: store.set_property(e, k, v))
+                          partial(store.set_property, entity_id, key, row[key]))
                     report.add("properties")
         elif "id" in row and "type" in row:
             kind = row["type"]
             make_self = not had_self and kind.lower() == "robot"
-            _wrap(origin, "entities", index, lambda row=row, kind=kind, make_self=make_self:
-                  store.add_entity(row["id"], kind, row.get("name", ""), row.get("owner_id", ""),
-                                   is_self=True if make_self else None))
+            _wrap(origin, "entities", index,
+                  partial(store.add_entity, row["id"], kind, row.get("name", ""),
+                          row.get("owner_id", ""), is_self=True if make_self else None))
             had_self = had_self or make_self
             report.add("entities")
         else:

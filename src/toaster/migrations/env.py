@@ -25,6 +25,10 @@ connection = config.attributes.get("connection")
 if connection is not None:
     _run(connection)
 else:  # plain `alembic` command line, e.g. for autogenerate during development
-    engine = create_engine(config.get_main_option("sqlalchemy.url"))
+    url = config.get_main_option("sqlalchemy.url")
+    if not url:
+        msg = "alembic: set sqlalchemy.url (toaster db upgrade needs none)"
+        raise SystemExit(msg)
+    engine = create_engine(url)
     with engine.begin() as conn:
         _run(conn)

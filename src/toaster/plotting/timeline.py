@@ -206,14 +206,17 @@ def _as_list(value: str | Sequence[str] | None) -> list[str] | None:
 
 
 def check_agents(db: Any, agents: str | Sequence[str] | None) -> tuple[list[str], str]:
-    """The agents to plot (default all) and the reference one; unknown names raise."""
+    """The agents to plot (default all; nested holders such as ``ANNE>SALLY`` when named) and
+    the reference one; unknown names raise."""
+    from toaster.beliefs.api import holders
     from toaster.queries import agents as list_agents
 
     known = list_agents(db)
     names = [a.id for a in known]
     wanted = _as_list(agents) or names
+    nested = [h for h in holders(db) if h not in names]
     for name in wanted:
-        if name not in names:
+        if name not in names and name not in nested:
             shown = ", ".join(names) or "none registered"
             msg = f"unknown agent {name!r}: known agents are {shown}"
             raise UnknownAgentError(msg)

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 import shapely
+from shapely.geometry.base import BaseGeometry
 
 from toaster.errors import InvalidInputError
 from toaster.model import Fact
@@ -79,7 +80,7 @@ def normalize_area(area_id: str, spec: Mapping[str, Any]) -> dict[str, Any]:
     if shape == "polygon":
         points = spec.get("points")
         try:
-            pts = [[float(p[0]), float(p[1])] for p in points]
+            pts = [[float(p[0]), float(p[1])] for p in points or ()]
         except (TypeError, ValueError, IndexError):
             pts = []
         if len(pts) < 3 or not shapely.Polygon(pts).is_valid:
@@ -150,13 +151,17 @@ def area_from_original(area: Mapping[str, Any]) -> tuple[str, dict[str, Any]]:
     return name, normalize_area(name, spec)
 
 
+#: A circle (centre x, centre y, radius) or a prepared shapely geometry.
+_Shape = tuple[float, float, float] | BaseGeometry
+
+
 @dataclass
 class _Compiled:
     area_id: str
     spec: dict[str, Any]
     kinds: np.ndarray
-    inner: Any
-    outer: Any
+    inner: _Shape
+    outer: _Shape
     bounds: tuple[float, float, float, float]
     z_lo: float
     z_hi: float
@@ -166,6 +171,8 @@ class _Compiled:
 
 def _compile(area_id: str, spec: dict[str, Any]) -> _Compiled:
     enter, leave = spec["enter_hysteresis"], spec["leave_hysteresis"]
+    inner: _Shape
+    outer: _Shape
     z_lo = -np.inf if spec["z_min"] is None else spec["z_min"]
     z_hi = np.inf if spec["z_max"] is None else spec["z_max"]
     if spec["shape"] == "circle":
@@ -178,11 +185,13 @@ def _compile(area_id: str, spec: dict[str, Any]) -> _Compiled:
             z_lo, z_hi = cz - spec["height"] / 2, cz + spec["height"] / 2
     else:
         poly = shapely.Polygon(spec["points"])
-        inner = poly.buffer(-enter, join_style="mitre") if enter else poly
-        outer = poly.buffer(leave, join_style="mitre") if leave else poly
-        shapely.prepare(inner)
-        shapely.prepare(outer)
-        bounds = tuple(outer.bounds)
+        inner_poly = poly.buffer(-enter, join_style="mitre") if enter else poly
+        outer_poly = poly.buffer(leave, join_style="mitre") if leave else poly
+        shapely.prepare(inner_poly)
+        shapely.prepare(outer_poly)
+        inner, outer = inner_poly, outer_poly
+        x0, y0, x1, y1 = outer_poly.bounds
+        bounds = (x0, y0, x1, y1)
     kinds = np.zeros(4, bool)
     kinds[list(entity_kinds(spec["entity_types"]))] = True
     area_type = spec["area_type"]
@@ -195,7 +204,7 @@ def _compile(area_id: str, spec: dict[str, Any]) -> _Compiled:
     return _Compiled(area_id, spec, kinds, inner, outer, bounds, z_lo, z_hi, prop, sub)
 
 
-def _inside(shape: Any, xy: np.ndarray) -> np.ndarray:
+def _inside(shape: _Shape, xy: np.ndarray) -> np.ndarray:
     if isinstance(shape, tuple):
         cx, cy, r = shape
         return (xy[:, 0] - cx) ** 2 + (xy[:, 1] - cy) ** 2 <= r * r
@@ -358,6 +367,7 @@ class AreaManager:
                 population &= world.owner[: world.n] != owner
                 total = int(population.sum())
             else:
+                assert kind_count is not None  # counted for every unowned density area
                 total = int(kind_count[area.kinds].sum())
             ratio = rows.size / total if total else 0.0
             out.add("AreaDensity", area_id, "", value_num=ratio, conf=1.0, obs=0.0,
@@ -385,10 +395,12 @@ class _StaticAreas:
         self.z_lo = np.asarray([a.z_lo for a in areas], float)
         self.z_hi = np.asarray([a.z_hi for a in areas], float)
         self.kinds = np.asarray([a.kinds for a in areas], bool).reshape(-1, 4)
+        self.any_kind: np.ndarray = np.asarray(self.kinds.any(axis=0), bool)  # (4,)
         self.circle = np.asarray([isinstance(a.outer, tuple) for a in areas], bool)
         self.same = np.asarray([a.inner is a.outer for a in areas], bool)
-        circ = [(a.outer, a.inner) if isinstance(a.outer, tuple) else ((0, 0, 0), (0, 0, 0))
-                for a in areas]
+        none = (0.0, 0.0, 0.0)
+        circ = [(a.outer, a.inner) if isinstance(a.outer, tuple) and isinstance(a.inner, tuple)
+                else (none, none) for a in areas]
         self.cx = np.asarray([c[0][0] for c in circ], float)
         self.cy = np.asarray([c[0][1] for c in circ], float)
         self.r_out = np.asarray([c[0][2] for c in circ], float)
@@ -401,7 +413,7 @@ class _StaticAreas:
     def members(self, pos: np.ndarray, kind: np.ndarray, live: np.ndarray,
                 prev: np.ndarray) -> np.ndarray:
         """New membership keys of the static areas (unsorted)."""
-        cand = np.flatnonzero(live & self.kinds.any(axis=0)[kind])
+        cand = np.flatnonzero(live & self.any_kind[kind])
         if cand.size == 0:
             return np.zeros(0, np.int64)
         x = pos[cand, 0]
@@ -460,8 +472,8 @@ def direction_label(angle: float) -> str:
 def relative_position(world: World, subject_id: str, target_id: str) -> tuple[str, float]:
     """Where the target is for the subject: (label, angle = wrap(yaw − bearing(S→T)))."""
     s, t = world.row(subject_id), world.row(target_id)
-    angle = wrap_angle(world.rpy[s, 2] - bearing(world.pos[s, :2], world.pos[t, :2]))
-    return direction_label(angle), float(angle)
+    angle = float(wrap_angle(world.rpy[s, 2] - bearing(world.pos[s, :2], world.pos[t, :2])))
+    return direction_label(angle), angle
 
 
 def multiple_relative_position(world: World, agent_id: str, object_id: str,
@@ -472,5 +484,5 @@ def multiple_relative_position(world: World, agent_id: str, object_id: str,
     """
     a, o, t = world.row(agent_id), world.row(object_id), world.row(target_id)
     p = world.pos
-    angle = wrap_angle(bearing(p[a, :2], p[o, :2]) - bearing(p[o, :2], p[t, :2]))
-    return direction_label(angle), float(angle)
+    angle = float(wrap_angle(bearing(p[a, :2], p[o, :2]) - bearing(p[o, :2], p[t, :2])))
+    return direction_label(angle), angle

@@ -189,7 +189,9 @@ class FactBatch:
         sizes = np.fromiter((g.size for g in groups), np.int64, len(groups))
         base = np.empty(len(groups), np.int64)
         code = np.empty(len(groups), np.int64)
-        subj_parts, tgt_parts, labelled = [], [], []
+        subj_parts: list[np.ndarray] = []
+        tgt_parts: list[np.ndarray] = []
+        labelled: list[tuple[int, tuple[np.ndarray, np.ndarray]]] = []
         neg = _neg1(int(sizes.max()))
         for i, g in enumerate(groups):
             subj_row = isinstance(g.subj, np.ndarray)
@@ -198,11 +200,11 @@ class FactBatch:
                                None if subj_row else (g.subj, g.subj_owner),
                                None if tgt_row else g.tgt,
                                None if isinstance(g.tgt_owner, np.ndarray) else g.tgt_owner))
-            subj_parts.append(g.subj if subj_row else neg[: g.size])
-            tgt_parts.append(g.tgt if tgt_row else neg[: g.size])
+            subj_parts.append(g.subj if isinstance(g.subj, np.ndarray) else neg[: g.size])
+            tgt_parts.append(g.tgt if isinstance(g.tgt, np.ndarray) else neg[: g.size])
             if isinstance(g.value_text, tuple):
                 code[i] = -1
-                labelled.append(i)
+                labelled.append((i, g.value_text))
             else:
                 code[i] = text_code(g.value_text)
         keys = np.repeat(base * (_B * _B), sizes)
@@ -211,8 +213,7 @@ class FactBatch:
         codes = np.repeat(code, sizes)
         if labelled:
             ends = np.cumsum(sizes)
-            for i in labelled:
-                lab_codes, labels = groups[i].value_text
+            for i, (lab_codes, labels) in labelled:
                 table = np.array([text_code(x) for x in labels.tolist()], np.int64)
                 codes[ends[i] - sizes[i]: ends[i]] = table[lab_codes]
         return keys, codes

@@ -80,17 +80,22 @@ def segment_hits(p0: np.ndarray, p1: np.ndarray, half: np.ndarray) -> np.ndarray
 
 def _slabs(p0: list[np.ndarray], p1: list[np.ndarray], half: list[np.ndarray]) -> np.ndarray:
     """Slab test on per-axis arrays (broadcasting), no reductions over a short last axis."""
-    near = far = None
-    for a in range(3):
-        d = p1[a] - p0[a]
-        d[np.abs(d) < 1e-12] = 1e-12
-        inv = np.reciprocal(d, out=d)
-        t1 = (-half[a] - p0[a]) * inv
-        t2 = (half[a] - p0[a]) * inv
-        lo, hi = np.minimum(t1, t2), np.maximum(t1, t2)
-        near = lo if near is None else np.maximum(near, lo, out=near)
-        far = hi if far is None else np.minimum(far, hi, out=far)
+    near, far = _slab(p0[0], p1[0], half[0])
+    for a in (1, 2):
+        lo, hi = _slab(p0[a], p1[a], half[a])
+        np.maximum(near, lo, out=near)
+        np.minimum(far, hi, out=far)
     return (near < far) & (far > 0.0) & (near < 1.0)
+
+
+def _slab(p0: np.ndarray, p1: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Entry and exit parameters of the segment p0 → p1 through the slab ±half of one axis."""
+    d = p1 - p0
+    d[np.abs(d) < 1e-12] = 1e-12
+    inv = np.reciprocal(d, out=d)
+    t1 = (-half - p0) * inv
+    t2 = (half - p0) * inv
+    return np.minimum(t1, t2), np.maximum(t1, t2)
 
 
 def _ray_hits(eye: np.ndarray, pts: np.ndarray, boxes: Boxes, om: np.ndarray) -> np.ndarray:

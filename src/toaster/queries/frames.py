@@ -15,6 +15,5 @@ def to_dataframe(rows: Sequence[NamedTuple], columns: Sequence[str] | None = Non
     except ImportError:
         package = "pandas"
         raise MissingDependencyError(package, package, "to_dataframe") from None
-    if columns is None:
-        columns = list(rows[0]._fields) if rows else []
-    return pd.DataFrame.from_records([tuple(r) for r in rows], columns=columns)
+    names = list(columns) if columns is not None else list(rows[0]._fields) if rows else []
+    return pd.DataFrame.from_records([tuple(r) for r in rows], columns=names)

@@ -31,24 +31,21 @@ def execute(db: Any, sql: str, params: dict[str, Any] | list[Any] | None = None,
     included) re-reads what its sources hold before its next write.
     """
     backend = db.backend
-    if isinstance(params, dict):
-        statement, bound = text(sql), params
-    else:
-        statement, bound = None, params
+    named = params if isinstance(params, dict) else None  # ``:name`` style, both backends
     try:
         with db.transaction(write=write) as conn:
             cur = db.cursor()
             if not write:
                 backend.set_read_only(cur)
             try:
-                if statement is not None:
-                    result = conn.execute(statement, bound)
+                if named is not None:
+                    result = conn.execute(text(sql), named)
                     columns = list(result.keys()) if result.returns_rows else []
                     rows = [tuple(r) for r in result] if result.returns_rows else []
                     count = result.rowcount
                 else:
-                    if bound:
-                        cur.execute(sql, bound)
+                    if params:
+                        cur.execute(sql, params)
                     else:  # no parameters: neither driver looks for placeholders
                         cur.execute(sql)
                     columns = [d[0] for d in cur.description] if cur.description else []

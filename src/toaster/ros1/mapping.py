@@ -152,7 +152,7 @@ def read_frame_map(source: str | Path | Mapping[str, Any] | None) -> dict[str, F
 
 
 def _parse_map_text(text: str, path: Path) -> Any:
-    import yaml  # type: ignore[import-untyped]
+    import yaml
 
     try:
         return json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)

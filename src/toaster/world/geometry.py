@@ -2,13 +2,20 @@
 
 from __future__ import annotations
 
+from typing import overload
+
 import numpy as np
 
 TWO_PI = 2.0 * np.pi
 
 
+@overload
+def wrap_angle(angle: float) -> float: ...
+@overload
+def wrap_angle(angle: np.ndarray) -> np.ndarray: ...
 def wrap_angle(angle: np.ndarray | float) -> np.ndarray | float:
-    """Wrap angles to (-pi, pi] (pi stays pi, -pi becomes pi)."""
+    """Wrap angles to (-pi, pi] (pi stays pi, -pi becomes pi); a scalar (or a 0-d array)
+    gives a float."""
     wrapped = np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), TWO_PI)
     if np.ndim(wrapped) == 0:
         return float(wrapped)

@@ -68,7 +68,7 @@ class History:
         self.t[rows] = NO_TIME
         self.last_t[rows] = NO_TIME
 
-    def _valid(self, rows: np.ndarray) -> np.ndarray:
+    def _valid(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         times = self.t[rows]
         return times, (times != NO_TIME) & (times >= self.newest - self.horizon_ns)
 
@@ -79,7 +79,7 @@ class History:
         ok = valid & (times <= np.asarray(t_ref, dtype=np.int64).reshape(-1, 1))
         masked = np.where(ok, times, NO_TIME)
         slot = masked.argmax(axis=1)
-        found = ok.any(axis=1)
+        found = np.asarray(ok.any(axis=1))  # (R,) bool
         return found, times[np.arange(len(rows)), slot], self.pos[rows, slot], self.rpy[rows, slot]
 
     def oldest_after(self, rows: np.ndarray, t_ref: np.ndarray
@@ -88,7 +88,7 @@ class History:
         times, valid = self._valid(rows)
         ok = valid & (times > np.asarray(t_ref, dtype=np.int64).reshape(-1, 1))
         slot = np.where(ok, times, _BIG).argmin(axis=1)
-        found = ok.any(axis=1)
+        found = np.asarray(ok.any(axis=1))  # (R,) bool
         return found, times[np.arange(len(rows)), slot], self.pos[rows, slot], self.rpy[rows, slot]
 
     def window_sample(self, rows: np.ndarray, window_ns: int, max_gap_ns: int

@@ -287,8 +287,8 @@ class ScenarioSource:
             self._dirty.add(eid)
             if verb == "enter":
                 world.add_entity(eid, self._kind[eid])
-                for row in np.flatnonzero(world.owner[: world.n] == world.row(eid)):
-                    world.active[row] = True
+                for member in np.flatnonzero(world.owner[: world.n] == world.row(eid)):
+                    world.active[member] = True
                 self._present.add(eid)
         elif verb == "leave":
             self._present.discard(eid)

@@ -31,12 +31,10 @@ sf(s, p, tg, c) AS (
          OR k.property IN (SELECT p FROM cfg_vis))
 ),
 chain(holder, pos, member) AS (
-  SELECT a.id, 1, a.id FROM agents a
-  WHERE NOT a.is_self AND a.id NOT IN (SELECT holder_id FROM belief_chain)
+  SELECT a.id, 1, a.id FROM agents a WHERE NOT a.is_self
   UNION ALL
   SELECT c.holder_id, c.position, c.member_id FROM belief_chain c
-  WHERE c.holder_id IN (SELECT holder_id FROM belief_chain GROUP BY holder_id
-                        HAVING MAX(position) <= (SELECT d FROM cfg_depth))
+  WHERE c.holder_id IN (SELECT id FROM holders WHERE depth BETWEEN 2 AND (SELECT d FROM cfg_depth))
 ),
 chain_len(holder, n) AS (SELECT holder, MAX(pos) FROM chain GROUP BY holder),
 members(m) AS (SELECT DISTINCT member FROM chain),

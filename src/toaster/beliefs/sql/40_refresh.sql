@@ -35,7 +35,7 @@ SELECT n.holder_id, k.id, NULL, n.pconf * f.observability, 1
 FROM newly n
 JOIN fact_keys k ON k.agent_id = :self AND k.subject_id = n.entity_id
 JOIN facts f ON f.key_id = k.id AND f.valid_to_ns IS NULL
-WHERE f.observability > 0 AND n.entity_id NOT IN (SELECT e FROM hidden)
+WHERE f.observability > 0 AND {{not_hidden(n.entity_id)}}
 UNION ALL
 SELECT n.holder_id, NULL, hk.id, n.pconf, 1
 FROM newly n
@@ -44,7 +44,7 @@ JOIN fact_keys hk ON hk.agent_id = n.holder_id
        OR (hk.target_id = n.entity_id AND hk.property IN (
            SELECT value FROM {{setting_list(refute_by_target)}})))
 JOIN facts hf ON hf.key_id = hk.id AND hf.valid_to_ns IS NULL AND hf.observability > 0
-WHERE hk.subject_id NOT IN (SELECT e FROM hidden)
+WHERE {{not_hidden(hk.subject_id)}}
   AND NOT EXISTS (
     SELECT 1 FROM fact_keys sk JOIN facts sf ON sf.key_id = sk.id AND sf.valid_to_ns IS NULL
     WHERE sk.agent_id = :self AND sk.subject_id = hk.subject_id

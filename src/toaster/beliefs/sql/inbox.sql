@@ -9,8 +9,8 @@
 {{#sqlite}}
 SELECT RAISE(ABORT, 'fact_inbox: action must be assert, retract or event')
 WHERE NEW.action NOT IN ('assert', 'retract', 'event');
-SELECT RAISE(ABORT, 'fact_inbox: agent_id is not a registered agent: register it first (toaster set-info ENTITY --id ID --type human|robot)')
-WHERE NOT EXISTS (SELECT 1 FROM agents WHERE id = NEW.agent_id);
+SELECT RAISE(ABORT, 'fact_inbox: agent_id is not a registered agent or belief holder: register the agent first (toaster set-info ENTITY --id ID --type human|robot)')
+WHERE NOT EXISTS (SELECT 1 FROM holders WHERE id = NEW.agent_id);
 SELECT RAISE(ABORT, 'fact_inbox: give property, and subject_id unless you retract (NULL subject_id retracts any)')
 WHERE COALESCE(NEW.property, '') = '' OR (NEW.action <> 'retract' AND COALESCE(NEW.subject_id, '') = '');
 SELECT RAISE(ABORT, 'fact_inbox: give t_ns, the time of the write in integer nanoseconds')
@@ -24,8 +24,8 @@ WHERE NEW.action = 'retract' AND EXISTS (SELECT 1 FROM {{inbox_match}} AND f.val
 IF NEW.action IS NULL OR NEW.action NOT IN ('assert', 'retract', 'event') THEN
   RAISE EXCEPTION 'fact_inbox: action %L must be assert, retract or event', NEW.action;
 END IF;
-IF NOT EXISTS (SELECT 1 FROM agents WHERE id = NEW.agent_id) THEN
-  RAISE EXCEPTION 'fact_inbox: agent_id %L is not a registered agent: register it first (toaster set-info ENTITY --id ID --type human|robot)', NEW.agent_id;
+IF NOT EXISTS (SELECT 1 FROM holders WHERE id = NEW.agent_id) THEN
+  RAISE EXCEPTION 'fact_inbox: agent_id %L is not a registered agent or belief holder: register the agent first (toaster set-info ENTITY --id ID --type human|robot)', NEW.agent_id;
 END IF;
 IF COALESCE(NEW.property, '') = '' OR (NEW.action <> 'retract' AND COALESCE(NEW.subject_id, '') = '') THEN
   RAISE EXCEPTION 'fact_inbox: give property, and subject_id unless you retract (NULL subject_id retracts any)';

@@ -167,7 +167,8 @@ def downgrade() -> None:
     """Drop everything, per-agent views first (they depend on the readable views)."""
     bind = op.get_bind()
     readable = {name for name, _ in VIEWS}
-    cursor = bind.connection.dbapi_connection.cursor()  # no placeholder parsing in identifiers
+    # No placeholder parsing in identifiers: the driver's own cursor.
+    cursor = bind.connection.dbapi_connection.cursor()  # type: ignore[union-attr]
     for view in sa.inspect(bind).get_view_names():
         if view not in readable:
             quoted = '"' + view.replace('"', '""') + '"'
