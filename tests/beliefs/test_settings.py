@@ -15,13 +15,15 @@ from toaster.beliefs import api, scenario
 from toaster.beliefs import config as cfg
 from toaster.errors import InvalidInputError
 
-revision = importlib.import_module("toaster.migrations.versions.0006_belief_settings_guard")
+revision = importlib.import_module("toaster.migrations.versions.0009_moves_actor_tell")
 
 SALLY_ANNE = resources.files("toaster") / "examples" / "beliefs_sally_anne.yaml"
 #: A value other than the default for each setting.
 OTHER = {"enabled": False, "depth": 1, "copresence": ["IsNear"], "containment": ["IsUnder"],
          "visibility": {"Sees": "subject"}, "closed": "IsShut", "refute_by_target": [],
-         "self_perception": True, "share_rows": False}
+         "self_perception": True, "share_rows": False,
+         "attention": {"IsInRoom": ["IsLookingToward"]}, "trust": "witnesses",
+         "distrust": ["ANNE"]}
 
 
 def delete_row(db: toaster.Database, key: str) -> None:

@@ -30,18 +30,18 @@ HUMANS = ("SALLY", "ANNE", "BOB")
 ROOMS = ("KITCHEN", "HALL")
 BOXES = ("BOX", "BASKET")
 THINGS = ("MARBLE", "BALL")
-#: A change: (action, agent, subject, property, target, value_text, value_num, t_ns).
-Change = tuple[str, str, Any, str, Any, str, Any, int]
+#: A change: (action, agent, subject, property, target, value_text, value_num, t_ns, actor).
+Change = tuple[str, str, Any, str, Any, str, Any, int, Any]
 
 
 def story(seed: int, length: int) -> list[Change]:
     """Random changes of the robot's world (and a few direct writes to SALLY's beliefs)."""
     rng = random.Random(seed)
     t = 1_000_000_000
-    out: list[Change] = [("assert", "ROBOT", h, "IsInRoom", "KITCHEN", "true", None, t)
+    out: list[Change] = [("assert", "ROBOT", h, "IsInRoom", "KITCHEN", "true", None, t, None)
                          for h in HUMANS]
-    out += [("assert", "ROBOT", b, "IsInRoom", "KITCHEN", "true", None, t) for b in BOXES]
-    out += [("assert", "ROBOT", x, "IsIn", "BOX", "true", None, t) for x in THINGS]
+    out += [("assert", "ROBOT", b, "IsInRoom", "KITCHEN", "true", None, t, None) for b in BOXES]
+    out += [("assert", "ROBOT", x, "IsIn", "BOX", "true", None, t, None) for x in THINGS]
     where = {**dict.fromkeys(HUMANS, "KITCHEN"), **dict.fromkeys(BOXES, "KITCHEN"),
              **dict.fromkeys(THINGS, "BOX")}
     for _ in range(length):
@@ -50,28 +50,30 @@ def story(seed: int, length: int) -> list[Change]:
         if kind <= 1:  # someone (or a box) changes room
             who = rng.choice(HUMANS + BOXES)
             room = rng.choice(ROOMS)
-            out.append(("retract", "ROBOT", who, "IsInRoom", None, "true", None, t))
-            out.append(("assert", "ROBOT", who, "IsInRoom", room, "true", None, t))
+            out.append(("retract", "ROBOT", who, "IsInRoom", None, "true", None, t, None))
+            out.append(("assert", "ROBOT", who, "IsInRoom", room, "true", None, t, None))
             where[who] = room
-        elif kind == 2:  # a thing moves to a box
+        elif kind == 2:  # a thing moves to a box, by somebody or nobody known
             thing, box = rng.choice(THINGS), rng.choice(BOXES)
-            out.append(("retract", "ROBOT", thing, "IsIn", None, "true", None, t))
-            out.append(("assert", "ROBOT", thing, "IsIn", box, "true", None, t))
+            actor = rng.choice((None, *HUMANS))
+            out.append(("retract", "ROBOT", thing, "IsIn", None, "true", None, t, actor))
+            out.append(("assert", "ROBOT", thing, "IsIn", box, "true", None, t, actor))
         elif kind == 3:  # looking at a box, or not any more
             who, box = rng.choice(HUMANS), rng.choice(BOXES)
             action = rng.choice(("assert", "retract"))
-            out.append((action, "ROBOT", who, "IsLookingToward", box, "true", None, t))
+            out.append((action, "ROBOT", who, "IsLookingToward", box, "true", None, t, None))
         elif kind == 4:  # a box closes or opens
             out.append(("assert", "ROBOT", rng.choice(BOXES), "IsClosed", "",
-                        rng.choice(("true", "false")), None, t))
+                        rng.choice(("true", "false")), None, t, None))
         elif kind == 5:  # a number moves (a refresh), with its confidence
             out.append(("assert", "ROBOT", rng.choice(HUMANS), "Distance", rng.choice(BOXES),
-                        "true", round(rng.uniform(0, 5), 2), t))
+                        "true", round(rng.uniform(0, 5), 2), t, None))
         elif kind == 6:  # a point event
-            out.append(("event", "ROBOT", rng.choice(THINGS), "WasTouched", "", "true", None, t))
+            out.append(("event", "ROBOT", rng.choice(THINGS), "WasTouched", "", "true", None, t,
+                        None))
         else:  # somebody tells SALLY something: a direct write to a holder
             out.append(("assert", "SALLY", rng.choice(THINGS), "IsIn", rng.choice(BOXES),
-                        "true", None, t))
+                        "true", None, t, None))
     return out
 
 
@@ -84,12 +86,12 @@ def _setup(db: toaster.Database) -> None:
 
 def through_library(db: toaster.Database, changes: list[Change]) -> None:
     store = db.store()
-    for action, agent, subject, prop, target, value, num, t in changes:
+    for action, agent, subject, prop, target, value, num, t, actor in changes:
         if action == "assert":
             store.assert_fact(agent, toaster.Fact(subject, prop, target, value, num), t_ns=t,
-                              strict=False, source="sql")
+                              strict=False, source="sql", actor=actor)
         elif action == "retract":
-            store.retract_facts(agent, prop, subject, target, t_ns=t, source="sql")
+            store.retract_facts(agent, prop, subject, target, t_ns=t, source="sql", actor=actor)
         else:
             store.record_event(agent, toaster.Fact(subject, prop, target, value, num), t_ns=t,
                                source="sql")
@@ -98,13 +100,14 @@ def through_library(db: toaster.Database, changes: list[Change]) -> None:
 def through_sql(url: str, changes: list[Change]) -> None:
     engine = make_engine(url)
     try:
-        for action, agent, subject, prop, target, value, num, t in changes:
+        for action, agent, subject, prop, target, value, num, t, actor in changes:
             with engine.begin() as conn:
                 conn.execute(sa.text(
                     "INSERT INTO fact_inbox (action, agent_id, subject_id, property, target_id, "
-                    "value_text, value_num, t_ns) VALUES (:a, :g, :s, :p, :tg, :v, :n, :t)"),
+                    "value_text, value_num, t_ns, actor_id) "
+                    "VALUES (:a, :g, :s, :p, :tg, :v, :n, :t, :actor)"),
                     {"a": action, "g": agent, "s": subject, "p": prop, "tg": target, "v": value,
-                     "n": num, "t": t})
+                     "n": num, "t": t, "actor": actor})
     finally:
         engine.dispose()
 
@@ -116,7 +119,8 @@ _EVENTS = ("SELECT agent_id, kind, stamp_ns, subject_id, property, target_id, va
            "value_num, confidence, observability, previous_text, source FROM event_log")
 _CATALOG = {"entities": "SELECT id, name, kind, owner_id FROM entities",
             "agents": "SELECT id, num, is_self FROM agents",
-            "chains": "SELECT holder_id, position, member_id FROM belief_chain"}
+            "chains": "SELECT holder_id, position, member_id FROM belief_chain",
+            "holders": "SELECT id, agent_id, depth FROM holders"}
 
 
 def snapshot(url: str) -> dict[str, list[tuple[Any, ...]]]:
@@ -192,6 +196,8 @@ def test_raw_sql_writes_equal_library_writes(fresh_urls: Any, seed: int, length:
      "assert, retract or event"),
     ({"action": "assert", "agent_id": "ROBOT", "subject_id": None, "property": "IsOn"},
      "give property, and subject_id"),
+    ({"action": "assert", "agent_id": "ROBOT", "subject_id": "CUP", "property": "IsOn",
+      "actor_id": "NOBODY"}, "is not a registered agent: name the agent who made the change"),
 ])
 def test_bad_inbox_rows_fail_in_one_line_and_write_nothing(db: toaster.Database,
                                                            row: dict[str, Any],
@@ -221,8 +227,8 @@ def test_retract_and_events_through_the_inbox(db: toaster.Database) -> None:
     store.assert_fact("ROBOT", toaster.Fact("SALLY", "IsInRoom", "KITCHEN"), t_ns=1,
                       strict=False)
     store.assert_fact("ROBOT", toaster.Fact("CUP", "IsInRoom", "KITCHEN"), t_ns=1, strict=False)
-    through_sql(db.url, [("assert", "ROBOT", "CUP", "IsHot", "", "true", 80.0, 2),
-                         ("retract", "ROBOT", "CUP", "IsHot", None, "true", None, 3)])
+    through_sql(db.url, [("assert", "ROBOT", "CUP", "IsHot", "", "true", 80.0, 2, None),
+                         ("retract", "ROBOT", "CUP", "IsHot", None, "true", None, 3, None)])
     sally = [(r.valid_from_ns, r.valid_to_ns) for r in api.belief_history(db, "CUP", "IsHot")
              if r.agent_id == "SALLY"]
     assert sally == [(2, 3)]

@@ -9,7 +9,12 @@ Keys: ``enabled`` (bool), ``depth`` (1 = first order only, 2 = "A thinks B belie
 issue #24, default ``["IsOn"]``), ``self_perception`` (an agent perceives facts about
 itself wherever it is, default false), ``share_rows`` (a holder whose belief follows the self
 agent's reads the self's rows instead of copying them, default true; false copies every
-perceived change, the straightforward design, slower: see docs/beliefs.md).
+perceived change, the straightforward design, slower: see docs/beliefs.md), ``attention``
+(copresence property -> attention properties that must also hold for an agent in the room to
+perceive, e.g. ``{"IsInRoom": ["IsLookingToward", "IsAttentive"]}``; default ``{}``: being
+in the room is enough), ``trust`` (whom a listener believes when told something:
+``"everyone"``, the default, or ``"witnesses"``: a speaker who perceived the subject later
+than the listener did) and ``distrust`` (agents never believed, default ``[]``); revision 0009.
 """
 
 from __future__ import annotations
@@ -28,7 +33,9 @@ KINDS: dict[str, str] = {
     "enabled": "bool", "depth": "depth", "copresence": "properties",
     "containment": "properties", "visibility": "sides", "closed": "property",
     "refute_by_target": "properties", "self_perception": "bool", "share_rows": "bool",
+    "attention": "gates", "trust": "trust", "distrust": "agents",
 }
+TRUST_POLICIES = ("everyone", "witnesses")
 MAX_DEPTH = 4
 
 
@@ -56,6 +63,19 @@ def validate(key: str, value: object) -> object:
         msg = (f"invalid beliefs setting visibility={value!r}: map each property to "
                "'subject' or 'target' (the side that sees)")
         raise InvalidInputError(msg)
+    if kind == "gates" and (not isinstance(value, dict) or any(
+            not isinstance(k, str) or not k or not isinstance(v, list)
+            or not all(isinstance(a, str) and a for a in v) for k, v in value.items())):
+        msg = (f"invalid beliefs setting attention={value!r}: map a copresence property to a "
+               'list of attention properties, e.g. {"IsInRoom": ["IsLookingToward"]}')
+        raise InvalidInputError(msg)
+    if kind == "trust" and value not in TRUST_POLICIES:
+        msg = f"invalid beliefs setting trust={value!r}: use one of {', '.join(TRUST_POLICIES)}"
+        raise InvalidInputError(msg)
+    if kind == "agents" and (not isinstance(value, list)
+                             or not all(isinstance(v, str) and v for v in value)):
+        msg = f"invalid beliefs setting {key}={value!r}: give a list of agent ids"
+        raise InvalidInputError(msg)
     if kind == "property" and (not isinstance(value, str) or not value):
         msg = f"invalid beliefs setting closed={value!r}: give a property name"
         raise InvalidInputError(msg)
@@ -79,4 +99,5 @@ def check_key(key: str) -> str:
 def perception_properties(config: dict[str, Any]) -> frozenset[str]:
     """Properties whose change can change who perceives what (triggers "seeing again")."""
     return frozenset([*config["copresence"], *config["containment"], *config["visibility"],
+                      *(a for gate in config["attention"].values() for a in gate),
                       config["closed"]])

@@ -56,7 +56,7 @@ RUNS = ("{{setting(enabled)}} = 'true' "
         "AND EXISTS (SELECT 1 FROM belief_changed)")
 #: The agents (or the depth) changed since the nested holders were last registered, and
 #: somebody perceives something (a database where nobody does keeps only its real agents).
-NEW_AGENTS = ("CAST({{setting(depth)}} AS INTEGER) >= 2 AND EXISTS (SELECT 1 FROM belief_in) "
+NEW_AGENTS = ("CAST({{setting(depth)}} AS INTEGER) >= 2 AND EXISTS (SELECT 1 FROM belief_seen) "
               "AND {{holders_basis}} <> (SELECT holders_basis FROM store_state WHERE id = 1)")
 #: The holders step registered somebody: perceive again with them.
 HOLDERS_ADDED = "EXISTS (SELECT 1 FROM belief_new_chain)"
@@ -67,6 +67,7 @@ PERCEPTION_CHANGED = (
     "WHERE k.property IN (SELECT value FROM {{setting_list(copresence)}}) "
     "OR k.property IN (SELECT value FROM {{setting_list(containment)}}) "
     "OR k.property IN (SELECT key FROM {{setting_map(visibility)}}) "
+    "OR k.property IN (SELECT x.value FROM {{setting_pairs(attention)}} AS x) "
     "OR k.property = {{setting_text(closed)}})")
 #: A holder takes a change (or sees something again), or follows a changed key: when nobody
 #: perceives anything, as in a crowd replay with no rooms, the write steps are skipped.
@@ -78,18 +79,20 @@ SHARE_ROWS = "{{setting(share_rows)}} = 'true'"
 REPCONF = "EXISTS (SELECT 1 FROM belief_todo WHERE action = 'repconf')"
 
 PIPELINE = Block("run", RUNS, (
-    *_steps("10_focus"),
+    *_steps("10_focus", "12_moves"),
     *_steps("20_perceive", **AROUND),
-    *_steps("30_changes"),
+    *_steps("30_changes", moves="0"),
     Block("holders", NEW_AGENTS, (
         *_steps("holders"),
         Block("reperceive", HOLDERS_ADDED, (
-            *_steps("reperceive"), *_steps("20_perceive", **AROUND), *_steps("30_changes"))),
+            *_steps("reperceive"), *_steps("20_perceive", **AROUND),
+            *_steps("30_changes", moves="0"))),
         *_steps("holders_seen"),
     )),
     Block("phases", PERCEPTION_CHANGED, (
         *_steps("20_perceive", phase="'before'", everything="1"),
         *_steps("20_perceive", phase="'after'", everything="1"),
+        *_steps("30_changes", moves="1"),
         *_steps("40_refresh", "42_keep_max"),
     )),
     Block("write", ANY_WORK, (

@@ -74,19 +74,22 @@ class BeliefRule:
         rows: dict[int, tuple[Any, ...]] = {}
         keys = ([k for k, _ in changes.appeared] + [k for k, _, _ in changes.changed]
                 + [k for k, _ in changes.ended])
+        actor = changes.actor
         for key_id in keys:
-            rows[key_id] = (key_id, False, None, None, None)
+            rows[key_id] = (key_id, False, None, None, None, actor)
         for key_id, _, held in changes.refreshed:
-            rows[key_id] = (key_id, True, held.value_num, held.confidence, held.observability)
+            rows[key_id] = (key_id, True, held.value_num, held.confidence, held.observability,
+                            actor)
         cur = self.store.db.cursor()
         if conn.dialect.name == "postgresql":
             cur.execute(
-                "INSERT INTO belief_changed (key_id, refreshed, prev_num, prev_conf, prev_obs) "
-                "SELECT * FROM unnest(%s::bigint[], %s::boolean[], %s::float8[], %s::float8[], "
-                "%s::float8[])", [list(column) for column in zip(*rows.values(), strict=True)])
+                "INSERT INTO belief_changed (key_id, refreshed, prev_num, prev_conf, prev_obs, "
+                "actor_id) SELECT * FROM unnest(%s::bigint[], %s::boolean[], %s::float8[], "
+                "%s::float8[], %s::float8[], %s::text[])",
+                [list(column) for column in zip(*rows.values(), strict=True)])
         else:
-            cur.executemany("INSERT INTO belief_changed VALUES (?, ?, ?, ?, ?)",
-                            list(rows.values()))
+            cur.executemany("INSERT INTO belief_changed (key_id, refreshed, prev_num, prev_conf, "
+                            "prev_obs, actor_id) VALUES (?, ?, ?, ?, ?, ?)", list(rows.values()))
 
     def detach(self, conn: Connection, agent_id: str | None, *, keep: bool) -> None:
         """Before a write that bypasses the rule (a direct write to a holder, emptying an
@@ -118,4 +121,4 @@ class BeliefRule:
 def _check_sql(sql: str) -> bool:
     """True when ``sql`` names no bound parameter outside the known set (used by tests)."""
     return set(re.findall(r"(?<![:\w]):([a-z_]+)", sql)) <= {
-        "self", "t", "source", "recorded", "phase", "everything"}
+        "self", "t", "source", "recorded", "phase", "everything", "moves"}

@@ -15,6 +15,10 @@ A scenario file (YAML or JSON)::
         facts: [[BOX, IsClosed], {subject: CUP, property: Contains, value: hot_water,
                                    confidence: 0.9, observability: 0.3}]
         end: [[BOX, IsClosed]]      # subject, property[, target]
+        actor: ANNE                 # who made this step's changes (perceives them anywhere)
+        tell: {speaker: ANNE, listeners: [SALLY], fact: [MARBLE, IsIn, BOX]}
+                                    # or public: true (everyone in the speaker's room); a list
+                                    # of tellings is accepted; applied after the step's changes
     expect:                         # checked by `toaster beliefs replay --check` and the tests
       - {t: 4, agent: SALLY, subject: MARBLE, property: IsIn, target: BASKET}
       - {agent: ANNE, about: SALLY, subject: MARBLE, property: IsIn, target: BOX, held: false}
@@ -31,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from toaster.beliefs import api
+from toaster.beliefs.tell import tell
 from toaster.documents import read_document
 from toaster.errors import FileFormatError, InvalidInputError
 from toaster.model import Fact, check_fact, fact_key
@@ -49,6 +54,17 @@ class Step:
     inside: dict[str, tuple[str, str] | None] = field(default_factory=dict)
     facts: list[Fact] = field(default_factory=list)
     end: list[tuple[str, str, str | None]] = field(default_factory=list)
+    actor: str | None = None
+    tells: list[Telling] = field(default_factory=list)
+
+
+@dataclass
+class Telling:
+    """A speaker tells a fact to listeners (None: everyone in its room)."""
+
+    speaker: str
+    fact: Fact
+    listeners: list[str] | None
 
 
 @dataclass
@@ -108,6 +124,24 @@ def _mapping(where: str, raw: object) -> dict[str, str | None]:
     return {str(k): (None if v is None else str(v)) for k, v in raw.items()}
 
 
+def _tells(where: str, raw: object) -> list[Telling]:
+    items = [] if raw is None else raw if isinstance(raw, list) else [raw]
+    tells = []
+    for item in items:
+        if (not isinstance(item, dict) or not isinstance(item.get("speaker"), str)
+                or "fact" not in item or set(item) - {"speaker", "listeners", "public", "fact"}):
+            raise _bad(where, item, "write a telling as {speaker: ID, listeners: [ID, ...], "
+                       "fact: [SUBJECT, PROPERTY, TARGET]} (or public: true for the room)")
+        listeners = item.get("listeners")
+        if item.get("public"):
+            listeners = None
+        elif not isinstance(listeners, list) or not listeners:
+            raise _bad(where, listeners, "give listeners: [ID, ...] or public: true")
+        tells.append(Telling(item["speaker"], _fact(where, item["fact"]),
+                             None if listeners is None else [str(v) for v in listeners]))
+    return tells
+
+
 def parse(data: object, name: str = "scenario") -> Scenario:
     """Validate a loaded YAML/JSON document into a :class:`Scenario`."""
     if not isinstance(data, dict) or not isinstance(data.get("steps"), list):
@@ -128,6 +162,11 @@ def parse(data: object, name: str = "scenario") -> Scenario:
                            "[SUBJECT, PROPERTY, TARGET]")
             step.end.append((str(item[0]), str(item[1]),
                              str(item[2]) if len(item) == 3 else None))
+        actor = raw.get("actor")
+        if actor is not None and not isinstance(actor, str):
+            raise _bad(where, actor, "actor is the id of the agent who made the step's changes")
+        step.actor = actor
+        step.tells = _tells(where, raw.get("tell"))
         if steps and step.t_ns < steps[-1].t_ns:
             raise _bad(where, raw.get("t", raw.get("t_ns")), "steps must be in time order")
         steps.append(step)
@@ -190,7 +229,10 @@ class Replayer:
         for fact in step.facts:
             self.state[fact_key(fact)] = fact
         self.store.sync_snapshot(SOURCE, self.scenario.self_agent, step.t_ns,
-                                 list(self.state.values()))
+                                 list(self.state.values()), actor=step.actor)
+        for telling in step.tells:
+            tell(self.db, telling.speaker, telling.fact, listeners=telling.listeners,
+                 t_ns=step.t_ns)
 
     def run(self) -> None:
         """Set up and replay every step."""

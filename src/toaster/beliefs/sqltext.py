@@ -27,7 +27,7 @@ from importlib import resources
 
 #: The steps of the rule, in order (see :class:`toaster.beliefs.rules.BeliefRule` for when each
 #: one runs).
-STEPS = ("00_temp", "10_focus", "20_perceive", "30_changes", "35_freeze", "40_refresh",
+STEPS = ("00_temp", "10_focus", "12_moves", "20_perceive", "30_changes", "35_freeze", "40_refresh",
          "42_keep_max", "45_resolve", "50_keys", "55_switch", "58_frozen", "60_plan",
          "70_events", "80_close", "85_refresh_rows", "90_follow", "91_open", "92_repconf",
          "95_materialize", "99_clear")
@@ -59,6 +59,9 @@ MACROS: dict[str, dict[str, str]] = {
         "setting_text": f"json_extract({{{{setting({ARG})}}}}, '$')",
         # The entity is not hidden in a closed container (the CTE ``hidden``).
         "not_hidden": f"{ARG} NOT IN (SELECT e FROM hidden)",
+        # A map of lists as (key, value) rows.
+        "setting_pairs": (f"(SELECT m.key AS key, l.value AS value FROM "
+                          f"json_each({{{{setting({ARG})}}}}) AS m, json_each(m.value) AS l)"),
     },
     "postgresql": {
         "lo": "LEAST",
@@ -78,6 +81,9 @@ MACROS: dict[str, dict[str, str]] = {
         # An anti-join: NOT IN over the recursive CTE (estimated at a million rows) was planned
         # as a scan of it per row, and the joins around it as nested loops.
         "not_hidden": f"NOT EXISTS (SELECT 1 FROM hidden WHERE hidden.e = {ARG})",
+        "setting_pairs": (f"(SELECT m.key AS key, l.value AS value FROM "
+                          f"json_each_text(CAST({{{{setting({ARG})}}}} AS json)) AS m, "
+                          f"json_array_elements_text(CAST(m.value AS json)) AS l(value))"),
     },
 }
 
@@ -136,6 +142,16 @@ HOLDERS = {
                       "text) FROM agents) || ':' || {{setting(depth)}}"),
 }
 
+#: Where a change is seen (12_moves): ``b`` a belief_changed row, ``s`` a belief_seen row of
+#: its subject or target. Most changes are seen around the tick (before or after); a departure
+#: by who saw the subject or target before it, or sees the subject after it (elsewhere: it is
+#: not there any more); an arrival by who sees them after it.
+MOVES = {
+    "seen_subject_phase": ("(s.phase = COALESCE(b.move, 'around') "
+                           "OR (b.move = 'before' AND s.phase = 'after'))"),
+    "seen_target_phase": "s.phase = COALESCE(b.move, 'around')",
+}
+
 #: The macros that are the same on both backends.
 COMMON = {
     **INBOX,
@@ -143,6 +159,7 @@ COMMON = {
     # A beliefs setting as stored (JSON text), or its default.
     "setting": f"(SELECT value_json FROM belief_settings WHERE key = '{ARG}')",
     **FOLLOWED,
+    **MOVES,
 }
 
 _SECTION = re.compile(r"\{\{#(\w+)\}\}(.*?)\{\{/\1\}\}", re.DOTALL)

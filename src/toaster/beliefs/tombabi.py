@@ -110,6 +110,7 @@ def replay_story(db: Any, story: list[str]) -> StoryResult:
             actor, obj, container = m.groups()
             step.rooms[container] = rooms.get(actor, room)
             step.inside[obj] = ("IsIn", container)
+            step.actor = actor if actor in agents else None
         elif sentence != "Phone rang.":
             result.misses.append(f"unparsed sentence {sentence!r}")
             continue

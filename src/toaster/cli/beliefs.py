@@ -157,3 +157,25 @@ def replay(app: Any, scenario: str, check: bool) -> None:
         say(f"{len(loaded.expect) - len(failures)}/{len(loaded.expect)} expectations hold")
     if check and failures:
         raise SystemExit(1)
+
+
+@click.command("tell")
+@click.argument("speaker")
+@click.argument("subject")
+@click.argument("property")
+@click.argument("target", required=False, default="")
+@click.option("--to", "listeners", multiple=True, metavar="AGENT",
+              help="A listener (repeatable); none: everyone in SPEAKER's room hears it.")
+@click.option("--value", default="true", show_default=True)
+@click.option("--at", "at", metavar="TIME", help="When (default now).")
+@click.pass_obj
+def tell_cmd(app: Any, speaker: str, subject: str, property: str, target: str,
+             listeners: tuple[str, ...], value: str, at: str | None) -> None:
+    """SPEAKER tells SUBJECT PROPERTY [TARGET]: listeners who trust SPEAKER believe it, and
+    everyone who hears it knows they were told (toaster.beliefs.tell)."""
+    from toaster.beliefs.tell import tell
+    from toaster.model import Fact
+
+    learnt = tell(app.db, speaker, Fact(subject, property, target, value),
+                  listeners=list(listeners) or None, t_ns=_at(at))
+    say(f"told: {', '.join(learnt) or 'nobody (no listener, or none trusts ' + speaker + ')'}")

@@ -150,6 +150,7 @@ def _check_sub(sub: str, allowed: tuple[str, ...], kind: str) -> None:
 @click.option("--instantiated", is_flag=True, help="The ontology individual is an instance.")
 @click.option("--key", help="Property key (PROPERTY).")
 @click.option("--at", "at", metavar="TIME", help="When (default now).")
+@click.option("--actor", help="FACT: the agent who made the change (it perceives it anywhere).")
 @click.pass_obj
 def set_info(app: Any, info_type: str | None, files: tuple[str, ...], add: bool,
              **opts: Any) -> None:
@@ -158,8 +159,8 @@ def set_info(app: Any, info_type: str | None, files: tuple[str, ...], add: bool,
     \b
     ENTITY   --id X --type human|robot|object|joint [--name] [--owner] [--self]; --remove
     FACT     --agent A --subject S --property P [--target T] [--value V] [--num N]
-             [--confidence C] [--observability O] [--at TIME]; --remove ends the current
-             facts that match ('NULL' subject or target = any)
+             [--confidence C] [--observability O] [--at TIME] [--actor AGENT]; --remove
+             ends the current facts that match ('NULL' subject or target = any)
     EVENT    --agent A --subject S --property P [--target T] [--value V] [--at TIME]
     ONTOLOGY --class C --individual I [--instantiated]; --remove
     PROPERTY --id X --key K --value V; --remove (without --key: all of X)
@@ -196,7 +197,8 @@ def set_info(app: Any, info_type: str | None, files: tuple[str, ...], add: bool,
             n = store.retract_facts(agent, opts["property"], opts["subject"], opts["target"],
                                     sub_property=opts["sub_property"],
                                     subject_owner_id=opts["subject_owner"],
-                                    target_owner_id=opts["target_owner"], t_ns=at)
+                                    target_owner_id=opts["target_owner"], t_ns=at,
+                                    actor=opts["actor"])
             say(f"{n} fact(s) ended for {agent}")
             return
         _need(opts, "subject", "--subject")
@@ -211,7 +213,7 @@ def set_info(app: Any, info_type: str | None, files: tuple[str, ...], add: bool,
             store.record_event(agent, fact, t_ns=at)
             say(f"event recorded for {agent}")
         else:
-            outcome = store.assert_fact(agent, fact, t_ns=at)
+            outcome = store.assert_fact(agent, fact, t_ns=at, actor=opts["actor"])
             say(f"fact {outcome} for {agent}")
     elif kind == "ONTOLOGY":
         entity_class = _need(opts, "entity_class", "--class")

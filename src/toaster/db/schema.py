@@ -285,6 +285,7 @@ fact_inbox = Table(  # one inserted row = one write; the trigger applies it, the
     Column("observability", Float, nullable=False, server_default=text("1.0")),
     Column("t_ns", BigInteger, nullable=False),
     Column("source", Text, nullable=False, server_default=text("'sql'")),
+    Column("actor_id", Text, nullable=True),  # who made the change (revision 0009)
 )
 
 belief_runs = Table(  # inserting a row runs the belief rule over belief_changed
@@ -317,6 +318,8 @@ belief_changed = Table(
     Column("prev_num", Float),
     Column("prev_conf", Float),
     Column("prev_obs", Float),
+    Column("move", Text),  # a location key that ended ('before') or started ('after') (0009)
+    Column("actor_id", Text),  # the agent who made the change, if known (0009)
 )
 belief_focus = Table("belief_focus", metadata, Column("entity_id", Text, primary_key=True))
 belief_seen = Table(

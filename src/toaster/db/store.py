@@ -55,6 +55,7 @@ class ChangeSet(NamedTuple):
     changed: list[tuple[int, Fact, str]]
     refreshed: list[tuple[int, Fact, Fact]]  # (key, new fact, the fact it held before)
     ended: list[tuple[int, Fact]]
+    actor: str | None = None  # the agent who made the changes, when the writer knows it
 
     @property
     def empty(self) -> bool:
@@ -115,6 +116,7 @@ class Store:
         self._rules: list[Rule] = []
         self._tolerances: dict[str, Tolerance] | None = None
         self._pending: list[ChangeSet] | None = None  # changes whose rules wait (sync_many)
+        self._actor: str | None = None  # who makes the changes being written (acting())
         self._in_tx = False
 
     # ------------------------------------------------------------------ transactions, caches
@@ -157,6 +159,26 @@ class Store:
         self.forget()
         self._epoch = conn.execute(
             text("SELECT cache_epoch FROM store_state WHERE id = 1")).scalar_one()
+
+    @contextmanager
+    def acting(self, actor: str | None) -> Iterator[None]:
+        """Writes inside are changes made by ``actor`` (an agent): the belief rules let it
+        perceive them wherever it is. None: unknown (perception alone decides)."""
+        if actor is None:
+            yield
+            return
+        check_id(actor, "actor")
+        if actor not in self.agents() or ">" in actor:
+            self._agents = None
+            if actor not in self.agents() or ">" in actor:
+                msg = (f"unknown actor {actor!r}: the actor is the agent who made the change; "
+                       f"register it with `toaster set-info ENTITY --id {actor} --type human`")
+                raise UnknownAgentError(msg)
+        previous, self._actor = self._actor, actor
+        try:
+            yield
+        finally:
+            self._actor = previous
 
     def add_rule(self, rule: Rule) -> None:
         """Run ``rule(conn, changes)`` after every fact write, in the same transaction."""
@@ -246,15 +268,20 @@ class Store:
 
     # ------------------------------------------------------------------ snapshot sync
     def sync_snapshot(self, source: str, agent_id: str, t_ns: int,
-                      facts: Iterable[Fact] | FactArrays) -> SyncResult:
+                      facts: Iterable[Fact] | FactArrays, *,
+                      actor: str | None = None) -> SyncResult:
         """Make ``source``'s facts for ``agent_id`` at ``t_ns`` exactly ``facts`` (a list of
         facts, or a producer's :class:`~toaster.producers.batch.FactBatch`).
 
         Only differences with what the source wrote last reach the database, in one
         transaction; numbers that moved less than their tolerance are not differences.
         Facts about entities nobody registered register them (kind ''). A batch is diffed
-        as arrays: only its changed facts become tuples.
+        as arrays: only its changed facts become tuples. ``actor``: the agent who made the
+        changes, if known (see :meth:`acting`).
         """
+        if actor is not None:
+            with self.acting(actor):
+                return self.sync_snapshot(source, agent_id, t_ns, facts)
         check_id(source, "source")
         if not isinstance(t_ns, int) or isinstance(t_ns, bool):
             msg = f"invalid time {t_ns!r}: times are integer nanoseconds"
@@ -355,7 +382,8 @@ class Store:
             return SyncResult(0, 0, 0, 0, size)
         key_ids = self._key_ids
         old = state.facts
-        writes = _Writes(agent_id, source, t_ns)  # events in order: ended, changed, appeared
+        # Events in order: ended, changed, appeared.
+        writes = _Writes(agent_id, source, t_ns, self._actor)
         for key, fact in gone:
             writes.end(key_ids[(agent_id, key)], fact)
         if touched and trust_cache and self.agents().get(agent_id):
@@ -480,11 +508,11 @@ class Store:
             rule(conn, changes)
 
     def sync_many(self, agent_id: str, t_ns: int,
-                  snapshots: Iterable[tuple[str, Iterable[Fact] | FactArrays]]
-                  ) -> list[SyncResult]:
+                  snapshots: Iterable[tuple[str, Iterable[Fact] | FactArrays]], *,
+                  actor: str | None = None) -> list[SyncResult]:
         """:meth:`sync_snapshot` of several sources for one agent at one time, in one
         transaction, the rules running once over all their changes (a producer tick)."""
-        with self.transaction() as conn:
+        with self.acting(actor), self.transaction() as conn:
             self._pending = []
             try:
                 results = [self.sync_snapshot(source, agent_id, t_ns, facts)
@@ -497,20 +525,22 @@ class Store:
 
     # ------------------------------------------------------------------ single writes
     def assert_fact(self, agent_id: str, fact: Fact, *, t_ns: int | None = None,
-                    source: str = "user", strict: bool = True) -> str:
+                    source: str = "user", strict: bool = True,
+                    actor: str | None = None) -> str:
         """State one fact for an agent at ``t_ns`` (default now); return what happened
         (``appeared``, ``changed``, ``refreshed`` or ``unchanged``).
 
-        With ``strict`` the subject and target must be registered entities.
+        With ``strict`` the subject and target must be registered entities. ``actor``: the
+        agent who made the change, if known.
         """
         fact = check_fact(fact)
         t_ns = now_ns() if t_ns is None else t_ns
-        with self.transaction() as conn:
+        with self.acting(actor), self.transaction() as conn:
             self.check_agent(agent_id)
             if strict:
                 catalog.check_entities(conn, [fact.subject_id, fact.target_id])
             key = fact_key(fact)
-            writes = _Writes(agent_id, source, t_ns)
+            writes = _Writes(agent_id, source, t_ns, self._actor)
             self._resolve(conn, agent_id, [(key, fact)], writes)
             self._apply(conn, writes)
             self.bump_epoch(conn)
@@ -519,23 +549,24 @@ class Store:
     def retract_facts(self, agent_id: str, property: str, subject_id: str | None = None,
                       target_id: str | None = None, *, sub_property: str | None = None,
                       subject_owner_id: str | None = None, target_owner_id: str | None = None,
-                      t_ns: int | None = None, source: str = "user") -> int:
+                      t_ns: int | None = None, source: str = "user",
+                      actor: str | None = None) -> int:
         """End the matching current facts of an agent at ``t_ns`` (default now).
 
         ``None`` or ``"NULL"`` for subject or target match any (the original's wildcard).
-        Returns the number of facts ended.
+        Returns the number of facts ended. ``actor``: the agent who ended them, if known.
         """
         check_id(property, "property")
         t_ns = now_ns() if t_ns is None else t_ns
         filters = {"subject_id": subject_id, "target_id": target_id,
                    "sub_property": sub_property, "subject_owner_id": subject_owner_id,
                    "target_owner_id": target_owner_id}
-        with self.transaction() as conn:
+        with self.acting(actor), self.transaction() as conn:
             self.check_agent(agent_id)
             if not self.agents().get(agent_id):
                 self._detach(conn, agent_id, keep=True)
             rows = catalog.open_facts_matching(conn, agent_id, property, filters)
-            writes = _Writes(agent_id, source, t_ns)
+            writes = _Writes(agent_id, source, t_ns, self._actor)
             for key_id, fact, valid_from in rows:
                 if valid_from > t_ns:
                     msg = (f"cannot end {fact.subject_id} {fact.property} {fact.target_id} at "
@@ -635,7 +666,9 @@ class Store:
 class _Writes:
     """The rows one write produces, collected before they go to the database in bulk."""
 
-    def __init__(self, agent_id: str, source: str, t_ns: int) -> None:
+    def __init__(self, agent_id: str, source: str, t_ns: int,
+                 actor: str | None = None) -> None:
+        self.actor = actor
         self.agent_id, self.source, self.t_ns = agent_id, source, t_ns
         self.recorded_ns = now_ns()
         self.closing: list[int] = []
@@ -680,7 +713,7 @@ class _Writes:
 
     def change_set(self) -> ChangeSet:
         return ChangeSet(self.agent_id, self.source, self.t_ns, self.appeared, self.changed,
-                         self.refreshed, self.ended)
+                         self.refreshed, self.ended, self.actor)
 
     @property
     def empty(self) -> bool:
@@ -709,17 +742,19 @@ def _merged(pending: list[ChangeSet]) -> list[ChangeSet]:
     if len(pending) < 2:
         return pending
     seen: set[int] = set()
+    first = pending[0]
     for changes in pending:
-        keys = {item[0] for part in changes[3:] for item in part}
-        if keys & seen or changes.agent_id != pending[0].agent_id:
+        keys = {item[0] for part in (changes.appeared, changes.changed, changes.refreshed,
+                                     changes.ended) for item in part}
+        if (keys & seen or changes.agent_id != first.agent_id
+                or changes.actor != first.actor):
             return pending
         seen |= keys
-    first = pending[0]
     return [ChangeSet(first.agent_id, "+".join(c.source for c in pending), first.t_ns,
                       [item for c in pending for item in c.appeared],
                       [item for c in pending for item in c.changed],
                       [item for c in pending for item in c.refreshed],
-                      [item for c in pending for item in c.ended])]
+                      [item for c in pending for item in c.ended], first.actor)]
 
 
 def _is_integrity_error(exc: Exception) -> bool:

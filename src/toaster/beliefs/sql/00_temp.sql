@@ -5,7 +5,7 @@
 -- ROWS): temporary tables are never vacuumed, so the dead rows of DELETE would pile up tick
 -- after tick in them and their indexes (a 10-agent run slowed from 4.8k to 1k changes/s).
 {{#postgresql}}
-CREATE TEMP TABLE IF NOT EXISTS belief_changed (key_id bigint PRIMARY KEY, refreshed boolean NOT NULL, prev_num float8, prev_conf float8, prev_obs float8) ON COMMIT DELETE ROWS;
+CREATE TEMP TABLE IF NOT EXISTS belief_changed (key_id bigint PRIMARY KEY, refreshed boolean NOT NULL, prev_num float8, prev_conf float8, prev_obs float8, move text, actor_id text) ON COMMIT DELETE ROWS;
 CREATE TEMP TABLE IF NOT EXISTS belief_focus (entity_id text PRIMARY KEY) ON COMMIT DELETE ROWS;
 CREATE TEMP TABLE IF NOT EXISTS belief_seen (holder_id text, entity_id text, phase text, pconf float8) ON COMMIT DELETE ROWS;
 CREATE INDEX IF NOT EXISTS belief_seen_entity_holder ON belief_seen (entity_id, phase, holder_id);

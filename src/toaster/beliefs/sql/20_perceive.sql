@@ -5,6 +5,10 @@ WITH RECURSIVE
 cfg_room(p) AS (SELECT value FROM {{setting_list(copresence)}}),
 cfg_in(p) AS (SELECT value FROM {{setting_list(containment)}}),
 cfg_vis(p, side) AS (SELECT key, value FROM {{setting_map(visibility)}}),
+-- Attention (setting attention: copresence property -> attention properties): being in the
+-- room is not enough, the holder must attend (a fact HOLDER P ENTITY, HOLDER P ROOM or a
+-- targetless HOLDER P, for one of the properties). No entry: copresence alone.
+cfg_att(p, a) AS (SELECT x.key, x.value FROM {{setting_pairs(attention)}} AS x),
 cfg_depth(d) AS (SELECT CAST({{setting(depth)}} AS INTEGER)),
 -- The self's perception facts holding at :t for the phase. PostgreSQL reads them through a
 -- LATERAL subquery: one index range per perception key, whatever the history (the plan
@@ -28,7 +32,7 @@ sf(s, p, tg, c) AS (
 {{/postgresql}}
   WHERE k.agent_id = :self
     AND (k.property IN (SELECT p FROM cfg_room) OR k.property IN (SELECT p FROM cfg_in)
-         OR k.property IN (SELECT p FROM cfg_vis))
+         OR k.property IN (SELECT p FROM cfg_vis) OR k.property IN (SELECT a FROM cfg_att))
 ),
 chain(holder, pos, member) AS (
   SELECT a.id, 1, a.id FROM agents a WHERE NOT a.is_self
@@ -48,11 +52,21 @@ up(e, cur) AS (
   SELECT e, e FROM focus
   UNION SELECT up.e, sf.tg FROM up JOIN sf ON sf.s = up.cur AND sf.p IN (SELECT p FROM cfg_in)
 ),
-loc(e, room, c) AS (
-  SELECT up.e, sf.tg, sf.c FROM up JOIN sf ON sf.s = up.cur AND sf.p IN (SELECT p FROM cfg_room)
+loc(e, room, c, p) AS (
+  SELECT up.e, sf.tg, sf.c, sf.p FROM up JOIN sf ON sf.s = up.cur AND sf.p IN (SELECT p FROM cfg_room)
 ),
 mp(m, e, c) AS (
   SELECT lm.e, le.e, lm.c FROM loc lm JOIN members ON members.m = lm.e JOIN loc le ON le.room = lm.room
+  WHERE lm.e = le.e OR lm.p NOT IN (SELECT p FROM cfg_att)
+     OR EXISTS (SELECT 1 FROM sf a WHERE a.s = lm.e AND (a.tg IN (le.e, lm.room, ''))
+                  AND a.p IN (SELECT g.a FROM cfg_att g WHERE g.p = lm.p))
+  UNION ALL
+  -- The actor of a change perceives it wherever it is.
+  SELECT b.actor_id, k.subject_id, 1.0 FROM belief_changed b JOIN fact_keys k ON k.id = b.key_id
+  WHERE b.actor_id IS NOT NULL
+  UNION ALL
+  SELECT b.actor_id, k.target_id, 1.0 FROM belief_changed b JOIN fact_keys k ON k.id = b.key_id
+  WHERE b.actor_id IS NOT NULL AND k.target_id <> ''
   UNION ALL
   SELECT CASE v.side WHEN 'subject' THEN sf.s ELSE sf.tg END,
          CASE v.side WHEN 'subject' THEN sf.tg ELSE sf.s END, sf.c

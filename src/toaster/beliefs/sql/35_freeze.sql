@@ -1,5 +1,6 @@
--- A follower that does not perceive a change of its key stops following: its belief keeps the
--- interval the self held just before the tick (a false belief from then on). The period ends
+-- A follower that does not perceive a change of its key (where it happens, 12_moves) stops
+-- following: its belief keeps the interval the self held just before the tick (a false belief
+-- from then on). The period ends
 -- where that interval started (or where the last one ended), so that the holder's own row
 -- continues it without a split (a period may end empty: it still holds its first event).
 INSERT INTO belief_freeze (follow_id, hkey, from_ns, cut_ns, value_text, value_num, confidence,
@@ -10,9 +11,9 @@ WITH stopped AS MATERIALIZED (
   FROM belief_changed b {{pinned_join}} fact_keys k ON k.id = b.key_id
   {{pinned_join}} belief_follow w ON w.self_key = b.key_id AND w.to_ns IS NULL
   WHERE NOT EXISTS (SELECT 1 FROM belief_seen s WHERE s.entity_id = k.subject_id
-                      AND s.phase = 'around' AND s.holder_id = w.holder_id)
+                      AND {{seen_subject_phase}} AND s.holder_id = w.holder_id)
     AND NOT EXISTS (SELECT 1 FROM belief_seen s WHERE s.entity_id = k.target_id
-                      AND s.phase = 'around' AND s.holder_id = w.holder_id)
+                      AND {{seen_target_phase}} AND s.holder_id = w.holder_id)
 )
 SELECT z.id, z.hkey, z.from_ns,
        CASE WHEN l.id IS NULL THEN z.from_ns

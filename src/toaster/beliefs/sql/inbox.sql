@@ -11,6 +11,8 @@ SELECT RAISE(ABORT, 'fact_inbox: action must be assert, retract or event')
 WHERE NEW.action NOT IN ('assert', 'retract', 'event');
 SELECT RAISE(ABORT, 'fact_inbox: agent_id is not a registered agent or belief holder: register the agent first (toaster set-info ENTITY --id ID --type human|robot)')
 WHERE NOT EXISTS (SELECT 1 FROM holders WHERE id = NEW.agent_id);
+SELECT RAISE(ABORT, 'fact_inbox: actor_id is not a registered agent: name the agent who made the change, or leave it NULL')
+WHERE NEW.actor_id IS NOT NULL AND NOT EXISTS (SELECT 1 FROM agents WHERE id = NEW.actor_id);
 SELECT RAISE(ABORT, 'fact_inbox: give property, and subject_id unless you retract (NULL subject_id retracts any)')
 WHERE COALESCE(NEW.property, '') = '' OR (NEW.action <> 'retract' AND COALESCE(NEW.subject_id, '') = '');
 SELECT RAISE(ABORT, 'fact_inbox: give t_ns, the time of the write in integer nanoseconds')
@@ -26,6 +28,9 @@ IF NEW.action IS NULL OR NEW.action NOT IN ('assert', 'retract', 'event') THEN
 END IF;
 IF NOT EXISTS (SELECT 1 FROM holders WHERE id = NEW.agent_id) THEN
   RAISE EXCEPTION 'fact_inbox: agent_id %L is not a registered agent or belief holder: register the agent first (toaster set-info ENTITY --id ID --type human|robot)', NEW.agent_id;
+END IF;
+IF NEW.actor_id IS NOT NULL AND NOT EXISTS (SELECT 1 FROM agents WHERE id = NEW.actor_id) THEN
+  RAISE EXCEPTION 'fact_inbox: actor_id %L is not a registered agent: name the agent who made the change, or leave it NULL', NEW.actor_id;
 END IF;
 IF COALESCE(NEW.property, '') = '' OR (NEW.action <> 'retract' AND COALESCE(NEW.subject_id, '') = '') THEN
   RAISE EXCEPTION 'fact_inbox: give property, and subject_id unless you retract (NULL subject_id retracts any)';
@@ -63,16 +68,16 @@ SELECT NEW.agent_id, NEW.subject_id, COALESCE(NEW.subject_owner_id, ''), NEW.pro
 WHERE NEW.action <> 'retract' {{on_conflict_ignore}};
 -- The self keys this write changes, as the rule reads them: a refreshed key (same value, new
 -- numbers) with the numbers it held.
-INSERT INTO belief_changed (key_id, refreshed, prev_num, prev_conf, prev_obs)
+INSERT INTO belief_changed (key_id, refreshed, prev_num, prev_conf, prev_obs, actor_id)
 SELECT k.id, f.id IS NOT NULL AND f.value_text = NEW.value_text,
        CASE WHEN f.value_text = NEW.value_text THEN f.value_num END,
        CASE WHEN f.value_text = NEW.value_text THEN f.confidence END,
-       CASE WHEN f.value_text = NEW.value_text THEN f.observability END
+       CASE WHEN f.value_text = NEW.value_text THEN f.observability END, NEW.actor_id
 FROM fact_keys k LEFT JOIN facts f ON f.key_id = k.id AND f.valid_to_ns IS NULL
 WHERE k.id = {{inbox_key}} AND NEW.action = 'assert' AND {{inbox_self}}
   AND (f.id IS NULL OR f.value_text <> NEW.value_text OR {{inbox_renumbered}});
-INSERT INTO belief_changed (key_id, refreshed, prev_num, prev_conf, prev_obs)
-SELECT k.id, 1 = 0, NULL, NULL, NULL FROM {{inbox_match}}
+INSERT INTO belief_changed (key_id, refreshed, prev_num, prev_conf, prev_obs, actor_id)
+SELECT k.id, 1 = 0, NULL, NULL, NULL, NEW.actor_id FROM {{inbox_match}}
   AND NEW.action = 'retract' AND {{inbox_self}};
 -- assert: retype, refresh (the numbers held kept as a sample until t), change, appear.
 UPDATE fact_keys SET property_type = COALESCE(NEW.property_type, '')
