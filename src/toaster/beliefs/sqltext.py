@@ -144,12 +144,10 @@ HOLDERS = {
 
 #: Where a change is seen (12_moves): ``b`` a belief_changed row, ``s`` a belief_seen row of
 #: its subject or target. Most changes are seen around the tick (before or after); a departure
-#: by who saw the subject or target before it, or sees the subject after it (elsewhere: it is
-#: not there any more); an arrival by who sees them after it.
+#: by who saw the subject or target before it (or sees the subject after it, elsewhere: see
+#: 30_changes and 35_freeze); an arrival by who sees them after it.
 MOVES = {
-    "seen_subject_phase": ("(s.phase = COALESCE(b.move, 'around') "
-                           "OR (b.move = 'before' AND s.phase = 'after'))"),
-    "seen_target_phase": "s.phase = COALESCE(b.move, 'around')",
+    "seen_phase": "s.phase = COALESCE(b.move, 'around')",
 }
 
 #: The macros that are the same on both backends.

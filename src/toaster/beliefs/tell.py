@@ -31,7 +31,7 @@ if TYPE_CHECKING:
     from toaster.db.database import Database
     from toaster.db.store import Store
 
-#: The property of the self agent's point event recording a telling.
+#: The property of the self agent's point events recording a telling (one per listener).
 TELLS = "Tells"
 
 
@@ -71,10 +71,10 @@ def tell(db: Database, speaker: str, fact: Fact, *, listeners: Sequence[str] | N
         places = {*settings["copresence"], *settings["containment"]}
         for holder in learners:
             _learn(store, conn, holder, fact, t, f"told:{speaker}", fact.property in places)
-        if self_id is not None:
-            store.record_event(self_id, Fact(speaker, TELLS, "" if listeners is None else
-                                             ",".join(told), _said(fact)),
-                               t_ns=t, source="tell")
+        if self_id is not None:  # the robot remembers who told whom what
+            for listener in told or [""]:
+                store.record_event(self_id, Fact(speaker, TELLS, listener, _said(fact)),
+                                   t_ns=t, source="tell")
     return learners
 
 

@@ -57,9 +57,13 @@ loc(e, room, c, p) AS (
 ),
 mp(m, e, c) AS (
   SELECT lm.e, le.e, lm.c FROM loc lm JOIN members ON members.m = lm.e JOIN loc le ON le.room = lm.room
-  WHERE lm.e = le.e OR lm.p NOT IN (SELECT p FROM cfg_att)
-     OR EXISTS (SELECT 1 FROM sf a WHERE a.s = lm.e AND (a.tg IN (le.e, lm.room, ''))
-                  AND a.p IN (SELECT g.a FROM cfg_att g WHERE g.p = lm.p))
+  WHERE lm.p NOT IN (SELECT p FROM cfg_att)
+  UNION ALL
+  -- (the gated copresence properties, checked per pair only when attention is configured)
+  SELECT lm.e, le.e, lm.c FROM loc lm JOIN members ON members.m = lm.e JOIN loc le ON le.room = lm.room
+  WHERE lm.p IN (SELECT p FROM cfg_att)
+    AND (lm.e = le.e OR EXISTS (SELECT 1 FROM sf a WHERE a.s = lm.e AND a.tg IN (le.e, lm.room, '')
+                                  AND a.p IN (SELECT g.a FROM cfg_att g WHERE g.p = lm.p)))
   UNION ALL
   -- The actor of a change perceives it wherever it is.
   SELECT b.actor_id, k.subject_id, 1.0 FROM belief_changed b JOIN fact_keys k ON k.id = b.key_id

@@ -9,13 +9,19 @@ SELECT x.holder_id, x.key_id, NULL, x.pconf
 FROM (SELECT holder_id, key_id, MAX(pconf) AS pconf FROM (
         SELECT s.holder_id, b.key_id, s.pconf
         FROM belief_changed b {{pinned_join}} fact_keys k ON k.id = b.key_id
-        {{pinned_join}} belief_seen s ON s.entity_id = k.subject_id AND {{seen_subject_phase}}
+        {{pinned_join}} belief_seen s ON s.entity_id = k.subject_id AND {{seen_phase}}
         WHERE (b.move IS NOT NULL) = (:moves = 1)
         UNION ALL
         SELECT s.holder_id, b.key_id, s.pconf
         FROM belief_changed b {{pinned_join}} fact_keys k ON k.id = b.key_id
-        {{pinned_join}} belief_seen s ON s.entity_id = k.target_id AND {{seen_target_phase}}
+        {{pinned_join}} belief_seen s ON s.entity_id = k.target_id AND {{seen_phase}}
         WHERE (b.move IS NOT NULL) = (:moves = 1)
+        UNION ALL
+        -- a departure, seen by who sees the subject elsewhere after it
+        SELECT s.holder_id, b.key_id, s.pconf
+        FROM belief_changed b {{pinned_join}} fact_keys k ON k.id = b.key_id
+        {{pinned_join}} belief_seen s ON s.entity_id = k.subject_id AND s.phase = 'after'
+        WHERE b.move = 'before' AND :moves = 1
       ) AS seen GROUP BY holder_id, key_id) AS x
 WHERE NOT EXISTS (
   SELECT 1 FROM belief_follow w

@@ -11,9 +11,12 @@ WITH stopped AS MATERIALIZED (
   FROM belief_changed b {{pinned_join}} fact_keys k ON k.id = b.key_id
   {{pinned_join}} belief_follow w ON w.self_key = b.key_id AND w.to_ns IS NULL
   WHERE NOT EXISTS (SELECT 1 FROM belief_seen s WHERE s.entity_id = k.subject_id
-                      AND {{seen_subject_phase}} AND s.holder_id = w.holder_id)
+                      AND {{seen_phase}} AND s.holder_id = w.holder_id)
     AND NOT EXISTS (SELECT 1 FROM belief_seen s WHERE s.entity_id = k.target_id
-                      AND {{seen_target_phase}} AND s.holder_id = w.holder_id)
+                      AND {{seen_phase}} AND s.holder_id = w.holder_id)
+    AND NOT (b.move = 'before' AND EXISTS (
+      SELECT 1 FROM belief_seen s WHERE s.entity_id = k.subject_id AND s.phase = 'after'
+        AND s.holder_id = w.holder_id))
 )
 SELECT z.id, z.hkey, z.from_ns,
        CASE WHEN l.id IS NULL THEN z.from_ns
