@@ -3,8 +3,8 @@
 A listener who trusts the speaker learns the fact (its own belief, source ``told:SPEAKER``);
 for a place (a copresence or containment property: IsInRoom, IsIn, IsOn) it also stops
 believing the subject is anywhere else. Everyone who hears the telling learns that too, at the
-second order: when A hears B tell C, A's model of C (``A>C``) learns the fact if A thinks C
-trusts B, and A's model of the speaker (``A>B``) holds it. Told beliefs are ordinary beliefs
+second order: when A hears B tell C, A's model of C (``A>C``) learns the fact if C trusts B
+(the trust policy is shared knowledge), and A's model of the speaker (``A>B``) holds it. Told beliefs are ordinary beliefs
 afterwards: a listener who later perceives the subject sees what is true (seeing again), and
 perceived changes of the key replace them.
 

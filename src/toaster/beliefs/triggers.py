@@ -26,8 +26,11 @@ from toaster.beliefs.pipeline import PIPELINE, RUN_PARAMS, Block, Step, bind, bl
 from toaster.db.dialects import GUARD_MESSAGE
 
 #: Functions tuned as the rule's statements expect: the written join order, each statement
-#: planned with the run's values (SQLite's plans are pinned by CROSS JOIN / INDEXED BY).
-_PG_SETTINGS = "SET join_collapse_limit = 1 SET plan_cache_mode = force_custom_plan"
+#: planned with the run's values (SQLite's plans are pinned by CROSS JOIN / INDEXED BY), and no
+#: JIT: the recursive perception query's estimates (JSON settings, CTEs) passed JIT's cost
+#: thresholds, and compiling it took ~3 s for a statement that runs in milliseconds.
+_PG_SETTINGS = ("SET join_collapse_limit = 1 SET plan_cache_mode = force_custom_plan "
+                "SET jit = off")
 _RUNS_GUARD = GUARD_MESSAGE.format(table="belief_runs")
 
 
