@@ -4,9 +4,9 @@ A listener who trusts the speaker learns the fact (its own belief, source ``told
 for a place (a copresence or containment property: IsInRoom, IsIn, IsOn) it also stops
 believing the subject is anywhere else. Everyone who hears the telling learns that too, at the
 second order: when A hears B tell C, A's model of C (``A>C``) learns the fact if C trusts B
-(the trust policy is shared knowledge), and A's model of the speaker (``A>B``) holds it. Told beliefs are ordinary beliefs
-afterwards: a listener who later perceives the subject sees what is true (seeing again), and
-perceived changes of the key replace them.
+(the trust policy is shared knowledge), and A's model of the speaker (``A>B``) holds it.
+Told beliefs are ordinary beliefs afterwards: a listener who later perceives the subject sees
+what is true (seeing again), and perceived changes of the key replace them.
 
 Trust (settings ``trust`` and ``distrust``): ``everyone`` (default) believes every speaker but
 those in ``distrust``; ``witnesses`` believes a speaker only if the speaker perceived the

@@ -9,12 +9,12 @@ SELECT x.holder_id, x.key_id, NULL, x.pconf
 FROM (SELECT holder_id, key_id, MAX(pconf) AS pconf FROM (
         SELECT s.holder_id, b.key_id, s.pconf
         FROM belief_changed b {{pinned_join}} fact_keys k ON k.id = b.key_id
-        {{pinned_join}} belief_seen s ON s.entity_id = k.subject_id AND {{seen_phase}}
+        {{pinned_join}} belief_seen s ON s.entity_id = k.subject_id AND s.phase = CASE :moves WHEN 0 THEN 'around' ELSE b.move END
         WHERE (b.move IS NOT NULL) = (:moves = 1)
         UNION ALL
         SELECT s.holder_id, b.key_id, s.pconf
         FROM belief_changed b {{pinned_join}} fact_keys k ON k.id = b.key_id
-        {{pinned_join}} belief_seen s ON s.entity_id = k.target_id AND {{seen_phase}}
+        {{pinned_join}} belief_seen s ON s.entity_id = k.target_id AND s.phase = CASE :moves WHEN 0 THEN 'around' ELSE b.move END
         WHERE (b.move IS NOT NULL) = (:moves = 1)
         UNION ALL
         -- a departure, seen by who sees the subject elsewhere after it

@@ -10,7 +10,19 @@ WITH stopped AS MATERIALIZED (
          b.prev_obs
   FROM belief_changed b {{pinned_join}} fact_keys k ON k.id = b.key_id
   {{pinned_join}} belief_follow w ON w.self_key = b.key_id AND w.to_ns IS NULL
-  WHERE NOT EXISTS (SELECT 1 FROM belief_seen s WHERE s.entity_id = k.subject_id
+  WHERE b.move IS NULL
+    AND NOT EXISTS (SELECT 1 FROM belief_seen s WHERE s.entity_id = k.subject_id
+                      AND s.phase = 'around' AND s.holder_id = w.holder_id)
+    AND NOT EXISTS (SELECT 1 FROM belief_seen s WHERE s.entity_id = k.target_id
+                      AND s.phase = 'around' AND s.holder_id = w.holder_id)
+  UNION ALL
+  -- moves (12_moves): a departure also by who sees the subject elsewhere after it
+  SELECT w.id, w.hkey, w.from_ns, w.pconf, b.key_id, b.refreshed, b.prev_num, b.prev_conf,
+         b.prev_obs
+  FROM belief_changed b {{pinned_join}} fact_keys k ON k.id = b.key_id
+  {{pinned_join}} belief_follow w ON w.self_key = b.key_id AND w.to_ns IS NULL
+  WHERE b.move IS NOT NULL
+    AND NOT EXISTS (SELECT 1 FROM belief_seen s WHERE s.entity_id = k.subject_id
                       AND {{seen_phase}} AND s.holder_id = w.holder_id)
     AND NOT EXISTS (SELECT 1 FROM belief_seen s WHERE s.entity_id = k.target_id
                       AND {{seen_phase}} AND s.holder_id = w.holder_id)
