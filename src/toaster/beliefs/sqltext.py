@@ -142,14 +142,6 @@ HOLDERS = {
                       "text) FROM agents) || ':' || {{setting(depth)}}"),
 }
 
-#: Where a change is seen (12_moves): ``b`` a belief_changed row, ``s`` a belief_seen row of
-#: its subject or target. Most changes are seen around the tick (before or after); a departure
-#: by who saw the subject or target before it (or sees the subject after it, elsewhere: see
-#: 30_changes and 35_freeze); an arrival by who sees them after it.
-MOVES = {
-    "seen_phase": "s.phase = COALESCE(b.move, 'around')",
-}
-
 #: The macros that are the same on both backends.
 COMMON = {
     **INBOX,
@@ -157,7 +149,6 @@ COMMON = {
     # A beliefs setting as stored (JSON text), or its default.
     "setting": f"(SELECT value_json FROM belief_settings WHERE key = '{ARG}')",
     **FOLLOWED,
-    **MOVES,
 }
 
 _SECTION = re.compile(r"\{\{#(\w+)\}\}(.*?)\{\{/\1\}\}", re.DOTALL)

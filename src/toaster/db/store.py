@@ -168,12 +168,14 @@ class Store:
             yield
             return
         check_id(actor, "actor")
-        if actor not in self.agents() or ">" in actor:
-            self._agents = None
-            if actor not in self.agents() or ">" in actor:
-                msg = (f"unknown actor {actor!r}: the actor is the agent who made the change; "
-                       f"register it with `toaster set-info ENTITY --id {actor} --type human`")
-                raise UnknownAgentError(msg)
+        try:
+            known = ">" not in self.check_agent(actor)  # a nested holder acts on nothing
+        except UnknownAgentError:
+            known = False
+        if not known:
+            msg = (f"unknown actor {actor!r}: the actor is the agent who made the change; "
+                   f"register it with `toaster set-info ENTITY --id {actor} --type human`")
+            raise UnknownAgentError(msg)
         previous, self._actor = self._actor, actor
         try:
             yield

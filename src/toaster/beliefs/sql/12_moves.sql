@@ -8,7 +8,7 @@ UPDATE belief_changed SET move = CASE
                      AND o.valid_to_ns IS NULL) THEN 'before'
     WHEN NOT EXISTS (SELECT 1 FROM facts e WHERE e.key_id = belief_changed.key_id
                      AND e.valid_to_ns = :t) THEN 'after' END
-WHERE NOT refreshed AND key_id IN (
-  SELECT k.id FROM fact_keys k WHERE k.id = belief_changed.key_id
+WHERE NOT refreshed AND EXISTS (
+  SELECT 1 FROM fact_keys k WHERE k.id = belief_changed.key_id
     AND (k.property IN (SELECT value FROM {{setting_list(copresence)}})
          OR k.property IN (SELECT value FROM {{setting_list(containment)}})))

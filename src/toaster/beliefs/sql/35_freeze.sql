@@ -23,9 +23,9 @@ WITH stopped AS MATERIALIZED (
   {{pinned_join}} belief_follow w ON w.self_key = b.key_id AND w.to_ns IS NULL
   WHERE b.move IS NOT NULL
     AND NOT EXISTS (SELECT 1 FROM belief_seen s WHERE s.entity_id = k.subject_id
-                      AND {{seen_phase}} AND s.holder_id = w.holder_id)
+                      AND s.phase = b.move AND s.holder_id = w.holder_id)
     AND NOT EXISTS (SELECT 1 FROM belief_seen s WHERE s.entity_id = k.target_id
-                      AND {{seen_phase}} AND s.holder_id = w.holder_id)
+                      AND s.phase = b.move AND s.holder_id = w.holder_id)
     AND NOT (b.move = 'before' AND EXISTS (
       SELECT 1 FROM belief_seen s WHERE s.entity_id = k.subject_id AND s.phase = 'after'
         AND s.holder_id = w.holder_id))
