@@ -21,6 +21,11 @@ newly(holder_id, entity_id, pconf) AS (
   WHERE a.phase = 'after' AND NOT EXISTS (
     SELECT 1 FROM belief_seen b WHERE b.phase = 'before'
       AND b.holder_id = a.holder_id AND b.entity_id = a.entity_id)
+  -- the actor of a change handles its subject: it sees where it is now, and that it is no
+  -- longer wherever it believed it was
+  UNION
+  SELECT b.actor_id, k.subject_id, 1.0 FROM belief_changed b JOIN fact_keys k ON k.id = b.key_id
+  WHERE b.actor_id IS NOT NULL
 ),
 -- Containers whose closed fact ended at :t, with the holders who see them afterwards: opening
 -- a container shows its content (and that what was believed inside is no longer there).
