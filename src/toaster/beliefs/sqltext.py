@@ -48,6 +48,9 @@ MACROS: dict[str, dict[str, str]] = {
         "pinned_join": "CROSS JOIN",
         "open_fact": "INDEXED BY uq_facts_open_key",
         "open_follow": "INDEXED BY uq_belief_follow_open_hkey",
+        # A holder's keys about a target (the statistics favour the identity index's agent
+        # prefix: a scan of all the holder's keys per entity).
+        "keys_by_target": "INDEXED BY ix_fact_keys_target",
         # Bound parameters in a select list take their type from the column on SQLite.
         "as_int8": ARG,
         "as_text": ARG,
@@ -72,6 +75,7 @@ MACROS: dict[str, dict[str, str]] = {
         "pinned_join": "JOIN",  # the order is pinned by join_collapse_limit = 1 (00_temp)
         "open_fact": "",
         "open_follow": "",
+        "keys_by_target": "",
         "as_int8": f"CAST({ARG} AS bigint)",
         "as_text": f"CAST({ARG} AS text)",
         "now_ns": "CAST(EXTRACT(EPOCH FROM clock_timestamp()) * 1000000000 AS bigint)",
@@ -142,10 +146,21 @@ HOLDERS = {
                       "text) FROM agents) || ':' || {{setting(depth)}}"),
 }
 
+#: The self agent holds (an open interval of) the key identical to the holder key ``<arg>``.
+SELF_HOLDS = {
+    "self_holds": (
+        "SELECT 1 FROM fact_keys sk JOIN facts sf ON sf.key_id = sk.id AND sf.valid_to_ns IS NULL "
+        f"WHERE sk.agent_id = :self AND sk.subject_id = {ARG}.subject_id "
+        f"AND sk.subject_owner_id = {ARG}.subject_owner_id AND sk.property = {ARG}.property "
+        f"AND sk.sub_property = {ARG}.sub_property AND sk.target_id = {ARG}.target_id "
+        f"AND sk.target_owner_id = {ARG}.target_owner_id"),
+}
+
 #: The macros that are the same on both backends.
 COMMON = {
     **INBOX,
     **HOLDERS,
+    **SELF_HOLDS,
     # A beliefs setting as stored (JSON text), or its default.
     "setting": f"(SELECT value_json FROM belief_settings WHERE key = '{ARG}')",
     **FOLLOWED,

@@ -9,6 +9,8 @@ IF (SELECT reltuples FROM pg_class WHERE oid = CAST('fact_keys' AS regclass)) < 
 END IF;
 {{/postgresql}}
 {{insert_or_ignore}} INTO belief_focus (entity_id)
-SELECT k.subject_id FROM belief_changed b JOIN fact_keys k ON k.id = b.key_id
-UNION SELECT k.target_id FROM belief_changed b JOIN fact_keys k ON k.id = b.key_id WHERE k.target_id <> ''
+SELECT k.subject_id FROM belief_changed b {{pinned_join}} fact_keys k ON k.id = b.key_id
+UNION
+SELECT k.target_id FROM belief_changed b {{pinned_join}} fact_keys k ON k.id = b.key_id
+WHERE k.target_id <> ''
 {{on_conflict_ignore}}

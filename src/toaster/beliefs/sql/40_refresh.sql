@@ -38,40 +38,36 @@ opened(holder_id, entity_id, pconf) AS (
 )
 SELECT n.holder_id, k.id, NULL, n.pconf * f.observability, 1
 FROM newly n
-JOIN fact_keys k ON k.agent_id = :self AND k.subject_id = n.entity_id
+{{pinned_join}} fact_keys k ON k.agent_id = :self AND k.subject_id = n.entity_id
 JOIN facts f ON f.key_id = k.id AND f.valid_to_ns IS NULL
 WHERE f.observability > 0 AND {{not_hidden(n.entity_id)}}
 UNION ALL
 SELECT n.holder_id, NULL, hk.id, n.pconf, 1
 FROM newly n
-JOIN fact_keys hk ON hk.agent_id = n.holder_id
-  AND (hk.subject_id = n.entity_id
-       OR (hk.target_id = n.entity_id AND hk.property IN (
-           SELECT value FROM {{setting_list(refute_by_target)}})))
+JOIN fact_keys hk ON hk.agent_id = n.holder_id AND hk.subject_id = n.entity_id
 JOIN facts hf ON hf.key_id = hk.id AND hf.valid_to_ns IS NULL AND hf.observability > 0
 WHERE {{not_hidden(hk.subject_id)}}
-  AND NOT EXISTS (
-    SELECT 1 FROM fact_keys sk JOIN facts sf ON sf.key_id = sk.id AND sf.valid_to_ns IS NULL
-    WHERE sk.agent_id = :self AND sk.subject_id = hk.subject_id
-      AND sk.subject_owner_id = hk.subject_owner_id AND sk.property = hk.property
-      AND sk.sub_property = hk.sub_property AND sk.target_id = hk.target_id
-      AND sk.target_owner_id = hk.target_owner_id)
+  AND NOT EXISTS ({{self_holds(hk)}})
+UNION ALL
+SELECT n.holder_id, NULL, hk.id, n.pconf, 1
+FROM newly n
+JOIN fact_keys hk {{keys_by_target}} ON hk.agent_id = n.holder_id AND hk.target_id = n.entity_id
+  AND hk.subject_id <> n.entity_id
+  AND hk.property IN (SELECT value FROM {{setting_list(refute_by_target)}})
+JOIN facts hf ON hf.key_id = hk.id AND hf.valid_to_ns IS NULL AND hf.observability > 0
+WHERE {{not_hidden(hk.subject_id)}}
+  AND NOT EXISTS ({{self_holds(hk)}})
 UNION ALL
 SELECT o.holder_id, k.id, NULL, o.pconf * f.observability, 1
 FROM opened o
-JOIN fact_keys k ON k.agent_id = :self AND k.target_id = o.entity_id
+{{pinned_join}} fact_keys k {{keys_by_target}} ON k.agent_id = :self AND k.target_id = o.entity_id
   AND k.property IN (SELECT p FROM cfg_in)
 JOIN facts f ON f.key_id = k.id AND f.valid_to_ns IS NULL
 WHERE f.observability > 0
 UNION ALL
 SELECT o.holder_id, NULL, hk.id, o.pconf, 1
 FROM opened o
-JOIN fact_keys hk ON hk.agent_id = o.holder_id AND hk.target_id = o.entity_id
+JOIN fact_keys hk {{keys_by_target}} ON hk.agent_id = o.holder_id AND hk.target_id = o.entity_id
   AND hk.property IN (SELECT p FROM cfg_in)
 JOIN facts hf ON hf.key_id = hk.id AND hf.valid_to_ns IS NULL AND hf.observability > 0
-WHERE NOT EXISTS (
-    SELECT 1 FROM fact_keys sk JOIN facts sf ON sf.key_id = sk.id AND sf.valid_to_ns IS NULL
-    WHERE sk.agent_id = :self AND sk.subject_id = hk.subject_id
-      AND sk.subject_owner_id = hk.subject_owner_id AND sk.property = hk.property
-      AND sk.sub_property = hk.sub_property AND sk.target_id = hk.target_id
-      AND sk.target_owner_id = hk.target_owner_id)
+WHERE NOT EXISTS ({{self_holds(hk)}})

@@ -5,3 +5,5 @@ SELECT hkey, value_text, value_num, confidence, observability, cut_ns, {{as_int8
 FROM belief_freeze WHERE value_text IS NOT NULL;
 UPDATE belief_follow SET to_ns = z.cut_ns, events_to_ns = z.cut_ns FROM belief_freeze z
 WHERE z.follow_id = belief_follow.id
+  -- (the IN list: SQLite, with no statistics of the scratch table, otherwise scans every period)
+  AND belief_follow.id IN (SELECT follow_id FROM belief_freeze)
