@@ -14,13 +14,18 @@ up on the next (1,000 start again), the expensive transitions.
 (Store.assert_fact) with the same change written by a plain SQL client (INSERT INTO fact_inbox,
 a separate connection): both run the database's rule; the inbox also applies the write itself
 in SQL.
+Depth 2 to 4 with 5 or 10 agents (25 to 780 holders, everyone in one room) measure groups of
+holders that perceive alike (setting group_holders); "alone" is the same case with
+group_holders = false, every holder computed by itself. Each case runs ``--repeats`` times
+(fresh database each time); the table gives the median rate (and the range).
 Usage: python benchmarks/bench_beliefs.py [--ticks 10] [--entities 1000] [--writes 300]
-       [--pg URL]
+       [--repeats 3] [--pg URL] [--only SUBSTRING]
 """
 
 from __future__ import annotations
 
 import argparse
+import statistics
 import tempfile
 import time
 
@@ -51,10 +56,10 @@ def _holder_rows(db: toaster.Database) -> int:
 
 
 def run(url: str, agents: int, depth: int, rules: bool, ticks: int, entities: int,
-        churn: bool = False, share: bool = True) -> tuple[float, float]:
+        churn: bool = False, share: bool = True, grouped: bool = True) -> tuple[float, float]:
     """(changed self facts per second, holder rows written per changed self fact)."""
     with toaster.connect(url) as db:
-        api.configure(db, enabled=rules, depth=depth, share_rows=share)
+        api.configure(db, enabled=rules, depth=depth, share_rows=share, group_holders=grouped)
         st = db.store()
         st.add_entity("R", "robot", is_self=True, t_ns=0)
         for i in range(agents):
@@ -112,40 +117,64 @@ def single_writes(url: str, agents: int, writes: int, raw: bool) -> float:
         return writes / elapsed
 
 
+#: (agents, depth, rules, churn, share_rows, group_holders); "copied" is the straightforward
+#: design, "alone" every holder computed by itself.
+CASES = [(0, 1, False, False, True, True), (1, 1, True, False, True, True),
+         (5, 1, True, False, True, True), (10, 1, True, False, True, True),
+         (20, 1, True, False, True, True), (5, 2, True, False, True, True),
+         (10, 2, True, False, True, True), (10, 2, True, False, True, False),
+         (5, 3, True, False, True, True), (5, 4, True, False, True, True),
+         (10, 1, True, True, True, True), (10, 1, True, False, False, True)]
+
+
+def _label(rules: bool, share: bool, grouped: bool) -> str:
+    if not rules:
+        return "no"
+    return ("shared" if share else "copied") if grouped else "alone"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--ticks", type=int, default=10)
     parser.add_argument("--entities", type=int, default=1000)
     parser.add_argument("--writes", type=int, default=300)
+    parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--pg", default=PG, help="PostgreSQL URL ('' to skip)")
+    parser.add_argument("--only", default="", help="run the cases whose label contains this "
+                        "(e.g. 'depth 2', 'sqlite')")
     args = parser.parse_args()
-    # (agents, depth, rules, churn, share_rows); the last case is the straightforward design.
-    cases = [(0, 1, False, False, True), (1, 1, True, False, True), (5, 1, True, False, True),
-             (10, 1, True, False, True), (20, 1, True, False, True), (5, 2, True, False, True),
-             (10, 2, True, False, True), (10, 1, True, True, True), (10, 1, True, False, False)]
     print(f"{'backend':10} {'agents':>6} {'depth':>5} {'rules':>7} {'churn':>5} "
-          f"{'changed facts/s':>16} {'vs no rules':>11} {'holder rows/change':>18}")
+          f"{'changed facts/s':>16} {'range':>15} {'vs no rules':>11} {'holder rows/change':>18}")
     with tempfile.TemporaryDirectory() as tmp:
         for backend in ("sqlite", "postgresql"):
             if backend == "postgresql" and not args.pg:
                 continue
             baseline = None
-            for n, (agents, depth, rules, churn, share) in enumerate(cases):
-                if backend == "sqlite":
-                    url = f"sqlite:///{tmp}/bench{n}.db"
-                else:
-                    url = _pg_schema(args.pg, f"bench_beliefs_{n}")
-                rate, rows = run(url, agents, depth, rules, args.ticks, args.entities, churn,
-                                 share)
+            for n, (agents, depth, rules, churn, share, grouped) in enumerate(CASES):
+                label = (f"{backend} {agents} agents depth {depth} {_label(rules, share, grouped)}"
+                         f"{' churn' if churn else ''}")
+                if rules and args.only not in label:  # (the baseline always runs)
+                    continue
+                rates, rows = [], 0.0
+                for r in range(args.repeats):
+                    if backend == "sqlite":
+                        url = f"sqlite:///{tmp}/bench{n}_{r}.db"
+                    else:
+                        url = _pg_schema(args.pg, f"bench_beliefs_{n}")
+                    rate, rows = run(url, agents, depth, rules, args.ticks, args.entities,
+                                     churn, share, grouped)
+                    rates.append(rate)
+                rate = statistics.median(rates)
                 baseline = baseline or rate
-                kind = ("shared" if share else "copied") if rules else "no"
-                print(f"{backend:10} {agents:6d} {depth:5d} {kind:>7} "
-                      f"{'yes' if churn else 'no':>5} {rate:16,.0f} {rate / baseline:10.2f}x "
-                      f"{rows:18.2f}", flush=True)
+                spread = f"{min(rates) / 1000:.1f}-{max(rates) / 1000:.1f}k"
+                print(f"{backend:10} {agents:6d} {depth:5d} {_label(rules, share, grouped):>7} "
+                      f"{'yes' if churn else 'no':>5} {rate:16,.0f} {spread:>15} "
+                      f"{rate / baseline:10.2f}x {rows:18.2f}", flush=True)
         print(f"\nsingle writes (one change per transaction, 10 agents in the room)\n"
               f"{'backend':10} {'library/s':>10} {'fact_inbox/s':>13} {'inbox vs library':>17}")
         for backend in ("sqlite", "postgresql"):
-            if backend == "postgresql" and not args.pg:
+            if (backend == "postgresql" and not args.pg) or (args.only and "single" not in
+                                                              args.only):
                 continue
             rates = []
             for n, raw in enumerate((False, True)):

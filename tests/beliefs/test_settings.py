@@ -15,7 +15,7 @@ from toaster.beliefs import api, scenario
 from toaster.beliefs import config as cfg
 from toaster.errors import InvalidInputError
 
-revision = importlib.import_module("toaster.migrations.versions.0009_moves_actor_tell")
+revision = importlib.import_module("toaster.migrations.versions.0011_holder_groups")
 
 SALLY_ANNE = resources.files("toaster") / "examples" / "beliefs_sally_anne.yaml"
 #: A value other than the default for each setting.
@@ -23,7 +23,7 @@ OTHER = {"enabled": False, "depth": 1, "copresence": ["IsNear"], "containment": 
          "visibility": {"Sees": "subject"}, "closed": "IsShut", "refute_by_target": [],
          "self_perception": True, "share_rows": False,
          "attention": {"IsInRoom": ["IsLookingToward"]}, "trust": "witnesses",
-         "distrust": ["ANNE"]}
+         "distrust": ["ANNE"], "group_holders": False}
 
 
 def delete_row(db: toaster.Database, key: str) -> None:

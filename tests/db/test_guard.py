@@ -17,18 +17,23 @@ from toaster.db.engine import make_engine
 
 SALLY_ANNE = resources.files("toaster") / "examples" / "beliefs_sally_anne.yaml"
 FIRST_COLUMN = {"fact_keys": "agent_id", "facts": "key_id", "events": "key_id",
-                "fact_samples": "fact_id", "belief_follow": "hkey", "belief_chain": "holder_id"}
+                "fact_samples": "fact_id", "belief_follow": "hkey", "belief_chain": "holder_id",
+                "belief_groups": "holder_id"}
 
 
 @pytest.fixture
 def story(db: toaster.Database) -> toaster.Database:
     """Sally-Anne (holders, followed periods, nested holders) plus a refreshed number
-    (a sample row): every guarded table has rows."""
+    (a sample row) and two people in a lab, who perceive alike (a group of holders): every
+    guarded table has rows."""
     scenario.replay(db, SALLY_ANNE)
     st = db.store()
+    for person in ("XAVI", "YUKI"):
+        st.add_entity(person, "human", t_ns=0)
+    lab = [toaster.Fact(x, "IsInRoom", "LAB") for x in ("XAVI", "YUKI", "CUP")]
     for t, metres in ((10, 1.0), (11, 2.0)):
         st.sync_snapshot("ranger", "ROBOT", t * 1_000_000_000,
-                         [toaster.Fact("SALLY", "Distance", "BOX", value_num=metres)])
+                         [toaster.Fact("SALLY", "Distance", "BOX", value_num=metres), *lab])
     return db
 
 

@@ -15,6 +15,8 @@ perceive, e.g. ``{"IsInRoom": ["IsLookingToward", "IsAttentive"]}``; default ``{
 in the room is enough), ``trust`` (whom a listener believes when told something:
 ``"everyone"``, the default, or ``"witnesses"``: a speaker who perceived the subject later
 than the listener did) and ``distrust`` (agents never believed, default ``[]``); revision 0009.
+``group_holders`` (holders that perceive alike share the rule's work, default true; false
+computes every holder alone, same beliefs, slower: revision 0011).
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ KINDS: dict[str, str] = {
     "enabled": "bool", "depth": "depth", "copresence": "properties",
     "containment": "properties", "visibility": "sides", "closed": "property",
     "refute_by_target": "properties", "self_perception": "bool", "share_rows": "bool",
-    "attention": "gates", "trust": "trust", "distrust": "agents",
+    "attention": "gates", "trust": "trust", "distrust": "agents", "group_holders": "bool",
 }
 TRUST_POLICIES = ("everyone", "witnesses")
 MAX_DEPTH = 4

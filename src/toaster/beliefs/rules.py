@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 from sqlalchemy import Connection, text
 
 from toaster.beliefs import sqltext
+from toaster.beliefs.pipeline import UNGROUP
 from toaster.beliefs.pipeline import statements as split
 from toaster.timeutil import now_ns
 
@@ -70,16 +71,16 @@ class BeliefRule:
             self.store.db.cursor().execute(scratch)
 
     def _insert_changed(self, conn: Connection, changes: ChangeSet) -> None:
-        """The tick's self keys; refreshed ones with the values they held before the tick."""
+        """The tick's self keys; refreshed ones with the values they held before the tick;
+        each with the agent who made its change (``ChangeSet.actor_of``), if known."""
         rows: dict[int, tuple[Any, ...]] = {}
         keys = ([k for k, _ in changes.appeared] + [k for k, _, _ in changes.changed]
                 + [k for k, _ in changes.ended])
-        actor = changes.actor
         for key_id in keys:
-            rows[key_id] = (key_id, False, None, None, None, actor)
+            rows[key_id] = (key_id, False, None, None, None, changes.actor_of(key_id))
         for key_id, _, held in changes.refreshed:
             rows[key_id] = (key_id, True, held.value_num, held.confidence, held.observability,
-                            actor)
+                            changes.actor_of(key_id))
         cur = self.store.db.cursor()
         if conn.dialect.name == "postgresql":
             cur.execute(
@@ -95,7 +96,9 @@ class BeliefRule:
         """Before a write that bypasses the rule (a direct write to a holder, emptying an
         agent, changing who is self): copy the followed periods involving ``agent_id`` into
         its own rows. ``keep=False``: the agent's rows are about to be deleted, so its own
-        periods are dropped instead (``agent_id`` None: every period)."""
+        periods are dropped instead (``agent_id`` None: every period). The groups of holders
+        no longer hold (the next run forms them again)."""
+        conn.execute(text(UNGROUP))
         if agent_id is None:
             conn.execute(text("DELETE FROM belief_follow"))
             return

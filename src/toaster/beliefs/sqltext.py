@@ -27,10 +27,11 @@ from importlib import resources
 
 #: The steps of the rule, in order (see :class:`toaster.beliefs.rules.BeliefRule` for when each
 #: one runs).
-STEPS = ("00_temp", "10_focus", "12_moves", "20_perceive", "30_changes", "35_freeze", "40_refresh",
-         "42_keep_max", "45_resolve", "50_keys", "55_switch", "58_frozen", "60_plan",
-         "70_events", "80_close", "85_refresh_rows", "90_follow", "91_open", "92_repconf",
-         "95_materialize", "99_clear")
+STEPS = ("00_temp", "10_focus", "12_moves", "15_ungroup", "20_perceive", "30_changes",
+         "32_expand", "35_freeze", "40_refresh", "42_keep_max", "45_resolve", "50_keys",
+         "55_switch", "58_frozen", "60_plan", "70_events", "80_close", "85_refresh_rows",
+         "90_follow", "91_open", "92_repconf", "94_keep_groups", "95_materialize", "96_regroup",
+         "99_clear")
 
 #: Where a function-like macro puts its argument.
 ARG = "<arg>"
@@ -156,11 +157,19 @@ SELF_HOLDS = {
         f"AND sk.target_owner_id = {ARG}.target_owner_id"),
 }
 
+#: Groups of holders that perceive alike (96_regroup).
+GROUPS = {
+    # The holder ``<arg>`` is computed: it heads a group or belongs to none.
+    "not_member": (f"{ARG} NOT IN (SELECT holder_id FROM belief_groups "
+                   "WHERE rep_id <> holder_id)"),
+}
+
 #: The macros that are the same on both backends.
 COMMON = {
     **INBOX,
     **HOLDERS,
     **SELF_HOLDS,
+    **GROUPS,
     # A beliefs setting as stored (JSON text), or its default.
     "setting": f"(SELECT value_json FROM belief_settings WHERE key = '{ARG}')",
     **FOLLOWED,

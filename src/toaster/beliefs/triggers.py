@@ -22,7 +22,16 @@ from importlib import resources
 from sqlalchemy import Connection
 
 from toaster.beliefs import sqltext
-from toaster.beliefs.pipeline import PIPELINE, RUN_PARAMS, Block, Step, bind, blocks, statements
+from toaster.beliefs.pipeline import (
+    PIPELINE,
+    RUN_PARAMS,
+    UNGROUP,
+    Block,
+    Step,
+    bind,
+    blocks,
+    statements,
+)
 from toaster.db.dialects import GUARD_MESSAGE
 
 #: Functions tuned as the rule's statements expect: the written join order, each statement
@@ -82,7 +91,25 @@ def _postgresql() -> list[str]:
     return [run, "CREATE TRIGGER belief_runs_run BEFORE INSERT ON belief_runs FOR EACH ROW "
                  "EXECUTE FUNCTION toaster_belief_run()",
             inbox, "CREATE TRIGGER fact_inbox_apply BEFORE INSERT ON fact_inbox FOR EACH ROW "
-                   "EXECUTE FUNCTION toaster_fact_inbox()"]
+                   "EXECUTE FUNCTION toaster_fact_inbox()", *_pg_ungroup()]
+
+
+# -- Both: what ends the groups of holders outside a run ---------------------------------------
+#: A change of the settings or of the agents may change who perceives alike (96_regroup): the
+#: next run forms the groups again (any client may write these tables).
+_UNGROUP_ON = ("settings", "agents")
+
+
+def _pg_ungroup() -> list[str]:
+    return [_pg_function("toaster_ungroup", [f"{UNGROUP};"]), *[
+        f"CREATE TRIGGER {table}_ungroup AFTER INSERT OR UPDATE OR DELETE ON {table} "
+        "FOR EACH STATEMENT EXECUTE FUNCTION toaster_ungroup()" for table in _UNGROUP_ON]]
+
+
+def _sqlite_ungroup() -> list[str]:
+    return [f"CREATE TRIGGER {table}_ungroup_{action} AFTER {action.upper()} ON {table} "
+            f"BEGIN {UNGROUP}; END"
+            for table in _UNGROUP_ON for action in ("insert", "update", "delete")]
 
 
 # -- SQLite: a trigger per block ------------------------------------------------------------
@@ -116,7 +143,8 @@ def _sqlite() -> list[str]:
         "DELETE FROM rule_writer WHERE holder = 'inbox';", "SELECT RAISE(IGNORE);"])
     return [f"CREATE TRIGGER belief_runs_run BEFORE INSERT ON belief_runs BEGIN\n{run}\nEND",
             *[_sqlite_block(b) for b in blocks()],
-            f"CREATE TRIGGER fact_inbox_apply BEFORE INSERT ON fact_inbox BEGIN\n{inbox}\nEND"]
+            f"CREATE TRIGGER fact_inbox_apply BEFORE INSERT ON fact_inbox BEGIN\n{inbox}\nEND",
+            *_sqlite_ungroup()]
 
 
 def ddl(backend: str) -> list[str]:
@@ -135,9 +163,12 @@ def drop_ddl(backend: str) -> list[str]:
         return ["DROP TRIGGER IF EXISTS belief_runs_run ON belief_runs",
                 "DROP TRIGGER IF EXISTS fact_inbox_apply ON fact_inbox",
                 "DROP FUNCTION IF EXISTS toaster_belief_run()",
-                "DROP FUNCTION IF EXISTS toaster_fact_inbox()"]
+                "DROP FUNCTION IF EXISTS toaster_fact_inbox()",
+                *[f"DROP TRIGGER IF EXISTS {t}_ungroup ON {t}" for t in _UNGROUP_ON],
+                "DROP FUNCTION IF EXISTS toaster_ungroup()"]
     return [f"DROP TRIGGER IF EXISTS {name}" for name in (
-        "belief_runs_run", "fact_inbox_apply", *[f"belief_block_{b.name}" for b in blocks()])]
+        "belief_runs_run", "fact_inbox_apply", *[f"belief_block_{b.name}" for b in blocks()],
+        *[f"{t}_ungroup_{a}" for t in _UNGROUP_ON for a in ("insert", "update", "delete")])]
 
 
 def frozen() -> dict[str, dict[str, list[str]]]:

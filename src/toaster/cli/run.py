@@ -79,7 +79,7 @@ def run(ctx: click.Context, path: Path, url: str | None, rate: float | None, unt
     if until:
         end = min(end, session.start_ns + parse_duration(until))
     runner = Runner(session.world, session.sources, session.producers, store=store,
-                    agent_id=session.self_id)
+                    agent_id=session.self_id, config=session.config)
     if store is not None:
         session.register(store)
     hz = rate or session.rate_hz

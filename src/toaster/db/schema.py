@@ -25,6 +25,9 @@ Tables
                 ``[from_ns, to_ns)`` and its events stamped in ``[events_from_ns,
                 events_to_ns]`` are the holder's, read through the views, confidence x
                 ``pconf``; a robot change perceived by a following holder writes no row (0003).
+``belief_groups`` holders that perceive alike and follow the same self keys, each with its
+                group's representative (revision 0011): while no perception fact changes, the
+                rule computes a group's perception once (step 96_regroup forms them).
 ``fact_samples`` the numeric history inside an interval (revision 0004): when a number,
                 confidence or observability changes beyond its tolerance, the open interval
                 is refreshed in place and the values it held *until* then are kept here, so
@@ -254,6 +257,8 @@ store_state = Table(
     Column("control_version", BigInteger, nullable=False, server_default=text("0")),
     # The agents and depth the nested holders were registered for (step holders).
     Column("holders_basis", Text, nullable=False, server_default=text("''")),
+    # The self agent the groups of holders were formed for; NULL: none hold (revision 0011).
+    Column("groups_for", Text, nullable=True),
     CheckConstraint("id = 1", name="single_row"),
 )
 
@@ -393,6 +398,14 @@ control_commands = Table(
     Column("done_ns", BigInteger, nullable=True),
     CheckConstraint("state IN ('pending', 'done', 'failed')", name="state_known"),
     Index("ix_control_commands_pending", "state", "id"),
+)
+
+belief_groups = Table(  # holders that perceive alike and follow the same keys (0011)
+    "belief_groups",
+    metadata,
+    Column("holder_id", Text, ForeignKey("holders.id", ondelete="CASCADE"), primary_key=True),
+    Column("rep_id", Text, ForeignKey("holders.id", ondelete="CASCADE"), nullable=False),
+    Index("ix_belief_groups_rep_id", "rep_id"),
 )
 
 belief_chain = Table(

@@ -21,11 +21,12 @@ world state re-asserts itself as in the original's EMPTY. Belief rules registere
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, TypeAlias
 
 from sqlalchemy import Connection, text
 from sqlalchemy.exc import IntegrityError
@@ -43,6 +44,11 @@ if TYPE_CHECKING:
     from toaster.db.seed import BatchReport
 
 _KEY = key_of
+_NO_ACTORS: Mapping[int, str] = MappingProxyType({})
+
+#: Who made each change of a write, per fact: a function of the fact (None: the write's
+#: ``actor``), or a mapping fact key (:func:`toaster.model.fact_key`) -> agent id.
+Actors: TypeAlias = Callable[[Fact], str | None] | Mapping[Key, str]
 
 
 class ChangeSet(NamedTuple):
@@ -56,11 +62,16 @@ class ChangeSet(NamedTuple):
     refreshed: list[tuple[int, Fact, Fact]]  # (key, new fact, the fact it held before)
     ended: list[tuple[int, Fact]]
     actor: str | None = None  # the agent who made the changes, when the writer knows it
+    actors: Mapping[int, str] = _NO_ACTORS  # key id -> who made that change (over ``actor``)
 
     @property
     def empty(self) -> bool:
         """True when nothing was written."""
         return not (self.appeared or self.changed or self.refreshed or self.ended)
+
+    def actor_of(self, key_id: int) -> str | None:
+        """The agent who made the change of ``key_id`` (None: unknown)."""
+        return self.actors.get(key_id, self.actor)
 
 
 class Rule(Protocol):
@@ -117,6 +128,7 @@ class Store:
         self._tolerances: dict[str, Tolerance] | None = None
         self._pending: list[ChangeSet] | None = None  # changes whose rules wait (sync_many)
         self._actor: str | None = None  # who makes the changes being written (acting())
+        self._actor_of: Callable[[Fact], str | None] | None = None  # per fact (acting())
         self._in_tx = False
 
     # ------------------------------------------------------------------ transactions, caches
@@ -161,12 +173,37 @@ class Store:
             text("SELECT cache_epoch FROM store_state WHERE id = 1")).scalar_one()
 
     @contextmanager
-    def acting(self, actor: str | None) -> Iterator[None]:
+    def acting(self, actor: str | None, actors: Actors | None = None) -> Iterator[None]:
         """Writes inside are changes made by ``actor`` (an agent): the belief rules let it
-        perceive them wherever it is. None: unknown (perception alone decides)."""
-        if actor is None:
+        perceive them wherever it is. None: unknown (perception alone decides).
+
+        ``actors`` names who made each change, per fact (a function of the fact, or a mapping
+        fact key -> agent id); a fact it gives no actor (None, or absent) has ``actor``. A
+        producer tick knows, for instance, that the facts about where a held object is were
+        made by the agent holding it.
+        """
+        if actor is None and actors is None:
             yield
             return
+        if actor is not None:
+            self._check_actor(actor)
+        actor_of: Callable[[Fact], str | None] | None
+        if actors is None or callable(actors):
+            actor_of = actors
+        else:
+            for who in set(actors.values()):
+                self._check_actor(who)
+            actor_of = _by_key(actors)
+        previous = self._actor, self._actor_of
+        self._actor = actor if actor is not None else previous[0]
+        self._actor_of = actor_of if actor_of is not None else previous[1]
+        try:
+            yield
+        finally:
+            self._actor, self._actor_of = previous
+
+    def _check_actor(self, actor: str) -> None:
+        """Raise :class:`UnknownAgentError` unless ``actor`` is a registered agent."""
         check_id(actor, "actor")
         try:
             known = ">" not in self.check_agent(actor)  # a nested holder acts on nothing
@@ -176,11 +213,6 @@ class Store:
             msg = (f"unknown actor {actor!r}: the actor is the agent who made the change; "
                    f"register it with `toaster set-info ENTITY --id {actor} --type human`")
             raise UnknownAgentError(msg)
-        previous, self._actor = self._actor, actor
-        try:
-            yield
-        finally:
-            self._actor = previous
 
     def add_rule(self, rule: Rule) -> None:
         """Run ``rule(conn, changes)`` after every fact write, in the same transaction."""
@@ -271,7 +303,7 @@ class Store:
     # ------------------------------------------------------------------ snapshot sync
     def sync_snapshot(self, source: str, agent_id: str, t_ns: int,
                       facts: Iterable[Fact] | FactArrays, *,
-                      actor: str | None = None) -> SyncResult:
+                      actor: str | None = None, actors: Actors | None = None) -> SyncResult:
         """Make ``source``'s facts for ``agent_id`` at ``t_ns`` exactly ``facts`` (a list of
         facts, or a producer's :class:`~toaster.producers.batch.FactBatch`).
 
@@ -279,10 +311,12 @@ class Store:
         transaction; numbers that moved less than their tolerance are not differences.
         Facts about entities nobody registered register them (kind ''). A batch is diffed
         as arrays: only its changed facts become tuples. ``actor``: the agent who made the
-        changes, if known (see :meth:`acting`).
+        changes, if known; ``actors``: who made each change, per fact, over ``actor`` (a
+        function of the fact, called for changed and ended facts only, or a mapping fact key
+        -> agent id; see :meth:`acting`).
         """
-        if actor is not None:
-            with self.acting(actor):
+        if actor is not None or actors is not None:
+            with self.acting(actor, actors):
                 return self.sync_snapshot(source, agent_id, t_ns, facts)
         check_id(source, "source")
         if not isinstance(t_ns, int) or isinstance(t_ns, bool):
@@ -385,7 +419,7 @@ class Store:
         key_ids = self._key_ids
         old = state.facts
         # Events in order: ended, changed, appeared.
-        writes = _Writes(agent_id, source, t_ns, self._actor)
+        writes = _Writes(agent_id, source, t_ns, self._actor, self._actor_of)
         for key, fact in gone:
             writes.end(key_ids[(agent_id, key)], fact)
         if touched and trust_cache and self.agents().get(agent_id):
@@ -500,10 +534,13 @@ class Store:
             conn.execute(text("UPDATE fact_keys SET property_type = :p WHERE id = :k"),
                          [{"p": p, "k": k} for k, p in writes.retyped])
         if self._rules and not writes.empty:
+            changes = writes.change_set()
+            for actor in set(changes.actors.values()):
+                self._check_actor(actor)
             if self._pending is not None:  # sync_many: the rules run once, at its end
-                self._pending.append(writes.change_set())
+                self._pending.append(changes)
             else:
-                self._run_rules(conn, writes.change_set())
+                self._run_rules(conn, changes)
 
     def _run_rules(self, conn: Connection, changes: ChangeSet) -> None:
         for rule in self._rules:
@@ -511,10 +548,12 @@ class Store:
 
     def sync_many(self, agent_id: str, t_ns: int,
                   snapshots: Iterable[tuple[str, Iterable[Fact] | FactArrays]], *,
-                  actor: str | None = None) -> list[SyncResult]:
+                  actor: str | None = None, actors: Actors | None = None) -> list[SyncResult]:
         """:meth:`sync_snapshot` of several sources for one agent at one time, in one
-        transaction, the rules running once over all their changes (a producer tick)."""
-        with self.acting(actor), self.transaction() as conn:
+        transaction, the rules running once over all their changes (a producer tick).
+        ``actor`` and ``actors`` (per fact) name who made the changes, as for
+        :meth:`sync_snapshot`."""
+        with self.acting(actor, actors), self.transaction() as conn:
             self._pending = []
             try:
                 results = [self.sync_snapshot(source, agent_id, t_ns, facts)
@@ -542,7 +581,7 @@ class Store:
             if strict:
                 catalog.check_entities(conn, [fact.subject_id, fact.target_id])
             key = fact_key(fact)
-            writes = _Writes(agent_id, source, t_ns, self._actor)
+            writes = _Writes(agent_id, source, t_ns, self._actor, self._actor_of)
             self._resolve(conn, agent_id, [(key, fact)], writes)
             self._apply(conn, writes)
             self.bump_epoch(conn)
@@ -568,7 +607,7 @@ class Store:
             if not self.agents().get(agent_id):
                 self._detach(conn, agent_id, keep=True)
             rows = catalog.open_facts_matching(conn, agent_id, property, filters)
-            writes = _Writes(agent_id, source, t_ns, self._actor)
+            writes = _Writes(agent_id, source, t_ns, self._actor, self._actor_of)
             for key_id, fact, valid_from in rows:
                 if valid_from > t_ns:
                     msg = (f"cannot end {fact.subject_id} {fact.property} {fact.target_id} at "
@@ -668,9 +707,9 @@ class Store:
 class _Writes:
     """The rows one write produces, collected before they go to the database in bulk."""
 
-    def __init__(self, agent_id: str, source: str, t_ns: int,
-                 actor: str | None = None) -> None:
-        self.actor = actor
+    def __init__(self, agent_id: str, source: str, t_ns: int, actor: str | None = None,
+                 actor_of: Callable[[Fact], str | None] | None = None) -> None:
+        self.actor, self.actor_of = actor, actor_of
         self.agent_id, self.source, self.t_ns = agent_id, source, t_ns
         self.recorded_ns = now_ns()
         self.closing: list[int] = []
@@ -714,8 +753,14 @@ class _Writes:
         self.ended.append((key_id, fact))
 
     def change_set(self) -> ChangeSet:
+        actors: Mapping[int, str] = _NO_ACTORS
+        if self.actor_of is not None:  # asked of the changed facts only
+            actor_of = self.actor_of
+            actors = {item[0]: who for part in (self.appeared, self.changed, self.refreshed,
+                                                self.ended)
+                      for item in part if (who := actor_of(item[1])) is not None}
         return ChangeSet(self.agent_id, self.source, self.t_ns, self.appeared, self.changed,
-                         self.refreshed, self.ended, self.actor)
+                         self.refreshed, self.ended, self.actor, actors)
 
     @property
     def empty(self) -> bool:
@@ -756,7 +801,14 @@ def _merged(pending: list[ChangeSet]) -> list[ChangeSet]:
                       [item for c in pending for item in c.appeared],
                       [item for c in pending for item in c.changed],
                       [item for c in pending for item in c.refreshed],
-                      [item for c in pending for item in c.ended], first.actor)]
+                      [item for c in pending for item in c.ended], first.actor,
+                      {k: v for c in pending for k, v in c.actors.items()})]
+
+
+def _by_key(actors: Mapping[Key, str]) -> Callable[[Fact], str | None]:
+    """The per-fact actor function of a mapping fact key -> actor."""
+    get = actors.get
+    return lambda fact: get(_KEY(fact))
 
 
 def _is_integrity_error(exc: Exception) -> bool:

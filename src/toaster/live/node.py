@@ -100,7 +100,8 @@ class LiveNode:
         self.producers: list[Any] = [PerceptionFacts(self.config), self.areas, self.monitor]
         if self.config.get("spatial"):
             self.producers.append(SpatialFacts(self.config))
-        self.runner = Runner(self.world, [], self.producers, store=self.store, agent_id=self_id)
+        self.runner = Runner(self.world, [], self.producers, store=self.store, agent_id=self_id,
+                             config=self.config)
         self.stats = LiveStats()
         self._version = -1
         self._last_t = 0

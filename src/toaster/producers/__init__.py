@@ -10,9 +10,9 @@ from toaster.producers.areas import (
 from toaster.producers.config import DEFAULTS, make_config
 from toaster.producers.diff import SnapshotDiff
 from toaster.producers.monitor import AgentMonitor, pointing
-from toaster.producers.perception import PerceptionFacts
+from toaster.producers.perception import HandActors, PerceptionFacts
 from toaster.producers.runner import Runner, Session, Stats, load_session
 
-__all__ = ["DEFAULTS", "AgentMonitor", "AreaManager", "PerceptionFacts", "Runner", "Session",
-           "SnapshotDiff", "Stats", "area_from_original", "load_session", "make_config",
+__all__ = ["DEFAULTS", "AgentMonitor", "AreaManager", "HandActors", "PerceptionFacts", "Runner",
+           "Session", "SnapshotDiff", "Stats", "area_from_original", "load_session", "make_config",
            "multiple_relative_position", "normalize_area", "pointing", "relative_position"]

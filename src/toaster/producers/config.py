@@ -71,6 +71,10 @@ DEFAULTS: dict[str, Any] = {
     "observability_monitor": 0.0,
     "observability_present": 1.0,
     "observability_in_hand": 0.8,
+    # who moved a thing (perception.HandActors): a hand joint within this many metres of an
+    # object that moved more than actor_moved metres since the last tick
+    "actor_hand_reach": 0.25,
+    "actor_moved": 0.05,
     "confidence_present": 0.9,
     "confidence_distance": 0.9,
     # move3d_facts (spatial.py): shapes are boxes standing on their position, x/y centred

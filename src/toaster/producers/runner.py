@@ -15,7 +15,7 @@ from toaster.producers.batch import FactBatch
 from toaster.producers.config import make_config, overlay_config
 from toaster.producers.diff import SnapshotDiff
 from toaster.producers.monitor import AgentMonitor
-from toaster.producers.perception import PerceptionFacts
+from toaster.producers.perception import HandActors, PerceptionFacts
 from toaster.producers.spatial import SpatialFacts
 from toaster.timeutil import NS_PER_S
 from toaster.world.bags import is_bag, read_bag
@@ -68,10 +68,13 @@ class Runner:
     """One world, its sources and producers, and optionally a store to write snapshots to."""
 
     def __init__(self, world: World, sources: Sequence[Source], producers: Sequence[Producer],
-                 *, store: Any = None, agent_id: str = DEFAULT_SELF) -> None:
+                 *, store: Any = None, agent_id: str = DEFAULT_SELF,
+                 config: Mapping[str, Any] | None = None) -> None:
         self.world, self.sources, self.producers = world, list(sources), list(producers)
         self.store, self.agent_id = store, agent_id
         self.diff = SnapshotDiff()
+        cfg = make_config(config)  # (the thresholds of who moved what)
+        self.hands = HandActors(cfg["actor_hand_reach"], cfg["actor_moved"])
         self.stats = Stats()
         for source in self.sources:
             source.setup(world)
@@ -80,13 +83,15 @@ class Runner:
         """Advance every source to ``t_ns``, compute every producer, write the snapshots.
 
         Producers with ``compute_batch`` hand over array snapshots (Fact tuples are only built
-        for the store; ``as_facts`` turns a returned batch into tuples).
+        for the store; ``as_facts`` turns a returned batch into tuples). The changes of where
+        a held object is are written as made by the agent holding it (:class:`HandActors`).
         """
         clock = time.perf_counter
         start = clock()
         for source in self.sources:
             source.advance(self.world, t_ns)
         self.world.commit()
+        self.hands.update(self.world)
         self._add("world", clock() - start)
         out: dict[str, list[Fact] | FactBatch] = {}
         for producer in self.producers:
@@ -119,11 +124,12 @@ class Runner:
         transaction, as ``sync_snapshot`` alone does, so that its own retry applies.
         """
         store, agent = self.store, self.agent_id
+        actors = self.hands.actor_of(store.agents()) if self.hands.movers else None
         try:
-            store.sync_many(agent, t_ns, list(out.items()))
+            store.sync_many(agent, t_ns, list(out.items()), actors=actors)
         except Exception:
             for name, facts in out.items():
-                store.sync_snapshot(name, agent, t_ns, facts)
+                store.sync_snapshot(name, agent, t_ns, facts, actors=actors)
 
     def _add(self, name: str, seconds: float) -> None:
         self.stats.seconds[name] = self.stats.seconds.get(name, 0.0) + seconds

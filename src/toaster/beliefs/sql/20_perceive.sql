@@ -28,17 +28,20 @@ sf(s, p, tg, c) AS (
                     WHEN 'before' THEN f.valid_from_ns < :t AND (f.valid_to_ns IS NULL OR f.valid_to_ns >= :t)
                     ELSE f.valid_to_ns IS NULL OR f.valid_to_ns >= :t END
 {{#postgresql}}
-  ) AS f
+    OFFSET 0) AS f
 {{/postgresql}}
   WHERE k.agent_id = :self
     AND (k.property IN (SELECT p FROM cfg_room) OR k.property IN (SELECT p FROM cfg_in)
          OR k.property IN (SELECT p FROM cfg_vis) OR k.property IN (SELECT a FROM cfg_att))
 ),
+-- The holders whose perception is computed: not the members of a group (96_regroup), who
+-- perceive as its representative does.
 chain(holder, pos, member) AS (
-  SELECT a.id, 1, a.id FROM agents a WHERE NOT a.is_self
+  SELECT a.id, 1, a.id FROM agents a WHERE NOT a.is_self AND {{not_member(a.id)}}
   UNION ALL
   SELECT c.holder_id, c.position, c.member_id FROM belief_chain c
   WHERE c.holder_id IN (SELECT id FROM holders WHERE depth BETWEEN 2 AND (SELECT d FROM cfg_depth))
+    AND {{not_member(c.holder_id)}}
 ),
 chain_len(holder, n) AS (SELECT holder, MAX(pos) FROM chain GROUP BY holder),
 members(m) AS (SELECT DISTINCT member FROM chain),

@@ -27,6 +27,23 @@ newly(holder_id, entity_id, pconf) AS (
   SELECT b.actor_id, k.subject_id, 1.0 FROM belief_changed b JOIN fact_keys k ON k.id = b.key_id
   WHERE b.actor_id IS NOT NULL
 ),
+-- Who perceives a thing arrive somewhere (12_moves) sees where it is now, so it is no longer
+-- wherever the holder believed it was (its other places end), even when the holder perceived
+-- it before too (a nested holder through an actor of the move).
+arrived(holder_id, entity_id, pconf) AS (
+  SELECT s.holder_id, k.subject_id, s.pconf
+  FROM belief_changed b {{pinned_join}} fact_keys k ON k.id = b.key_id
+  {{pinned_join}} belief_seen s ON s.entity_id = k.subject_id AND s.phase = 'after'
+  WHERE b.move = 'after'
+  UNION
+  SELECT s.holder_id, k.subject_id, s.pconf
+  FROM belief_changed b {{pinned_join}} fact_keys k ON k.id = b.key_id
+  {{pinned_join}} belief_seen s ON s.entity_id = k.target_id AND s.phase = 'after'
+  WHERE b.move = 'after'
+),
+stale(holder_id, entity_id, pconf) AS (
+  SELECT holder_id, entity_id, pconf FROM newly UNION SELECT holder_id, entity_id, pconf FROM arrived
+),
 -- Containers whose closed fact ended at :t, with the holders who see them afterwards: opening
 -- a container shows its content (and that what was believed inside is no longer there).
 opened(holder_id, entity_id, pconf) AS (
@@ -43,7 +60,7 @@ JOIN facts f ON f.key_id = k.id AND f.valid_to_ns IS NULL
 WHERE f.observability > 0 AND {{not_hidden(n.entity_id)}}
 UNION ALL
 SELECT n.holder_id, NULL, hk.id, n.pconf, 1
-FROM newly n
+FROM stale n
 JOIN fact_keys hk ON hk.agent_id = n.holder_id AND hk.subject_id = n.entity_id
 JOIN facts hf ON hf.key_id = hk.id AND hf.valid_to_ns IS NULL AND hf.observability > 0
 WHERE {{not_hidden(hk.subject_id)}}

@@ -17,7 +17,7 @@ Key = tuple[str, str, str, str, str, str]
 #: Tables only toaster's store and rules write (the guard triggers of migration 0006 refuse
 #: any other write), and the one-line error a direct write gets.
 GUARDED_TABLES = ("fact_keys", "facts", "events", "fact_samples", "belief_follow",
-                  "belief_chain")
+                  "belief_chain", "belief_groups")
 GUARD_MESSAGE = ("{table} is kept by toaster's store and belief rules and cannot be written "
                  "directly: write facts by inserting rows into fact_inbox (or with toaster "
                  "set-info); see docs/beliefs.md, Writing facts from SQL")

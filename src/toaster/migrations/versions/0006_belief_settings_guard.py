@@ -27,7 +27,7 @@ import json
 import sqlalchemy as sa
 from alembic import op
 
-from toaster.db.dialects import GUARD_MESSAGE, GUARDED_TABLES
+from toaster.db.dialects import GUARD_MESSAGE
 
 revision = "0006"
 down_revision = "0005"
@@ -61,8 +61,38 @@ def settings_view(defaults: dict[str, object]) -> str:
             "FROM defaults d LEFT JOIN settings s ON s.scope = 'beliefs' AND s.key = d.key")
 
 
+#: The tables this revision guards (later revisions guard their own new tables).
+GUARDED_TABLES = ("fact_keys", "facts", "events", "fact_samples", "belief_follow",
+                  "belief_chain")
+
+
 def _quoted(message: str) -> str:
     return "'" + message.replace("'", "''") + "'"
+
+
+def guard_tables(backend: str, tables: tuple[str, ...]) -> None:
+    """Refuse writes to ``tables`` outside the store and the rules (the function
+    ``toaster_guard()`` exists on PostgreSQL from this revision on)."""
+    for table in tables:
+        if backend == "postgresql":
+            op.execute(f"CREATE TRIGGER {table}_guard BEFORE INSERT OR UPDATE OR DELETE OR "
+                       f"TRUNCATE ON {table} FOR EACH STATEMENT EXECUTE FUNCTION toaster_guard()")
+            continue
+        message = _quoted(GUARD_MESSAGE.format(table=table))
+        for action in ("insert", "update", "delete"):
+            op.execute(f"CREATE TRIGGER {table}_guard_{action} BEFORE {action.upper()} ON "
+                       f"{table} WHEN NOT EXISTS (SELECT 1 FROM rule_writer) "
+                       f"BEGIN SELECT RAISE(ABORT, {message}); END")
+
+
+def unguard_tables(backend: str, tables: tuple[str, ...]) -> None:
+    """Undo :func:`guard_tables`."""
+    for table in tables:
+        if backend == "postgresql":
+            op.execute(f"DROP TRIGGER {table}_guard ON {table}")
+            continue
+        for action in ("insert", "update", "delete"):
+            op.execute(f"DROP TRIGGER {table}_guard_{action}")
 
 
 def _create_guards(backend: str) -> None:
@@ -73,25 +103,11 @@ def _create_guards(backend: str) -> None:
             "IF current_setting('toaster.writer', true) IS DISTINCT FROM 'rules' THEN "
             f"RAISE EXCEPTION USING MESSAGE = format({message}, TG_TABLE_NAME), "
             "ERRCODE = 'insufficient_privilege'; END IF; RETURN NULL; END $$")
-        for table in GUARDED_TABLES:
-            op.execute(f"CREATE TRIGGER {table}_guard BEFORE INSERT OR UPDATE OR DELETE OR "
-                       f"TRUNCATE ON {table} FOR EACH STATEMENT EXECUTE FUNCTION toaster_guard()")
-        return
-    for table in GUARDED_TABLES:
-        message = _quoted(GUARD_MESSAGE.format(table=table))
-        for action in ("insert", "update", "delete"):
-            op.execute(f"CREATE TRIGGER {table}_guard_{action} BEFORE {action.upper()} ON "
-                       f"{table} WHEN NOT EXISTS (SELECT 1 FROM rule_writer) "
-                       f"BEGIN SELECT RAISE(ABORT, {message}); END")
+    guard_tables(backend, GUARDED_TABLES)
 
 
 def _drop_guards(backend: str) -> None:
-    for table in GUARDED_TABLES:
-        if backend == "postgresql":
-            op.execute(f"DROP TRIGGER {table}_guard ON {table}")
-            continue
-        for action in ("insert", "update", "delete"):
-            op.execute(f"DROP TRIGGER {table}_guard_{action}")
+    unguard_tables(backend, GUARDED_TABLES)
     if backend == "postgresql":
         op.execute("DROP FUNCTION toaster_guard()")
 
