@@ -28,7 +28,7 @@ sf(s, p, tg, c) AS (
                     WHEN 'before' THEN f.valid_from_ns < :t AND (f.valid_to_ns IS NULL OR f.valid_to_ns >= :t)
                     ELSE f.valid_to_ns IS NULL OR f.valid_to_ns >= :t END
 {{#postgresql}}
-    OFFSET 0) AS f
+  ) AS f
 {{/postgresql}}
   WHERE k.agent_id = :self
     AND (k.property IN (SELECT p FROM cfg_room) OR k.property IN (SELECT p FROM cfg_in)
