@@ -170,6 +170,9 @@ def evaluate(zip_path: Path, url: str, *, limit: int | None = None,
 
 def main(argv: list[str]) -> int:
     """Print the accuracy table per set and question type."""
+    if "--help" in argv or "-h" in argv:
+        print("usage: python -m toaster.beliefs.tombabi [ZIP] [--limit N] [--db URL]")
+        return 0
     zip_path = Path(argv[0]) if argv and not argv[0].startswith("--") else Path(
         "../shared/data/tom-babi/tom_easy.zip")
     limit = int(argv[argv.index("--limit") + 1]) if "--limit" in argv else None
