@@ -86,11 +86,8 @@ REPCONF = "EXISTS (SELECT 1 FROM belief_todo WHERE action = 'repconf')"
 STEADY = ("COALESCE((SELECT groups_for FROM store_state WHERE id = 1), '') = NEW.self_id "
           f"AND NOT ({PERCEPTION_CHANGED}) "
           "AND NOT EXISTS (SELECT 1 FROM belief_changed WHERE actor_id IS NOT NULL)")
-#: Ends the groups outside a run (a write that changes a holder's followed keys, the settings,
-#: the agents): the next run forms them again.
-UNGROUP = "UPDATE store_state SET groups_for = NULL WHERE id = 1"
 #: The groups were ended (by this run, or by a write since the last run).
-REGROUP = "(SELECT groups_for FROM store_state WHERE id = 1) IS NULL"
+REGROUP = "{{groups_ended}}"
 
 PIPELINE = Block("run", RUNS, (
     *_steps("10_focus", "12_moves"),

@@ -24,8 +24,8 @@ from typing import TYPE_CHECKING, Any
 from sqlalchemy import Connection, text
 
 from toaster.beliefs import sqltext
-from toaster.beliefs.pipeline import UNGROUP
 from toaster.beliefs.pipeline import statements as split
+from toaster.beliefs.sqltext import UNGROUP
 from toaster.timeutil import now_ns
 
 if TYPE_CHECKING:

@@ -157,8 +157,15 @@ SELF_HOLDS = {
         f"AND sk.target_owner_id = {ARG}.target_owner_id"),
 }
 
+#: Ends the groups of holders outside a run (a write that changes a holder's followed keys,
+#: the settings, the agents): the next run forms them again (96_regroup).
+UNGROUP = "UPDATE store_state SET groups_for = NULL WHERE id = 1"
+
 #: Groups of holders that perceive alike (96_regroup).
 GROUPS = {
+    "ungroup": UNGROUP,
+    # The groups were ended (by this run, or by a write since the last run).
+    "groups_ended": "(SELECT groups_for FROM store_state WHERE id = 1) IS NULL",
     # The holder ``<arg>`` is computed: it heads a group or belongs to none.
     "not_member": (f"{ARG} NOT IN (SELECT holder_id FROM belief_groups "
                    "WHERE rep_id <> holder_id)"),

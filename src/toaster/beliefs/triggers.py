@@ -25,13 +25,13 @@ from toaster.beliefs import sqltext
 from toaster.beliefs.pipeline import (
     PIPELINE,
     RUN_PARAMS,
-    UNGROUP,
     Block,
     Step,
     bind,
     blocks,
     statements,
 )
+from toaster.beliefs.sqltext import UNGROUP
 from toaster.db.dialects import GUARD_MESSAGE
 
 #: Functions tuned as the rule's statements expect: the written join order, each statement

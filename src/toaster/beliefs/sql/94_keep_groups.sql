@@ -10,4 +10,4 @@ WHERE id = 1 AND {{setting(share_rows)}} = 'true' AND EXISTS (
                             AND w.holder_id = g.rep_id AND w.to_ns IS NULL) THEN 1 ELSE 0 END
      <> CASE WHEN EXISTS (SELECT 1 FROM belief_follow w WHERE w.self_key = i.self_key
                             AND w.holder_id = i.holder_id AND w.to_ns IS NULL) THEN 1 ELSE 0 END);
-DELETE FROM belief_groups WHERE (SELECT groups_for FROM store_state WHERE id = 1) IS NULL
+DELETE FROM belief_groups WHERE {{groups_ended}}

@@ -3,7 +3,7 @@
 -- and drop the periods. Used before a direct write to a holder, before the self agent's facts
 -- are emptied, and by downgrades.
 -- The holders' followed keys change: the groups of holders (96_regroup) no longer hold.
-UPDATE store_state SET groups_for = NULL WHERE id = 1 AND EXISTS (SELECT 1 FROM belief_mat);
+{{ungroup}} AND EXISTS (SELECT 1 FROM belief_mat);
 INSERT INTO facts (key_id, value_text, value_num, confidence, observability, valid_from_ns,
                    valid_to_ns, recorded_ns, source)
 SELECT w.hkey, f.value_text, f.value_num, {{followed_conf(f.confidence)}}, f.observability,
