@@ -47,3 +47,22 @@ class MissingDependencyError(ToasterError, ImportError):
         super().__init__(msg)
         self.package = package
         self.extra = extra
+
+
+class ConcurrentWriteError(ToasterError):
+    """A write kept conflicting with concurrent writers and was abandoned (rolled back)."""
+
+
+class DatabaseOpenError(ToasterError):
+    """A database cannot be opened or used: unreachable server, a file that is not a SQLite
+    database or is corrupted, another application's database."""
+
+
+class DatabaseLockedError(ToasterError):
+    """Another process held the database's lock longer than ``TOASTER_LOCK_TIMEOUT`` seconds
+    (the statement was rolled back)."""
+
+
+class InvariantViolationError(ToasterError):
+    """``toaster db check`` found stored intervals or events that break the temporal
+    invariants (:mod:`toaster.db.invariants`)."""

@@ -73,7 +73,8 @@ def test_the_triggers_of_a_database_at_head_are_the_rendered_ones(db: toaster.Da
         else:
             stored = {_normal(row[0]) for row in conn.execute(text(
                 "SELECT prosrc FROM pg_proc WHERE proname IN "
-                "('toaster_belief_run', 'toaster_fact_inbox', 'toaster_ungroup') "
+                "('toaster_belief_run', 'toaster_fact_inbox', 'toaster_settings_changed', "
+                "'toaster_agents_changed') "
                 "AND pronamespace = "
                 "(SELECT oid FROM pg_namespace WHERE nspname = current_schema())"))}
     rendered = triggers.ddl(backend)

@@ -50,10 +50,21 @@ def _steps(*names: str, **constants: str) -> tuple[Step, ...]:
 
 
 #: The run applies: rules enabled, a self agent's change, somebody else to hold beliefs.
+#: Several robots may write one database: each keeps its own world view, and the holders
+#: take the changes whichever robot perceives them (one timeline: see :data:`CLOCK`).
 RUNS = ("{{setting(enabled)}} = 'true' "
         "AND EXISTS (SELECT 1 FROM agents WHERE id = NEW.self_id AND is_self) "
         "AND EXISTS (SELECT 1 FROM agents WHERE NOT is_self) "
         "AND EXISTS (SELECT 1 FROM belief_changed)")
+#: A run that applies first moves the rules' clock (``store_state.beliefs_ns``) to its time
+#: unless it is behind: a robot or producer whose clock lags another's (or a late SQL writer)
+#: never writes a holder's row before one already written (the store also writes the self
+#: agents' own facts at the clock's time: Store._writes). The run then takes the clock's
+#: time (:data:`CLOCK_NS`). On PostgreSQL the update's row lock also serializes the runs of
+#: concurrent writers: each sees the rows of the runs committed before it.
+CLOCK = ("UPDATE store_state SET beliefs_ns = {{hi}}(COALESCE(beliefs_ns, NEW.t_ns), NEW.t_ns) "
+         "WHERE id = 1")
+CLOCK_NS = "(SELECT beliefs_ns FROM store_state WHERE id = 1)"
 #: The agents (or the depth) changed since the nested holders were last registered, and
 #: somebody perceives something (a database where nobody does keeps only its real agents).
 NEW_AGENTS = ("CAST({{setting(depth)}} AS INTEGER) >= 2 AND EXISTS (SELECT 1 FROM belief_seen) "

@@ -125,6 +125,10 @@ INBOX = {
                             "WHERE f.key_id = {{inbox_key}} AND f.valid_to_ns IS NULL){{/sqlite}}"
                             "{{#postgresql}}key_id = {{inbox_key}} AND valid_to_ns IS NULL"
                             "{{/postgresql}}"),
+    # The key's last interval (intervals of a key never overlap) starts or ends after NEW.
+    "inbox_later": ("(SELECT COALESCE(f.valid_to_ns, f.valid_from_ns) FROM facts f "
+                    "WHERE f.key_id = {{inbox_key}} ORDER BY f.valid_from_ns DESC LIMIT 1) "
+                    "> NEW.t_ns"),
     "inbox_self": "EXISTS (SELECT 1 FROM agents WHERE id = NEW.agent_id AND is_self)",
     # The open interval f moved numbers only.
     "inbox_renumbered": ("(f.value_num {{is_distinct}} NEW.value_num "
@@ -160,6 +164,10 @@ SELF_HOLDS = {
 #: Ends the groups of holders outside a run (a write that changes a holder's followed keys,
 #: the settings, the agents): the next run forms them again (96_regroup).
 UNGROUP = "UPDATE store_state SET groups_for = NULL WHERE id = 1"
+#: A write to ``agents`` (any client): the groups end and every store re-reads its agents
+#: (``store_state.agents_version``, read at the start of each store write).
+AGENTS_CHANGED = ("UPDATE store_state SET groups_for = NULL, "
+                  "agents_version = agents_version + 1 WHERE id = 1")
 
 #: Groups of holders that perceive alike (96_regroup).
 GROUPS = {

@@ -23,6 +23,8 @@ from sqlalchemy import Connection
 
 from toaster.beliefs import sqltext
 from toaster.beliefs.pipeline import (
+    CLOCK,
+    CLOCK_NS,
     PIPELINE,
     RUN_PARAMS,
     Block,
@@ -31,7 +33,7 @@ from toaster.beliefs.pipeline import (
     blocks,
     statements,
 )
-from toaster.beliefs.sqltext import UNGROUP
+from toaster.beliefs.sqltext import AGENTS_CHANGED, UNGROUP
 from toaster.db.dialects import GUARD_MESSAGE
 
 #: Functions tuned as the rule's statements expect: the written join order, each statement
@@ -59,6 +61,9 @@ def _quoted(text: str) -> str:
 # -- PostgreSQL: plpgsql functions ----------------------------------------------------------
 def _pg_block(block: Block) -> list[str]:
     body: list[str] = []
+    if block is PIPELINE:  # the run takes the rules' clock (see pipeline.CLOCK)
+        body += [sqltext.expand(CLOCK, "postgresql") + ";",
+                 f"NEW.t_ns := {CLOCK_NS};"]
     for part in block.body:
         body += _pg_block(part) if isinstance(part, Block) else [
             s + ";" for s in _step(part, "postgresql")]
@@ -96,28 +101,36 @@ def _postgresql() -> list[str]:
 
 # -- Both: what ends the groups of holders outside a run ---------------------------------------
 #: A change of the settings or of the agents may change who perceives alike (96_regroup): the
-#: next run forms the groups again (any client may write these tables).
-_UNGROUP_ON = ("settings", "agents")
+#: next run forms the groups again (any client may write these tables). A change of the
+#: agents also tells every store to re-read them.
+_UNGROUP_ON = {"settings": UNGROUP, "agents": AGENTS_CHANGED}
 
 
 def _pg_ungroup() -> list[str]:
-    return [_pg_function("toaster_ungroup", [f"{UNGROUP};"]), *[
+    return [statement for table, sql in _UNGROUP_ON.items() for statement in (
+        _pg_function(f"toaster_{table}_changed", [f"{sql};"]),
         f"CREATE TRIGGER {table}_ungroup AFTER INSERT OR UPDATE OR DELETE ON {table} "
-        "FOR EACH STATEMENT EXECUTE FUNCTION toaster_ungroup()" for table in _UNGROUP_ON]]
+        f"FOR EACH STATEMENT EXECUTE FUNCTION toaster_{table}_changed()")]
 
 
 def _sqlite_ungroup() -> list[str]:
     return [f"CREATE TRIGGER {table}_ungroup_{action} AFTER {action.upper()} ON {table} "
-            f"BEGIN {UNGROUP}; END"
-            for table in _UNGROUP_ON for action in ("insert", "update", "delete")]
+            f"BEGIN {sql}; END"
+            for table, sql in _UNGROUP_ON.items() for action in ("insert", "update", "delete")]
 
 
 # -- SQLite: a trigger per block ------------------------------------------------------------
 def _sqlite_enter(block: Block) -> str:
-    """The statement that runs ``block`` (its trigger fires on the inserted row)."""
+    """The statement that runs ``block`` (its trigger fires on the inserted row); the
+    pipeline's first moves the rules' clock and runs at its time (see pipeline.CLOCK)."""
     condition = sqltext.expand(block.condition or "1 = 1", "sqlite")
-    return (f"INSERT INTO belief_steps (block, self_id, t_ns, recorded_ns) SELECT "
-            f"'{block.name}', NEW.self_id, NEW.t_ns, NEW.recorded_ns WHERE {condition};")
+    t_ns = "NEW.t_ns"
+    clock = ""
+    if block is PIPELINE:
+        clock = f"{sqltext.expand(CLOCK, 'sqlite')} AND {condition};\n"
+        t_ns = CLOCK_NS
+    return (f"{clock}INSERT INTO belief_steps (block, self_id, t_ns, recorded_ns) SELECT "
+            f"'{block.name}', NEW.self_id, {t_ns}, NEW.recorded_ns WHERE {condition};")
 
 
 def _sqlite_block(block: Block) -> str:
@@ -165,7 +178,7 @@ def drop_ddl(backend: str) -> list[str]:
                 "DROP FUNCTION IF EXISTS toaster_belief_run()",
                 "DROP FUNCTION IF EXISTS toaster_fact_inbox()",
                 *[f"DROP TRIGGER IF EXISTS {t}_ungroup ON {t}" for t in _UNGROUP_ON],
-                "DROP FUNCTION IF EXISTS toaster_ungroup()"]
+                *[f"DROP FUNCTION IF EXISTS toaster_{t}_changed()" for t in _UNGROUP_ON]]
     return [f"DROP TRIGGER IF EXISTS {name}" for name in (
         "belief_runs_run", "fact_inbox_apply", *[f"belief_block_{b.name}" for b in blocks()],
         *[f"{t}_ungroup_{a}" for t in _UNGROUP_ON for a in ("insert", "update", "delete")])]

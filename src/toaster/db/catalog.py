@@ -14,10 +14,12 @@ import json
 from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import Connection, bindparam, delete, func, insert, select, text, update
+from sqlalchemy.exc import IntegrityError
 
 from toaster.db import schema as s
+from toaster.db.dialects import insert_with_conflicts
 from toaster.db.views import agent_view_names, create_agent_views, drop_agent_views
-from toaster.errors import InvalidInputError, UnknownEntityError
+from toaster.errors import InvalidInputError, ToasterError, UnknownEntityError
 from toaster.model import AGENT_KINDS, Agent, Entity, Fact, OntologyRow, PropertyRow, check_id
 from toaster.timeutil import now_ns
 
@@ -47,29 +49,55 @@ def upsert_entity(conn: Connection, entity_id: str, kind: str, name: str, owner_
             msg = f"invalid {what} {value!r} for entity {entity_id!r}: must be text"
             raise InvalidInputError(msg)
     stamp = now_ns() if t_ns is None else t_ns
-    exists = conn.execute(select(s.entities.c.id).where(s.entities.c.id == entity_id)).first()
     values = {"name": name or entity_id, "kind": kind, "owner_id": owner_id}
-    if exists:
-        conn.execute(update(s.entities).where(s.entities.c.id == entity_id).values(**values))
-    else:
-        conn.execute(insert(s.entities).values(id=entity_id, created_ns=stamp, **values))
+    # One statement whoever registers the same entity at the same time (another process
+    # waits for this transaction, then updates).
+    conn.execute(upsert(conn, s.entities, ["id"], values, created_ns=stamp, id=entity_id))
     wants_agent = agent if agent is not None else (kind in AGENT_KINDS or kind == "agent"
                                                    or bool(is_self))
     if wants_agent or is_self:
         register_agent(conn, entity_id, is_self=is_self, t_ns=stamp)
 
 
+def upsert(conn: Connection, table: Any, keys: list[str], values: dict[str, Any],
+           **insert_only: Any) -> Any:
+    """``INSERT ... ON CONFLICT (keys) DO UPDATE SET values`` in ``conn``'s dialect (both
+    backends spell it alike); ``insert_only`` columns are set by the insert alone."""
+    statement = insert_with_conflicts(conn.dialect.name)(table).values(**insert_only, **values)
+    return statement.on_conflict_do_update(index_elements=keys, set_=values)
+
+
+#: Attempts at an agent's number when other processes register agents at the same time.
+_REGISTER_ATTEMPTS = 20
+
+
 def register_agent(conn: Connection, agent_id: str, *, is_self: bool | None,
                    t_ns: int) -> None:
-    """Make an entity an agent (idempotent) and create its per-agent views."""
-    row = conn.execute(select(s.agents.c.num).where(s.agents.c.id == agent_id)).first()
-    if row is None:
+    """Make an entity an agent (idempotent, also against concurrent registrations) and
+    create its per-agent views.
+
+    The agent's number is the next free one; two processes taking the same number at once
+    (PostgreSQL) make the later one retry inside a savepoint, and a process registering an
+    agent another one just registered finds it registered.
+    """
+    for _ in range(_REGISTER_ATTEMPTS):
+        row = conn.execute(select(s.agents.c.num).where(s.agents.c.id == agent_id)).first()
+        if row is not None:
+            if is_self is not None:
+                conn.execute(update(s.agents).where(s.agents.c.id == agent_id)
+                             .values(is_self=is_self))
+            return
         num = conn.execute(select(func.coalesce(func.max(s.agents.c.num), 0))).scalar_one() + 1
-        conn.execute(insert(s.agents).values(id=agent_id, num=num, is_self=bool(is_self),
-                                             registered_ns=t_ns))
+        try:
+            with conn.begin_nested():
+                conn.execute(insert(s.agents).values(id=agent_id, num=num,
+                                                     is_self=bool(is_self), registered_ns=t_ns))
+        except IntegrityError:
+            continue  # another process took the number or the agent: look again
         create_agent_views(conn, agent_id, num)
-    elif is_self is not None:
-        conn.execute(update(s.agents).where(s.agents.c.id == agent_id).values(is_self=is_self))
+        return
+    msg = f"could not register agent {agent_id!r}: too many concurrent registrations, retry"
+    raise ToasterError(msg)
 
 
 def nested_holders_of(conn: Connection, agent_id: str) -> list[str]:
@@ -130,6 +158,8 @@ def empty_facts(conn: Connection, agent_id: str | None) -> None:
     if agent_id is None:
         for table in (s.events, s.fact_samples, s.facts, s.fact_keys):
             conn.execute(delete(table))
+        # No belief run happened yet: the rules' clock starts again (a replay from 0).
+        conn.execute(update(s.store_state).values(beliefs_ns=None))
         return
     keys = select(s.fact_keys.c.id).where(s.fact_keys.c.agent_id == agent_id)
     conn.execute(delete(s.events).where(s.events.c.agent_id == agent_id))
@@ -158,12 +188,8 @@ def upsert_ontology(conn: Connection, entity_class: str, individual: str,
     check_id(individual, "ontology individual")
     flag = _as_bool(instantiated, "instantiated flag")
     table = s.ontology
-    where = (table.c.entity_class == entity_class, table.c.individual == individual)
-    if conn.execute(select(table.c.individual).where(*where)).first():
-        conn.execute(update(table).where(*where).values(instantiated=flag))
-    else:
-        conn.execute(insert(table).values(entity_class=entity_class, individual=individual,
-                                          instantiated=flag))
+    conn.execute(upsert(conn, table, ["entity_class", "individual"], {"instantiated": flag},
+                        entity_class=entity_class, individual=individual))
 
 
 def delete_ontology(conn: Connection, entity_class: str, individual: str | None) -> int:
@@ -183,12 +209,9 @@ def upsert_property(conn: Connection, entity_id: str, key: str, value: object) -
                "give text or a number")
         raise InvalidInputError(msg)
     table = s.properties
-    where = (table.c.entity_id == entity_id, table.c.key == key)
     stored = str(value).lower() if isinstance(value, bool) else str(value)
-    if conn.execute(select(table.c.key).where(*where)).first():
-        conn.execute(update(table).where(*where).values(value=stored))
-    else:
-        conn.execute(insert(table).values(entity_id=entity_id, key=key, value=stored))
+    conn.execute(upsert(conn, table, ["entity_id", "key"], {"value": stored},
+                        entity_id=entity_id, key=key))
 
 
 def delete_property(conn: Connection, entity_id: str, key: str | None) -> int:
@@ -207,9 +230,8 @@ def put_area(conn: Connection, area_id: str, spec: dict[str, Any], owner_id: str
     except (TypeError, ValueError) as exc:
         msg = f"invalid spec for area {area_id!r}: {exc}"
         raise InvalidInputError(msg) from None
-    conn.execute(delete(s.areas).where(s.areas.c.id == area_id))
-    conn.execute(insert(s.areas).values(id=area_id, owner_id=owner_id or "", spec_json=body,
-                                        updated_ns=now_ns()))
+    conn.execute(upsert(conn, s.areas, ["id"], {"owner_id": owner_id or "", "spec_json": body,
+                                                 "updated_ns": now_ns()}, id=area_id))
     bump_control(conn)
 
 
@@ -245,8 +267,8 @@ def put_setting(conn: Connection, scope: str, key: str, value: object) -> None:
         msg = f"invalid value for setting {scope}.{key}: {exc}"
         raise InvalidInputError(msg) from None
     table = s.settings
-    conn.execute(delete(table).where(table.c.scope == scope, table.c.key == key))
-    conn.execute(insert(table).values(scope=scope, key=key, value_json=body))
+    conn.execute(upsert(conn, table, ["scope", "key"], {"value_json": body},
+                        scope=scope, key=key))
 
 
 def delete_setting(conn: Connection, scope: str, key: str | None = None) -> int:

@@ -259,6 +259,11 @@ store_state = Table(
     Column("holders_basis", Text, nullable=False, server_default=text("''")),
     # The self agent the groups of holders were formed for; NULL: none hold (revision 0011).
     Column("groups_for", Text, nullable=True),
+    # The time of the last belief run: runs never go back in time, whatever the clocks of the
+    # producers that start them; PostgreSQL: its row lock serializes the runs (0012).
+    Column("beliefs_ns", BigInteger, nullable=True),
+    # Bumped by any write to ``agents`` (trigger): stores re-read their agents (0012).
+    Column("agents_version", BigInteger, nullable=False, server_default=text("0")),
     CheckConstraint("id = 1", name="single_row"),
 )
 

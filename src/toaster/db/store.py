@@ -21,12 +21,14 @@ world state re-asserts itself as in the original's EMPTY. Belief rules registere
 
 from __future__ import annotations
 
+import random
+import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, TypeAlias
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, TypeAlias, TypeVar
 
 from sqlalchemy import Connection, text
 from sqlalchemy.exc import IntegrityError
@@ -35,7 +37,12 @@ from toaster.db import catalog, tolerance
 from toaster.db.batchdiff import BatchState, FactArrays, Snapshot, key_of
 from toaster.db.dialects import Key
 from toaster.db.tolerance import Tolerance
-from toaster.errors import InvalidInputError, TimeOrderError, UnknownAgentError
+from toaster.errors import (
+    ConcurrentWriteError,
+    InvalidInputError,
+    TimeOrderError,
+    UnknownAgentError,
+)
 from toaster.model import Fact, check_fact, check_id, fact_key
 from toaster.timeutil import format_ns, now_ns
 
@@ -44,6 +51,7 @@ if TYPE_CHECKING:
     from toaster.db.seed import BatchReport
 
 _KEY = key_of
+_T = TypeVar("_T")
 _NO_ACTORS: Mapping[int, str] = MappingProxyType({})
 
 #: Who made each change of a write, per fact: a function of the fact (None: the write's
@@ -124,6 +132,7 @@ class Store:
         self._agents: dict[str, bool] | None = None
         self._entities: set[str] = set()
         self._epoch: int | None = None
+        self._agents_version: int | None = None
         self._rules: list[Rule] = []
         self._tolerances: dict[str, Tolerance] | None = None
         self._pending: list[ChangeSet] | None = None  # changes whose rules wait (sync_many)
@@ -160,10 +169,16 @@ class Store:
         self._epoch = None
         self._tolerances = None
 
-    def _check_epoch(self, epoch: int) -> None:
+    def _check_epoch(self, versions: tuple[int, int]) -> None:
+        """Forget what another writer may have changed: everything when the cache epoch
+        moved, the agents when ``agents`` was written (registrations, self marks)."""
+        epoch, agents = versions
         if epoch != self._epoch:
             self.forget()
             self._epoch = epoch
+        if agents != self._agents_version:
+            self._agents = None
+            self._agents_version = agents
 
     def bump_epoch(self, conn: Connection) -> None:
         """Tell every store (this one included) to re-read what its sources hold."""
@@ -330,16 +345,36 @@ class Store:
             batch = facts
         else:
             given = list(facts)
-        for attempt in range(2):
+        def write(conn: Connection) -> SyncResult:
+            if batch is not None:
+                return self._sync_batch(conn, source, agent_id, t_ns, batch)
+            return self._sync(conn, source, agent_id, t_ns, given)
+
+        return self._retrying(write)
+
+    def _retrying(self, write: Callable[[Connection], _T]) -> _T:
+        """``write(conn)`` in one transaction. Outermost, a conflict with a concurrent writer
+        (a stale cache, a deadlock, a serialization failure, a unique key taken meanwhile)
+        rolls it back and runs it again with fresh caches, a few times; inside a caller's
+        transaction a stale cache is re-read once (the caller's retry covers the rest)."""
+        if self._in_tx:
+            try:
+                return write(self.db.connection)
+            except _StaleCache:
+                self.forget()  # inside a caller's transaction nothing else forgets
+                return write(self.db.connection)
+        for attempt in range(1, _ATTEMPTS + 1):
             try:
                 with self.transaction() as conn:
-                    if batch is not None:
-                        return self._sync_batch(conn, source, agent_id, t_ns, batch)
-                    return self._sync(conn, source, agent_id, t_ns, given)
-            except _StaleCache:
-                if attempt:
+                    return write(conn)
+            except Exception as exc:
+                if not _is_conflict(exc):
                     raise
-                self.forget()  # inside a caller's transaction nothing else forgets
+                if attempt == _ATTEMPTS:
+                    msg = (f"write abandoned after {_ATTEMPTS} conflicts with concurrent "
+                           f"writers ({_one_line(exc)}): retry it")
+                    raise ConcurrentWriteError(msg) from exc
+                time.sleep(random.uniform(0, min(0.2, 0.005 * 2 ** attempt)))
         msg = "unreachable"
         raise AssertionError(msg)
 
@@ -360,6 +395,8 @@ class Store:
                 state.facts[key] = fact
                 self._key_ids[(agent_id, key)] = row[0]
                 state.last_t = max(state.last_t, row[12])
+            if self._clocked(agent_id):  # stored times may be the clock's, ahead of the source's
+                state.last_t = -(2**63)
             self._sources[(source, agent_id)] = state
         return state
 
@@ -419,7 +456,7 @@ class Store:
         key_ids = self._key_ids
         old = state.facts
         # Events in order: ended, changed, appeared.
-        writes = _Writes(agent_id, source, t_ns, self._actor, self._actor_of)
+        writes = self._writes(conn, agent_id, source, t_ns)
         for key, fact in gone:
             writes.end(key_ids[(agent_id, key)], fact)
         if touched and trust_cache and self.agents().get(agent_id):
@@ -496,10 +533,20 @@ class Store:
             self._detach(conn, agent_id, keep=True)
         created = self._key_id_map(conn, agent_id, items)
         known = [self._key_ids[(agent_id, key)] for key, _ in items if key not in created]
-        open_rows = self.backend.open_rows(self.db.cursor(), known) if known else {}
+        cur = self.db.cursor()
+        open_rows = self.backend.open_rows(cur, known) if known else {}
+        reopened = [k for k in known if k not in open_rows]
+        ends = self.backend.last_ends(cur, reopened) if reopened else {}
+        t_ns = writes.t_ns
         for key, fact in items:
             key_id = self._key_ids[(agent_id, key)]
             row = open_rows.get(key_id)
+            last = row[5] if row is not None else ends.get(key_id)
+            if last is not None and last > t_ns:
+                msg = (f"{fact.subject_id} {fact.property} {fact.target_id}".rstrip()
+                       + f" for {agent_id!r} at {format_ns(t_ns)} is older than its last "
+                       f"change ({format_ns(last)}): write each fact in time order")
+                raise TimeOrderError(msg)
             if row is None:
                 writes.appear(key_id, fact)
             else:
@@ -542,6 +589,30 @@ class Store:
             else:
                 self._run_rules(conn, changes)
 
+    def _clocked(self, agent_id: str) -> bool:
+        """Writes follow the rules' clock (see :meth:`_writes`) when rules run and somebody
+        holds beliefs; ``agent_id`` is a self agent, or an agent written directly (told,
+        asserted), whose rows the rules also write."""
+        agents = self.agents()
+        return bool(self._rules) and agent_id in agents and not all(agents.values())
+
+    def _writes(self, conn: Connection, agent_id: str, source: str, t_ns: int) -> _Writes:
+        """The rows of one write of ``agent_id`` at ``t_ns``. When rules run, writes are
+        never older than the rules' clock (``store_state.beliefs_ns``, the last belief run's
+        time): the write of a robot or producer whose clock lags another's happens 1 ns after
+        the clock's time, so that the holders' rows and the self rows they follow share one
+        timeline, and a late write never shares the instant of the run before it (a holder
+        would start and stop following a key at one time). Writes at the clock's very time
+        (one tool writing several things at one time) keep it. On PostgreSQL reading the clock locks it: such writes run one at a time
+        (their belief runs would anyway)."""
+        if self._clocked(agent_id):
+            last = conn.execute(text(
+                "UPDATE store_state SET beliefs_ns = beliefs_ns WHERE id = 1 "
+                "RETURNING beliefs_ns")).scalar()
+            if last is not None and last > t_ns:
+                t_ns = last + 1
+        return _Writes(agent_id, source, t_ns, self._actor, self._actor_of)
+
     def _run_rules(self, conn: Connection, changes: ChangeSet) -> None:
         for rule in self._rules:
             rule(conn, changes)
@@ -553,16 +624,21 @@ class Store:
         transaction, the rules running once over all their changes (a producer tick).
         ``actor`` and ``actors`` (per fact) name who made the changes, as for
         :meth:`sync_snapshot`."""
-        with self.acting(actor, actors), self.transaction() as conn:
+        given = list(snapshots)
+
+        def write(conn: Connection) -> list[SyncResult]:
             self._pending = []
             try:
                 results = [self.sync_snapshot(source, agent_id, t_ns, facts)
-                           for source, facts in snapshots]
+                           for source, facts in given]
                 for changes in _merged(self._pending):
                     self._run_rules(conn, changes)
             finally:
                 self._pending = None
-        return results
+            return results
+
+        with self.acting(actor, actors):
+            return self._retrying(write)
 
     # ------------------------------------------------------------------ single writes
     def assert_fact(self, agent_id: str, fact: Fact, *, t_ns: int | None = None,
@@ -581,7 +657,7 @@ class Store:
             if strict:
                 catalog.check_entities(conn, [fact.subject_id, fact.target_id])
             key = fact_key(fact)
-            writes = _Writes(agent_id, source, t_ns, self._actor, self._actor_of)
+            writes = self._writes(conn, agent_id, source, t_ns)
             self._resolve(conn, agent_id, [(key, fact)], writes)
             self._apply(conn, writes)
             self.bump_epoch(conn)
@@ -607,7 +683,7 @@ class Store:
             if not self.agents().get(agent_id):
                 self._detach(conn, agent_id, keep=True)
             rows = catalog.open_facts_matching(conn, agent_id, property, filters)
-            writes = _Writes(agent_id, source, t_ns, self._actor, self._actor_of)
+            writes = self._writes(conn, agent_id, source, t_ns)
             for key_id, fact, valid_from in rows:
                 if valid_from > t_ns:
                     msg = (f"cannot end {fact.subject_id} {fact.property} {fact.target_id} at "
@@ -809,6 +885,26 @@ def _by_key(actors: Mapping[Key, str]) -> Callable[[Fact], str | None]:
     """The per-fact actor function of a mapping fact key -> actor."""
     get = actors.get
     return lambda fact: get(_KEY(fact))
+
+
+#: Attempts of a write that conflicts with concurrent writers (see Store._retrying).
+_ATTEMPTS = 8
+#: SQLSTATEs of conflicts that a new attempt resolves: serialization failure, deadlock,
+#: unique violation (a key another writer inserted meanwhile).
+_CONFLICTS = {"40001", "40P01", "23505"}
+
+
+def _is_conflict(exc: BaseException) -> bool:
+    if isinstance(exc, _StaleCache):
+        return True
+    orig = getattr(exc, "orig", exc)
+    return getattr(orig, "sqlstate", None) in _CONFLICTS
+
+
+def _one_line(exc: BaseException) -> str:
+    inner = getattr(exc, "orig", None) or exc
+    lines = str(inner).strip().splitlines()
+    return lines[0] if lines else type(inner).__name__
 
 
 def _is_integrity_error(exc: Exception) -> bool:

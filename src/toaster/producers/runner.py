@@ -117,19 +117,11 @@ class Runner:
     def _write(self, t_ns: int, out: dict[str, list[Fact] | FactBatch]) -> None:
         """All producers' snapshots in one transaction (one commit per tick, the belief rules
         run once over all of them); fact batches go to the store as they are (diffed as arrays
-        there).
-
-        If that fails (the store's caches went stale under a concurrent writer, …) it has been
-        rolled back and the store has forgotten its caches: write again one snapshot per
-        transaction, as ``sync_snapshot`` alone does, so that its own retry applies.
-        """
+        there). A tick is all or nothing: the store retries it whole when it conflicts with
+        a concurrent writer."""
         store, agent = self.store, self.agent_id
         actors = self.hands.actor_of(store.agents()) if self.hands.movers else None
-        try:
-            store.sync_many(agent, t_ns, list(out.items()), actors=actors)
-        except Exception:
-            for name, facts in out.items():
-                store.sync_snapshot(name, agent, t_ns, facts, actors=actors)
+        store.sync_many(agent, t_ns, list(out.items()), actors=actors)
 
     def _add(self, name: str, seconds: float) -> None:
         self.stats.seconds[name] = self.stats.seconds.get(name, 0.0) + seconds

@@ -21,6 +21,8 @@ SELECT RAISE(ABORT, 'fact_inbox: confidence and observability must be between 0 
 WHERE NOT (NEW.confidence BETWEEN 0 AND 1 AND NEW.observability BETWEEN 0 AND 1);
 SELECT RAISE(ABORT, 'fact_inbox: a fact to retract started after t_ns: retract it at or after its start')
 WHERE NEW.action = 'retract' AND EXISTS (SELECT 1 FROM {{inbox_match}} AND f.valid_from_ns > NEW.t_ns);
+SELECT RAISE(ABORT, 'fact_inbox: the fact already changed after t_ns (its last interval starts or ends later): write each fact in time order')
+WHERE NEW.action = 'assert' AND {{inbox_later}};
 {{/sqlite}}
 {{#postgresql}}
 IF NEW.action IS NULL OR NEW.action NOT IN ('assert', 'retract', 'event') THEN
@@ -43,6 +45,9 @@ IF NOT (NEW.confidence BETWEEN 0 AND 1 AND NEW.observability BETWEEN 0 AND 1) TH
 END IF;
 IF NEW.action = 'retract' AND EXISTS (SELECT 1 FROM {{inbox_match}} AND f.valid_from_ns > NEW.t_ns) THEN
   RAISE EXCEPTION 'fact_inbox: a % fact to retract started after t_ns %: retract it at or after its start', NEW.property, NEW.t_ns;
+END IF;
+IF NEW.action = 'assert' AND {{inbox_later}} THEN
+  RAISE EXCEPTION 'fact_inbox: the % fact already changed after t_ns % (its last interval starts or ends later): write each fact in time order', NEW.property, NEW.t_ns;
 END IF;
 {{/postgresql}}
 -- A write to an agent that is not self first turns the rows it shares with the self into its

@@ -51,10 +51,14 @@ class Backend(Protocol):
 
     def open_rows(self, cur: Any, key_ids: list[int]) -> dict[int, tuple[Any, ...]]:
         """Open intervals of these keys: key_id -> (value_text, value_num, confidence,
-        observability, source)."""
+        observability, source, valid_from_ns)."""
+
+    def last_ends(self, cur: Any, key_ids: list[int]) -> dict[int, int]:
+        """key_id -> the end of its last interval, for the keys whose last one is closed."""
 
     def close_intervals(self, cur: Any, t_ns: int, key_ids: list[int]) -> set[int]:
-        """Close the open interval of each key at ``t_ns``; return the keys that had one."""
+        """Close the open interval of each key at ``t_ns`` (one that started after ``t_ns``
+        stays open: a later write opened it); return the keys closed."""
 
     def refresh_intervals(self, cur: Any, t_ns: int, rows: list[tuple[Any, ...]]) -> int:
         """``(value_num, confidence, observability, key_id)``: refresh open intervals in
@@ -78,15 +82,28 @@ class Backend(Protocol):
     def set_read_only(self, cur: Any) -> None:
         """Make the current transaction read-only, enforced by the database."""
 
-    def begin_writes(self, cur: Any) -> int:
+    def begin_writes(self, cur: Any) -> tuple[int, int]:
         """Open a store write: take the rules' writer role (the guard triggers of the
-        internal tables let this transaction through) and return ``store_state.cache_epoch``."""
+        internal tables let this transaction through) and return ``store_state``'s
+        ``(cache_epoch, agents_version)``."""
 
     def end_writes(self, cur: Any) -> None:
         """Give the writer role back before the commit (see :data:`GUARD_MESSAGE`)."""
 
     def clear_read_only(self, cur: Any) -> None:
         """Undo :meth:`set_read_only` for a pooled connection."""
+
+
+def insert_with_conflicts(dialect_name: str) -> Any:
+    """SQLAlchemy's ``insert`` of the dialect, with ``on_conflict_do_update`` /
+    ``on_conflict_do_nothing`` (both backends spell the clause alike)."""
+    if dialect_name == "postgresql":
+        from sqlalchemy.dialects.postgresql import insert as postgresql_insert
+
+        return postgresql_insert
+    from sqlalchemy.dialects.sqlite import insert as sqlite_insert
+
+    return sqlite_insert
 
 
 def backend_for(dialect_name: str) -> Backend:

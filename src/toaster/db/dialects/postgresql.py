@@ -63,17 +63,25 @@ class PostgreSQLBackend:
 
     def open_rows(self, cur: Any, key_ids: list[int]) -> dict[int, tuple[Any, ...]]:
         cur.execute(
-            "SELECT key_id, value_text, value_num, confidence, observability, source FROM facts "
-            "WHERE key_id = ANY(%b::bigint[]) AND valid_to_ns IS NULL",
+            "SELECT key_id, value_text, value_num, confidence, observability, source, "
+            "valid_from_ns FROM facts WHERE key_id = ANY(%b::bigint[]) AND valid_to_ns IS NULL",
             [key_ids],
         )
         return {row[0]: tuple(row[1:]) for row in cur.fetchall()}
 
+    def last_ends(self, cur: Any, key_ids: list[int]) -> dict[int, int]:
+        cur.execute(
+            "SELECT k, (SELECT f.valid_to_ns FROM facts f WHERE f.key_id = k "
+            "ORDER BY f.valid_from_ns DESC LIMIT 1) FROM unnest(%b::bigint[]) AS k",
+            [key_ids],
+        )
+        return {row[0]: row[1] for row in cur.fetchall() if row[1] is not None}
+
     def close_intervals(self, cur: Any, t_ns: int, key_ids: list[int]) -> set[int]:
         cur.execute(
             "UPDATE facts SET valid_to_ns = %s WHERE key_id = ANY(%b::bigint[]) "
-            "AND valid_to_ns IS NULL RETURNING key_id",
-            [t_ns, key_ids],
+            "AND valid_to_ns IS NULL AND valid_from_ns <= %s RETURNING key_id",
+            [t_ns, key_ids, t_ns],
         )
         return {row[0] for row in cur.fetchall()}
 
@@ -126,11 +134,12 @@ class PostgreSQLBackend:
         finally:
             raw.autocommit = False
 
-    def begin_writes(self, cur: Any) -> int:
+    def begin_writes(self, cur: Any) -> tuple[int, int]:
         # A transaction-local setting: other sessions never see it; one round trip in all.
-        cur.execute("SELECT cache_epoch, set_config('toaster.writer', 'rules', true) "
-                    "FROM store_state WHERE id = 1")
-        return int(cur.fetchone()[0])
+        cur.execute("SELECT cache_epoch, agents_version, "
+                    "set_config('toaster.writer', 'rules', true) FROM store_state WHERE id = 1")
+        epoch, agents, _ = cur.fetchone()
+        return int(epoch), int(agents)
 
     def end_writes(self, cur: Any) -> None:
         """Nothing to do: the setting ends with the transaction."""

@@ -96,13 +96,25 @@ class SQLiteBackend:
         for chunk in _chunks(key_ids, _MAX_VARS):
             marks = ",".join("?" * len(chunk))
             cur.execute(
-                "SELECT key_id, value_text, value_num, confidence, observability, source "
-                f"FROM facts INDEXED BY uq_facts_open_key WHERE key_id IN ({marks}) "
+                "SELECT key_id, value_text, value_num, confidence, observability, source, "
+                f"valid_from_ns FROM facts INDEXED BY uq_facts_open_key WHERE key_id IN ({marks}) "
                 "AND valid_to_ns IS NULL",
                 chunk,
             )
             for row in cur.fetchall():
                 found[row[0]] = tuple(row[1:])
+        return found
+
+    def last_ends(self, cur: Any, key_ids: list[int]) -> dict[int, int]:
+        found: dict[int, int] = {}
+        for chunk in _chunks(key_ids, _MAX_VARS):
+            values = ",".join(["(?)"] * len(chunk))
+            cur.execute(
+                f"WITH k(id) AS (VALUES {values}) SELECT k.id, (SELECT f.valid_to_ns FROM facts "
+                "f WHERE f.key_id = k.id ORDER BY f.valid_from_ns DESC LIMIT 1) FROM k",
+                chunk,
+            )
+            found.update((row[0], row[1]) for row in cur.fetchall() if row[1] is not None)
         return found
 
     def close_intervals(self, cur: Any, t_ns: int, key_ids: list[int]) -> set[int]:
@@ -111,8 +123,9 @@ class SQLiteBackend:
             marks = ",".join("?" * len(chunk))
             cur.execute(
                 "UPDATE facts INDEXED BY uq_facts_open_key SET valid_to_ns = ? "
-                f"WHERE key_id IN ({marks}) AND valid_to_ns IS NULL RETURNING key_id",
-                [t_ns, *chunk],
+                f"WHERE key_id IN ({marks}) AND valid_to_ns IS NULL AND valid_from_ns <= ? "
+                "RETURNING key_id",
+                [t_ns, *chunk, t_ns],
             )
             closed.update(row[0] for row in cur.fetchall())
         return closed
@@ -161,11 +174,13 @@ class SQLiteBackend:
         cur.execute("PRAGMA wal_checkpoint(TRUNCATE)")  # the WAL back to zero bytes
         cur.close()
 
-    def begin_writes(self, cur: Any) -> int:
+    def begin_writes(self, cur: Any) -> tuple[int, int]:
         # One writer at a time in SQLite: a row in rule_writer, deleted before the commit,
         # is seen only by this transaction.
         cur.execute("INSERT OR IGNORE INTO rule_writer (id, holder) VALUES (1, 'store')")
-        return int(cur.execute("SELECT cache_epoch FROM store_state WHERE id = 1").fetchone()[0])
+        epoch, agents = cur.execute(
+            "SELECT cache_epoch, agents_version FROM store_state WHERE id = 1").fetchone()
+        return int(epoch), int(agents)
 
     def end_writes(self, cur: Any) -> None:
         cur.execute("DELETE FROM rule_writer")

@@ -1,0 +1,91 @@
+"""Several robots and producers write one database at once (issue 14, item 1).
+
+Writer processes (two robots, two producers each, the same people and things registered by
+all of them) and a reader run for a few seconds on a fresh database of each backend; then,
+checked in SQL: no failed tick or read, the temporal invariants (no overlapping intervals, at
+most one open interval per key, every boundary with its event and every event with its
+boundary, holders included), each writer's last snapshot stored, and each holder's current
+beliefs equal to its beliefs as of the last write.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+import sqlalchemy as sa
+
+import toaster
+from toaster import queries as q
+from toaster.beliefs import api
+from toaster.db.invariants import violations
+from toaster.model import Fact
+
+ROOT = Path(__file__).resolve().parents[2]
+ROLES = ("R1:rooms", "R1:things", "R2:rooms", "R2:things", "reader")
+SECONDS = 4.0
+
+
+def run_processes(url: str, roles: tuple[str, ...], seconds: float,
+                  tmp_path: Path) -> list[dict[str, Any]]:
+    """Start one process per role at once; their JSON reports."""
+    procs = []
+    for i, role in enumerate(roles):
+        out = tmp_path / f"writer{i}.json"
+        procs.append((out, subprocess.Popen(
+            [sys.executable, "-m", "tests.db.writers", url, role, str(seconds), str(i),
+             str(out)], cwd=ROOT, stderr=subprocess.PIPE, text=True)))
+    reports = []
+    for out, proc in procs:
+        _, err = proc.communicate(timeout=seconds + 120)
+        assert proc.returncode == 0, err[-2000:]
+        reports.append(json.loads(out.read_text()))
+    return reports
+
+
+def test_writers_of_several_robots_keep_every_invariant(db_url: str, tmp_path: Path) -> None:
+    reports = run_processes(db_url, ROLES, SECONDS, tmp_path)
+    failures = [f"{r['role']}: {f}" for r in reports for f in r["failures"]]
+    assert failures == []
+    assert all(r["ticks"] > 10 for r in reports), [(r["role"], r["ticks"]) for r in reports]
+    with toaster.connect(db_url) as db:
+        with db.transaction() as conn:
+            assert violations(conn) == []
+            last_write = conn.execute(sa.text("SELECT MAX(stamp_ns) FROM events")).scalar_one()
+        for report in reports:
+            if report["role"] == "reader":
+                continue
+            robot, source = report["role"].split(":")
+            stored = {(f.subject_id, f.property, f.target_id)
+                      for f in q.current_facts(db, robot) if f.source == source}
+            assert stored == {tuple(f[:3]) for f in map(Fact._make, report["last"])}
+        holders = [h for h in api.holders(db) if h not in ("R1", "R2")]
+        assert len(holders) >= 5
+        for holder in holders:
+            now = {(f.subject_id, f.property, f.target_id, f.value_text)
+                   for f in q.current_facts(db, holder)}
+            then = {(f.subject_id, f.property, f.target_id, f.value_text)
+                    for f in q.beliefs_at(db, holder, last_write + 1)}
+            assert now == then, holder
+
+
+@pytest.mark.parametrize("robots", [1, 2])
+def test_concurrent_registration_is_idempotent(db_url: str, robots: int,
+                                               tmp_path: Path) -> None:
+    """Processes registering the same agents at once all succeed: one agent each, numbered
+    once, with its views."""
+    roles = tuple(f"R{i % robots}:rooms" for i in range(4))
+    reports = run_processes(db_url, roles, 0.5, tmp_path)
+    assert [f for r in reports for f in r["failures"]] == []
+    with toaster.connect(db_url) as db:
+        agents = q.agents(db)
+        assert len({a.id for a in agents}) == len(agents) == robots + 5
+        with db.transaction() as conn:
+            nums = conn.execute(sa.text("SELECT num FROM agents")).scalars().all()
+        assert sorted(nums) == list(range(1, robots + 6))
+        views = set(sa.inspect(db.connection).get_view_names())
+        assert all(a.fact_view in views for a in agents)

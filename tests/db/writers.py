@@ -1,0 +1,157 @@
+"""One writer (or reader) process of the many-writers test and benchmark.
+
+``python -m tests.db.writers URL ROLE SECONDS SEED OUT.json`` from the project root (ROLE:
+``ROBOT:rooms``, ``ROBOT:things``, ``reader`` or ``run:ROBOT:SCENARIO:RATE:TICKS``). A writer
+is one producer of one robot: it registers the robot (a self agent), the people and the
+things (the same ids in every process, so registrations race), then writes a snapshot of its
+source every tick for SECONDS, stamped with the wall clock as a live node stamps its ticks:
+people walk between rooms (source ``rooms``), things move between containers (source
+``things``). A reader asks what readers ask (current beliefs, diff, as of).
+The JSON out: ticks, failures (one line each), tick latencies (s), last snapshot.
+"""
+
+from __future__ import annotations
+
+import json
+import random
+import sys
+import time
+from typing import Any
+
+import toaster
+from toaster.model import Fact
+
+PEOPLE = ("ANNE", "BOB", "CARL", "DORA", "EVE")
+ROOMS = ("KITCHEN", "HALL", "OFFICE")
+CONTAINERS = {"BASKET": "KITCHEN", "BOX": "HALL", "DRAWER": "OFFICE"}
+THINGS = ("MARBLE", "KEY", "CUP", "PEN")
+
+
+def register(db: toaster.Database, robot: str) -> None:
+    """The robot (self), people (agents), rooms, containers and things."""
+    store = db.store()
+    with store.transaction():
+        store.add_entity(robot, "robot", is_self=True, t_ns=0)
+        for person in PEOPLE:
+            store.add_entity(person, "human", t_ns=0)
+        for entity in (*ROOMS, *CONTAINERS, *THINGS):
+            store.add_entity(entity, "object", t_ns=0)
+
+
+def snapshot(source: str, state: dict[str, str]) -> list[Fact]:
+    """The facts of a source: where people are, or where things are."""
+    prop = "IsInRoom" if source == "rooms" else "IsIn"
+    facts = [Fact(who, prop, where) for who, where in sorted(state.items())]
+    if source == "rooms":
+        facts += [Fact(box, "IsInRoom", room) for box, room in CONTAINERS.items()]
+    return facts
+
+
+def write(url: str, role: str, seconds: float, seed: int) -> dict[str, Any]:
+    """``role`` is ``ROBOT:source``: tick until ``seconds`` have passed."""
+    robot, source = role.split(":")
+    rng = random.Random(seed)
+    failures: list[str] = []
+    latencies: list[float] = []
+    last: list[Fact] = []
+    with toaster.connect(url) as db:
+        for attempt in range(3):
+            try:
+                register(db, robot)
+                break
+            except Exception as exc:  # recorded: the test asserts there is none
+                failures.append(f"register {attempt}: {type(exc).__name__}: {exc}"[:300])
+        if source == "rooms":
+            state = {p: rng.choice(ROOMS) for p in PEOPLE}
+            choices: tuple[str, ...] = ROOMS
+        else:
+            state = {x: rng.choice(list(CONTAINERS)) for x in THINGS}
+            choices = tuple(CONTAINERS)
+        store = db.store()
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            t = time.time_ns()  # the robot's clock, as `toaster serve` stamps its ticks
+            who = rng.choice(sorted(state))
+            state[who] = rng.choice(choices)
+            facts = snapshot(source, state)
+            start = time.perf_counter()
+            try:
+                store.sync_many(robot, t, [(source, facts)])
+                last = facts
+            except Exception as exc:
+                failures.append(f"tick {t}: {type(exc).__name__}: {exc}"[:300])
+            latencies.append(time.perf_counter() - start)
+    return {"role": role, "ticks": len(latencies), "failures": failures,
+            "latencies": latencies, "last": [list(f) for f in last]}
+
+
+def read(url: str, seconds: float, seed: int) -> dict[str, Any]:
+    """Ask what readers ask until ``seconds`` have passed."""
+    from toaster import queries
+    from toaster.beliefs import api
+
+    rng = random.Random(seed)
+    failures: list[str] = []
+    latencies: list[float] = []
+    deadline = time.monotonic() + seconds
+    with toaster.connect(url) as db:
+        while time.monotonic() < deadline:
+            start = time.perf_counter()
+            try:
+                person = rng.choice(PEOPLE)
+                api.beliefs(db, person)
+                queries.current_facts(db, person, limit=50)
+                queries.events(db, limit=50)
+            except Exception as exc:
+                if "unknown agent" not in str(exc):  # not registered yet: a fair answer
+                    failures.append(f"read: {type(exc).__name__}: {exc}"[:300])
+            latencies.append(time.perf_counter() - start)
+            time.sleep(0.01)
+    return {"role": "reader", "ticks": len(latencies), "failures": failures,
+            "latencies": latencies, "last": []}
+
+
+def run(url: str, robot: str, path: str, rate: float, ticks: int) -> dict[str, Any]:
+    """``toaster run PATH --rate RATE`` as robot ``robot`` (the library path of the command:
+    load, register, tick) for at most ``ticks`` ticks, timing each tick."""
+    from toaster.producers import Runner, load_session
+
+    failures: list[str] = []
+    latencies: list[float] = []
+    with toaster.connect(url) as db:
+        store = db.store()
+        session = load_session(path, store.areas())
+        session.self_id = robot
+        runner = Runner(session.world, session.sources, session.producers, store=store,
+                        agent_id=robot, config=session.config)
+        try:
+            session.register(store)
+        except Exception as exc:
+            failures.append(f"register: {type(exc).__name__}: {exc}"[:300])
+        step = round(1e9 / rate)
+        for t in range(session.start_ns, session.end_ns + 1, step)[:ticks]:
+            start = time.perf_counter()
+            try:
+                runner.tick(t)
+            except Exception as exc:
+                failures.append(f"tick {t}: {type(exc).__name__}: {exc}"[:300])
+            latencies.append(time.perf_counter() - start)
+    return {"role": f"run:{robot}", "ticks": len(latencies), "failures": failures,
+            "latencies": latencies, "last": []}
+
+
+def main(argv: list[str]) -> None:
+    url, role, seconds, seed, out = argv
+    if role == "reader":
+        result = read(url, float(seconds), int(seed))
+    elif role.startswith("run:"):  # run:ROBOT:PATH:RATE:TICKS
+        _, robot, path, rate, ticks = role.split(":")
+        result = run(url, robot, path, float(rate), int(ticks))
+    else:
+        result = write(url, role, float(seconds), int(seed))
+    with open(out, "w", encoding="utf-8") as handle:
+        json.dump(result, handle)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
