@@ -106,9 +106,23 @@ def _postgresql() -> list[str]:
 _UNGROUP_ON = {"settings": UNGROUP, "agents": AGENTS_CHANGED}
 
 
+#: PostgreSQL: a transaction that registers thousands of agents bumps the version once (each
+#: update of the one store_state row in a transaction lengthens the row's version chain).
+_PG_ONCE = {"agents": (
+    "IF current_setting('toaster.agents_changed', true) IS DISTINCT FROM 'yes' "
+    "OR (SELECT groups_for FROM store_state WHERE id = 1) IS NOT NULL THEN",
+    "PERFORM set_config('toaster.agents_changed', 'yes', true);")}
+
+
 def _pg_ungroup() -> list[str]:
+    def body(table: str, sql: str) -> list[str]:
+        if table not in _PG_ONCE:
+            return [f"{sql};"]
+        condition, mark = _PG_ONCE[table]
+        return [condition, f"{sql};", mark, "END IF;"]
+
     return [statement for table, sql in _UNGROUP_ON.items() for statement in (
-        _pg_function(f"toaster_{table}_changed", [f"{sql};"]),
+        _pg_function(f"toaster_{table}_changed", body(table, sql)),
         f"CREATE TRIGGER {table}_ungroup AFTER INSERT OR UPDATE OR DELETE ON {table} "
         f"FOR EACH STATEMENT EXECUTE FUNCTION toaster_{table}_changed()")]
 

@@ -14,12 +14,11 @@ import json
 from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import Connection, bindparam, delete, func, insert, select, text, update
-from sqlalchemy.exc import IntegrityError
 
 from toaster.db import schema as s
-from toaster.db.dialects import insert_with_conflicts
+from toaster.db.dialects import backend_for, insert_with_conflicts
 from toaster.db.views import agent_view_names, create_agent_views, drop_agent_views
-from toaster.errors import InvalidInputError, ToasterError, UnknownEntityError
+from toaster.errors import InvalidInputError, UnknownEntityError
 from toaster.model import AGENT_KINDS, Agent, Entity, Fact, OntologyRow, PropertyRow, check_id
 from toaster.timeutil import now_ns
 
@@ -40,8 +39,10 @@ def normalise_kind(kind: object) -> str:
 
 
 def upsert_entity(conn: Connection, entity_id: str, kind: str, name: str, owner_id: str, *,
-                  is_self: bool | None, agent: bool | None, t_ns: int | None) -> None:
-    """Insert or update an entity; register it as an agent when it is one."""
+                  is_self: bool | None, agent: bool | None, t_ns: int | None,
+                  views: bool = True) -> None:
+    """Insert or update an entity; register it as an agent when it is one (with its
+    per-agent views unless ``views`` is false: see :func:`register_agent`)."""
     check_id(entity_id, "entity id")
     kind = normalise_kind(kind)
     for value, what in ((name, "name"), (owner_id, "owner id")):
@@ -56,7 +57,7 @@ def upsert_entity(conn: Connection, entity_id: str, kind: str, name: str, owner_
     wants_agent = agent if agent is not None else (kind in AGENT_KINDS or kind == "agent"
                                                    or bool(is_self))
     if wants_agent or is_self:
-        register_agent(conn, entity_id, is_self=is_self, t_ns=stamp)
+        register_agent(conn, entity_id, is_self=is_self, t_ns=stamp, views=views)
 
 
 def upsert(conn: Connection, table: Any, keys: list[str], values: dict[str, Any],
@@ -67,37 +68,50 @@ def upsert(conn: Connection, table: Any, keys: list[str], values: dict[str, Any]
     return statement.on_conflict_do_update(index_elements=keys, set_=values)
 
 
-#: Attempts at an agent's number when other processes register agents at the same time.
-_REGISTER_ATTEMPTS = 20
-
-
 def register_agent(conn: Connection, agent_id: str, *, is_self: bool | None,
-                   t_ns: int) -> None:
+                   t_ns: int, views: bool = True) -> None:
     """Make an entity an agent (idempotent, also against concurrent registrations) and
-    create its per-agent views.
+    create its per-agent views (``views``; a recording's thousands of people are registered
+    without them: each view is DDL, which grows the schema every later statement parses;
+    :func:`create_missing_views` makes them on demand).
 
-    The agent's number is the next free one; two processes taking the same number at once
-    (PostgreSQL) make the later one retry inside a savepoint, and a process registering an
-    agent another one just registered finds it registered.
+    The agent's number is the next free one, taken under the backend's registration lock
+    (PostgreSQL: an advisory lock held to the commit; SQLite has one writer), so processes
+    registering agents at once wait for each other instead of taking the same number.
     """
-    for _ in range(_REGISTER_ATTEMPTS):
-        row = conn.execute(select(s.agents.c.num).where(s.agents.c.id == agent_id)).first()
+    agents = s.agents.c
+    for attempt in (1, 2):
+        row = conn.execute(select(agents.num).where(agents.id == agent_id)).first()
         if row is not None:
             if is_self is not None:
-                conn.execute(update(s.agents).where(s.agents.c.id == agent_id)
+                conn.execute(update(s.agents).where(agents.id == agent_id)
                              .values(is_self=is_self))
             return
-        num = conn.execute(select(func.coalesce(func.max(s.agents.c.num), 0))).scalar_one() + 1
-        try:
-            with conn.begin_nested():
-                conn.execute(insert(s.agents).values(id=agent_id, num=num,
-                                                     is_self=bool(is_self), registered_ns=t_ns))
-        except IntegrityError:
-            continue  # another process took the number or the agent: look again
+        if attempt == 1:
+            backend_for(conn.dialect.name).lock_registrations(conn)
+    num = conn.execute(select(func.coalesce(func.max(agents.num), 0))).scalar_one() + 1
+    conn.execute(insert(s.agents).values(id=agent_id, num=num, is_self=bool(is_self),
+                                         registered_ns=t_ns))
+    if views:
         create_agent_views(conn, agent_id, num)
-        return
-    msg = f"could not register agent {agent_id!r}: too many concurrent registrations, retry"
-    raise ToasterError(msg)
+
+
+def create_missing_views(conn: Connection, agent_ids: list[str] | None = None) -> list[str]:
+    """Create the per-agent views that do not exist (of ``agent_ids``, default every agent);
+    return the agents that got them."""
+    from sqlalchemy import inspect
+
+    existing = set(inspect(conn).get_view_names())
+    query = select(s.agents.c.id, s.agents.c.num).order_by(s.agents.c.num)
+    if agent_ids is not None:
+        check_entities(conn, agent_ids)
+        query = query.where(s.agents.c.id.in_(agent_ids))
+    created = []
+    for agent_id, num in conn.execute(query).all():
+        if not set(agent_view_names(agent_id)) <= existing:
+            create_agent_views(conn, agent_id, num)
+            created.append(agent_id)
+    return created
 
 
 def nested_holders_of(conn: Connection, agent_id: str) -> list[str]:

@@ -275,14 +275,16 @@ class Store:
 
     def add_entity(self, entity_id: str, kind: str = "object", name: str = "", owner_id: str = "",
                    *, is_self: bool | None = None, agent: bool | None = None,
-                   t_ns: int | None = None) -> None:
+                   t_ns: int | None = None, views: bool = True) -> None:
         """Add or update an entity; humans and robots (or ``agent=True``) become agents.
 
-        ``is_self=True`` marks a robot whose perception is the world state.
+        ``is_self=True`` marks a robot whose perception is the world state. ``views=False``
+        registers an agent without its per-agent views (``fact_table_ID``...), as recordings
+        of crowds do (``toaster db views`` makes them later).
         """
         with self.transaction() as conn:
             catalog.upsert_entity(conn, entity_id, kind, name, owner_id,
-                                  is_self=is_self, agent=agent, t_ns=t_ns)
+                                  is_self=is_self, agent=agent, t_ns=t_ns, views=views)
             self._agents = None
             self._entities.add(entity_id)
 
@@ -603,8 +605,8 @@ class Store:
         the clock's time, so that the holders' rows and the self rows they follow share one
         timeline, and a late write never shares the instant of the run before it (a holder
         would start and stop following a key at one time). Writes at the clock's very time
-        (one tool writing several things at one time) keep it. On PostgreSQL reading the clock locks it: such writes run one at a time
-        (their belief runs would anyway)."""
+        (one tool writing several things at one time) keep it. On PostgreSQL reading the
+        clock locks it: such writes run one at a time (their belief runs would anyway)."""
         if self._clocked(agent_id):
             last = conn.execute(text(
                 "UPDATE store_state SET beliefs_ns = beliefs_ns WHERE id = 1 "

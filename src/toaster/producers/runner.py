@@ -170,6 +170,9 @@ class Session:
     config: dict[str, Any]
     #: which humans hold beliefs (become store agents): "none", "humans" or their ids
     belief_holders: str | tuple[str, ...] = "humans"
+    #: agents get their per-agent views when registered (scenarios); recordings, with
+    #: thousands of people, register theirs without (``toaster db views`` makes them)
+    agent_views: bool = True
 
     def frame(self, t_ns: int, *, with_areas: bool = False) -> tuple[Any, ...]:
         """A recording frame of the world now (:mod:`toaster.recording`): every entity the
@@ -212,20 +215,21 @@ class Session:
             store.add_entity(self.self_id, "robot", is_self=True, t_ns=start)
             for row, entity_id in enumerate(world.ids):
                 if entity_id != self.self_id:
-                    register_row(store, world, row, holders, start)
+                    register_row(store, world, row, holders, start, views=self.agent_views)
 
 
 def register_row(store: Any, world: World, row: int, holders: str | Sequence[str],
-                 t_ns: int) -> None:
+                 t_ns: int, *, views: bool = True) -> None:
     """Put a world row in the store as an entity (joints with their owner); a human becomes an
-    agent (a belief holder) only as ``holders`` ("none", "humans" or ids) says."""
+    agent (a belief holder) only as ``holders`` ("none", "humans" or ids) says, with its
+    per-agent views when ``views``."""
     entity_id, kind = world.ids[row], world.kind_text[row]
     owner = world.ids[world.owner[row]] if world.owner[row] >= 0 else ""
     agent = None
     if kind == "human":
         agent = holders == "humans" or (not isinstance(holders, str) and entity_id in holders)
     store.add_entity(entity_id, kind, name=world.names[row], owner_id=owner, agent=agent,
-                     t_ns=t_ns)
+                     t_ns=t_ns, views=views)
 
 
 def _belief_holders(value: Any, kinds: dict[str, str], name: str) -> str | tuple[str, ...]:
@@ -327,4 +331,4 @@ def load_session(path: str | Path, areas: dict[str, dict[str, Any]] | None = Non
     if config.get("spatial") or any(e.get("role") for e in entities):
         producers.append(SpatialFacts(config))
     return Session(world, [source], producers, all_areas, self_id or DEFAULT_SELF, start, end,
-                   rate, config, belief_holders)
+                   rate, config, belief_holders, agent_views=isinstance(source, ScenarioSource))

@@ -93,6 +93,10 @@ class Backend(Protocol):
     def clear_read_only(self, cur: Any) -> None:
         """Undo :meth:`set_read_only` for a pooled connection."""
 
+    def lock_registrations(self, conn: Any) -> None:
+        """Hold, until the transaction ends, the lock under which agents are numbered (a
+        no-op where writers already take turns)."""
+
 
 def insert_with_conflicts(dialect_name: str) -> Any:
     """SQLAlchemy's ``insert`` of the dialect, with ``on_conflict_do_update`` /

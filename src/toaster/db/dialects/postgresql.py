@@ -149,3 +149,7 @@ class PostgreSQLBackend:
 
     def clear_read_only(self, cur: Any) -> None:
         """Nothing to undo: the setting ends with the transaction."""
+
+    def lock_registrations(self, conn: Any) -> None:
+        conn.exec_driver_sql(
+            "SELECT pg_advisory_xact_lock(hashtext('toaster agents ' || current_schema()))")

@@ -190,3 +190,6 @@ class SQLiteBackend:
 
     def clear_read_only(self, cur: Any) -> None:
         cur.execute("PRAGMA query_only = OFF")
+
+    def lock_registrations(self, conn: Any) -> None:
+        """Nothing to take: a SQLite writer holds the database's one write lock."""
