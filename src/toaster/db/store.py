@@ -288,6 +288,15 @@ class Store:
             self._agents = None
             self._entities.add(entity_id)
 
+    def add_entities(self, rows: Iterable[tuple[str, str, str, str, bool | None]], *,
+                     t_ns: int | None = None, views: bool = True) -> None:
+        """:meth:`add_entity` of many ``(id, kind, name, owner_id, agent)`` rows (none of them
+        self) in a few statements (a recording's people)."""
+        with self.transaction() as conn:
+            catalog.upsert_entities(conn, list(rows), t_ns=now_ns() if t_ns is None else t_ns,
+                                    views=views)
+            self._agents = None
+
     def remove_entity(self, entity_id: str) -> None:
         """Remove an entity (an agent loses its beliefs, views and events too)."""
         with self.transaction() as conn:

@@ -213,23 +213,30 @@ class Session:
             for area_id, spec in self.areas.items():
                 store.put_area(area_id, spec, spec.get("owner", ""))
             store.add_entity(self.self_id, "robot", is_self=True, t_ns=start)
-            for row, entity_id in enumerate(world.ids):
-                if entity_id != self.self_id:
-                    register_row(store, world, row, holders, start, views=self.agent_views)
+            store.add_entities([entity_row(world, row, holders)
+                                for row, entity_id in enumerate(world.ids)
+                                if entity_id != self.self_id], t_ns=start,
+                               views=self.agent_views)
 
 
-def register_row(store: Any, world: World, row: int, holders: str | Sequence[str],
-                 t_ns: int, *, views: bool = True) -> None:
-    """Put a world row in the store as an entity (joints with their owner); a human becomes an
-    agent (a belief holder) only as ``holders`` ("none", "humans" or ids) says, with its
-    per-agent views when ``views``."""
+def entity_row(world: World, row: int, holders: str | Sequence[str]
+               ) -> tuple[str, str, str, str, bool | None]:
+    """A world row as the store's ``(id, kind, name, owner_id, agent)`` (joints with their
+    owner); a human is an agent (a belief holder) only as ``holders`` ("none", "humans" or
+    ids) says."""
     entity_id, kind = world.ids[row], world.kind_text[row]
     owner = world.ids[world.owner[row]] if world.owner[row] >= 0 else ""
     agent = None
     if kind == "human":
         agent = holders == "humans" or (not isinstance(holders, str) and entity_id in holders)
-    store.add_entity(entity_id, kind, name=world.names[row], owner_id=owner, agent=agent,
-                     t_ns=t_ns, views=views)
+    return entity_id, kind, world.names[row], owner, agent
+
+
+def register_row(store: Any, world: World, row: int, holders: str | Sequence[str],
+                 t_ns: int) -> None:
+    """Put a world row in the store as an entity (see :func:`entity_row`)."""
+    entity_id, kind, name, owner, agent = entity_row(world, row, holders)
+    store.add_entity(entity_id, kind, name=name, owner_id=owner, agent=agent, t_ns=t_ns)
 
 
 def _belief_holders(value: Any, kinds: dict[str, str], name: str) -> str | tuple[str, ...]:
