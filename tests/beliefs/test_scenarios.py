@@ -12,6 +12,7 @@ import toaster.queries as q
 from toaster.beliefs import api, scenario
 from toaster.db import migrate
 from toaster.db.engine import make_engine
+from toaster.db.invariants import violations
 from toaster.errors import FileFormatError, InvalidInputError
 
 EXAMPLES = sorted(p.name for p in (resources.files("toaster") / "examples").iterdir()
@@ -23,6 +24,8 @@ def test_example_scenarios_meet_their_expectations(db: toaster.Database, name: s
     sc = scenario.replay(db, resources.files("toaster") / "examples" / name)
     assert sc.expect, "every shipped scenario states what it demonstrates"
     assert scenario.check(db, sc) == []
+    with db.transaction() as conn:  # every holder's timeline keeps the temporal invariants
+        assert violations(conn) == []
 
 
 def test_sally_anne_false_belief_report_and_history(db: toaster.Database) -> None:

@@ -25,6 +25,8 @@ from tests.conftest import PG_URL, require_postgres
 from toaster.beliefs import api
 from toaster.db import migrate
 from toaster.db.engine import make_engine
+from toaster.db.invariants import violations
+from toaster.errors import TimeOrderError
 
 HUMANS = ("SALLY", "ANNE", "BOB")
 ROOMS = ("KITCHEN", "HALL")
@@ -237,3 +239,29 @@ def test_retract_and_events_through_the_inbox(db: toaster.Database) -> None:
     assert kinds == ["appeared", "ended"]
     with db.transaction() as conn:
         assert conn.execute(sa.text("SELECT count(*) FROM fact_inbox")).scalar_one() == 0
+
+
+def test_a_write_inside_a_closed_interval_is_refused(db: toaster.Database) -> None:
+    """Asserting a fact at a time its last interval already covers (it ended later) would
+    overlap that interval: refused, by the inbox as by the store, and nothing is written."""
+    _setup(db)
+    store = db.store()
+    cup = toaster.Fact("CUP", "IsOn", "TABLE")
+    store.assert_fact("ROBOT", cup, t_ns=1, strict=False)
+    store.retract_facts("ROBOT", "IsOn", "CUP", t_ns=10)
+    before = snapshot(db.url)
+    with pytest.raises(TimeOrderError, match="is older than"):
+        store.assert_fact("ROBOT", cup, t_ns=5, strict=False)
+    engine = make_engine(db.url)
+    try:
+        with pytest.raises(sa.exc.DBAPIError) as info, engine.begin() as conn:
+            conn.execute(sa.text(
+                "INSERT INTO fact_inbox (action, agent_id, subject_id, property, target_id, "
+                "t_ns) VALUES ('assert', 'ROBOT', 'CUP', 'IsOn', 'TABLE', 5)"))
+    finally:
+        engine.dispose()
+    assert "write each fact in time order" in str(info.value.orig).splitlines()[0]
+    assert snapshot(db.url) == before
+    store.assert_fact("ROBOT", cup, t_ns=10, strict=False)  # from its end on: fine
+    with db.transaction() as conn:
+        assert violations(conn) == []

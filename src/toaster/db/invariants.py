@@ -4,8 +4,8 @@ For every key of every holder (its own intervals and the self's intervals it fol
 ``fact_history`` view shows them): no two intervals overlap, at most one is open, and each
 boundary has its event in ``event_log`` (``appeared`` where an interval starts after none or
 after a gap, ``changed`` where it follows one of another value, ``ended`` where one ends with
-none after it; two adjacent intervals of one value are one belief, with no event), and every
-such event has its boundary. Each check is one query; a violation is one line.
+none after it; where one continues another of the same value, no event or an ``ended`` and an
+``appeared``), and every such event has its boundary. Each check is one query; a violation is one line.
 """
 
 from __future__ import annotations
@@ -49,7 +49,19 @@ SELECT key_id, 'ended', valid_to_ns FROM ({_ORDERED}) o
 WHERE valid_to_ns IS NOT NULL AND (next_from IS NULL OR next_from <> valid_to_ns)
 """
 
-_ACTUAL = "SELECT key_id, kind, stamp_ns FROM event_log WHERE kind <> 'event'"
+#: Where one interval continues another of the same value: either no event (a holder's own
+#: interval handed over to a followed one) or an ``ended`` and an ``appeared`` (a fact
+#: retracted and asserted again at one time); those events are left out of the comparison.
+_MERGES = f"""
+SELECT key_id, valid_from_ns AS stamp_ns FROM ({_ORDERED}) o
+WHERE prev_to IS NOT NULL AND prev_to = valid_from_ns AND prev_value = value_text
+"""
+
+_ACTUAL = f"""
+SELECT e.key_id, e.kind, e.stamp_ns FROM event_log e
+WHERE e.kind <> 'event' AND NOT (e.kind IN ('ended', 'appeared') AND EXISTS (
+    SELECT 1 FROM ({_MERGES}) m WHERE m.key_id = e.key_id AND m.stamp_ns = e.stamp_ns))
+"""
 
 #: Boundaries and events counted per (key, kind, stamp): each side's rows the other lacks.
 _COUNTED = ("SELECT key_id, kind, stamp_ns, COUNT(*) AS n FROM ({rows}) r "

@@ -467,7 +467,7 @@ class Store:
         key_ids = self._key_ids
         old = state.facts
         # Events in order: ended, changed, appeared.
-        writes = self._writes(conn, agent_id, source, t_ns)
+        writes = self._writes(conn, agent_id, source, t_ns, snapshot=True)
         for key, fact in gone:
             writes.end(key_ids[(agent_id, key)], fact)
         if touched and trust_cache and self.agents().get(agent_id):
@@ -607,20 +607,26 @@ class Store:
         agents = self.agents()
         return bool(self._rules) and agent_id in agents and not all(agents.values())
 
-    def _writes(self, conn: Connection, agent_id: str, source: str, t_ns: int) -> _Writes:
+    def _writes(self, conn: Connection, agent_id: str, source: str, t_ns: int, *,
+                snapshot: bool = False) -> _Writes:
         """The rows of one write of ``agent_id`` at ``t_ns``. When rules run, writes are
         never older than the rules' clock (``store_state.beliefs_ns``, the last belief run's
-        time): the write of a robot or producer whose clock lags another's happens 1 ns after
-        the clock's time, so that the holders' rows and the self rows they follow share one
-        timeline, and a late write never shares the instant of the run before it (a holder
-        would start and stop following a key at one time). Writes at the clock's very time
-        (one tool writing several things at one time) keep it. On PostgreSQL reading the
-        clock locks it: such writes run one at a time (their belief runs would anyway)."""
+        time), so that the holders' rows and the self rows they follow share one timeline.
+        A ``snapshot`` of a robot or producer whose clock lags another's happens 1 ns after
+        the clock's time (a late write never shares the instant of the run before it: a
+        holder would start and stop following a key at one time); a single write (assert,
+        retract, tell) older than the clock is refused. Writes at the clock's very time (one
+        tool writing several things at one time) keep it. On PostgreSQL reading the clock
+        locks it: such writes run one at a time (their belief runs would anyway)."""
         if self._clocked(agent_id):
             last = conn.execute(text(
                 "UPDATE store_state SET beliefs_ns = beliefs_ns WHERE id = 1 "
                 "RETURNING beliefs_ns")).scalar()
             if last is not None and last > t_ns:
+                if not snapshot:
+                    msg = (f"write for {agent_id!r} at {format_ns(t_ns)} is older than the "
+                           f"beliefs already kept ({format_ns(last)}): write in time order")
+                    raise TimeOrderError(msg)
                 t_ns = last + 1
         return _Writes(agent_id, source, t_ns, self._actor, self._actor_of)
 

@@ -1,0 +1,113 @@
+"""Tick latency against the number of writers sharing one PostgreSQL database.
+
+Each writer is one robot running ``toaster run`` on the spatial Sally-Anne scenario at 30 Hz
+(the library path of the command, tests/db/writers.py ``run:`` role: load, register, tick)
+for ``--ticks`` ticks, all started at once: several robots in one world, the same people and
+things registered by all of them, every robot's ticks running the belief rules. "shared" puts
+every writer on one database (one schema); "own" is the baseline measured in the same run:
+the same number of processes, each on its own schema, so that what the machine's CPUs cost is
+told apart from what sharing the database costs. The table gives, per case, the median over
+``--repeats`` runs of the tick latency's p50 and p99 (all writers' ticks together, the first
+tick of each left out), the wall time, and the failed ticks (there must be none).
+Usage: python benchmarks/bench_writers.py [--writers 1,2,4,8] [--ticks 150] [--repeats 3]
+       [--pg URL]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+import uuid
+from importlib import resources
+from pathlib import Path
+
+import sqlalchemy as sa
+
+from toaster.db import migrate
+from toaster.db.engine import make_engine
+
+PG = "postgresql://postgres@127.0.0.1:5432/test"
+ROOT = Path(__file__).resolve().parents[1]
+SCENARIO = str(resources.files("toaster") / "examples" / "scenario_spatial_sally_anne.yaml")
+
+
+def _schema(url: str) -> str:
+    name = f"bw_{uuid.uuid4().hex[:10]}"
+    engine = make_engine(url)
+    with engine.begin() as conn:
+        conn.exec_driver_sql(f'CREATE SCHEMA "{name}"')
+    engine.dispose()
+    schema_url = f"{url}?options=-csearch_path%3D{name}"
+    engine = make_engine(schema_url)
+    migrate.upgrade(engine)
+    engine.dispose()
+    return schema_url
+
+
+def _drop(url: str, urls: list[str]) -> None:
+    engine = make_engine(url)
+    with engine.begin() as conn:
+        for schema_url in urls:
+            name = schema_url.rsplit("%3D", 1)[1]
+            conn.execute(sa.text(f'DROP SCHEMA IF EXISTS "{name}" CASCADE'))
+    engine.dispose()
+
+
+def once(url: str, writers: int, shared: bool, ticks: int) -> tuple[float, float, float, int]:
+    """(p50 ms, p99 ms, wall s, failed ticks) of one run."""
+    urls = [_schema(url)] if shared else [_schema(url) for _ in range(writers)]
+    with tempfile.TemporaryDirectory() as tmp:
+        procs = []
+        start = time.perf_counter()
+        for i in range(writers):
+            out = Path(tmp) / f"w{i}.json"
+            role = f"run:R{i}:{SCENARIO}:30:{ticks}"
+            procs.append((out, subprocess.Popen(
+                [sys.executable, "-m", "tests.db.writers", urls[0 if shared else i], role,
+                 "0", str(i), str(out)], cwd=ROOT)))
+        for _, proc in procs:
+            proc.wait()
+        wall = time.perf_counter() - start
+        latencies: list[float] = []
+        failed = 0
+        for out, _ in procs:
+            report = json.loads(out.read_text())
+            latencies += report["latencies"][1:]
+            failed += len(report["failures"])
+    _drop(url, urls)
+    latencies.sort()
+    return (latencies[len(latencies) // 2] * 1e3,
+            latencies[min(len(latencies) - 1, int(len(latencies) * 0.99))] * 1e3, wall, failed)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--writers", default="1,2,4,8")
+    parser.add_argument("--ticks", type=int, default=150)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--pg", default=PG)
+    args = parser.parse_args()
+    counts = [int(n) for n in args.writers.split(",")]
+    print(f"{'writers':>7} {'database':>8} {'p50 ms':>8} {'p99 ms':>8} {'wall s':>7} "
+          f"{'failed':>6}   (medians of {args.repeats}; {args.ticks} ticks per writer)")
+    for n in counts:
+        results = {}
+        for shared in (False, True):  # the baseline first
+            runs = [once(args.pg, n, shared, args.ticks) for _ in range(args.repeats)]
+            p50, p99, wall = (statistics.median(r[k] for r in runs) for k in range(3))
+            failed = sum(r[3] for r in runs)
+            results[shared] = p50, p99
+            print(f"{n:7d} {'shared' if shared else 'own':>8} {p50:8.1f} {p99:8.1f} "
+                  f"{wall:7.1f} {failed:6d}", flush=True)
+        ratio50 = results[True][0] / results[False][0]
+        ratio99 = results[True][1] / results[False][1]
+        print(f"{'':7} {'ratio':>8} {ratio50:7.2f}x {ratio99:7.2f}x   (shared / own)")
+
+
+if __name__ == "__main__":
+    main()
