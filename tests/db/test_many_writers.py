@@ -11,8 +11,11 @@ beliefs equal to its beliefs as of the last write.
 from __future__ import annotations
 
 import json
+import random
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -89,3 +92,26 @@ def test_concurrent_registration_is_idempotent(db_url: str, robots: int,
         assert sorted(nums) == list(range(1, robots + 6))
         views = set(sa.inspect(db.connection).get_view_names())
         assert all(a.fact_view in views for a in agents)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_writer_killed_at_any_moment_restarts_without_repair(db_url: str, seed: int,
+                                                               tmp_path: Path) -> None:
+    """kill -9 of one writer while others write: its last tick is all or nothing, the
+    database keeps every invariant, and the killed writer starts again on it at once."""
+    rng = random.Random(seed)
+    others = [subprocess.Popen(
+        [sys.executable, "-m", "tests.db.writers", db_url, role, "3", str(i),
+         str(tmp_path / f"other{i}.json")], cwd=ROOT) for i, role in enumerate(
+        ("R1:rooms", "R2:rooms"))]
+    victim = subprocess.Popen([sys.executable, "-m", "tests.db.writers", db_url, "R1:things",
+                               "30", "9", str(tmp_path / "victim.json")], cwd=ROOT)
+    time.sleep(rng.uniform(1.5, 3.0))  # (starting a writer takes ~1 s)
+    victim.send_signal(signal.SIGKILL)
+    victim.wait()
+    for proc in others:
+        assert proc.wait(timeout=120) == 0
+    (restarted,) = run_processes(db_url, ("R1:things",), 1.0, tmp_path)
+    assert restarted["failures"] == [] and restarted["ticks"] > 5
+    with toaster.connect(db_url) as db, db.transaction() as conn:
+        assert violations(conn) == []
