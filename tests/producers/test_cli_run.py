@@ -66,3 +66,28 @@ def test_run_obsmat_into_database(tmp_path):
                                    f"sqlite:///{tmp_path}/z.db", "--until", "60s"])
     assert res.exit_code == 0, res.output
     print(res.output)
+
+
+def test_a_crowd_recording_registers_its_people_without_views(tmp_path):
+    """A recording's thousands of people become agents in one bulk registration, without
+    per-agent views (DDL); `db check` says so and `db views` makes them on demand."""
+    import json
+
+    tracks = tmp_path / "crowd.jsonl"
+    tracks.write_text("".join(json.dumps({"t_s": k * 0.1, "id": f"p{i}", "x": i, "y": k}) + "\n"
+                              for i in range(300) for k in range(2)))
+    url = f"sqlite:///{tmp_path}/crowd.db"
+    res = CliRunner().invoke(cli, ["--db", url, "run", str(tracks), "--holders", "humans"])
+    assert res.exit_code == 0, res.output
+    res = CliRunner().invoke(cli, ["--db", url, "db", "check"])
+    assert res.exit_code == 0, res.output
+    assert "300 agent(s) have no per-agent views" in res.output
+    res = CliRunner().invoke(cli, ["--db", url, "db", "views", "p7"])
+    assert res.exit_code == 0 and "created the views of 1 agent(s)" in res.output
+    res = CliRunner().invoke(cli, ["--db", url, "execute", "SQL",
+                                   'SELECT count(*) FROM "fact_table_p7"'])
+    assert res.exit_code == 0, res.output
+    res = CliRunner().invoke(cli, ["--db", url, "db", "views"])
+    assert "created the views of 299 agent(s)" in res.output  # p7 and the robot had theirs
+    res = CliRunner().invoke(cli, ["--db", url, "db", "check"])
+    assert res.exit_code == 0 and "no per-agent views" not in res.output
