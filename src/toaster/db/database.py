@@ -7,12 +7,20 @@ from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import Connection, Engine
-from sqlalchemy.exc import OperationalError
+from sqlalchemy.exc import DBAPIError
 
 from toaster.db import migrate
 from toaster.db.dialects import Backend, backend_for
-from toaster.db.engine import default_url, make_engine, normalise_url
-from toaster.errors import ToasterError
+from toaster.db.engine import (
+    default_url,
+    describe,
+    ensure_wal,
+    make_engine,
+    normalise_url,
+    parse_url,
+    sqlite_file,
+)
+from toaster.errors import DatabaseOpenError
 
 if TYPE_CHECKING:
     from toaster.db.store import RuleFactory, Store
@@ -104,31 +112,70 @@ class Database:
 
 
 def open_database(url: str | None = None, *, create: bool = True, check: bool = True,
-                  rules: Sequence[RuleFactory] = ()) -> Database:
+                  rules: Sequence[RuleFactory] = (), allow_memory: bool = False) -> Database:
     """Open a toaster database whose store runs ``rules`` (none by default: applications use
     :func:`toaster.connect`, which gives it the belief rule).
 
     Args:
         url: ``sqlite:///file.db``, ``postgresql://host/db`` or a path ending in ``.db``;
             default ``$TOASTER_DB`` or ``sqlite:///toaster.db``.
-        create: migrate a database that has no table yet (a new file or database) to head.
+        create: create a missing SQLite file, and migrate a database that has no table yet
+            (a new file or database) to head, atomically (see :func:`open_engine`).
         check: raise :class:`~toaster.errors.SchemaOutdatedError` when an existing database is
             not at the code's revision (the message says to run ``toaster db upgrade``).
         rules: what :meth:`Database.store` installs (see :class:`Database`).
+        allow_memory: accept in-memory SQLite (``sqlite://``), which keeps nothing once
+            closed: for throw-away databases of one thread.
+
+    Every error a user can cause (bad URL, unreachable server, a file that is not a toaster
+    database, a lock held too long) is a :class:`~toaster.errors.ToasterError`.
     """
-    shown = url or default_url()
-    engine = make_engine(shown)
+    engine, _revision = open_engine(url, create=create, allow_memory=allow_memory)
     try:
-        if create and migrate.is_empty(engine):
-            migrate.upgrade(engine)
         if check:
-            migrate.check_at_head(engine, url_hint=shown if url else "")
-    except OperationalError as exc:
-        engine.dispose()
-        reason = str(exc.orig).strip().splitlines()[0] if exc.orig else str(exc)
-        msg = f"cannot open database {normalise_url(shown)!r}: {reason}"
-        raise ToasterError(msg) from None
+            migrate.check_at_head(engine, url_hint=url or "")
     except BaseException:
         engine.dispose()
         raise
-    return Database(engine, normalise_url(shown), rules=rules)
+    return Database(engine, normalise_url(url or default_url()), rules=rules)
+
+
+def open_engine(url: str | None = None, *, create: bool = False, revision: str = "head",
+                allow_memory: bool = False) -> tuple[Engine, str | None]:
+    """An engine on a toaster database, and the revision it was found at (None: a new or
+    empty database, migrated to ``revision`` when ``create``).
+
+    ``create``: a missing (or empty) SQLite file is built aside and moved into place at
+    ``revision`` (a crash leaves no half-made file); an empty database is migrated to
+    ``revision`` in one transaction (concurrent openers wait and migrate once). Without it a
+    missing SQLite file is an error and nothing is created. Another application's database
+    is refused, unchanged.
+    """
+    parsed = parse_url(url, allow_memory=allow_memory)
+    where = describe(parsed)
+    path = sqlite_file(parsed)
+    created = False
+    if path is not None and migrate.is_new_file(path):
+        if not create:
+            shown = url or default_url()
+            msg = (f"no SQLite database at {where!r}: check the path, or create it with "
+                   f"`toaster --db {shown} db upgrade`")
+            raise DatabaseOpenError(msg)
+        created = migrate.create_sqlite_file(path, revision)
+    engine = make_engine(url, allow_memory=allow_memory)
+    try:
+        with engine.connect() as conn:
+            current = migrate.toaster_revision(conn, where)
+        if current is None and create:
+            migrate.upgrade(engine, revision)
+        elif current is not None:
+            ensure_wal(engine)
+    except DBAPIError as exc:  # one the engine's handle_error left as it was
+        engine.dispose()
+        reason = (str(exc.orig).strip().splitlines() or [type(exc.orig).__name__])[0]
+        msg = f"cannot open database {where!r}: {reason}"
+        raise DatabaseOpenError(msg) from None
+    except BaseException:
+        engine.dispose()
+        raise
+    return engine, None if created else current

@@ -1,17 +1,33 @@
-"""Alembic, driven from Python on a given connection (one code path for CLI, tests, library)."""
+"""Alembic, driven from Python on a given connection (one code path for CLI, tests, library).
+
+Every migration runs in one transaction that first takes the migration lock (SQLite's write
+lock, a PostgreSQL advisory lock on the schema): concurrent first openings migrate once, and
+a crash leaves the database as it was. A new SQLite file is built aside and moved into place
+at head (:func:`create_sqlite_file`).
+"""
 
 from __future__ import annotations
 
+import contextlib
+import os
+import time
+from collections.abc import Iterator
 from importlib import resources
+from pathlib import Path
 
 from alembic import command
 from alembic.config import Config
 from alembic.runtime.migration import MigrationContext
 from alembic.script import ScriptDirectory
-from sqlalchemy import Connection, Engine
+from sqlalchemy import Connection, Engine, inspect
 
+from toaster.db.engine import describe, ensure_wal, lock_timeout, make_engine
 from toaster.db.schema import metadata
-from toaster.errors import SchemaOutdatedError
+from toaster.errors import DatabaseLockedError, DatabaseOpenError, SchemaOutdatedError
+
+VERSION_TABLE = "alembic_version"
+_TEMP_INFIX = ".tmp-"
+_SIDE_FILES = ("-wal", "-shm", "-journal")
 
 
 def alembic_config(connection: Connection | None = None) -> Config:
@@ -36,18 +52,70 @@ def current_revision(engine: Engine) -> str | None:
         return MigrationContext.configure(conn).get_current_revision()
 
 
+def toaster_revision(conn: Connection, where: str) -> str | None:
+    """The revision of a toaster database, None for an empty one (no table, or only an empty
+    ``alembic_version``); :class:`DatabaseOpenError` for another application's database."""
+    if conn.dialect.name == "postgresql" and conn.exec_driver_sql(
+            "SELECT current_schema()").scalar() is None:
+        msg = (f"PostgreSQL {where!r} selects no existing schema: create it or fix the URL's "
+               "options=-csearch_path=SCHEMA")
+        raise DatabaseOpenError(msg)
+    inspector = inspect(conn)
+    names = set(inspector.get_table_names()) | set(inspector.get_view_names())
+    revision = MigrationContext.configure(conn).get_current_revision() \
+        if VERSION_TABLE in names else None
+    others = sorted(names - {VERSION_TABLE})
+    if revision is None and others:
+        listed = ", ".join(others[:5]) + (", ..." if len(others) > 5 else "")
+        msg = (f"{where!r} is not a toaster database (it holds {listed} and no toaster "
+               "revision): name a new file or an empty database")
+        raise DatabaseOpenError(msg)
+    return revision
+
+
+def is_empty(engine: Engine) -> bool:
+    """True when the database holds no toaster schema and nothing else (a new file, a new
+    PostgreSQL database, one downgraded to base)."""
+    with engine.connect() as conn:
+        inspector = inspect(conn)
+        names = set(inspector.get_table_names()) | set(inspector.get_view_names())
+        if not names - {VERSION_TABLE}:
+            return MigrationContext.configure(conn).get_current_revision() is None
+        return False
+
+
 def upgrade(engine: Engine, revision: str = "head") -> None:
-    """Migrate the database up to ``revision`` (one transaction)."""
-    with engine.begin() as conn:
-        conn.info["write"] = True
+    """Migrate the database up to ``revision``, in one transaction under the migration lock
+    (a concurrent upgrade waits, then finds nothing left to do)."""
+    with _migrating(engine) as conn:
         command.upgrade(alembic_config(conn), revision)
     _analyze(engine)
 
 
 def downgrade(engine: Engine, revision: str) -> None:
     """Migrate the database down to ``revision`` (``base`` removes everything)."""
-    with engine.begin() as conn:
+    with _migrating(engine) as conn:
         command.downgrade(alembic_config(conn), revision)
+
+
+@contextlib.contextmanager
+def _migrating(engine: Engine) -> Iterator[Connection]:
+    """One transaction holding the migration lock, on a toaster (or empty) database; then
+    SQLite's journal goes to WAL (after the check: another application's file stays as is)."""
+    with engine.connect() as conn:
+        conn.info["write"] = True  # SQLite: BEGIN IMMEDIATE, the write lock up front
+        try:
+            with conn.begin():
+                if engine.dialect.name == "postgresql":
+                    # Transaction-scoped: a killed migrator's lock ends with its session.
+                    conn.exec_driver_sql(
+                        "SELECT pg_advisory_xact_lock(hashtext('toaster migrations ' || "
+                        "current_schema()))")
+                toaster_revision(conn, describe(engine.url))  # refuses others' databases
+                yield conn
+        finally:
+            conn.info["write"] = False
+    ensure_wal(engine)
 
 
 def _analyze(engine: Engine) -> None:
@@ -62,10 +130,97 @@ def _analyze(engine: Engine) -> None:
                 conn.exec_driver_sql("ANALYZE " + ", ".join(f'"{n}"' for n in names))
 
 
-def is_empty(engine: Engine) -> bool:
-    """True when the database holds no table at all (a new file, a new PostgreSQL database)."""
-    with engine.connect() as conn:
-        return not conn.dialect.get_table_names(conn)
+def is_new_file(path: Path) -> bool:
+    """True when no SQLite database is at ``path``: no file, or an empty one (left by a crash
+    or ``touch``) whose write-ahead log is empty too."""
+    try:
+        if path.stat().st_size > 0:
+            return False
+    except FileNotFoundError:
+        return True
+    wal = Path(f"{path}-wal")
+    return not wal.exists() or wal.stat().st_size == 0
+
+
+def create_sqlite_file(path: Path, revision: str = "head") -> bool:
+    """Make a new SQLite database at ``path``, migrated to ``revision``, atomically.
+
+    It is built in a hidden file of the same folder (``.NAME.tmp-PID``) and moved onto
+    ``path`` once migrated, under a lock on the folder: a crash leaves no half-made database
+    at ``path`` (its leftover is removed by the next creation). False when another process
+    made the database meanwhile (theirs is kept).
+    """
+    folder = path.resolve().parent
+    try:
+        with _folder_lock(folder, path):
+            if not is_new_file(path):
+                return False
+            for stale in folder.glob(f".{path.name}{_TEMP_INFIX}*"):
+                stale.unlink(missing_ok=True)
+            temp = folder / f".{path.name}{_TEMP_INFIX}{os.getpid()}"
+            try:
+                _build(temp, revision)
+                for suffix in _SIDE_FILES:  # a deleted database's log must not replay on ours
+                    Path(f"{path}{suffix}").unlink(missing_ok=True)
+                os.replace(temp, path)
+                _fsync(folder)
+            finally:
+                for leftover in (temp, *(Path(f"{temp}{s}") for s in _SIDE_FILES)):
+                    leftover.unlink(missing_ok=True)
+    except OSError as exc:
+        msg = (f"cannot create SQLite database {str(path)!r} ({exc.strerror or exc}): check "
+               f"that folder {str(folder)!r} is writable")
+        raise DatabaseOpenError(msg) from None
+    return True
+
+
+def _build(temp: Path, revision: str) -> None:
+    engine = make_engine(f"sqlite:///{temp}")
+    try:
+        upgrade(engine, revision)
+    finally:
+        engine.dispose()  # the last connection closed: SQLite removes -wal and -shm
+    wal = Path(f"{temp}-wal")
+    if wal.exists() and wal.stat().st_size > 0:
+        msg = f"cannot create SQLite database {str(temp)!r}: its log could not be checkpointed"
+        raise DatabaseOpenError(msg)
+    _fsync(temp)
+
+
+def _fsync(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+@contextlib.contextmanager
+def _folder_lock(folder: Path, path: Path) -> Iterator[None]:
+    """An exclusive ``flock`` on the folder, released by the kernel if the process dies."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: no lock (the existence check still guards most races)
+        yield
+        return
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        timeout = lock_timeout()
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() > deadline:
+                    msg = (f"database {str(path)!r} is being created by another process "
+                           f"(waited {timeout:g} s): retry, or wait longer with "
+                           "TOASTER_LOCK_TIMEOUT=SECONDS")
+                    raise DatabaseLockedError(msg) from None
+                time.sleep(0.02)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
 
 
 def check_at_head(engine: Engine, *, url_hint: str = "") -> None:
