@@ -50,3 +50,16 @@ def test_holders_history_and_config(sally_anne) -> None:
     assert bad.exit_code == 1
     assert "depth" in bad.output
     assert "Traceback" not in bad.output
+
+
+def test_with_several_robots_commands_say_how_to_name_one(sally_anne) -> None:
+    """A second robot in the database: `beliefs diff` without naming one stops with one line
+    listing both, and names the option; naming it works."""
+    added = sally_anne("set-info", "ENTITY", "--id", "R2", "--type", "robot", "--self")
+    assert added.exit_code == 0, added.output
+    diff = sally_anne("beliefs", "diff", "SALLY", "--at", "4s")
+    assert diff.exit_code == 1
+    assert "(R2, ROBOT)" in diff.output and "--other ID" in diff.output
+    assert len(diff.output.strip().splitlines()) == 1
+    named = sally_anne("beliefs", "diff", "SALLY", "--at", "4s", "--other", "ROBOT", "--json")
+    assert named.exit_code == 0 and "BASKET" in named.output
