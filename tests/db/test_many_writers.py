@@ -115,3 +115,37 @@ def test_a_writer_killed_at_any_moment_restarts_without_repair(db_url: str, seed
     assert restarted["failures"] == [] and restarted["ticks"] > 5
     with toaster.connect(db_url) as db, db.transaction() as conn:
         assert violations(conn) == []
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_an_import_killed_at_any_moment_writes_all_or_nothing(db_url: str, seed: int,
+                                                              tmp_path: Path) -> None:
+    """kill -9 of `toaster set-info --file` (one transaction): the batch is all there or not
+    at all, the invariants hold, and the same import then runs on the database at once."""
+    batch = tmp_path / "batch.yaml"
+    things = [f"T{i}" for i in range(300)]
+    batch.write_text(
+        "entities: [{id: R, kind: robot, self: true}, {id: ANNE, kind: human}, "
+        + ", ".join(f"{{id: {t}}}" for t in things)
+        + ", {id: ROOM0}, {id: ROOM1}, {id: ROOM2}]\n"
+        "timeline:\n" + "".join(
+            f"  - {{at: {k}s, facts: [{{subject: ANNE, property: IsInRoom, target: ROOM0}}, "
+            + ", ".join(f"{{subject: {t}, property: IsInRoom, target: ROOM{(i + k) % 3}}}"
+                        for i, t in enumerate(things[:100])) + "]}\n" for k in range(30)))
+    command = [sys.executable, "-m", "toaster", "--db", db_url, "set-info", "--file",
+               str(batch)]
+    victim = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL)
+    time.sleep(random.Random(seed).uniform(0.5, 4.0))
+    victim.send_signal(signal.SIGKILL)
+    victim.wait()
+    with toaster.connect(db_url) as db:
+        with db.transaction() as conn:
+            assert violations(conn) == []
+            stored = conn.execute(sa.text("SELECT count(*) FROM entities")).scalar_one()
+        assert stored in (0, 2 + 300 + 3)  # nothing, or the robot, ANNE, things and rooms
+    again = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr[-2000:]
+    with toaster.connect(db_url) as db, db.transaction() as conn:
+        assert violations(conn) == []
+        assert conn.execute(sa.text("SELECT count(*) FROM agents")).scalar_one() == 2

@@ -5,7 +5,8 @@ For every key of every holder (its own intervals and the self's intervals it fol
 boundary has its event in ``event_log`` (``appeared`` where an interval starts after none or
 after a gap, ``changed`` where it follows one of another value, ``ended`` where one ends with
 none after it; where one continues another of the same value, no event or an ``ended`` and an
-``appeared``), and every such event has its boundary. Each check is one query; a violation is one line.
+``appeared``), and every such event has its boundary. Each check is one query; a violation
+is one line.
 """
 
 from __future__ import annotations

@@ -363,6 +363,11 @@ class Store:
 
         return self._retrying(write)
 
+    def retried(self, write: Callable[[Connection], _T]) -> _T:
+        """``write(conn)`` (store calls, for instance registrations) in one transaction,
+        written again from the start when it conflicts with a concurrent writer."""
+        return self._retrying(write)
+
     def _retrying(self, write: Callable[[Connection], _T]) -> _T:
         """``write(conn)`` in one transaction. Outermost, a conflict with a concurrent writer
         (a stale cache, a deadlock, a serialization failure, a unique key taken meanwhile)
@@ -371,7 +376,9 @@ class Store:
         if self._in_tx:
             try:
                 return write(self.db.connection)
-            except _StaleCache:
+            except _StaleCache as exc:
+                if exc.__cause__ is not None:  # a failed statement (PostgreSQL: the
+                    raise  # transaction is aborted): the caller's retry starts it again
                 self.forget()  # inside a caller's transaction nothing else forgets
                 return write(self.db.connection)
         for attempt in range(1, _ATTEMPTS + 1):

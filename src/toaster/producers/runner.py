@@ -209,14 +209,16 @@ class Session:
         plain entities. Other robots stay agents, as the store makes them by default.
         """
         world, start, holders = self.world, self.start_ns, self.belief_holders
-        with store.transaction():
-            for area_id, spec in self.areas.items():
+        rows = sorted(entity_row(world, row, holders) for row, entity_id in enumerate(world.ids)
+                      if entity_id != self.self_id)  # (one order for every process)
+
+        def register(_conn: Any) -> None:
+            for area_id, spec in sorted(self.areas.items()):
                 store.put_area(area_id, spec, spec.get("owner", ""))
             store.add_entity(self.self_id, "robot", is_self=True, t_ns=start)
-            store.add_entities([entity_row(world, row, holders)
-                                for row, entity_id in enumerate(world.ids)
-                                if entity_id != self.self_id], t_ns=start,
-                               views=self.agent_views)
+            store.add_entities(rows, t_ns=start, views=self.agent_views)
+
+        store.retried(register)
 
 
 def entity_row(world: World, row: int, holders: str | Sequence[str]
