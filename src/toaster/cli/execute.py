@@ -8,6 +8,7 @@ import click
 
 from toaster.cli.info import _self_agent, fact_options
 from toaster.cli.output import emit, output_options, say
+from toaster.db import readonly
 
 COMMANDS = ("SQL", "ARE_IN_TABLE", "EMPTY", "PRINT")
 
@@ -15,19 +16,33 @@ COMMANDS = ("SQL", "ARE_IN_TABLE", "EMPTY", "PRINT")
 @click.command()
 @click.argument("command", type=click.Choice(COMMANDS, case_sensitive=False))
 @click.argument("argument", required=False)
-@click.option("--write", is_flag=True, help="SQL: allow statements that write.")
+@click.option("--write", is_flag=True,
+              help="SQL: run any SQL (several statements, writes, settings) as the "
+                   "connecting role, without the read-only bounds.")
 @click.option("--param", "params", multiple=True, metavar="NAME=VALUE",
               help="SQL: a bound parameter for :NAME (repeatable).")
+@click.option("--max-rows", type=click.IntRange(1, 2**31 - 2),
+              default=readonly.DEFAULT_MAX_ROWS, show_default=True,
+              help="SQL, read-only: show at most this many rows (a note says when more).")
+@click.option("--max-bytes", type=click.IntRange(1024), default=readonly.DEFAULT_MAX_BYTES,
+              show_default=True, help="SQL, read-only: fail past this many bytes of values.")
+@click.option("--timeout", "timeout_s", type=click.FloatRange(0, 1e6, min_open=True),
+              default=readonly.DEFAULT_TIMEOUT_S, show_default=True, metavar="SECONDS",
+              help="SQL, read-only: fail past this many seconds.")
 @fact_options
 @click.option("--yes", is_flag=True, help="EMPTY: do not ask for confirmation.")
 @output_options
 @click.pass_obj
 def execute(app: Any, command: str, argument: str | None, write: bool, params: tuple[str, ...],
-            yes: bool, fmt: str | None, **opts: Any) -> None:
+            max_rows: int, max_bytes: int, timeout_s: float, yes: bool, fmt: str | None,
+            **opts: Any) -> None:
     """Run SQL or one of the original's maintenance commands.
 
     \b
-    SQL "STATEMENT" [--param k=v] [--write]   read-only unless --write (enforced by the DB)
+    SQL "STATEMENT" [--param k=v] [--write]   one read-only statement unless --write:
+        SELECT, WITH, VALUES, TABLE, EXPLAIN, SHOW (PRAGMA reads on SQLite) that cannot
+        write, end its transaction, change settings or roles, or act on the server;
+        bounded by --max-rows, --max-bytes, --timeout (docs/execute.md)
     ARE_IN_TABLE --agent A --subject S --property P [--target T]   true/false
     EMPTY ALL | EMPTY AGENT --agent A          delete facts, memory and events
     PRINT ALL | PRINT AGENT --agent A          print the tables
@@ -43,9 +58,13 @@ def execute(app: Any, command: str, argument: str | None, write: bool, params: t
         bound = dict(p.split("=", 1) for p in params) if params else None
         if any("=" not in p for p in params):
             raise click.UsageError("--param takes NAME=VALUE")
-        result = q.execute(db, argument, bound, write=write)
+        result = q.execute(db, argument, bound, write=write, max_rows=max_rows,
+                           max_bytes=max_bytes, timeout_s=timeout_s)
         if result.columns:
             emit(result.rows, fmt, columns=result.columns)
+            if result.truncated:
+                say(f"note: only the first {max_rows} rows are shown: add a LIMIT, or raise "
+                    "--max-rows")
         else:
             say(f"ok ({result.rowcount} row(s) affected)")
     elif command == "ARE_IN_TABLE":

@@ -6,66 +6,69 @@ from typing import Any, NamedTuple
 
 from sqlalchemy import text
 
-from toaster.errors import ReadOnlyError, ToasterError
+from toaster.db import readonly
+from toaster.errors import ToasterError
 from toaster.model import Fact
-
-_READ_ONLY_MARKERS = ("readonly database", "read-only transaction", "query_only",
-                      "attempt to write a readonly")
 
 
 class SQLResult(NamedTuple):
-    """Column names and rows of a statement (``rowcount`` for writes)."""
+    """Column names and rows of a statement (``rowcount`` for writes); ``truncated`` when a
+    read-only statement had more than ``max_rows`` rows (the first ``max_rows`` are kept)."""
 
     columns: list[str]
     rows: list[tuple[Any, ...]]
     rowcount: int
+    truncated: bool = False
 
 
 def execute(db: Any, sql: str, params: dict[str, Any] | list[Any] | None = None, *,
-            write: bool = False) -> SQLResult:
-    """Run one SQL statement. Read-only unless ``write`` (enforced by the database itself:
-    ``PRAGMA query_only`` on SQLite, ``SET TRANSACTION READ ONLY`` on PostgreSQL).
+            write: bool = False, max_rows: int = readonly.DEFAULT_MAX_ROWS,
+            max_bytes: int = readonly.DEFAULT_MAX_BYTES,
+            timeout_s: float = readonly.DEFAULT_TIMEOUT_S) -> SQLResult:
+    """Run one SQL statement, read-only unless ``write`` (docs/execute.md).
+
+    Read-only: exactly one SELECT, WITH, VALUES, TABLE, EXPLAIN or SHOW (PRAGMA on SQLite)
+    statement that cannot write, end its transaction, switch roles or act on the server
+    (:mod:`toaster.db.readonly`); at most ``max_rows`` rows (more: ``truncated``), an error
+    past ``max_bytes`` bytes of values or ``timeout_s`` seconds. Refusals are
+    :class:`~toaster.errors.ReadOnlyError`.
+
+    ``write``: any SQL, as the connecting role, without these bounds; it bumps the cache
+    epoch, so that every store (this process's included) re-reads what its sources hold
+    before its next write.
 
     Parameters use the driver's style (``?`` on SQLite, ``%s`` on PostgreSQL; or ``:name``
-    with a dict on both). A write bumps the cache epoch, so that every store (this process's
-    included) re-reads what its sources hold before its next write.
+    with a dict on both).
     """
-    backend = db.backend
+    if not write:
+        bounds = readonly.limits(max_rows, max_bytes, timeout_s)
+        run = readonly.run_postgresql if db.dialect_name == "postgresql" else \
+            readonly.run_sqlite
+        read = run(db, sql, params, bounds)
+        return SQLResult(read.columns, read.rows, len(read.rows), read.truncated)
     named = params if isinstance(params, dict) else None  # ``:name`` style, both backends
     try:
-        with db.transaction(write=write) as conn:
+        with db.transaction(write=True) as conn:
             cur = db.cursor()
-            if not write:
-                backend.set_read_only(cur)
-            try:
-                if named is not None:
-                    result = conn.execute(text(sql), named)
-                    columns = list(result.keys()) if result.returns_rows else []
-                    rows = [tuple(r) for r in result] if result.returns_rows else []
-                    count = result.rowcount
-                else:
-                    if params:
-                        cur.execute(sql, params)
-                    else:  # no parameters: neither driver looks for placeholders
-                        cur.execute(sql)
-                    columns = [d[0] for d in cur.description] if cur.description else []
-                    rows = [tuple(r) for r in cur.fetchall()] if cur.description else []
-                    count = cur.rowcount
-            finally:
-                if not write:
-                    backend.clear_read_only(db.cursor())
-            if write:
-                conn.execute(text(
-                    "UPDATE store_state SET cache_epoch = cache_epoch + 1 WHERE id = 1"))
+            if named is not None:
+                result = conn.execute(text(sql), named)
+                columns = list(result.keys()) if result.returns_rows else []
+                rows = [tuple(r) for r in result] if result.returns_rows else []
+                count = result.rowcount
+            else:
+                if params:
+                    cur.execute(sql, params)
+                else:  # no parameters: neither driver looks for placeholders
+                    cur.execute(sql)
+                columns = [d[0] for d in cur.description] if cur.description else []
+                rows = [tuple(r) for r in cur.fetchall()] if cur.description else []
+                count = cur.rowcount
+            conn.execute(text(
+                "UPDATE store_state SET cache_epoch = cache_epoch + 1 WHERE id = 1"))
     except ToasterError:
         raise
     except Exception as exc:
-        message = _one_line(exc)
-        if not write and any(marker in message.lower() for marker in _READ_ONLY_MARKERS):
-            msg = (f"statement refused, the database is opened read-only: "
-                   f"rerun with --write ({message})")
-            raise ReadOnlyError(msg) from None
-        msg = f"SQL error: {message}"
+        msg = f"SQL error: {_one_line(exc)}"
         raise ToasterError(msg) from None
     return SQLResult(columns, rows, count)
 

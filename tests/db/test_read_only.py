@@ -1,0 +1,507 @@
+"""``execute`` without ``write`` is really read-only (docs/execute.md).
+
+Every hostile statement must raise a one-line ToasterError and leave behind: the same rows in
+every table, no new file, a living second session, the connecting role, no setting, lock or
+large object, and a connection that still works.
+"""
+
+from __future__ import annotations
+
+import sqlite3
+import time
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import psycopg
+import pytest
+import sqlalchemy as sa
+from click.testing import CliRunner
+
+import toaster
+from tests.conftest import PG_URL
+from toaster import queries as q
+from toaster.cli import cli
+from toaster.db import readonly
+from toaster.db.engine import make_engine
+from toaster.db.readonly import READER_ROLE, check_statement, tokenize
+from toaster.errors import ReadOnlyError, ToasterError
+
+_ENDLESS = "WITH RECURSIVE c(x) AS (SELECT 1 UNION ALL SELECT x + 1 FROM c) "
+BOUNDS = {"timeout_s": 2.0, "max_bytes": 16 * 2**20}
+#: (id, SQL) or (id, (SQLite SQL, PostgreSQL SQL)); {tmp} is a scratch folder, {pid} the
+#: process id of a second session (PostgreSQL; 0 on SQLite). They run with BOUNDS.
+HOSTILE: list[tuple[str, str | tuple[str, str]]] = [
+    # several statements, transaction control
+    ("commit-drop", "COMMIT; DROP TABLE settings"),
+    ("rollback-update", "ROLLBACK; UPDATE settings SET value_json = 'x'"),
+    ("read-only-off-delete", "SET transaction_read_only = off; DELETE FROM settings"),
+    ("begin-read-write", "BEGIN READ WRITE; DELETE FROM settings; COMMIT"),
+    ("select-then-drop", "SELECT 1; DROP TABLE settings"),
+    ("semicolon-in-comment", "SELECT 1 /* x */; DELETE FROM settings -- ;"),
+    ("carriage-return-comment", ("SELECT 1 -- x\n, load_extension('x')",
+                                 "SELECT 1 -- x\r, set_config('role', 'postgres', true)")),
+    ("e-string-escape", "SELECT E'\\''; DELETE FROM settings; SELECT 1"),
+    ("backslash-quote", "SELECT '\\'; DELETE FROM settings; --'"),
+    ("dollar-quote", "SELECT $$ x $$; DELETE FROM settings"),
+    ("nested-comment", "SELECT 1 /* /* */ ; DELETE FROM settings; /* */"),
+    ("commit", "COMMIT"),
+    ("rollback", "ROLLBACK"),
+    ("begin", "BEGIN"),
+    ("end", "END"),
+    ("savepoint", "SAVEPOINT s"),
+    ("release", "RELEASE SAVEPOINT s"),
+    ("prepare-transaction", "PREPARE TRANSACTION 'toaster_pwned'"),
+    ("read-only-off", "SET transaction_read_only = off"),
+    ("session-read-write", "SET SESSION CHARACTERISTICS AS TRANSACTION READ WRITE"),
+    # settings and roles
+    ("set-role", "SET ROLE postgres"),
+    ("reset-role", "RESET ROLE"),
+    ("session-authorization", "SET SESSION AUTHORIZATION postgres"),
+    ("set-work-mem", "SET work_mem = '1GB'"),
+    ("set-config-role", "SELECT set_config('role', 'postgres', true)"),
+    ("set-config-quoted", "SELECT pg_catalog.\"set_config\"('role', 'postgres', false)"),
+    ("set-config-comment", "SELECT set_config/**/('statement_timeout', '0', false)"),
+    ("set-config-unicode", "SELECT U&\"\\0073et_config\"('role', 'postgres', true)"),
+    ("query-to-xml", "SELECT query_to_xml('SELECT set_config(''role'', ''postgres'', "
+                     "true)', true, false, '')"),
+    ("ts-stat", "SELECT * FROM ts_stat('SELECT pg_advisory_lock(1)::text::tsvector')"),
+    ("alter-system", "ALTER SYSTEM SET work_mem = '1GB'"),
+    ("discard", "DISCARD ALL"),
+    # files, programs, large objects
+    ("copy-to-program", "COPY (SELECT 1) TO PROGRAM 'touch {tmp}/pwned'"),
+    ("copy-from-program", "COPY settings FROM PROGRAM 'touch {tmp}/pwned'"),
+    ("copy-to-file", "COPY settings TO '{tmp}/settings.csv'"),
+    ("copy-from-file", "COPY settings FROM '/etc/hostname'"),
+    ("lo-import", "SELECT lo_import('/etc/hostname')"),
+    ("lo-export", "SELECT lo_export(lo_from_bytea(0, 'x'), '{tmp}/lo.bin')"),
+    ("read-file", "SELECT pg_read_file('/etc/hostname')"),
+    ("ls-dir", "SELECT * FROM pg_ls_dir('.')"),
+    ("dblink", "SELECT dblink_exec('dbname=test', 'DROP TABLE settings')"),
+    ("create-extension", "CREATE EXTENSION IF NOT EXISTS dblink"),
+    # other sessions and the server
+    ("terminate", "SELECT pg_terminate_backend({pid})"),
+    ("cancel", "SELECT pg_cancel_backend({pid})"),
+    ("terminate-from", "SELECT pg_terminate_backend(pid) FROM pg_stat_activity "
+                       "WHERE pid = {pid}"),
+    ("reload-conf", "SELECT pg_reload_conf()"),
+    ("advisory-lock", "SELECT pg_advisory_lock(4242)"),
+    ("advisory-try", "SELECT pg_try_advisory_lock(4242)::text"),
+    ("notify", "NOTIFY toaster_channel, 'x'"),
+    ("pg-notify", "SELECT pg_notify('toaster_channel', 'x')"),
+    ("listen", "LISTEN toaster_channel"),
+    ("sleep", "SELECT pg_sleep(30)::text"),
+    ("checkpoint", "CHECKPOINT"),
+    # writes and objects
+    ("nextval", "SELECT nextval('events_id_seq')"),
+    ("setval", "SELECT setval('events_id_seq', 1000)"),
+    ("lock-table", "LOCK TABLE settings IN ACCESS EXCLUSIVE MODE"),
+    ("temp-table", "CREATE TEMP TABLE pwned (x int)"),
+    ("select-into", "SELECT * INTO TEMP pwned FROM settings"),
+    ("create-table", "CREATE TABLE pwned AS SELECT * FROM settings"),
+    ("prepare", "PREPARE pwned AS SELECT 1"),
+    ("declare-hold", "DECLARE pwned CURSOR WITH HOLD FOR SELECT 1"),
+    ("do", "DO $$ BEGIN EXECUTE 'DROP TABLE settings'; END $$"),
+    ("do-role", "DO $$ BEGIN PERFORM set_config('role', 'postgres', false); END $$"),
+    ("call", "CALL pwned()"),
+    ("writable-cte", "WITH d AS (DELETE FROM settings RETURNING *) SELECT * FROM d"),
+    ("writable-cte-insert", "WITH i AS (INSERT INTO properties VALUES ('A', 'k', 'v') "
+                            "RETURNING *) SELECT * FROM i"),
+    ("for-update", "SELECT * FROM settings FOR UPDATE"),
+    ("for-share", "SELECT * FROM entities FOR SHARE"),
+    ("explain-analyze-delete", "EXPLAIN ANALYZE DELETE FROM settings"),
+    ("insert", "INSERT INTO properties VALUES ('A', 'k', 'v')"),
+    ("update", "UPDATE store_state SET cache_epoch = 99"),
+    ("delete", "DELETE FROM store_state"),
+    ("replace", "REPLACE INTO properties VALUES ('A', 'k', 'v')"),
+    ("truncate", "TRUNCATE settings"),
+    ("drop", "DROP TABLE settings"),
+    ("grant", "GRANT ALL ON settings TO PUBLIC"),
+    ("vacuum", "VACUUM"),
+    ("analyze", "ANALYZE"),
+    # SQLite: files, pragmas, extensions
+    ("attach", "ATTACH DATABASE 'x.db' AS x"),
+    ("attach-tmp", "ATTACH DATABASE '{tmp}/x.db' AS x"),
+    ("detach", "DETACH DATABASE main"),
+    ("vacuum-into", "VACUUM INTO '{tmp}/copy.db'"),
+    ("pragma-user-version", "PRAGMA user_version = 42"),
+    ("pragma-query-only-off", "PRAGMA query_only = OFF"),
+    ("pragma-journal-mode", "PRAGMA journal_mode = DELETE"),
+    ("pragma-writable-schema", "PRAGMA writable_schema = ON"),
+    ("pragma-foreign-keys-off", "PRAGMA foreign_keys = OFF"),
+    ("pragma-checkpoint", "PRAGMA wal_checkpoint(TRUNCATE)"),
+    ("load-extension", "SELECT load_extension('{tmp}/evil')"),
+    # memory and time
+    ("zeroblob", ("SELECT zeroblob(1e9)", "SELECT repeat('x', 20000000)")),
+    ("randomblob", ("SELECT randomblob(1000000000)", "SELECT lpad('', 20000000, 'x')")),
+    ("hex-huge", ("SELECT hex(zeroblob(10000000))",
+                  "SELECT string_agg(repeat('x', 100000), '') FROM generate_series(1, 200)")),
+    ("endless-count", _ENDLESS + "SELECT count(*) FROM c"),
+    ("endless-sort", _ENDLESS + "SELECT x FROM c ORDER BY x DESC LIMIT 1"),
+    ("endless-wide-rows", (_ENDLESS + "SELECT x, hex(randomblob(2000)) FROM c",
+                           _ENDLESS + "SELECT x, repeat('x', 4000) FROM c")),
+]
+
+
+# ---------------------------------------------------------------------------- helpers
+def dump(url: str) -> dict[str, list[tuple[Any, ...]]]:
+    """Every table's rows, sorted (the database's content, to compare before / after)."""
+    engine = make_engine(url)
+    try:
+        with engine.connect() as conn:
+            return {name: sorted((tuple(r) for r in conn.execute(sa.text(
+                        f'SELECT * FROM "{name}"'))), key=repr)
+                    for name in sorted(sa.inspect(conn).get_table_names())}
+    finally:
+        engine.dispose()
+
+
+def files(root: Path) -> set[str]:
+    """Every path under ``root`` (relative)."""
+    return {str(p.relative_to(root)) for p in root.rglob("*")}
+
+
+def server_state(db: toaster.Database) -> dict[str, Any]:
+    """What a statement could leave in the session or on the server."""
+    with db.transaction() as conn:
+        if db.dialect_name == "sqlite":
+            run = conn.exec_driver_sql
+            return {"pragmas": [run(f"PRAGMA {p}").scalar() for p in (
+                "query_only", "user_version", "journal_mode", "foreign_keys",
+                "hard_heap_limit", "writable_schema")],
+                "databases": [r[1] for r in run("PRAGMA database_list")],
+                "length": conn.connection.dbapi_connection.getlimit(  # type: ignore[union-attr]
+                    sqlite3.SQLITE_LIMIT_LENGTH)}
+        row = conn.exec_driver_sql(
+            "SELECT current_user, session_user, current_setting('statement_timeout'), "
+            "current_setting('work_mem'), current_setting('transaction_read_only'), "
+            "(SELECT count(*) FROM pg_locks WHERE locktype = 'advisory' "
+            "AND pid = pg_backend_pid()), (SELECT count(*) FROM pg_largeobject_metadata), "
+            "(SELECT count(*) FROM pg_prepared_xacts), (SELECT count(*) FROM pg_prepared_statements "
+            "WHERE name = 'pwned'), (SELECT count(*) FROM pg_cursors), "
+            "(SELECT count(*) FROM pg_listening_channels())").one()
+        return dict(zip(("user", "session", "timeout", "work_mem", "read_only", "advisory",
+                         "large_objects", "prepared_xacts", "prepared", "cursors", "listening"),
+                        row, strict=True))
+
+
+@pytest.fixture
+def other(db: toaster.Database) -> Iterator[psycopg.Connection[Any] | None]:
+    """A second session (PostgreSQL) that hostile statements try to end."""
+    if db.dialect_name != "postgresql":
+        yield None
+        return
+    conn = psycopg.connect(PG_URL.replace("postgresql+psycopg://", "postgresql://"),
+                           autocommit=True)
+    try:
+        yield conn
+    finally:
+        conn.close()
+
+
+@pytest.fixture
+def scratch(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """An empty working directory and scratch folder for paths the statements name."""
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    monkeypatch.chdir(cwd)
+    return tmp_path
+
+
+def expect_refused(db: toaster.Database, url: str, sql: str, root: Path,
+                   other: psycopg.Connection[Any] | None, *, must_raise: bool = True,
+                   **bounds: Any) -> ToasterError | None:
+    """Run ``sql`` read-only; check it raised one line (unless not ``must_raise``) and left
+    nothing behind."""
+    q.execute(db, "SELECT count(*) FROM settings")  # set-up done, files settled
+    before, state, paths = dump(url), server_state(db), files(root)
+    error = None
+    try:
+        q.execute(db, sql, **bounds)
+    except ToasterError as exc:
+        error = exc
+    assert error is not None or not must_raise, "did not raise"
+    assert error is None or (str(error) and "\n" not in str(error)), str(error)
+    assert files(root) == paths
+    assert dump(url) == before
+    assert server_state(db) == state
+    if other is not None:
+        assert other.execute("SELECT 1").fetchone() == (1,)
+    assert q.execute(db, "SELECT 1 AS one").rows == [(1,)]
+    return error
+
+
+# ---------------------------------------------------------------------------- hostile
+@pytest.mark.parametrize("sql", [pytest.param(sql, id=name) for name, sql in HOSTILE])
+def test_hostile_statement_is_refused(db: toaster.Database, db_url: str, scratch: Path,
+                                      other: psycopg.Connection[Any] | None,
+                                      sql: str | tuple[str, str]) -> None:
+    """Each raises a one-line ToasterError and changes nothing, on both backends."""
+    if isinstance(sql, tuple):
+        sql = sql[db.dialect_name == "postgresql"]
+    pid = other.info.backend_pid if other is not None else 0
+    expect_refused(db, db_url, sql.format(tmp=scratch, pid=pid), scratch, other, **BOUNDS)
+
+
+def test_the_database_alone_stops_them(db: toaster.Database, db_url: str, scratch: Path,
+                                       other: psycopg.Connection[Any] | None,
+                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """Defence in depth: with the statement check switched off, the database layers alone
+    (authorizer, query_only, limits on SQLite; read-only transaction, reader role, wrapper
+    and checks after on PostgreSQL) let no hostile statement leave a trace (some then run,
+    harmlessly: their effects are rolled back)."""
+    monkeypatch.setattr(readonly, "check_statement", readonly.tokenize)
+    pid = other.info.backend_pid if other is not None else 0
+    failures = []
+    for name, sql in HOSTILE:
+        if isinstance(sql, tuple):
+            sql = sql[db.dialect_name == "postgresql"]
+        try:
+            expect_refused(db, db_url, sql.format(tmp=scratch, pid=pid), scratch, other,
+                           must_raise=False, timeout_s=1.0, max_bytes=BOUNDS["max_bytes"])
+        except AssertionError as exc:
+            failures.append(f"{name}: {exc}")
+    assert not failures
+
+
+def test_the_load_test_statements_are_refused(db: toaster.Database) -> None:
+    """The issue's examples are refused before they reach the database, as writes."""
+    for sql in ("COMMIT; DROP TABLE settings", "SET transaction_read_only = off",
+                "BEGIN READ WRITE", "ATTACH DATABASE 'x.db' AS x",
+                "WITH d AS (DELETE FROM settings) SELECT 1"):
+        with pytest.raises(ReadOnlyError, match="--write"):
+            q.execute(db, sql)
+
+
+def test_statement_cached_by_a_write_is_authorized_again(db: toaster.Database) -> None:
+    """SQLite caches prepared statements: one prepared by --write is checked again."""
+    sql = "INSERT INTO settings VALUES ('test', 'colour', '\"red\"')"
+    q.execute(db, sql, write=True)
+    with pytest.raises(ReadOnlyError):
+        q.execute(db, sql)
+    assert q.execute(db, "SELECT count(*) FROM settings").rows == [(1,)]
+
+
+# ---------------------------------------------------------------------------- PostgreSQL roles
+@pytest.mark.postgresql
+def test_statement_runs_as_the_reader_role(db: toaster.Database) -> None:
+    """A superuser's statement runs as toaster_reader, which holds no attribute; the
+    connection is the connecting role's again afterwards."""
+    if db.dialect_name != "postgresql":
+        pytest.skip("PostgreSQL roles")
+    assert q.execute(db, "SELECT current_user::text, session_user::text").rows == [
+        (READER_ROLE, "postgres")]
+    attrs = q.execute(db, "SELECT rolsuper, rolcreaterole, rolcreatedb, rolcanlogin, "
+                          "rolbypassrls FROM pg_roles WHERE rolname = :r", {"r": READER_ROLE})
+    assert attrs.rows == [(False, False, False, False, False)]
+    with db.transaction() as conn:
+        assert conn.exec_driver_sql("SELECT current_user").scalar() == "postgres"
+
+
+@pytest.mark.postgresql
+def test_views_made_after_the_first_read_are_readable(store: toaster.Store) -> None:
+    """An agent's views, created after the reader role's grants, are granted on demand."""
+    db = store.db
+    if db.dialect_name != "postgresql":
+        pytest.skip("PostgreSQL grants")
+    q.execute(db, "SELECT 1")
+    store.add_entity("CAROL", "human", t_ns=1)
+    assert q.execute(db, 'SELECT count(*) FROM "fact_table_CAROL"').rows == [(0,)]
+
+
+@pytest.mark.postgresql
+def test_a_superuser_never_falls_back(db: toaster.Database,
+                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """When the reader role cannot be used, a superuser's statement is refused rather than
+    run with the superuser's privileges."""
+    if db.dialect_name != "postgresql":
+        pytest.skip("PostgreSQL roles")
+    monkeypatch.setattr(readonly, "ensure_reader_role", lambda cur: "tampered")
+    with pytest.raises(ToasterError, match="cannot set up read-only SQL.*tampered"):
+        q.execute(db, "SELECT 1")
+
+
+@pytest.fixture
+def plain_role_url(db: toaster.Database, db_url: str) -> Iterator[str]:
+    """``db_url`` as a fresh login role that cannot create roles and owns nothing."""
+    if db.dialect_name != "postgresql":
+        pytest.skip("PostgreSQL roles")
+    role = f"toaster_plain_{uuid.uuid4().hex[:8]}"
+    with db.transaction() as conn:
+        run = conn.exec_driver_sql
+        run(f"CREATE ROLE {role} LOGIN NOSUPERUSER NOCREATEROLE")
+        run(f"GRANT USAGE ON SCHEMA {run('SELECT current_schema()').scalar()} TO {role}")
+        run(f"GRANT SELECT ON ALL TABLES IN SCHEMA "
+            f"{run('SELECT current_schema()').scalar()} TO {role}")
+    try:
+        yield db_url.replace("postgres@", f"{role}@", 1)
+    finally:
+        with db.transaction() as conn:  # its sessions' temporary objects go when they end
+            conn.exec_driver_sql(f"SELECT pg_terminate_backend(pid) FROM pg_stat_activity "
+                                 f"WHERE usename = '{role}'")
+        for _ in range(100):
+            with db.transaction() as conn:
+                if not conn.exec_driver_sql(f"SELECT count(*) FROM pg_stat_activity "
+                                            f"WHERE usename = '{role}'").scalar():
+                    break
+            time.sleep(0.05)
+        with db.transaction() as conn:
+            conn.exec_driver_sql(f"DROP OWNED BY {role}")
+            conn.exec_driver_sql(f"DROP ROLE {role}")
+
+
+@pytest.mark.postgresql
+def test_a_role_that_cannot_create_roles_falls_back(plain_role_url: str, scratch: Path,
+                                                   db_url: str) -> None:
+    """Without CREATEROLE (and not the tables' owner), statements run as the connecting role,
+    still in the read-only wrapper: reads work, the hostile ones are still refused, and its
+    other session survives."""
+    role = plain_role_url.split("//", 1)[1].split("@", 1)[0]
+    other = psycopg.connect(PG_URL.replace("postgresql+psycopg://", "postgresql://")
+                            .replace("postgres@", f"{role}@", 1), autocommit=True)
+    plain = toaster.connect(plain_role_url)
+    try:
+        assert q.execute(plain, "SELECT current_user::text").rows == [(role,)]
+        assert q.execute(plain, "SELECT count(*) FROM settings").rows == [(0,)]
+        for sql in ("SELECT pg_terminate_backend({pid})", "SELECT set_config('role', "
+                    "'postgres', true)", "COMMIT; DELETE FROM settings",
+                    "SELECT pg_advisory_lock(1)", "SET ROLE toaster_reader"):
+            expect_refused(plain, plain_role_url, sql.format(pid=other.info.backend_pid),
+                           scratch, other)
+    finally:
+        plain.close()
+        other.close()
+
+
+# ---------------------------------------------------------------------------- reads
+def test_ordinary_reads_still_work(store: toaster.Store) -> None:
+    """Parameters, views, WITH, EXPLAIN, quotes and semicolons in strings, trailing ';'."""
+    db = store.db
+    store.sync_snapshot("pdg", "PR2_ROBOT", 1, [toaster.Fact("MUG", "IsOn", "TABLE")])
+    pg = db.dialect_name == "postgresql"
+    positional = "SELECT %s AS a, %s AS b" if pg else "SELECT ? AS a, ? AS b"
+    assert q.execute(db, positional, ["x", 2]).rows == [("x", 2)]
+    named = q.execute(db, "SELECT subject_id, '50%; :no' AS s FROM current_facts "
+                          "WHERE agent_id = :agent AND property = :p;", {"agent": "PR2_ROBOT",
+                                                                          "p": "IsOn"})
+    assert (named.columns, named.rows) == (["subject_id", "s"], [("MUG", "50%; :no")])
+    view = q.execute(db, 'SELECT target_id FROM "fact_table_PR2_ROBOT"')
+    assert view.rows == [("TABLE",)] and not view.truncated
+    with_query = q.execute(db, "WITH n(x) AS (VALUES (1), (2)) SELECT sum(x) AS s FROM n -- ;")
+    assert with_query.rows == [(3,)]
+    assert q.execute(db, "EXPLAIN SELECT * FROM entities").rows
+    if pg:
+        assert q.execute(db, "(SELECT 1 AS a) UNION ALL (SELECT 2) ORDER BY 1").rows == [
+            (1,), (2,)]
+        assert q.execute(db, "SELECT 2::int AS n, $t$;$t$ AS s, E'\\'' AS q").rows == [
+            (2, ";", "'")]
+        assert q.execute(db, "SHOW standard_conforming_strings").rows == [("on",)]
+        assert q.execute(db, "TABLE store_state").rows
+        assert q.execute(db, "EXPLAIN (ANALYZE, COSTS OFF) SELECT 1").rows
+    else:
+        assert q.execute(db, "PRAGMA table_info(settings)").rows
+        assert q.execute(db, "SELECT name FROM pragma_table_info('settings')").rows == [
+            ("scope",), ("key",), ("value_json",)]
+
+
+def test_row_cap_truncates(db: toaster.Database) -> None:
+    """Beyond max_rows, the first max_rows rows and ``truncated``; exactly max_rows is whole."""
+    endless = q.execute(db, _ENDLESS + "SELECT x FROM c", max_rows=10)
+    assert endless.rows == [(i,) for i in range(1, 11)] and endless.truncated
+    exact = q.execute(db, "VALUES (1), (2), (3)", max_rows=3)
+    assert len(exact.rows) == 3 and not exact.truncated
+
+
+def test_byte_cap_and_timeout(db: toaster.Database) -> None:
+    """Past max_bytes or timeout_s: a one-line error naming the option to raise."""
+    wide = "SELECT hex(randomblob(5000))" if db.dialect_name == "sqlite" else \
+        "SELECT repeat('x', 10000)"
+    with pytest.raises(ToasterError, match="--max-bytes"):
+        q.execute(db, wide, max_bytes=4096)
+    assert q.execute(db, wide, max_bytes=20000).rows
+    with pytest.raises(ToasterError, match="--timeout"):
+        q.execute(db, _ENDLESS + "SELECT count(*) FROM c", timeout_s=0.3)
+
+
+def test_sqlite_memory_is_bounded(db: toaster.Database,
+                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """A sort of endless rows stops at SQLite's heap limit (lowered here to be quick)."""
+    if db.dialect_name != "sqlite":
+        pytest.skip("SQLite's heap limit")
+    monkeypatch.setattr(readonly, "SQLITE_HEAP_LIMIT", 96 * 2**20)
+    with pytest.raises(ToasterError, match="memory"):
+        q.execute(db, _ENDLESS + "SELECT x, hex(randomblob(50)) FROM c ORDER BY 2",
+                  timeout_s=60)
+    assert server_state(db)["pragmas"][4] == 0  # hard_heap_limit given back
+
+
+def test_bad_bounds_are_refused(db: toaster.Database) -> None:
+    """Bounds are checked with a message naming the value."""
+    for bounds in ({"max_rows": 0}, {"max_bytes": 10}, {"timeout_s": 0}):
+        with pytest.raises(ToasterError, match=next(iter(bounds))):
+            q.execute(db, "SELECT 1", **bounds)
+
+
+def test_bad_text_is_a_one_line_error(db: toaster.Database) -> None:
+    """NUL, lone surrogates and empty statements: SQL errors, not tracebacks."""
+    for sql, params in (("SELECT '\x00'", None), ("SELECT '\ud800'", None), ("", None),
+                        (" ; ", None), ("SELECT :a", {"a": "\ud800"}), ("SELECT :a", {})):
+        with pytest.raises(ToasterError, match="SQL error"):
+            q.execute(db, sql, params)
+
+
+def test_read_only_needs_its_own_transaction(db: toaster.Database) -> None:
+    """Inside an open transaction, read-only SQL refuses to run (it must roll back)."""
+    with pytest.raises(ToasterError, match="outside"), db.transaction():
+        q.execute(db, "SELECT 1")
+
+
+def test_write_still_writes(db: toaster.Database) -> None:
+    """--write runs the statement as before and bumps the cache epoch."""
+    epoch = q.execute(db, "SELECT cache_epoch FROM store_state").rows[0][0]
+    q.execute(db, "INSERT INTO settings VALUES (:s, 'colour', '\"red\"')", {"s": "test"},
+              write=True)
+    assert q.execute(db, "SELECT scope, value_json FROM settings").rows == [
+        ("test", '"red"')]
+    assert q.execute(db, "SELECT cache_epoch FROM store_state").rows == [(epoch + 1,)]
+
+
+# ---------------------------------------------------------------------------- tokenizer
+@pytest.mark.parametrize(("sql", "dialect", "kinds"), [
+    ("SELECT E'\\'' ;", "postgresql", ["word", "string", "semi"]),
+    ("SELECT $a$ ' $a$, $1", "postgresql", ["word", "string", "op", "param"]),
+    ("/* a /* b */ c */ x", "postgresql", ["word"]),
+    ("/* a /* b */ x", "sqlite", ["word"]),
+    ("-- a\r x\n y", "postgresql", ["word", "word"]),
+    ("-- a\r x\n y", "sqlite", ["word"]),
+    ("a[1:n]::int", "postgresql", ["word", "op", "number", "op", "word", "op", "op", "word"]),
+    ('"a""b" [c] `d` x\'ff\'', "sqlite", ["ident", "ident", "ident", "string"]),
+])
+def test_tokenizer(sql: str, dialect: str, kinds: list[str]) -> None:
+    """Quotes, dollar quotes, nested comments and identifiers as each database reads them."""
+    assert [t.kind for t in tokenize(sql, dialect)] == kinds
+
+
+def test_unterminated_quotes_are_refused() -> None:
+    """Unterminated strings, identifiers, dollar quotes and comments: one-line errors."""
+    for sql in ("SELECT 'a", 'SELECT "a', "SELECT $$a", "SELECT /* a", "SELECT E'\\'"):
+        with pytest.raises(ToasterError, match="unterminated"):
+            check_statement(sql, "postgresql")
+
+
+# ---------------------------------------------------------------------------- CLI
+def test_cli_refusal_is_one_line(db_url: str) -> None:
+    """``execute SQL`` prints one line and exits 1 on a refused statement; a truncated result
+    says so on stderr."""
+    runner = CliRunner()
+    refused = runner.invoke(cli, ["--db", db_url, "execute", "SQL",
+                                  "COMMIT; DROP TABLE settings"])
+    assert refused.exit_code == 1
+    assert len(refused.output.strip().splitlines()) == 1
+    assert "--write" in refused.output and "Traceback" not in refused.output
+    capped = runner.invoke(cli, ["--db", db_url, "execute", "SQL", "VALUES (1), (2), (3)",
+                                 "--max-rows", "2", "--csv"])
+    assert capped.exit_code == 0, capped.output
+    assert capped.stdout.splitlines()[1:] == ["1", "2"]
+    assert "--max-rows" in capped.stderr
