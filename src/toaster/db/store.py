@@ -616,24 +616,22 @@ class Store:
 
     def _writes(self, conn: Connection, agent_id: str, source: str, t_ns: int, *,
                 snapshot: bool = False) -> _Writes:
-        """The rows of one write of ``agent_id`` at ``t_ns``. When rules run, writes are
-        never older than the rules' clock (``store_state.beliefs_ns``, the last belief run's
-        time), so that the holders' rows and the self rows they follow share one timeline.
-        A ``snapshot`` of a robot or producer whose clock lags another's happens 1 ns after
-        the clock's time (a late write never shares the instant of the run before it: a
-        holder would start and stop following a key at one time); a single write (assert,
-        retract, tell) older than the clock is refused. Writes at the clock's very time (one
-        tool writing several things at one time) keep it. On PostgreSQL reading the clock
-        locks it: such writes run one at a time (their belief runs would anyway)."""
-        if self._clocked(agent_id):
+        """The rows of one write of ``agent_id`` at ``t_ns``.
+
+        The belief runs follow the rules' clock (``store_state.beliefs_ns``, the last run's
+        time), never going back. A ``snapshot`` that lags the clock by at most
+        :data:`LIVE_CLOCK_SKEW_NS` (a live robot or producer whose clock is a little behind
+        another's) is written 1 ns after it, so that the self rows and the holders' rows that
+        follow them share one timeline and a late write never shares the instant of the run
+        before it. Older snapshots (one source imported after another) and single writes
+        (assert, retract, tell) keep their time: their runs happen at the clock's. On
+        PostgreSQL reading the clock locks it: such writes run one at a time (their belief
+        runs would anyway)."""
+        if snapshot and self._clocked(agent_id):
             last = conn.execute(text(
                 "UPDATE store_state SET beliefs_ns = beliefs_ns WHERE id = 1 "
                 "RETURNING beliefs_ns")).scalar()
-            if last is not None and last > t_ns:
-                if not snapshot:
-                    msg = (f"write for {agent_id!r} at {format_ns(t_ns)} is older than the "
-                           f"beliefs already kept ({format_ns(last)}): write in time order")
-                    raise TimeOrderError(msg)
+            if last is not None and t_ns < last <= t_ns + LIVE_CLOCK_SKEW_NS:
                 t_ns = last + 1
         return _Writes(agent_id, source, t_ns, self._actor, self._actor_of)
 
@@ -911,6 +909,9 @@ def _by_key(actors: Mapping[Key, str]) -> Callable[[Fact], str | None]:
     return lambda fact: get(_KEY(fact))
 
 
+#: How far behind the rules' clock a snapshot may be and still be taken for a live writer's
+#: lag (written just after the clock, see Store._writes): beyond, it keeps its own time.
+LIVE_CLOCK_SKEW_NS = 1_000_000_000
 #: Attempts of a write that conflicts with concurrent writers (see Store._retrying).
 _ATTEMPTS = 8
 #: SQLSTATEs of conflicts that a new attempt resolves: serialization failure, deadlock,
