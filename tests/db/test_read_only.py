@@ -7,25 +7,28 @@ large object, and a connection that still works.
 
 from __future__ import annotations
 
+import shutil
 import sqlite3
 import time
 import uuid
 from collections.abc import Iterator
+from contextlib import closing
 from pathlib import Path
 from typing import Any
 
 import psycopg
 import pytest
-import sqlalchemy as sa
 from click.testing import CliRunner
 
 import toaster
-from tests.conftest import PG_URL
+from tests.conftest import BACKENDS, PG_URL, require_postgres
 from toaster import queries as q
 from toaster.cli import cli
-from toaster.db import readonly
+from toaster.db import migrate
 from toaster.db.engine import make_engine
 from toaster.db.readonly import READER_ROLE, check_statement, tokenize
+from toaster.db.readonly import postgresql as readonly_pg
+from toaster.db.readonly import sqlite as readonly_sqlite
 from toaster.errors import ReadOnlyError, ToasterError
 
 _ENDLESS = "WITH RECURSIVE c(x) AS (SELECT 1 UNION ALL SELECT x + 1 FROM c) "
@@ -145,16 +148,40 @@ HOSTILE: list[tuple[str, str | tuple[str, str]]] = [
 
 
 # ---------------------------------------------------------------------------- helpers
+#: The current schema's tables, found through pg_depend (every table depends on its schema)
+#: by an index: listing them from pg_class reads all of it, slow when the server's catalog
+#: holds many dead rows (schemas made and dropped by tests, without autovacuum).
+_PG_TABLES = ("SELECT c.relname FROM pg_depend d JOIN pg_class c ON c.oid = d.objid "
+              "WHERE d.classid = 'pg_class'::regclass "
+              "AND d.refclassid = 'pg_namespace'::regclass "
+              "AND d.refobjid = current_schema()::regnamespace AND c.relkind IN ('r', 'p')")
+#: Sessions that read each PostgreSQL database for :func:`dump`, one per URL (autocommit:
+#: each statement sees what is committed); closed at the end of the module.
+_OBSERVERS: dict[str, psycopg.Connection[Any]] = {}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _close_observers() -> Iterator[None]:
+    yield
+    for conn in _OBSERVERS.values():
+        conn.close()
+    _OBSERVERS.clear()
+
+
 def dump(url: str) -> dict[str, list[tuple[Any, ...]]]:
-    """Every table's rows, sorted (the database's content, to compare before / after)."""
-    engine = make_engine(url)
-    try:
-        with engine.connect() as conn:
-            return {name: sorted((tuple(r) for r in conn.execute(sa.text(
-                        f'SELECT * FROM "{name}"'))), key=repr)
-                    for name in sorted(sa.inspect(conn).get_table_names())}
-    finally:
-        engine.dispose()
+    """Every table's rows, sorted (the database's content, to compare before / after; on
+    SQLite its own ``sqlite_*`` tables too)."""
+    if url.startswith("postgresql"):
+        pg = _OBSERVERS.get(url)
+        if pg is None:
+            pg = _OBSERVERS[url] = psycopg.connect(
+                url.replace("postgresql+psycopg://", "postgresql://"), autocommit=True)
+        return {name: sorted(pg.execute(f'SELECT * FROM "{name}"').fetchall(), key=repr)
+                for name in sorted(n for (n,) in pg.execute(_PG_TABLES))}
+    with closing(sqlite3.connect(url.removeprefix("sqlite:///"))) as lite:
+        return {name: sorted(lite.execute(f'SELECT * FROM "{name}"').fetchall(), key=repr)
+                for name in sorted(n for (n,) in lite.execute(
+                    "SELECT name FROM sqlite_master WHERE type = 'table'"))}
 
 
 def files(root: Path) -> set[str]:
@@ -186,10 +213,51 @@ def server_state(db: toaster.Database) -> dict[str, Any]:
                         row, strict=True))
 
 
+# ---------------------------------------------------------------------------- fixtures
+@pytest.fixture(scope="module", params=BACKENDS)
+def read_url(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory,
+             sqlite_template: Path) -> Iterator[str]:
+    """``db_url`` shared by this module's tests that only read (migrating a PostgreSQL schema
+    per test is slow): a SQLite file in a folder of its own, or a PostgreSQL schema dropped
+    afterwards. Each hostile case checks that the rows, the files (that folder's too) and
+    the session are unchanged after its statement, so a case that leaked a change fails."""
+    if request.param == "sqlite":
+        path = tmp_path_factory.mktemp("shared") / "toaster.db"
+        shutil.copy(sqlite_template, path)
+        yield f"sqlite:///{path}"
+        return
+    require_postgres()
+    schema = f"t_{uuid.uuid4().hex[:12]}"
+    admin = make_engine(PG_URL)
+    with admin.begin() as conn:
+        conn.exec_driver_sql(f'CREATE SCHEMA "{schema}"')
+    sep = "&" if "?" in PG_URL else "?"
+    url = f"{PG_URL}{sep}options=-csearch_path%3D{schema}"
+    try:
+        engine = make_engine(url)
+        migrate.upgrade(engine)
+        engine.dispose()
+        yield url
+    finally:
+        with admin.begin() as conn:
+            conn.exec_driver_sql(f'DROP SCHEMA "{schema}" CASCADE')
+        admin.dispose()
+
+
+@pytest.fixture(scope="module")
+def read_db(read_url: str) -> Iterator[toaster.Database]:
+    """``db`` shared by this module's tests that only read (on :func:`read_url`)."""
+    database = toaster.connect(read_url)
+    try:
+        yield database
+    finally:
+        database.close()
+
+
 @pytest.fixture
-def other(db: toaster.Database) -> Iterator[psycopg.Connection[Any] | None]:
+def other(read_db: toaster.Database) -> Iterator[psycopg.Connection[Any] | None]:
     """A second session (PostgreSQL) that hostile statements try to end."""
-    if db.dialect_name != "postgresql":
+    if read_db.dialect_name != "postgresql":
         yield None
         return
     conn = psycopg.connect(PG_URL.replace("postgresql+psycopg://", "postgresql://"),
@@ -214,8 +282,11 @@ def expect_refused(db: toaster.Database, url: str, sql: str, root: Path,
                    **bounds: Any) -> ToasterError | None:
     """Run ``sql`` read-only; check it raised one line (unless not ``must_raise``) and left
     nothing behind."""
+    roots = [root]
+    if url.startswith("sqlite:///"):  # the database's folder: its journal files
+        roots.append(Path(url.removeprefix("sqlite:///")).parent)
     q.execute(db, "SELECT count(*) FROM settings")  # set-up done, files settled
-    before, state, paths = dump(url), server_state(db), files(root)
+    before, state, paths = dump(url), server_state(db), [files(r) for r in roots]
     error = None
     try:
         q.execute(db, sql, **bounds)
@@ -223,7 +294,7 @@ def expect_refused(db: toaster.Database, url: str, sql: str, root: Path,
         error = exc
     assert error is not None or not must_raise, "did not raise"
     assert error is None or (str(error) and "\n" not in str(error)), str(error)
-    assert files(root) == paths
+    assert [files(r) for r in roots] == paths
     assert dump(url) == before
     assert server_state(db) == state
     if other is not None:
@@ -234,44 +305,47 @@ def expect_refused(db: toaster.Database, url: str, sql: str, root: Path,
 
 # ---------------------------------------------------------------------------- hostile
 @pytest.mark.parametrize("sql", [pytest.param(sql, id=name) for name, sql in HOSTILE])
-def test_hostile_statement_is_refused(db: toaster.Database, db_url: str, scratch: Path,
-                                      other: psycopg.Connection[Any] | None,
+def test_hostile_statement_is_refused(read_db: toaster.Database, read_url: str,
+                                      scratch: Path, other: psycopg.Connection[Any] | None,
                                       sql: str | tuple[str, str]) -> None:
     """Each raises a one-line ToasterError and changes nothing, on both backends."""
+    db = read_db
     if isinstance(sql, tuple):
         sql = sql[db.dialect_name == "postgresql"]
     pid = other.info.backend_pid if other is not None else 0
-    expect_refused(db, db_url, sql.format(tmp=scratch, pid=pid), scratch, other, **BOUNDS)
+    expect_refused(db, read_url, sql.format(tmp=scratch, pid=pid), scratch, other, **BOUNDS)
 
 
-def test_the_database_alone_stops_them(db: toaster.Database, db_url: str, scratch: Path,
-                                       other: psycopg.Connection[Any] | None,
+def test_the_database_alone_stops_them(read_db: toaster.Database, read_url: str,
+                                       scratch: Path, other: psycopg.Connection[Any] | None,
                                        monkeypatch: pytest.MonkeyPatch) -> None:
     """Defence in depth: with the statement check switched off, the database layers alone
     (authorizer, query_only, limits on SQLite; read-only transaction, reader role, wrapper
     and checks after on PostgreSQL) let no hostile statement leave a trace (some then run,
     harmlessly: their effects are rolled back)."""
-    monkeypatch.setattr(readonly, "check_statement", readonly.tokenize)
+    db = read_db
+    monkeypatch.setattr(readonly_sqlite, "check_statement", tokenize)
+    monkeypatch.setattr(readonly_pg, "check_statement", tokenize)
     pid = other.info.backend_pid if other is not None else 0
     failures = []
     for name, sql in HOSTILE:
         if isinstance(sql, tuple):
             sql = sql[db.dialect_name == "postgresql"]
         try:
-            expect_refused(db, db_url, sql.format(tmp=scratch, pid=pid), scratch, other,
+            expect_refused(db, read_url, sql.format(tmp=scratch, pid=pid), scratch, other,
                            must_raise=False, timeout_s=1.0, max_bytes=BOUNDS["max_bytes"])
         except AssertionError as exc:
             failures.append(f"{name}: {exc}")
     assert not failures
 
 
-def test_the_load_test_statements_are_refused(db: toaster.Database) -> None:
+def test_the_load_test_statements_are_refused(read_db: toaster.Database) -> None:
     """The issue's examples are refused before they reach the database, as writes."""
     for sql in ("COMMIT; DROP TABLE settings", "SET transaction_read_only = off",
                 "BEGIN READ WRITE", "ATTACH DATABASE 'x.db' AS x",
                 "WITH d AS (DELETE FROM settings) SELECT 1"):
         with pytest.raises(ReadOnlyError, match="--write"):
-            q.execute(db, sql)
+            q.execute(read_db, sql)
 
 
 def test_statement_cached_by_a_write_is_authorized_again(db: toaster.Database) -> None:
@@ -285,17 +359,18 @@ def test_statement_cached_by_a_write_is_authorized_again(db: toaster.Database) -
 
 # ---------------------------------------------------------------------------- PostgreSQL roles
 @pytest.mark.postgresql
-def test_statement_runs_as_the_reader_role(db: toaster.Database) -> None:
+def test_statement_runs_as_the_reader_role(read_db: toaster.Database) -> None:
     """A superuser's statement runs as toaster_reader, which holds no attribute; the
     connection is the connecting role's again afterwards."""
-    if db.dialect_name != "postgresql":
+    if read_db.dialect_name != "postgresql":
         pytest.skip("PostgreSQL roles")
-    assert q.execute(db, "SELECT current_user::text, session_user::text").rows == [
+    assert q.execute(read_db, "SELECT current_user::text, session_user::text").rows == [
         (READER_ROLE, "postgres")]
-    attrs = q.execute(db, "SELECT rolsuper, rolcreaterole, rolcreatedb, rolcanlogin, "
-                          "rolbypassrls FROM pg_roles WHERE rolname = :r", {"r": READER_ROLE})
+    attrs = q.execute(read_db, "SELECT rolsuper, rolcreaterole, rolcreatedb, rolcanlogin, "
+                               "rolbypassrls FROM pg_roles WHERE rolname = :r",
+                      {"r": READER_ROLE})
     assert attrs.rows == [(False, False, False, False, False)]
-    with db.transaction() as conn:
+    with read_db.transaction() as conn:
         assert conn.exec_driver_sql("SELECT current_user").scalar() == "postgres"
 
 
@@ -311,15 +386,18 @@ def test_views_made_after_the_first_read_are_readable(store: toaster.Store) -> N
 
 
 @pytest.mark.postgresql
-def test_a_superuser_never_falls_back(db: toaster.Database,
-                                      monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_superuser_never_falls_back(read_url: str, monkeypatch: pytest.MonkeyPatch) -> None:
     """When the reader role cannot be used, a superuser's statement is refused rather than
     run with the superuser's privileges."""
-    if db.dialect_name != "postgresql":
+    if not read_url.startswith("postgresql"):
         pytest.skip("PostgreSQL roles")
-    monkeypatch.setattr(readonly, "ensure_reader_role", lambda cur: "tampered")
-    with pytest.raises(ToasterError, match="cannot set up read-only SQL.*tampered"):
-        q.execute(db, "SELECT 1")
+    monkeypatch.setattr(readonly_pg, "ensure_reader_role", lambda cur: "tampered")
+    db = toaster.connect(read_url)  # a session of its own: it has no wrapper yet
+    try:
+        with pytest.raises(ToasterError, match="cannot set up read-only SQL.*tampered"):
+            q.execute(db, "SELECT 1")
+    finally:
+        db.close()
 
 
 @pytest.fixture
@@ -405,56 +483,56 @@ def test_ordinary_reads_still_work(store: toaster.Store) -> None:
             ("scope",), ("key",), ("value_json",)]
 
 
-def test_row_cap_truncates(db: toaster.Database) -> None:
+def test_row_cap_truncates(read_db: toaster.Database) -> None:
     """Beyond max_rows, the first max_rows rows and ``truncated``; exactly max_rows is whole."""
-    endless = q.execute(db, _ENDLESS + "SELECT x FROM c", max_rows=10)
+    endless = q.execute(read_db, _ENDLESS + "SELECT x FROM c", max_rows=10)
     assert endless.rows == [(i,) for i in range(1, 11)] and endless.truncated
-    exact = q.execute(db, "VALUES (1), (2), (3)", max_rows=3)
+    exact = q.execute(read_db, "VALUES (1), (2), (3)", max_rows=3)
     assert len(exact.rows) == 3 and not exact.truncated
 
 
-def test_byte_cap_and_timeout(db: toaster.Database) -> None:
+def test_byte_cap_and_timeout(read_db: toaster.Database) -> None:
     """Past max_bytes or timeout_s: a one-line error naming the option to raise."""
-    wide = "SELECT hex(randomblob(5000))" if db.dialect_name == "sqlite" else \
+    wide = "SELECT hex(randomblob(5000))" if read_db.dialect_name == "sqlite" else \
         "SELECT repeat('x', 10000)"
     with pytest.raises(ToasterError, match="--max-bytes"):
-        q.execute(db, wide, max_bytes=4096)
-    assert q.execute(db, wide, max_bytes=20000).rows
+        q.execute(read_db, wide, max_bytes=4096)
+    assert q.execute(read_db, wide, max_bytes=20000).rows
     with pytest.raises(ToasterError, match="--timeout"):
-        q.execute(db, _ENDLESS + "SELECT count(*) FROM c", timeout_s=0.3)
+        q.execute(read_db, _ENDLESS + "SELECT count(*) FROM c", timeout_s=0.3)
 
 
-def test_sqlite_memory_is_bounded(db: toaster.Database,
+def test_sqlite_memory_is_bounded(read_db: toaster.Database,
                                   monkeypatch: pytest.MonkeyPatch) -> None:
     """A sort of endless rows stops at SQLite's heap limit (lowered here to be quick)."""
-    if db.dialect_name != "sqlite":
+    if read_db.dialect_name != "sqlite":
         pytest.skip("SQLite's heap limit")
-    monkeypatch.setattr(readonly, "SQLITE_HEAP_LIMIT", 96 * 2**20)
+    monkeypatch.setattr(readonly_sqlite, "SQLITE_HEAP_LIMIT", 96 * 2**20)
     with pytest.raises(ToasterError, match="memory"):
-        q.execute(db, _ENDLESS + "SELECT x, hex(randomblob(50)) FROM c ORDER BY 2",
+        q.execute(read_db, _ENDLESS + "SELECT x, hex(randomblob(50)) FROM c ORDER BY 2",
                   timeout_s=60)
-    assert server_state(db)["pragmas"][4] == 0  # hard_heap_limit given back
+    assert server_state(read_db)["pragmas"][4] == 0  # hard_heap_limit given back
 
 
-def test_bad_bounds_are_refused(db: toaster.Database) -> None:
+def test_bad_bounds_are_refused(read_db: toaster.Database) -> None:
     """Bounds are checked with a message naming the value."""
     for bounds in ({"max_rows": 0}, {"max_bytes": 10}, {"timeout_s": 0}):
         with pytest.raises(ToasterError, match=next(iter(bounds))):
-            q.execute(db, "SELECT 1", **bounds)
+            q.execute(read_db, "SELECT 1", **bounds)
 
 
-def test_bad_text_is_a_one_line_error(db: toaster.Database) -> None:
+def test_bad_text_is_a_one_line_error(read_db: toaster.Database) -> None:
     """NUL, lone surrogates and empty statements: SQL errors, not tracebacks."""
     for sql, params in (("SELECT '\x00'", None), ("SELECT '\ud800'", None), ("", None),
                         (" ; ", None), ("SELECT :a", {"a": "\ud800"}), ("SELECT :a", {})):
         with pytest.raises(ToasterError, match="SQL error"):
-            q.execute(db, sql, params)
+            q.execute(read_db, sql, params)
 
 
-def test_read_only_needs_its_own_transaction(db: toaster.Database) -> None:
+def test_read_only_needs_its_own_transaction(read_db: toaster.Database) -> None:
     """Inside an open transaction, read-only SQL refuses to run (it must roll back)."""
-    with pytest.raises(ToasterError, match="outside"), db.transaction():
-        q.execute(db, "SELECT 1")
+    with pytest.raises(ToasterError, match="outside"), read_db.transaction():
+        q.execute(read_db, "SELECT 1")
 
 
 def test_write_still_writes(db: toaster.Database) -> None:
@@ -491,16 +569,16 @@ def test_unterminated_quotes_are_refused() -> None:
 
 
 # ---------------------------------------------------------------------------- CLI
-def test_cli_refusal_is_one_line(db_url: str) -> None:
+def test_cli_refusal_is_one_line(read_url: str) -> None:
     """``execute SQL`` prints one line and exits 1 on a refused statement; a truncated result
     says so on stderr."""
     runner = CliRunner()
-    refused = runner.invoke(cli, ["--db", db_url, "execute", "SQL",
+    refused = runner.invoke(cli, ["--db", read_url, "execute", "SQL",
                                   "COMMIT; DROP TABLE settings"])
     assert refused.exit_code == 1
     assert len(refused.output.strip().splitlines()) == 1
     assert "--write" in refused.output and "Traceback" not in refused.output
-    capped = runner.invoke(cli, ["--db", db_url, "execute", "SQL", "VALUES (1), (2), (3)",
+    capped = runner.invoke(cli, ["--db", read_url, "execute", "SQL", "VALUES (1), (2), (3)",
                                  "--max-rows", "2", "--csv"])
     assert capped.exit_code == 0, capped.output
     assert capped.stdout.splitlines()[1:] == ["1", "2"]

@@ -1,0 +1,66 @@
+"""The bounds of one read-only statement, its result, and the errors both guards share."""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+from toaster.errors import InvalidInputError, ToasterError
+
+DEFAULT_MAX_ROWS = 100_000
+DEFAULT_MAX_BYTES = 128 * 2**20
+DEFAULT_TIMEOUT_S = 60.0
+
+
+class Limits(NamedTuple):
+    """Bounds of one read-only statement (checked by :func:`limits`)."""
+
+    max_rows: int
+    max_bytes: int
+    timeout_s: float
+
+
+class ReadResult(NamedTuple):
+    """Columns and rows (at most ``max_rows``; ``truncated`` when there were more)."""
+
+    columns: list[str]
+    rows: list[tuple[Any, ...]]
+    truncated: bool
+
+
+def limits(max_rows: int, max_bytes: int, timeout_s: float) -> Limits:
+    """The checked bounds (:class:`~toaster.errors.InvalidInputError` names a bad one)."""
+    for name, value, low, high in (("max_rows", max_rows, 1, 2**31 - 2),
+                                   ("max_bytes", max_bytes, 1024, 2**62)):
+        if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+            msg = (f"{name}={value!r} is not a whole number from {low} to {high}: give e.g. "
+                   f"{name}=100000")
+            raise InvalidInputError(msg)
+    if not (isinstance(timeout_s, int | float) and 0 < timeout_s < 1e7):
+        msg = f"timeout_s={timeout_s!r} is not a number of seconds > 0: give e.g. timeout_s=60"
+        raise InvalidInputError(msg)
+    return Limits(max_rows, max_bytes, float(timeout_s))
+
+
+def timeout_error(bounds: Limits) -> ToasterError:
+    """The error of a statement that ran past ``timeout_s``."""
+    return ToasterError(f"SQL error: the statement ran longer than {bounds.timeout_s:g} s "
+                        "(read-only SQL's bound): narrow it (WHERE, LIMIT) or raise --timeout")
+
+
+def too_big_error(bounds: Limits) -> ToasterError:
+    """The error of a result past ``max_bytes``."""
+    return ToasterError(f"SQL error: the result is larger than {bounds.max_bytes} bytes "
+                        "(--max-bytes): select fewer rows or columns, or raise --max-bytes")
+
+
+def require_own_transaction(conn: Any) -> None:
+    """Refuse to run inside the caller's transaction (the statement's must be rolled back)."""
+    if conn.in_transaction():
+        msg = ("read-only SQL runs in a transaction of its own: call execute() outside "
+               "store.transaction() / db.transaction()")
+        raise ToasterError(msg)
+
+
+def first_line(exc: BaseException) -> str:
+    """The first line of an exception's message (its type's name when it has none)."""
+    return (str(exc).strip().splitlines() or [type(exc).__name__])[0]
