@@ -291,3 +291,19 @@ def test_locked_postgresql_fails_in_one_line(pg_schema_url: str,
         with db.transaction() as conn:
             assert conn.execute(sa.text("SELECT COUNT(*) FROM entities")).scalar_one() == 0
     holder.dispose()
+
+
+def test_an_unknown_revision_is_one_line_and_changes_nothing(tmp_path: Path) -> None:
+    from click.testing import CliRunner
+
+    from toaster.cli import cli
+
+    url = f"sqlite:///{tmp_path / 'r.db'}"
+    assert CliRunner().invoke(cli, ["--db", url, "db", "upgrade"]).exit_code == 0
+    before = (tmp_path / "r.db").read_bytes()
+    for command in ("downgrade", "upgrade"):
+        result = CliRunner().invoke(cli, ["--db", url, "db", command, "zzzz"])
+        assert result.exit_code == 1
+        assert result.exception is None or isinstance(result.exception, SystemExit)
+        assert "unknown revision 'zzzz'" in result.output
+    assert (tmp_path / "r.db").read_bytes() == before

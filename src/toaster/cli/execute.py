@@ -55,9 +55,10 @@ def execute(app: Any, command: str, argument: str | None, write: bool, params: t
         if not argument:
             raise click.UsageError(
                 'execute SQL needs the statement: toaster execute SQL "SELECT 1"')
+        bad = next((p for p in params if "=" not in p), None)
+        if bad is not None:
+            raise click.UsageError(f"--param {bad!r} takes NAME=VALUE, e.g. --param {bad}=1")
         bound = dict(p.split("=", 1) for p in params) if params else None
-        if any("=" not in p for p in params):
-            raise click.UsageError("--param takes NAME=VALUE")
         result = q.execute(db, argument, bound, write=write, max_rows=max_rows,
                            max_bytes=max_bytes, timeout_s=timeout_s)
         if result.columns:

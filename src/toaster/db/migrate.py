@@ -23,7 +23,12 @@ from sqlalchemy import Connection, Engine, inspect
 
 from toaster.db.engine import describe, ensure_wal, lock_timeout, make_engine
 from toaster.db.schema import metadata
-from toaster.errors import DatabaseLockedError, DatabaseOpenError, SchemaOutdatedError
+from toaster.errors import (
+    DatabaseLockedError,
+    DatabaseOpenError,
+    InvalidInputError,
+    SchemaOutdatedError,
+)
 
 VERSION_TABLE = "alembic_version"
 _TEMP_INFIX = ".tmp-"
@@ -84,9 +89,21 @@ def is_empty(engine: Engine) -> bool:
         return False
 
 
+def _check_revision(revision: str) -> None:
+    """A one-line error unless ``revision`` is one Alembic can go to."""
+    known = _known_revisions()
+    relative = revision[:1] in ("-", "+") and revision[1:].isdigit()  # -1: one step down
+    if revision in known or revision in ("head", "base", "heads") or relative:
+        return
+    shown = ", ".join(sorted(known))
+    msg = f"unknown revision {revision!r}: give one of {shown}, head, base or -N"
+    raise InvalidInputError(msg)
+
+
 def upgrade(engine: Engine, revision: str = "head") -> None:
     """Migrate the database up to ``revision``, in one transaction under the migration lock
     (a concurrent upgrade waits, then finds nothing left to do)."""
+    _check_revision(revision)
     with _migrating(engine) as conn:
         command.upgrade(alembic_config(conn), revision)
     _analyze(engine)
@@ -94,6 +111,7 @@ def upgrade(engine: Engine, revision: str = "head") -> None:
 
 def downgrade(engine: Engine, revision: str) -> None:
     """Migrate the database down to ``revision`` (``base`` removes everything)."""
+    _check_revision(revision)
     with _migrating(engine) as conn:
         command.downgrade(alembic_config(conn), revision)
 
