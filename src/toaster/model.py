@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import builtins
 import math
+import re
 from typing import NamedTuple
 
 from toaster.errors import InvalidInputError
@@ -154,12 +155,60 @@ class PropertyRow(NamedTuple):
     value: str
 
 
-def check_id(value: object, what: str) -> str:
-    """Return ``value`` if it is a non-empty string id, else raise a one-line error."""
-    if not isinstance(value, str) or not value.strip():
-        msg = f"invalid {what} {value!r}: ids must be non-empty text"
+#: The longest id (entity, agent, property, area, setting key...) in bytes of UTF-8: 256 ASCII
+#: characters, 64 emoji. PostgreSQL's btree index rows hold at most 2704 bytes, and the
+#: widest index, a fact key of a nested holder ``A>B>C>D`` (depth 4), takes 10 ids.
+MAX_ID_BYTES = 256
+#: Coordinates (metres) beyond this are refused in files: a world of 2000 km across is plenty.
+MAX_COORD = 1e6
+_SURROGATE = re.compile("[\ud800-\udfff]")
+
+
+def shown(value: object) -> str:
+    """``repr(value)``, cut to 60 characters for messages."""
+    text = repr(value)
+    return text if len(text) <= 60 else f"{text[:45]}...({len(text)} chars)"
+
+
+def check_text(value: object, what: str) -> str:
+    """Return ``value`` if it is text a database can store (no NUL, no lone surrogate, which
+    non-UTF-8 bytes of a file name or argument become), else raise a one-line error."""
+    if not isinstance(value, str):
+        msg = f"invalid {what} {shown(value)}: it must be text"
+        raise InvalidInputError(msg)
+    if not value.isascii() and _SURROGATE.search(value):
+        msg = (f"invalid {what} {shown(value)}: it is not valid UTF-8 text "
+               "(undecodable bytes); give UTF-8")
+        raise InvalidInputError(msg)
+    if "\x00" in value:
+        msg = f"invalid {what} {shown(value)}: it holds a NUL character; remove it"
         raise InvalidInputError(msg)
     return value
+
+
+def utf8_size(text: str) -> int:
+    """Bytes of ``text`` in UTF-8 (valid text: see :func:`check_text`)."""
+    return len(text) if text.isascii() else len(text.encode("utf-8", "surrogatepass"))
+
+
+def check_id(value: object, what: str) -> str:
+    """Return ``value`` if it is a valid id: non-empty text without NUL or lone surrogates, of
+    at most :data:`MAX_ID_BYTES` bytes of UTF-8; else raise a one-line error. Every id that
+    enters the database passes here."""
+    if not isinstance(value, str) or not value.strip():
+        msg = f"invalid {what} {shown(value)}: ids must be non-empty text"
+        raise InvalidInputError(msg)
+    size = utf8_size(value)
+    if size > MAX_ID_BYTES:
+        msg = (f"invalid {what} {shown(value)}: ids are at most {MAX_ID_BYTES} bytes of UTF-8 "
+               f"({MAX_ID_BYTES} ASCII characters), not {size}; use a shorter id")
+        raise InvalidInputError(msg)
+    return check_text(value, what)
+
+
+def check_optional_id(value: object, what: str) -> str:
+    """``value`` if it is ``""`` (none) or a valid id (:func:`check_id`)."""
+    return value if value == "" else check_id(value, what)
 
 
 def check_unit_interval(value: object, what: str) -> float:
@@ -174,36 +223,47 @@ def check_unit_interval(value: object, what: str) -> float:
     return number
 
 
+_KEY_FIELDS = ("subject_id", "property", "target_id", "sub_property", "subject_owner_id",
+               "target_owner_id")
+_TEXT_FIELDS = ("value_text", "property_type")
+
+
 def _plain(fact: object) -> bool:
-    """True for a Fact whose fields already have the right types and ranges (fast path)."""
+    """True for a Fact whose fields already have the right types and ranges (fast path: ASCII
+    texts without NUL, ids of at most MAX_ID_BYTES)."""
     if type(fact) is not Fact:
         return False
     s, p, t, vt, vn, c, o, pt, sp, so, to = fact  # type: ignore[misc]
-    return (type(s) is str and type(p) is str and type(t) is str and type(vt) is str
+    if not (type(s) is str and type(p) is str and type(t) is str and type(vt) is str
             and type(pt) is str and type(sp) is str and type(so) is str and type(to) is str
             and type(c) is float and 0.0 <= c <= 1.0 and type(o) is float and 0.0 <= o <= 1.0
             and (vn is None or (type(vn) is float and math.isfinite(vn)))
-            and bool(s) and bool(p) and not s.isspace() and not p.isspace())
+            and bool(s) and bool(p) and not s.isspace() and not p.isspace()):
+        return False
+    key = s + p + t + sp + so + to
+    return (len(s) <= MAX_ID_BYTES and len(p) <= MAX_ID_BYTES and len(t) <= MAX_ID_BYTES
+            and len(sp) <= MAX_ID_BYTES and len(so) <= MAX_ID_BYTES and len(to) <= MAX_ID_BYTES
+            and key.isascii() and "\x00" not in key and vt.isascii() and pt.isascii()
+            and "\x00" not in vt and "\x00" not in pt)
 
 
 def check_fact(fact: Fact) -> Fact:
-    """Validate one fact (ids, confidence, observability, numeric value); return it normalised."""
+    """Validate one fact (ids, texts, confidence, observability, numeric value); return it
+    normalised."""
     if _plain(fact):
         return fact
     if not isinstance(fact, Fact):
         if isinstance(fact, tuple) and 2 <= len(fact) <= len(Fact._fields):
             fact = Fact(*fact)
         else:
-            msg = f"invalid fact {fact!r}: give a toaster.Fact(subject_id, property, ...)"
+            msg = f"invalid fact {shown(fact)}: give a toaster.Fact(subject_id, property, ...)"
             raise InvalidInputError(msg)
     check_id(fact.subject_id, "subject id")
     check_id(fact.property, "property")
-    for name in ("target_id", "value_text", "property_type", "sub_property",
-                 "subject_owner_id", "target_owner_id"):
-        if not isinstance(getattr(fact, name), str):
-            msg = (f"invalid {name} {getattr(fact, name)!r} in {fact.subject_id} "
-                   f"{fact.property}: must be text")
-            raise InvalidInputError(msg)
+    for name in _KEY_FIELDS[2:]:
+        check_optional_id(getattr(fact, name), f"{name} in {fact.subject_id} {fact.property}")
+    for name in _TEXT_FIELDS:
+        check_text(getattr(fact, name), f"{name} in {fact.subject_id} {fact.property}")
     confidence = check_unit_interval(fact.confidence, "confidence")
     observability = check_unit_interval(fact.observability, "observability")
     value_num = fact.value_num

@@ -6,16 +6,27 @@
 
 from __future__ import annotations
 
+import math
 import re
 import time
-from datetime import UTC, datetime
+from datetime import UTC, datetime, timedelta
+from fractions import Fraction
 
 from toaster.errors import InvalidInputError
+from toaster.model import shown
 
 NS_PER_S = 1_000_000_000
 _UNITS = {"ns": 1, "us": 1_000, "µs": 1_000, "ms": 1_000_000, "s": NS_PER_S,
           "min": 60 * NS_PER_S, "h": 3600 * NS_PER_S}
 _DURATION = re.compile(r"^\s*([-+]?\d+(?:\.\d*)?|[-+]?\.\d+)\s*(ns|us|µs|ms|s|min|h)\s*$")
+#: Times are signed 64-bit nanoseconds in the database, and never before the epoch.
+MAX_NS = 2**63 - 1
+_RANGE = "0 (1970-01-01T00:00:00Z) to 2^63-1 ns (2262-04-11T23:47:16Z)"
+#: The slowest and fastest tick rates (ticks per second) a run may ask for: 0.1 ms to about
+#: 11.6 days between ticks.
+MIN_RATE_HZ, MAX_RATE_HZ = 1e-6, 10_000.0
+_SECOND = timedelta(seconds=1)
+_MAX_DIGITS = 30  # longer numbers are out of range anyway (and slow to convert)
 
 
 def now_ns() -> int:
@@ -23,46 +34,91 @@ def now_ns() -> int:
     return time.time_ns()
 
 
-def parse_duration(text: str | int | float) -> int:
-    """Parse a duration such as ``5s``, ``300ms`` or a bare integer of nanoseconds."""
-    if isinstance(text, bool):
-        msg = f"invalid duration {text!r}: give nanoseconds or a number with a unit (5s, 300ms)"
+def check_ns(value: int, what: str = "time") -> int:
+    """Return ``value`` if it is a time the database can hold (0 to 2^63-1 ns), else raise
+    a one-line error naming it and the range."""
+    if not 0 <= value <= MAX_NS:
+        msg = f"{what} {value} ns is out of range: times go from {_RANGE}"
         raise InvalidInputError(msg)
-    if isinstance(text, int):
-        return text
-    if isinstance(text, float):
-        msg = f"invalid duration {text!r}: floats are ambiguous, write '{text}s' or nanoseconds"
+    return value
+
+
+def check_rate(value: object, what: str = "rate") -> float:
+    """Return ``value`` as ticks per second if it is a number from MIN_RATE_HZ to
+    MAX_RATE_HZ, else raise a one-line error naming it."""
+    try:
+        rate = float(value) if isinstance(value, int | float | str) and not isinstance(
+            value, bool) else math.nan
+    except (ValueError, OverflowError):
+        rate = math.nan
+    if not (math.isfinite(rate) and MIN_RATE_HZ <= rate <= MAX_RATE_HZ):
+        msg = (f"{what} {shown(value)} must be a positive number of ticks per second, from "
+               f"{MIN_RATE_HZ:g} to {MAX_RATE_HZ:g}")
         raise InvalidInputError(msg)
+    return rate
+
+
+def _too_long(text: str, what: str) -> None:
+    if len(text) > _MAX_DIGITS + 10:
+        msg = f"invalid {what} {text[:30]!r}...: too long to be a {what}"
+        raise InvalidInputError(msg)
+
+
+def _duration_ns(text: str) -> int | None:
+    """The nanoseconds of ``5s``, ``300ms`` or bare integer text (exact); None if neither."""
+    _too_long(text, "duration")
     match = _DURATION.match(text)
     if match:
         number, unit = match.groups()
-        return round(float(number) * _UNITS[unit]) if "." in number else int(number) * _UNITS[unit]
+        return round(Fraction(number) * _UNITS[unit])
     stripped = text.strip()
-    if re.fullmatch(r"[-+]?\d+", stripped):
-        return int(stripped)
-    msg = f"invalid duration {text!r}: give nanoseconds or a number with a unit (5s, 300ms, 2min)"
-    raise InvalidInputError(msg)
+    return int(stripped) if re.fullmatch(r"[-+]?\d+", stripped) else None
+
+
+def parse_duration(text: str | int | float) -> int:
+    """Parse a duration such as ``5s``, ``300ms`` or a bare integer of nanoseconds.
+
+    Its magnitude is at most 2^63-1 ns (about 292 years); fractions are exact.
+    """
+    if isinstance(text, bool) or not isinstance(text, str | int | float):
+        msg = (f"invalid duration {text!r}: give nanoseconds or a number with a unit "
+               "(5s, 300ms)")
+        raise InvalidInputError(msg)
+    if isinstance(text, float):
+        msg = f"invalid duration {text!r}: floats are ambiguous, write '{text}s' or nanoseconds"
+        raise InvalidInputError(msg)
+    value = text if isinstance(text, int) else _duration_ns(text)
+    if value is None:
+        msg = (f"invalid duration {text!r}: give nanoseconds or a number with a unit "
+               "(5s, 300ms, 2min)")
+        raise InvalidInputError(msg)
+    if abs(value) > MAX_NS:
+        msg = f"duration {text!r} is out of range: at most 2^63-1 ns (about 292 years)"
+        raise InvalidInputError(msg)
+    return value
 
 
 def parse_time(text: str | int, *, base_ns: int = 0) -> int:
     """Parse a point in time into nanoseconds since the epoch.
 
     Integers are nanoseconds; ``now`` is the wall clock; ISO 8601 dates are taken as UTC unless
-    they carry an offset; a duration (``12.5s``) is relative to ``base_ns``.
+    they carry an offset; a duration (``12.5s``) is relative to ``base_ns``. The result must lie
+    in 0 .. 2^63-1 ns (the database's range), else a one-line error names it.
     """
     if isinstance(text, int) and not isinstance(text, bool):
-        return text
+        return check_ns(text)
     if not isinstance(text, str):
         msg = f"invalid time {text!r}: give nanoseconds, an ISO date or a duration such as 12.5s"
         raise InvalidInputError(msg)
+    _too_long(text, "time")
     stripped = text.strip()
     if stripped.lower() == "now":
         return now_ns()
     if re.fullmatch(r"[-+]?\d+", stripped):
-        return int(stripped)
+        return check_ns(int(stripped), f"time {stripped!r} =")
     if _DURATION.match(stripped):
-        return base_ns + parse_duration(stripped)
-    return _parse_iso(stripped)
+        return check_ns(base_ns + (_duration_ns(stripped) or 0), f"time {stripped!r} =")
+    return check_ns(_parse_iso(stripped), f"time {stripped!r} =")
 
 
 def _parse_iso(text: str) -> int:
@@ -82,7 +138,8 @@ def _parse_iso(text: str) -> int:
         raise InvalidInputError(msg) from None
     if moment.tzinfo is None:
         moment = moment.replace(tzinfo=UTC)
-    return int(moment.timestamp()) * NS_PER_S + frac_ns
+    epoch = datetime(1970, 1, 1, tzinfo=UTC)
+    return (moment - epoch) // _SECOND * NS_PER_S + frac_ns
 
 
 def format_ns(value: int | None) -> str:
@@ -90,7 +147,10 @@ def format_ns(value: int | None) -> str:
     if value is None:
         return ""
     seconds, frac = divmod(value, NS_PER_S)
-    stamp = datetime.fromtimestamp(seconds, tz=UTC).strftime("%Y-%m-%d %H:%M:%S")
+    try:
+        stamp = datetime.fromtimestamp(seconds, tz=UTC).strftime("%Y-%m-%d %H:%M:%S")
+    except (OverflowError, OSError, ValueError):  # outside datetime's years 1..9999
+        return f"{value} ns"
     if frac:
         digits = f"{frac:09d}".rstrip("0")
         width = 3 if len(digits) <= 3 else 6 if len(digits) <= 6 else 9

@@ -1,7 +1,8 @@
 """One writer (or reader) process of the many-writers test and benchmark.
 
 ``python -m tests.db.writers URL ROLE SECONDS SEED OUT.json`` from the project root (ROLE:
-``ROBOT:rooms``, ``ROBOT:things``, ``reader`` or ``run:ROBOT:SCENARIO:RATE:TICKS``). A writer
+``ROBOT:rooms``, ``ROBOT:things``, ``reader`` or ``run:ROBOT:SCENARIO:RATE:TICKS[:HOLDERS]``).
+A writer
 is one producer of one robot: it registers the robot (a self agent), the people and the
 things (the same ids in every process, so registrations race), then writes a snapshot of its
 source every tick for SECONDS, stamped with the wall clock as a live node stamps its ticks:
@@ -111,7 +112,8 @@ def read(url: str, seconds: float, seed: int) -> dict[str, Any]:
             "latencies": latencies, "last": []}
 
 
-def run(url: str, robot: str, path: str, rate: float, ticks: int) -> dict[str, Any]:
+def run(url: str, robot: str, path: str, rate: float, ticks: int,
+        holders: str | None = None) -> dict[str, Any]:
     """``toaster run PATH --rate RATE`` as robot ``robot`` (the library path of the command:
     load, register, tick) for at most ``ticks`` ticks, timing each tick."""
     from toaster.producers import Runner, load_session
@@ -120,7 +122,7 @@ def run(url: str, robot: str, path: str, rate: float, ticks: int) -> dict[str, A
     latencies: list[float] = []
     with toaster.connect(url) as db:
         store = db.store()
-        session = load_session(path, store.areas())
+        session = load_session(path, store.areas(), holders=holders)
         session.self_id = robot
         runner = Runner(session.world, session.sources, session.producers, store=store,
                         agent_id=robot, config=session.config)
@@ -144,9 +146,9 @@ def main(argv: list[str]) -> None:
     url, role, seconds, seed, out = argv
     if role == "reader":
         result = read(url, float(seconds), int(seed))
-    elif role.startswith("run:"):  # run:ROBOT:PATH:RATE:TICKS
-        _, robot, path, rate, ticks = role.split(":")
-        result = run(url, robot, path, float(rate), int(ticks))
+    elif role.startswith("run:"):  # run:ROBOT:PATH:RATE:TICKS[:HOLDERS]
+        _, robot, path, rate, ticks, *holders = role.split(":")
+        result = run(url, robot, path, float(rate), int(ticks), *holders)
     else:
         result = write(url, role, float(seconds), int(seed))
     with open(out, "w", encoding="utf-8") as handle:

@@ -35,10 +35,20 @@ from pathlib import Path
 from typing import Any
 
 from toaster.beliefs import api
+from toaster.beliefs import config as cfg
 from toaster.beliefs.tell import tell
 from toaster.documents import read_document
 from toaster.errors import FileFormatError, InvalidInputError
-from toaster.model import Fact, check_fact, fact_key
+from toaster.model import (
+    Fact,
+    check_fact,
+    check_id,
+    check_text,
+    check_unit_interval,
+    fact_key,
+    shown,
+)
+from toaster.timeutil import MAX_NS, check_ns
 
 SOURCE = "scenario"
 _FACT_FIELDS = ("subject", "property", "target", "value", "value_num", "confidence",
@@ -80,38 +90,92 @@ class Scenario:
     expect: list[dict[str, Any]]
 
 
+_STEP_KEYS = ("t", "t_ns", "rooms", "inside", "onto", "facts", "end", "actor", "tell")
+_EXPECT_KEYS = ("t", "agent", "about", "subject", "property", "target", "value", "held",
+                "confidence")
+
+
 def _bad(where: str, value: object, fix: str) -> FileFormatError:
-    return FileFormatError(f"{where}: invalid {value!r}: {fix}")
+    return FileFormatError(f"{where}: invalid {shown(value)}: {fix}")
+
+
+def _id(where: str, value: object, what: str = "id") -> str:
+    """An id (numbers written as text), or a one-line error naming ``where``."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        value = str(value)
+    try:
+        return check_id(value, what)
+    except InvalidInputError as exc:
+        msg = f"{where}: {exc}"
+        raise FileFormatError(msg) from None
+
+
+def _ids(where: str, raw: object, what: str) -> list[str]:
+    if raw is None:
+        return []
+    if not isinstance(raw, list):
+        raise _bad(where, raw, f"{what} is a list of ids")
+    return [_id(where, v, what) for v in raw]
+
+
+def _seconds_ns(where: str, value: object) -> int:
+    """Seconds (a finite number) as nanoseconds in the database's range."""
+    try:
+        ok = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(
+            value) and 0 <= value <= MAX_NS / 1e9
+    except OverflowError:
+        ok = False
+    if not ok:
+        raise _bad(where, value, "t is seconds from 0 (t_ns: integer nanoseconds)")
+    return check_ns(round(value * 1e9))  # type: ignore[operator]
 
 
 def _time(where: str, raw: dict[str, Any]) -> int:
     if "t_ns" in raw:
         value = raw["t_ns"]
-        if isinstance(value, int) and not isinstance(value, bool):
+        if isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= MAX_NS:
             return value
-        raise _bad(where, value, "t_ns must be an integer number of nanoseconds")
+        raise _bad(where, value, "t_ns must be an integer number of nanoseconds from 0 "
+                   "to 2^63-1")
     value = raw.get("t")
-    if isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value):
-        return round(value * 1e9)
-    raise _bad(where, value, "give t (seconds) or t_ns (integer nanoseconds) for every step")
+    if not isinstance(value, int | float) or isinstance(value, bool):
+        raise _bad(where, value, "give t (seconds) or t_ns (integer nanoseconds) for every step")
+    return _seconds_ns(where, value)
+
+
+def _scalar(where: str, value: object, what: str) -> str:
+    if isinstance(value, bool):
+        value = str(value).lower()
+    elif isinstance(value, int | float):
+        value = str(value)
+    try:
+        return check_text(value, what)
+    except InvalidInputError as exc:
+        msg = f"{where}: {exc}"
+        raise FileFormatError(msg) from None
 
 
 def _fact(where: str, raw: object) -> Fact:
     if isinstance(raw, list | tuple) and 2 <= len(raw) <= 4:
-        items = [str(v) for v in raw]
-        raw = dict(zip(("subject", "property", "target", "value"), items, strict=False))
+        raw = dict(zip(("subject", "property", "target", "value"), raw, strict=False))
     if not isinstance(raw, dict) or "subject" not in raw or "property" not in raw:
         raise _bad(where, raw, "write a fact as [SUBJECT, PROPERTY, TARGET] or "
                    "{subject: S, property: P, target: T, value: V, confidence: C}")
     unknown = set(raw) - set(_FACT_FIELDS)
     if unknown:
-        raise _bad(where, sorted(unknown)[0], f"fact fields are {', '.join(_FACT_FIELDS)}")
+        raise _bad(where, sorted(map(str, unknown))[0],
+                   f"fact fields are {', '.join(_FACT_FIELDS)}")
+    target = raw.get("target")
     try:
-        return check_fact(Fact(str(raw["subject"]), str(raw["property"]),
-                               str(raw.get("target") or ""), str(raw.get("value", "true")),
+        return check_fact(Fact(_id(where, raw["subject"], "subject"),
+                               _id(where, raw["property"], "property"),
+                               "" if target in (None, "") else _id(where, target, "target"),
+                               _scalar(where, raw.get("value", "true"), "value"),
                                raw.get("value_num"), raw.get("confidence", 1.0),
                                raw.get("observability", 1.0)))
     except InvalidInputError as exc:
+        if isinstance(exc, FileFormatError):
+            raise
         msg = f"{where}: {exc}"
         raise FileFormatError(msg) from None
 
@@ -121,10 +185,11 @@ def _mapping(where: str, raw: object) -> dict[str, str | None]:
         return {}
     if not isinstance(raw, dict):
         raise _bad(where, raw, "give a mapping ENTITY: PLACE (null = none)")
-    return {str(k): (None if v is None else str(v)) for k, v in raw.items()}
+    return {_id(where, k, "entity"): (None if v is None else _id(where, v, "place"))
+            for k, v in raw.items()}
 
 
-def _tells(where: str, raw: object) -> list[Telling]:
+def _tells(where: str, raw: object, agents: set[str]) -> list[Telling]:
     items = [] if raw is None else raw if isinstance(raw, list) else [raw]
     tells = []
     for item in items:
@@ -132,51 +197,131 @@ def _tells(where: str, raw: object) -> list[Telling]:
                 or "fact" not in item or set(item) - {"speaker", "listeners", "public", "fact"}):
             raise _bad(where, item, "write a telling as {speaker: ID, listeners: [ID, ...], "
                        "fact: [SUBJECT, PROPERTY, TARGET]} (or public: true for the room)")
+        speaker = _agent(where, item["speaker"], agents, "speaker")
         listeners = item.get("listeners")
+        if not isinstance(item.get("public", False), bool):
+            raise _bad(where, item["public"], "public is true or false")
         if item.get("public"):
             listeners = None
         elif not isinstance(listeners, list) or not listeners:
             raise _bad(where, listeners, "give listeners: [ID, ...] or public: true")
-        tells.append(Telling(item["speaker"], _fact(where, item["fact"]),
-                             None if listeners is None else [str(v) for v in listeners]))
+        tells.append(Telling(speaker, _fact(where, item["fact"]),
+                             None if listeners is None else
+                             [_agent(where, v, agents, "listener") for v in listeners]))
     return tells
 
 
+def _agent(where: str, value: object, agents: set[str], what: str) -> str:
+    """An id of the scenario's self or agents."""
+    agent = _id(where, value, what)
+    if agent not in agents:
+        raise _bad(where, agent, f"the {what} must be the self or one of the agents "
+                   f"({', '.join(sorted(agents))})")
+    return agent
+
+
+def _step(where: str, raw: object, agents: set[str]) -> Step:
+    if not isinstance(raw, dict):
+        raise _bad(where, raw, "each step is a mapping with t and changes")
+    unknown = set(raw) - set(_STEP_KEYS)
+    if unknown:
+        raise _bad(where, sorted(map(str, unknown))[0], f"a step has {', '.join(_STEP_KEYS)}")
+    step = Step(_time(where, raw), rooms=_mapping(where, raw.get("rooms")))
+    for word, prop in (("inside", "IsIn"), ("onto", "IsOn")):
+        for entity, place in _mapping(where, raw.get(word)).items():
+            step.inside[entity] = None if place is None else (prop, place)
+    facts = raw.get("facts") or []
+    if not isinstance(facts, list):
+        raise _bad(where, facts, "facts is a list of facts")
+    step.facts = [_fact(where, f) for f in facts]
+    ends = raw.get("end") or []
+    if not isinstance(ends, list):
+        raise _bad(where, ends, "end is a list of [SUBJECT, PROPERTY] or [SUBJECT, PROPERTY, "
+                   "TARGET]")
+    for item in ends:
+        if not isinstance(item, list | tuple) or not 2 <= len(item) <= 3:
+            raise _bad(where, item, "end a fact with [SUBJECT, PROPERTY] or "
+                       "[SUBJECT, PROPERTY, TARGET]")
+        step.end.append((_id(where, item[0], "subject"), _id(where, item[1], "property"),
+                         _id(where, item[2], "target") if len(item) == 3 else None))
+    actor = raw.get("actor")
+    if actor is not None:
+        actor = _agent(where, actor, agents, "actor")
+    step.actor = actor
+    step.tells = _tells(where, raw.get("tell"), agents)
+    return step
+
+
+def _expectation(where: str, raw: object, holders: set[str]) -> dict[str, Any]:
+    """One expectation, checked: ids, t (seconds), held (bool), value, confidence."""
+    if not isinstance(raw, dict) or not {"agent", "subject", "property"} <= set(raw):
+        raise _bad(where, raw, "write an expectation as {t: 4, agent: A, subject: S, "
+                   "property: P, target: T[, about: B, held: false, value: V]}")
+    unknown = set(raw) - set(_EXPECT_KEYS)
+    if unknown:
+        raise _bad(where, sorted(map(str, unknown))[0],
+                   f"an expectation has {', '.join(_EXPECT_KEYS)}")
+    out: dict[str, Any] = {key: _id(where, raw[key], key)
+                           for key in ("agent", "subject", "property")}
+    _agent(where, out["agent"], holders, "agent")
+    if raw.get("target") not in (None, ""):
+        out["target"] = _id(where, raw["target"], "target")
+    about = raw.get("about")
+    if about is not None:
+        out["about"] = (_agent(where, about, holders, "about") if not isinstance(about, list)
+                        else [_agent(where, a, holders, "about") for a in about])
+    if "t" in raw:
+        out["t_ns"] = _seconds_ns(where, raw["t"])
+    if "held" in raw:
+        if not isinstance(raw["held"], bool):
+            raise _bad(where, raw["held"], "held is true or false")
+        out["held"] = raw["held"]
+    if "value" in raw:
+        out["value"] = _scalar(where, raw["value"], "value")
+    if "confidence" in raw:
+        try:
+            out["confidence"] = check_unit_interval(raw["confidence"], "confidence")
+        except InvalidInputError as exc:
+            msg = f"{where}: {exc}"
+            raise FileFormatError(msg) from None
+    return out
+
+
 def parse(data: object, name: str = "scenario") -> Scenario:
-    """Validate a loaded YAML/JSON document into a :class:`Scenario`."""
+    """Validate a loaded YAML/JSON document into a :class:`Scenario`, every field checked."""
     if not isinstance(data, dict) or not isinstance(data.get("steps"), list):
         raise _bad(name, type(data).__name__, "a scenario is a mapping with a list of steps")
+    self_agent = _id(name, data.get("self", "ROBOT"), "self")
+    agents = _ids(name, data.get("agents"), "agents")
+    objects = _ids(name, data.get("objects"), "objects")
+    declared = [self_agent, *agents, *objects]
+    twice = sorted({i for i in declared if declared.count(i) > 1})
+    if twice:
+        raise _bad(name, twice[0], "self, agents and objects name each id once")
+    settings = data.get("settings") or {}
+    if not isinstance(settings, dict):
+        raise _bad(name, settings, "settings map belief settings to values, e.g. {depth: 2}")
+    try:
+        for key, value in settings.items():
+            cfg.validate(key, value)
+    except InvalidInputError as exc:
+        msg = f"{name}: settings: {exc}"
+        raise FileFormatError(msg) from None
+    holders = {self_agent, *agents}
     steps: list[Step] = []
     for i, raw in enumerate(data["steps"], 1):
         where = f"{name}: step {i}"
-        if not isinstance(raw, dict):
-            raise _bad(where, raw, "each step is a mapping with t and changes")
-        step = Step(_time(where, raw), rooms=_mapping(where, raw.get("rooms")))
-        for word, prop in (("inside", "IsIn"), ("onto", "IsOn")):
-            for entity, place in _mapping(where, raw.get(word)).items():
-                step.inside[entity] = None if place is None else (prop, place)
-        step.facts = [_fact(where, f) for f in raw.get("facts") or []]
-        for item in raw.get("end") or []:
-            if not isinstance(item, list | tuple) or not 2 <= len(item) <= 3:
-                raise _bad(where, item, "end a fact with [SUBJECT, PROPERTY] or "
-                           "[SUBJECT, PROPERTY, TARGET]")
-            step.end.append((str(item[0]), str(item[1]),
-                             str(item[2]) if len(item) == 3 else None))
-        actor = raw.get("actor")
-        if actor is not None and not isinstance(actor, str):
-            raise _bad(where, actor, "actor is the id of the agent who made the step's changes")
-        step.actor = actor
-        step.tells = _tells(where, raw.get("tell"))
+        step = _step(where, raw, holders)
         if steps and step.t_ns < steps[-1].t_ns:
             raise _bad(where, raw.get("t", raw.get("t_ns")), "steps must be in time order")
         steps.append(step)
-    self_agent = data.get("self", "ROBOT")
-    agents = data.get("agents") or []
-    if not isinstance(self_agent, str) or not isinstance(agents, list):
-        raise _bad(name, agents, "self is an id and agents a list of ids")
-    return Scenario(str(data.get("name", name)), self_agent, [str(a) for a in agents],
-                    [str(o) for o in data.get("objects") or []],
-                    dict(data.get("settings") or {}), steps, list(data.get("expect") or []))
+    expect = data.get("expect") or []
+    if not isinstance(expect, list):
+        raise _bad(name, expect, "expect is a list of expectations")
+    title = data.get("name", name)
+    return Scenario(_scalar(name, title, "name"), self_agent, agents, objects, dict(settings),
+                    steps, [_expectation(f"{name}: expectation {i}", e, holders)
+                            for i, e in enumerate(expect, 1)])
 
 
 def load(path: str | Path) -> Scenario:
@@ -235,10 +380,11 @@ class Replayer:
                  t_ns=step.t_ns)
 
     def run(self) -> None:
-        """Set up and replay every step."""
-        self.setup()
-        for step in self.scenario.steps:
-            self.apply(step)
+        """Set up and replay every step, in one transaction (all or nothing)."""
+        with self.store.transaction():
+            self.setup()
+            for step in self.scenario.steps:
+                self.apply(step)
 
 
 def check(db: Any, scenario: Scenario) -> list[str]:
@@ -246,7 +392,7 @@ def check(db: Any, scenario: Scenario) -> list[str]:
     failures = []
     end = scenario.steps[-1].t_ns if scenario.steps else 0
     for i, exp in enumerate(scenario.expect, 1):
-        t_ns = round(exp["t"] * 1e9) if "t" in exp else end
+        t_ns = exp.get("t_ns", round(exp["t"] * 1e9) if "t" in exp else end)
         row = api.belief_value(db, exp["agent"], exp["subject"], exp["property"],
                                exp.get("target", ""), about=exp.get("about"), at=t_ns)
         held = row is not None and row.value_text == str(exp.get("value", row.value_text))
@@ -260,6 +406,17 @@ def check(db: Any, scenario: Scenario) -> list[str]:
             failures.append(f"expectation {i}: {who}: {what} confidence {row.confidence:g}, "
                             f"expected {exp['confidence']:g}")
     return failures
+
+
+def replay_and_check(db: Any, path_or_scenario: str | Path | Scenario
+                     ) -> tuple[Scenario, list[str]]:
+    """:func:`replay` then :func:`check`, in one transaction: an error in either (an
+    expectation about a holder deeper than the depth setting...) writes nothing."""
+    sc = (path_or_scenario if isinstance(path_or_scenario, Scenario)
+          else load(path_or_scenario))
+    with db.store().transaction():
+        Replayer(db, sc).run()
+        return sc, check(db, sc)
 
 
 def replay(db: Any, path_or_scenario: str | Path | Scenario) -> Scenario:

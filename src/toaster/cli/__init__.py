@@ -68,6 +68,7 @@ def cli(ctx: click.Context, url: str | None, debug: bool) -> None:
 
 def _register() -> None:
     from toaster.cli.beliefs import beliefs, tell_cmd
+    from toaster.cli.checks import guard
     from toaster.cli.control import entity, hand, monitor, pointing_cmd, relative_position, stream
     from toaster.cli.db import db_group
     from toaster.cli.demo import demo
@@ -84,6 +85,7 @@ def _register() -> None:
                     monitor, plot_facts, pointing_cmd, record, relative_position, relpos, run,
                     serve, set_info, stream, tell_cmd, tolerance, watch):
         cli.add_command(command)
+    guard(cli)
 
 
 _register()

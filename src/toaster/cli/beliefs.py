@@ -7,13 +7,12 @@ from typing import Any
 
 import click
 
+from toaster.cli.checks import parse_json_option, parse_time_option
 from toaster.cli.output import emit, output_options, say
 
 
 def _at(value: str | None) -> int | None:
-    from toaster.timeutil import parse_time
-
-    return None if value is None else parse_time(value)
+    return parse_time_option(value, "--at")
 
 
 def _about(value: str | None) -> list[str] | None:
@@ -132,10 +131,7 @@ def config(app: Any, key: str | None, value: str | None, reset: bool) -> None:
     if value is None:
         click.echo(json.dumps(api.config(app.db)[cfg.check_key(key)]))
         return
-    try:
-        parsed = json.loads(value)
-    except json.JSONDecodeError:
-        parsed = value
+    parsed = parse_json_option(value, f"beliefs setting {key}")
     api.configure(app.db, **{key: parsed})
     say(f"beliefs.{key} = {json.dumps(parsed)}")
 
@@ -148,9 +144,8 @@ def replay(app: Any, scenario: str, check: bool) -> None:
     """Replay a belief scenario (timed facts and room changes) into the database."""
     from toaster.beliefs import scenario as sc
 
-    loaded = sc.replay(app.db, scenario)
+    loaded, failures = sc.replay_and_check(app.db, scenario)
     say(f"replayed {loaded.name}: {len(loaded.steps)} steps")
-    failures = sc.check(app.db, loaded)
     for failure in failures:
         click.echo(failure)
     if loaded.expect:

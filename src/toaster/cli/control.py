@@ -132,7 +132,9 @@ def hand_remove(app: Any, object_id: str) -> None:
     """Release OBJECT; it stays where it last was."""
     from toaster.live import control
 
-    if not control.remove_from_hand(app.db, object_id):
+    with app.db.transaction() as conn:  # checked first: a failed command writes nothing
+        held = object_id in control.read_state(conn).in_hand
+    if not held or not control.remove_from_hand(app.db, object_id):
         msg = f"{object_id!r} is in no hand: see `toaster execute \"SELECT * FROM settings\"`"
         raise InvalidInputError(msg)
     click.echo(f"{object_id} released")
@@ -156,10 +158,14 @@ def entity_pose(app: Any, entity_id: str, position: tuple[float, ...], yaw: floa
                 quat: tuple[float, float, float, float] | None, kind: str) -> None:
     """Set ID's pose to X Y [Z] (set_entity_pose); applied by the running node or the next."""
     from toaster.live import control
+    from toaster.model import MAX_COORD
     from toaster.world.live import quaternion_to_rpy
 
     if len(position) not in (2, 3):
         msg = f"give X Y or X Y Z for {entity_id!r}, not {len(position)} numbers"
+        raise InvalidInputError(msg)
+    if any(abs(v) > MAX_COORD for v in (*position, yaw, *(quat or ()))):
+        msg = f"the pose of {entity_id!r} must lie within ±{MAX_COORD:g} m (and radians)"
         raise InvalidInputError(msg)
     args: dict[str, Any] = {"id": entity_id, "position": list(position), "yaw": yaw,
                             "kind": kind}
@@ -206,12 +212,14 @@ def entity_remove(app: Any, entity_id: str) -> None:
 @click.pass_obj
 def pointing_cmd(app: Any, agent: str, joint: str, ago: str | None, timeout: float) -> None:
     """What AGENT points at, best first (asks the running node)."""
+    from toaster.cli.checks import parse_duration_option
     from toaster.live import control
-    from toaster.timeutil import now_ns, parse_duration
+    from toaster.timeutil import check_ns, now_ns
 
     args: dict[str, Any] = {"agent": agent, "joint": joint}
     if ago is not None:
-        args["t_ns"] = now_ns() - parse_duration(ago)
+        args["t_ns"] = check_ns(now_ns() - parse_duration_option(ago, "--ago"),
+                                f"--ago {ago!r}: the time")
     answer = control.ask(app.db, "pointing", args, timeout)
     for entity_id, confidence in answer:
         click.echo(f"{entity_id}\t{confidence:.3f}")

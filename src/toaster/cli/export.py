@@ -61,12 +61,19 @@ def record(frames: str, output: str, agent: tuple[str, ...], since: str | None,
     "areas": [[id, [[x, y], ...]], ...]}. OUTPUT is a new rosbag2 directory holding an .mcap
     file (Foxglove, Lichtblick, ros2 bag play). Needs rosbags (pip install 'toaster[rosbag]').
     """
+    from toaster.errors import FileFormatError
     from toaster.recording import read_frames
     from toaster.recording import record as write
 
+    try:  # read_frames lets undecodable bytes and deep nesting through (issue 14)
+        poses = read_frames(frames)
+    except (UnicodeDecodeError, RecursionError) as exc:
+        reason = "not UTF-8 text" if isinstance(exc, UnicodeDecodeError) else "nested too deep"
+        msg = f"cannot read frames {frames!r}: {reason}; write one JSON frame per line"
+        raise FileFormatError(msg) from None
     with open_db(url) as db:
         lo, hi = parse_window(since, until)
-        result = write(output, read_frames(frames), db=None if no_facts else db,
+        result = write(output, poses, db=None if no_facts else db,
                        agent=_many(agent), since=lo, until=hi, frame_id=frame_id,
                        distro=distro, toaster_names=toaster_names)
     click.echo(f"wrote {result.frames} frames and {result.facts} fact lines to {result.mcap}")

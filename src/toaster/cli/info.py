@@ -6,16 +6,14 @@ from typing import Any
 
 import click
 
+from toaster.cli.checks import parse_time_option
 from toaster.cli.output import emit, output_options, say
 
 GET_TYPES = ("FACT", "EVENT", "ONTOLOGY", "ID", "ENTITY", "AGENT", "PROPERTY")
 SET_TYPES = ("ENTITY", "FACT", "EVENT", "ONTOLOGY", "PROPERTY")
 
 
-def _time(value: str | None) -> int | None:
-    from toaster.timeutil import parse_time
-
-    return None if value is None else parse_time(value)
+_MAX_LIMIT = 2**63 - 1
 
 
 def fact_options(func: Any) -> Any:
@@ -48,7 +46,7 @@ def _self_agent(db: Any, agent: str | None) -> str:
 @click.option("--at", "at", metavar="TIME", help="As of TIME (ns, ISO date, 12.5s).")
 @click.option("--from", "since", metavar="TIME", help="Window start (FACT, EVENT).")
 @click.option("--to", "until", metavar="TIME", help="Window end (FACT, EVENT).")
-@click.option("--limit", type=int, help="At most this many rows.")
+@click.option("--limit", type=click.IntRange(0, _MAX_LIMIT), help="At most this many rows.")
 @output_options
 @click.pass_obj
 def get_info(app: Any, info_type: str, sub_type: str, fmt: str | None, **opts: Any) -> None:
@@ -71,7 +69,9 @@ def get_info(app: Any, info_type: str, sub_type: str, fmt: str | None, **opts: A
     key = {"subject": opts["subject"], "property": opts["property"], "target": opts["target"],
            "sub_property": opts["sub_property"], "subject_owner": opts["subject_owner"],
            "target_owner": opts["target_owner"]}
-    at, since, until = _time(opts["at"]), _time(opts["since"]), _time(opts["until"])
+    at, since, until = (parse_time_option(opts["at"], "--at"),
+                        parse_time_option(opts["since"], "--from"),
+                        parse_time_option(opts["until"], "--to"))
     if kind == "FACT":
         _check_sub(sub, ("ALL", "CURRENT", "OLD", "VALUE"), kind)
         agent = opts["agent"]
@@ -166,7 +166,7 @@ def set_info(app: Any, info_type: str | None, files: tuple[str, ...], add: bool,
     PROPERTY --id X --key K --value V; --remove (without --key: all of X)
     --file F batch files (JSON / YAML / the original's XML seeds)
     """
-    from toaster.db.seed import fact_from_mapping
+    from toaster.db.seed import fact_from_mapping, property_value
 
     db = app.db
     store = db.store()
@@ -180,7 +180,7 @@ def set_info(app: Any, info_type: str | None, files: tuple[str, ...], add: bool,
     if not info_type:
         raise click.UsageError("give a TYPE (ENTITY, FACT, EVENT, ONTOLOGY, PROPERTY) or --file")
     kind = info_type.upper()
-    at = _time(opts["at"])
+    at = parse_time_option(opts["at"], "--at")
     if kind == "ENTITY":
         entity_id = _need(opts, "entity_id", "--id")
         if add:
@@ -227,8 +227,9 @@ def set_info(app: Any, info_type: str | None, files: tuple[str, ...], add: bool,
     else:
         entity_id = _need(opts, "entity_id", "--id")
         if add:
-            store.set_property(entity_id, _need(opts, "key", "--key"),
-                               _need(opts, "value", "--value"))
+            key = _need(opts, "key", "--key")
+            store.set_property(entity_id, key, property_value(_need(opts, "value", "--value"),
+                                                              key))
             say("property saved")
         else:
             say(f"{store.remove_property(entity_id, opts['key'])} property row(s) removed")

@@ -28,10 +28,9 @@ def window_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
 def parse_window(since: str | None, until: str | None) -> tuple[int | None, int | None]:
     """The window in ns (None stays None)."""
-    from toaster.timeutil import parse_time
+    from toaster.cli.checks import parse_time_option
 
-    return (None if since is None else parse_time(since),
-            None if until is None else parse_time(until))
+    return parse_time_option(since, "--from"), parse_time_option(until, "--to")
 
 
 @contextmanager

@@ -10,6 +10,7 @@ from typing import Any
 
 import click
 
+from toaster.cli.checks import parse_duration_option
 from toaster.cli.rosopts import pose_topics as parse_pose_topics
 from toaster.cli.rosopts import ros_input_options
 from toaster.errors import InvalidInputError
@@ -62,22 +63,22 @@ def run(ctx: click.Context, path: Path, url: str | None, rate: float | None, unt
     """
     from toaster.producers import Runner, load_session
     from toaster.producers.config import read_config_file
-    from toaster.timeutil import parse_duration
+    from toaster.timeutil import check_rate
 
     if record_dir is not None and record_dir.exists():
         msg = f"cannot record into {str(record_dir)!r}: it exists; give a new folder name"
         raise InvalidInputError(msg)
+    if rate is not None:
+        rate = check_rate(rate, "--rate")
+    until_ns = None if until is None else parse_duration_option(until, "--until")
     overrides = read_config_file(config_file) if config_file is not None else None
     store = None if no_db else _database(ctx, url).store()
     session = load_session(path, store.areas() if store is not None else None, fps=fps,
                            holders=holders, config=overrides, tf_map=tf_map,
                            pose_topics=parse_pose_topics(pose_topics))
-    if rate is not None and rate <= 0:
-        msg = f"--rate {rate} must be a positive number of ticks per second"
-        raise InvalidInputError(msg)
     end = session.end_ns
-    if until:
-        end = min(end, session.start_ns + parse_duration(until))
+    if until_ns is not None:
+        end = min(end, session.start_ns + until_ns)
     runner = Runner(session.world, session.sources, session.producers, store=store,
                     agent_id=session.self_id, config=session.config)
     if store is not None:
@@ -136,23 +137,18 @@ def area() -> None:
 def area_add(ctx: click.Context, name: str, spec_text: str | None, spec_file: Path | None
              ) -> None:
     """Add or replace area NAME (see docs/producers.md for the spec)."""
-    import yaml
-
-    from toaster.producers import normalize_area
+    from toaster.documents import parse_text, read_document
+    from toaster.world.scenario import check_area
 
     if (spec_text is None) == (spec_file is None):
         msg = "give the area as --spec JSON or --file PATH (exactly one)"
         raise InvalidInputError(msg)
-    try:
-        raw = (yaml.safe_load(spec_file.read_text()) if spec_file is not None
-               else json.loads(spec_text or ""))
-    except (json.JSONDecodeError, yaml.YAMLError) as exc:
-        msg = f"area spec is not valid JSON/YAML ({str(exc).splitlines()[0]})"
-        raise InvalidInputError(msg) from None
+    raw = (read_document(spec_file, "area spec") if spec_file is not None
+           else parse_text(spec_text or "", "area spec --spec", json_only=True))
     if not isinstance(raw, dict):
         msg = "an area spec is a mapping such as {\"shape\": \"polygon\", \"points\": [...]}"
         raise InvalidInputError(msg)
-    spec = normalize_area(name, raw)
+    spec = check_area(name, raw, "area")
     _database(ctx, None).store().put_area(name, spec, spec["owner"])
     click.echo(f"area {name} stored")
 
@@ -209,10 +205,12 @@ def relpos(path: Path, at: str, viewer: str, object_id: str, reference: str | No
     """Where an object is from an agent's viewpoint: left/right, in front/behind, above/below."""
     from toaster.producers import Runner, load_session
     from toaster.producers.spatial import relative_position_from
-    from toaster.timeutil import parse_duration
+    from toaster.timeutil import check_ns
 
+    offset = parse_duration_option(at, "--at")
     session = load_session(path)
-    Runner(session.world, session.sources, []).tick(session.start_ns + parse_duration(at))
+    t_ns = check_ns(session.start_ns + offset, f"--at {at!r}: the scenario time")
+    Runner(session.world, session.sources, []).tick(t_ns)
     words, (fwd, left, up) = relative_position_from(session.world, viewer, object_id, reference,
                                                     config=session.config)
     where = ", ".join(words) or "same place"

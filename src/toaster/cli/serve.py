@@ -42,9 +42,11 @@ def serve(app: Any, rate: float, config_file: Path | None, self_id: str, holders
     """
     from toaster.live import LiveNode
     from toaster.live import serve as serve_node
+    from toaster.timeutil import check_rate
 
-    if rate <= 0:
-        msg = f"--rate {rate} must be a positive number of ticks per second"
+    rate = check_rate(rate, "--rate")
+    if seconds is not None and seconds < 0:
+        msg = f"--seconds {seconds:g} must not be negative"
         raise InvalidInputError(msg)
     if (tf_map is not None or pose_topics) and not ros1:
         msg = "--tf-map and --pose-topic are ROS 1 inputs: add --ros1"

@@ -7,6 +7,8 @@ from typing import Any
 
 import click
 
+from toaster.cli.checks import parse_json_option
+
 
 @click.command("tolerance")
 @click.argument("property", required=False)
@@ -30,10 +32,7 @@ def tolerance(app: Any, property: str | None, value: str | None) -> None:
             shown = {property: table["*"]._asdict()}
         click.echo(json.dumps(shown, indent=2))
         return
-    try:
-        parsed = json.loads(value)
-    except json.JSONDecodeError:
-        raise click.UsageError(f"VALUE {value!r} is not JSON: give 0.05 or "
-                               '\'{"value": 0.05, "confidence": 0.05}\'') from None
+    parsed = parse_json_option(value, "VALUE", usage=(
+        f"VALUE {value!r} is not JSON: give 0.05 or '{{\"value\": 0.05, \"confidence\": 0.05}}'"))
     store.put_setting(tol.SCOPE, property, parsed)
     click.echo(f"tolerance {property} = {json.dumps(store.tolerances()[property]._asdict())}")

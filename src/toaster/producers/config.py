@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from toaster.errors import InvalidInputError
+from toaster.model import check_id, check_text, shown
 from toaster.timeutil import NS_PER_S, parse_duration
 
 #: The original's effective defaults (agent_monitor cfg, area_manager, pdg); see docs/producers.md.
@@ -93,6 +94,8 @@ DEFAULTS: dict[str, Any] = {
     "observability_spatial": 1.0,
 }
 
+#: The longest duration threshold, in seconds (about 11.6 days).
+MAX_SECONDS = 1e6
 _SECONDS = {k for k in DEFAULTS if k.endswith("_window")} | {"motion_max_gap",
                                                               "presence_timeout"}
 #: dict-valued settings whose values are durations in seconds, keyed by known names
@@ -105,11 +108,12 @@ def _seconds(key: str, value: Any) -> float:
         try:
             value = parse_duration(value) / NS_PER_S
         except InvalidInputError:
-            msg = f"invalid value {value!r} for {key!r}: give seconds or a duration like '300ms'"
+            msg = (f"invalid value {shown(value)} for {key!r}: give seconds or a duration like "
+                   "'300ms'")
             raise InvalidInputError(msg) from None
-    if (isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value)
-            or value < 0):
-        msg = f"invalid value {value!r} for {key!r}: give a non-negative number"
+    if not _number(value) or not 0 <= value <= MAX_SECONDS:
+        msg = (f"invalid value {shown(value)} for {key!r}: give a number of seconds from 0 to "
+               f"{MAX_SECONDS:g}")
         raise InvalidInputError(msg)
     return float(value)
 
@@ -118,36 +122,100 @@ def _seconds_by_name(key: str, value: Any) -> dict[str, float]:
     """The default mapping updated with ``value`` (known names, durations in seconds)."""
     default = DEFAULTS[key]
     if not isinstance(value, Mapping):
-        msg = f"invalid value {value!r} for {key!r}: give a mapping such as {default!r}"
+        msg = f"invalid value {shown(value)} for {key!r}: give a mapping such as {default!r}"
         raise InvalidInputError(msg)
     out = dict(default)
     for name, seconds in value.items():
         if name not in default:
-            msg = (f"unknown property {name!r} in {key!r}: use one of "
+            msg = (f"unknown property {shown(name)} in {key!r}: use one of "
                    f"{', '.join(sorted(default))}")
             raise InvalidInputError(msg)
         out[name] = _seconds(f"{key}.{name}", seconds)
     return out
 
 
+_CLASSES = ("humans", "robots", "agents")
+
+
+def _words(key: str, value: Any, example: str) -> list[str]:
+    """A list of non-empty texts without NUL, or a one-line error."""
+    if not isinstance(value, list | tuple) or not all(
+            isinstance(v, str) and v.strip() for v in value):
+        msg = f"invalid value {shown(value)} for {key!r}: give a list of ids such as {example}"
+        raise InvalidInputError(msg)
+    for v in value:
+        check_text(v, key)
+    return list(value)
+
+
+def _check_other(key: str, value: Any) -> Any:
+    """A setting whose default is not a number: its type checked (one-line errors)."""
+    default = DEFAULTS[key]
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            msg = f"invalid value {shown(value)} for {key!r}: give true or false"
+            raise InvalidInputError(msg)
+    elif key == "head_joint":
+        check_id(value, key)
+    elif key == "monitored_agents":
+        if not (isinstance(value, str) and value in _CLASSES):
+            _words(key, value, "[humans, BOB, -ANNE]")
+    elif key == "monitored_joints":
+        if isinstance(value, Mapping):
+            for agent, joints in value.items():
+                check_id(agent, f"{key} agent")
+                _words(f"{key}.{agent}", joints, "[head, rightHand]")
+        elif value is not None:
+            _words(key, value, "[head, rightHand]")
+    elif key == "belief_holders":
+        if value is not None and not isinstance(value, str):
+            _words(key, value, "[BOB, ANNE]")
+        if isinstance(value, str):
+            check_text(value, key)
+    elif key == "agent_size":
+        if (not isinstance(value, list | tuple) or len(value) != 3
+                or not all(_number(v) and 0 < v <= 1e3 for v in value)):
+            msg = (f"invalid value {shown(value)} for {key!r}: give [x, y, z], positive metres "
+                   "such as [0.5, 0.5, 1.75]")
+            raise InvalidInputError(msg)
+        value = [float(v) for v in value]
+    return value
+
+
+def _number(value: Any) -> bool:
+    """True for a finite int or float (not a bool; ints of any size)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
+
+
 def make_config(overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The defaults updated with ``overrides``; unknown keys and bad values raise one line."""
+    if overrides is not None and not isinstance(overrides, Mapping):
+        msg = (f"invalid thresholds {shown(overrides)}: give a mapping such as "
+               "{toward_range_humans: 3.6}")
+        raise InvalidInputError(msg)
     config = dict(DEFAULTS)
     config.update({key: dict(DEFAULTS[key]) for key in _SECONDS_BY_NAME})  # no shared dicts
     for key, value in (overrides or {}).items():
         if key not in DEFAULTS:
-            msg = f"unknown threshold {key!r}: known ones are listed in docs/producers.md"
+            msg = f"unknown threshold {shown(key)}: known ones are listed in docs/producers.md"
             raise InvalidInputError(msg)
         default = DEFAULTS[key]
         if key in _SECONDS_BY_NAME:
             value = _seconds_by_name(key, value)
-        elif isinstance(default, float) and not isinstance(value, bool):
-            if isinstance(value, str) and key in _SECONDS:
-                value = parse_duration(value) / NS_PER_S
-            if not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
-                msg = f"invalid value {value!r} for {key!r}: give a non-negative number"
+        elif key in _SECONDS:
+            value = _seconds(key, value)
+        elif isinstance(default, float):
+            if not _number(value) or value < 0:
+                msg = f"invalid value {shown(value)} for {key!r}: give a non-negative number"
                 raise InvalidInputError(msg)
             value = float(value)
+        else:
+            value = _check_other(key, value)
         config[key] = value
     return config
 
@@ -161,7 +229,11 @@ def read_config_file(path: str | Path) -> dict[str, Any]:
         msg = (f"config {str(path)!r} must be a mapping of thresholds such as "
                "'toward_range_humans: 3.6'")
         raise InvalidInputError(msg)
-    make_config(overrides)
+    try:
+        make_config(overrides)
+    except InvalidInputError as exc:
+        msg = f"config {str(path)!r}: {exc}"
+        raise InvalidInputError(msg) from None
     return overrides
 
 

@@ -30,6 +30,8 @@ from typing import Any
 import numpy as np
 
 from toaster.errors import FileFormatError, MissingDependencyError
+from toaster.model import MAX_COORD, check_id, shown
+from toaster.timeutil import MAX_NS, MAX_RATE_HZ, MIN_RATE_HZ
 from toaster.world.state import World
 
 TF_TYPES = ("tf2_msgs/msg/TFMessage",)
@@ -78,15 +80,22 @@ class BagSource:
         rpy, good = [], []
         for i, update in enumerate(updates):
             try:
+                check_id(update.entity_id, "entity id")
+                if update.owner_id:
+                    check_id(update.owner_id, "owner id")
                 angles = quaternion_to_rpy(*update.quat)
-            except ValueError as exc:
-                problems[f"{update.entity_id}: {exc}"] += 1
+            except ValueError as exc:  # InvalidInputError is one
+                problems[f"{shown(update.entity_id)}: {exc}"] += 1
                 continue
-            if np.isfinite([*update.position, *angles]).all():
+            if not np.isfinite([*update.position, *angles]).all():
+                problems[f"{update.entity_id}: non-finite pose ignored"] += 1
+            elif np.abs(update.position).max() > MAX_COORD:
+                problems[f"{update.entity_id}: pose beyond ±{MAX_COORD:g} m ignored"] += 1
+            elif not 0 <= int(times[i]) <= MAX_NS:
+                problems[f"{update.entity_id}: stamp {int(times[i])} ns out of range ignored"] += 1
+            else:
                 rpy.append(angles)
                 good.append(i)
-            else:
-                problems[f"{update.entity_id}: non-finite pose ignored"] += 1
         keep = np.array(good, np.int64)
         order = np.argsort(times[keep], kind="stable")
         self.times = times[keep][order]
@@ -132,7 +141,7 @@ def _sample_hz(times: np.ndarray, updates: list[Any]) -> float | None:
         if len(t) > 1:
             steps.append(np.median(np.diff(t)))
     step = float(np.median(steps)) if steps else 0.0
-    return 1e9 / step if step > 0 else None
+    return min(max(1e9 / step, MIN_RATE_HZ), MAX_RATE_HZ) if step > 0 else None
 
 
 def read_bag(path: str | Path, *, tf_map: str | Path | Mapping[str, Any] | None = None,

@@ -16,28 +16,44 @@ import numpy as np
 
 from toaster.documents import read_document
 from toaster.errors import FileFormatError, InvalidInputError
-from toaster.timeutil import parse_duration, parse_time
+from toaster.model import MAX_COORD, check_id, check_text, shown
+from toaster.timeutil import check_ns, check_rate, parse_duration, parse_time
 from toaster.world.geometry import wrap_angle
-from toaster.world.state import World
+from toaster.world.state import MOBILITIES, World
 
 ACTIONS = ("set_pose", "move", "put_in_hand", "remove_from_hand", "enter", "leave", "look_at",
            "stop_looking", "point", "stop_pointing", "open", "close")
 ARM_LENGTH = 0.6
 
 
+#: The kinds of entity a scenario declares; joints are declared under their agent.
+KINDS = ("human", "robot", "object")
+ROLES = ("support", "container", "none")
+
+
 def _vec(value: Any, where: str, size: int = 3) -> list[float]:
+    """A position ``[x, y]`` or ``[x, y, z]`` of finite metres within :data:`MAX_COORD`."""
     if not isinstance(value, list | tuple) or not 2 <= len(value) <= size:
-        msg = f"{where}: {value!r} is not a position; write [x, y] or [x, y, z] in metres"
+        msg = f"{where}: {shown(value)} is not a position; write [x, y] or [x, y, z] in metres"
         raise FileFormatError(msg)
-    try:
-        out = [float(v) for v in value]
-    except (TypeError, ValueError):
-        msg = f"{where}: {value!r} holds a non-number; positions are plain metres"
-        raise FileFormatError(msg) from None
-    if not all(math.isfinite(v) for v in out):
-        msg = f"{where}: {value!r} is not finite"
+    if not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value):
+        msg = f"{where}: {shown(value)} holds a non-number; positions are plain metres"
         raise FileFormatError(msg)
+    out = [_finite(v, where, "coordinate") for v in value]
     return out + [0.0] * (size - len(out))
+
+
+def _finite(value: Any, where: str, what: str, limit: float = MAX_COORD) -> float:
+    """``value`` as a float if it is a number within ±``limit``, else a one-line error."""
+    try:
+        number = float(value) if isinstance(value, int | float) and not isinstance(
+            value, bool) else math.nan
+    except OverflowError:
+        number = math.nan
+    if not (math.isfinite(number) and abs(number) <= limit):
+        msg = f"{where}: {what} {shown(value)} must be a finite number within ±{limit:g}"
+        raise FileFormatError(msg)
+    return number
 
 
 def _rpy(item: Mapping[str, Any], where: str) -> list[float]:
@@ -51,8 +67,8 @@ def _rpy(item: Mapping[str, Any], where: str) -> list[float]:
         q = item["orientation"]
         if (not isinstance(q, list | tuple) or len(q) != 4
                 or not all(isinstance(v, int | float) and not isinstance(v, bool)
-                           and math.isfinite(v) for v in q)):
-            msg = f"{where}: orientation {q!r} must be a quaternion [x, y, z, w] of numbers"
+                           and math.isfinite(v) and abs(v) <= MAX_COORD for v in q)):
+            msg = f"{where}: orientation {shown(q)} must be a quaternion [x, y, z, w] of numbers"
             raise FileFormatError(msg)
         try:
             return list(quaternion_to_rpy(*map(float, q)))
@@ -61,9 +77,26 @@ def _rpy(item: Mapping[str, Any], where: str) -> list[float]:
             raise FileFormatError(msg) from None
     yaw = item.get("yaw", 0.0)
     if isinstance(yaw, bool) or not isinstance(yaw, int | float):
-        msg = f"{where}: yaw {yaw!r} must be a number in radians"
+        msg = f"{where}: yaw {shown(yaw)} must be a number in radians"
         raise FileFormatError(msg)
-    return [0.0, 0.0, float(yaw)]
+    return [0.0, 0.0, _finite(yaw, where, "yaw")]
+
+
+def _id(value: Any, where: str, what: str) -> str:
+    """A valid id (:func:`toaster.model.check_id`) or a one-line error naming ``where``."""
+    try:
+        return check_id(value, what)
+    except InvalidInputError as exc:
+        msg = f"{where}: {exc}"
+        raise FileFormatError(msg) from None
+
+
+def _flag(item: Mapping[str, Any], key: str, default: bool | None, where: str) -> bool | None:
+    value = item.get(key, default)
+    if value is not None and not isinstance(value, bool):
+        msg = f"{where}: {key} {shown(value)} must be true or false"
+        raise FileFormatError(msg)
+    return value
 
 
 @dataclass
@@ -96,59 +129,181 @@ def load_scenario(path: str | Path) -> Scenario:
 
 
 def parse_scenario(data: Any, origin: str = "scenario") -> Scenario:
-    """Validate a scenario already loaded as a dict."""
+    """Validate a scenario already loaded as a dict: every field, before anything runs."""
     if not isinstance(data, dict) or not isinstance(data.get("entities"), list):
         msg = f"{origin}: a scenario is a mapping with an 'entities' list"
         raise FileFormatError(msg)
     try:
         start = parse_time(data.get("start", 0))
         duration = parse_duration(str(data.get("duration", "10s")))
+        check_ns(start + duration, "the scenario's end (start + duration) =")
+        rate = check_rate(data.get("rate", 30))
     except InvalidInputError as exc:
-        msg_0 = f"{origin}: {exc}"
-        raise FileFormatError(msg_0) from None
-    rate = data.get("rate", 30)
-    if isinstance(rate, bool) or not isinstance(rate, int | float) or rate <= 0:
-        msg = f"{origin}: rate {rate!r} must be a positive number of ticks per second"
+        msg = f"{origin}: {exc}"
+        raise FileFormatError(msg) from None
+    if duration < 0:
+        msg = f"{origin}: duration {data.get('duration')!r} must not be negative"
         raise FileFormatError(msg)
+    entities = [_entity(ent, f"{origin}: entities[{i}]") for i, ent in
+                enumerate(data["entities"])]
     known: dict[str, str] = {}
-    for i, ent in enumerate(data["entities"]):
-        where = f"{origin}: entities[{i}]"
-        if not isinstance(ent, dict) or not isinstance(ent.get("id"), str) or not ent["id"]:
-            msg = f"{where} needs a text 'id'"
-            raise FileFormatError(msg)
-        kind = str(ent.get("kind", "object")).lower()
-        if kind not in ("human", "robot", "object"):
-            msg = f"{where} ({ent['id']}): kind {kind!r} must be human, robot or object"
-            raise FileFormatError(msg)
-        known[ent["id"]] = kind
-        _vec(ent.get("position", [0, 0, 0]), f"{where} position")
-        _rpy(ent, where)
-        for j in ent.get("joints", []) or []:
-            if kind == "object" or not isinstance(j, dict) or "name" not in j:
-                msg = f"{where}: joints belong to humans or robots and need a 'name'"
+    joints: dict[str, tuple[str, str]] = {}  # joint id -> (agent, joint name)
+    for i, ent in enumerate(entities):
+        for jid in (ent["id"], *(j["id"] for j in ent["joints"])):
+            if jid in known or jid in joints:
+                msg = f"{origin}: entities[{i}]: id {jid!r} is declared twice; ids are unique"
                 raise FileFormatError(msg)
-            known[j.get("id", f"{ent['id']}/{j['name']}")] = "joint"
-    self_id = str(data.get("self", "") or next(
-        (e["id"] for e in data["entities"] if e.get("self")), ""))
-    if self_id and known.get(self_id) != "robot":
-        msg = f"{origin}: self {self_id!r} is not a robot of the scenario"
+            if jid == ent["id"]:
+                known[jid] = ent["kind"]
+            else:
+                joints[jid] = next((ent["id"], j["name"]) for j in ent["joints"]
+                                   if j["id"] == jid)
+    self_id = data.get("self", "") or next((e["id"] for e in entities if e["self"]), "")
+    if self_id and (not isinstance(self_id, str) or known.get(self_id) != "robot"):
+        msg = f"{origin}: self {shown(self_id)} is not a robot of the scenario"
         raise FileFormatError(msg)
-    timeline = []
-    for i, action in enumerate(data.get("timeline", []) or []):
-        timeline.append(_check_action(action, i, known, origin))
+    raw_timeline = data.get("timeline", []) or []
+    if not isinstance(raw_timeline, list):
+        msg = f"{origin}: 'timeline' must be a list of actions such as {{at: 1s, leave: bob}}"
+        raise FileFormatError(msg)
+    timeline = [_check_action(action, i, known, joints, origin, start)
+                for i, action in enumerate(raw_timeline)]
     timeline.sort(key=lambda a: a["at_ns"])  # stable: file order within one time
     areas = data.get("areas", {}) or {}
     if not isinstance(areas, dict):
         msg = f"{origin}: 'areas' must map area names to specs"
         raise FileFormatError(msg)
+    for area_id, spec in areas.items():
+        check_area(area_id, spec, f"{origin}: areas")
     config = data.get("config", {}) or {}
+    if not isinstance(config, dict):
+        msg = f"{origin}: 'config' must map threshold names to values (docs/producers.md)"
+        raise FileFormatError(msg)
     if "monitor" in data:
         config = {**config, "monitored_agents": data["monitor"]}
-    return Scenario(str(data.get("name", origin)), start, start + duration, float(rate),
-                    self_id, data["entities"], areas, config, timeline)
+    from toaster.producers.config import make_config
+
+    try:
+        make_config(config)
+    except InvalidInputError as exc:
+        msg = f"{origin}: config: {exc}"
+        raise FileFormatError(msg) from None
+    name = data.get("name", origin)
+    if not isinstance(name, str | int | float) or isinstance(name, bool):
+        msg = f"{origin}: name {shown(name)} must be text"
+        raise FileFormatError(msg)
+    return Scenario(_text(str(name), origin, "name"), start, start + duration, rate,
+                    self_id, entities, areas, config, timeline)
 
 
-def _check_action(action: Any, i: int, known: dict[str, str], origin: str) -> dict[str, Any]:
+def _text(value: Any, where: str, what: str) -> str:
+    try:
+        return check_text(value, what)
+    except InvalidInputError as exc:
+        msg = f"{where}: {exc}"
+        raise FileFormatError(msg) from None
+
+
+def _entity(ent: Any, where: str) -> dict[str, Any]:
+    """One entity, checked and normalised (position and rpy as 3 floats, joints checked)."""
+    if not isinstance(ent, dict) or not isinstance(ent.get("id"), str) or not ent["id"]:
+        msg = f"{where} needs a text 'id'"
+        raise FileFormatError(msg)
+    eid = _id(ent["id"], where, "entity id")
+    where = f"{where} ({eid})"
+    kind = ent.get("kind", "object")
+    kind = kind.lower() if isinstance(kind, str) else kind
+    if kind not in KINDS:
+        msg = f"{where}: kind {shown(kind)} must be human, robot or object"
+        raise FileFormatError(msg)
+    name = ent.get("name", "")
+    if name is not None and not isinstance(name, str):
+        msg = f"{where}: name {shown(name)} must be text"
+        raise FileFormatError(msg)
+    name = _text(name or "", where, "name")
+    size = ent.get("size")
+    if size is not None:
+        if not isinstance(size, list | tuple) or len(size) != 3:
+            msg = f"{where}: size {shown(size)} must be [x, y, z], non-negative metres"
+            raise FileFormatError(msg)
+        size = _vec(size, f"{where} size")
+        if min(size) < 0:
+            msg = f"{where}: size {shown(ent['size'])} must be [x, y, z], non-negative metres"
+            raise FileFormatError(msg)
+    mobility = ent.get("mobility", "full")
+    if mobility not in MOBILITIES:
+        msg = f"{where}: mobility {shown(mobility)} must be one of {', '.join(MOBILITIES)}"
+        raise FileFormatError(msg)
+    role = ent.get("role")
+    if role is not None and role not in ROLES:
+        msg = f"{where}: role {shown(role)} must be one of {', '.join(ROLES)}"
+        raise FileFormatError(msg)
+    raw_joints = ent.get("joints", []) or []
+    if not isinstance(raw_joints, list) or (raw_joints and kind == "object"):
+        msg = f"{where}: joints are a list, and belong to humans or robots"
+        raise FileFormatError(msg)
+    joints = []
+    for j in raw_joints:
+        if not isinstance(j, dict) or "name" not in j:
+            msg = f"{where}: joints belong to humans or robots and need a 'name'"
+            raise FileFormatError(msg)
+        jname = _id(j["name"], f"{where} joint", "joint name")
+        jid = _id(j.get("id", f"{eid}/{jname}"), f"{where} joint {jname}", "joint id")
+        joints.append({"id": jid, "name": jname,
+                       "position": _vec(j.get("position", [0, 0, 0]), f"{where} joint {jname}"),
+                       "rpy": _rpy(j, f"{where} joint {jname}")})
+    return {"id": eid, "kind": kind, "name": name, "size": size, "mobility": mobility,
+            "role": role, "closed": _flag(ent, "closed", None, where),
+            "self": _flag(ent, "self", False, where),
+            "present": _flag(ent, "present", True, where),
+            "position": _vec(ent.get("position", [0, 0, 0]), f"{where} position"),
+            "rpy": _rpy(ent, where), "joints": joints}
+
+
+def check_area(area_id: Any, spec: Any, where: str) -> dict[str, Any]:
+    """An area spec checked (:func:`toaster.producers.areas.normalize_area`, after a check of
+    its values' types), as a one-line :class:`FileFormatError` naming ``where``."""
+    from toaster.producers.areas import normalize_area
+
+    name = _id(area_id, where, "area id")
+    where = f"{where} {name}"
+    if not isinstance(spec, dict):
+        msg = f"{where}: an area spec is a mapping such as {{shape: circle, center: [1, 2], " \
+              "radius: 1}"
+        raise FileFormatError(msg)
+    for key, value in spec.items():
+        if key in ("points",):
+            if not isinstance(value, list) or not all(isinstance(p, list | tuple) for p in value):
+                msg = f"{where}: points {shown(value)} must be a list of [x, y] corners"
+                raise FileFormatError(msg)
+            for p in value:
+                _vec(p, f"{where} points")
+        elif key == "center":
+            _vec(value, f"{where} center")
+        elif key in ("radius", "height", "z_min", "z_max", "enter_hysteresis",
+                     "leave_hysteresis"):
+            if value is not None:
+                _finite(value, where, key)
+        elif key in ("facts", "entity_types"):
+            if not isinstance(value, str) and not (
+                    isinstance(value, list) and all(isinstance(v, str) for v in value)):
+                msg = f"{where}: {key} {shown(value)} must be a word or a list of words"
+                raise FileFormatError(msg)
+        elif key in ("shape", "owner", "area_type") and value is not None:
+            if not isinstance(value, str):
+                msg = f"{where}: {key} {shown(value)} must be text"
+                raise FileFormatError(msg)
+            _text(value, where, key)
+    try:
+        return normalize_area(name, spec)
+    except InvalidInputError as exc:
+        msg = f"{where}: {exc}"
+        raise FileFormatError(msg) from None
+
+
+def _check_action(action: Any, i: int, known: dict[str, str],
+                  joints: dict[str, tuple[str, str]], origin: str,
+                  start: int) -> dict[str, Any]:
     where = f"{origin}: timeline[{i}]"
     if not isinstance(action, dict):
         msg = f"{where} must be a mapping such as {{at: 1s, set_pose: Bob, position: [1, 2]}}"
@@ -159,38 +314,69 @@ def _check_action(action: Any, i: int, known: dict[str, str], origin: str) -> di
         raise FileFormatError(msg)
     verb = verbs[0]
     subject = action[verb]
-    if subject not in known:
-        msg = f"{where}: {verb} names unknown entity {subject!r}; declare it under 'entities'"
+    if not isinstance(subject, str) or subject not in known:
+        msg = (f"{where}: {verb} names unknown entity {shown(subject)}; declare it under "
+               "'entities'")
         raise FileFormatError(msg)
     try:
         at = parse_duration(str(action.get("at", "0s")))
+        check_ns(start + at, f"{where}: at {action.get('at')!r}: the time")
     except InvalidInputError as exc:
-        msg_0 = f"{where}: {exc}"
-        raise FileFormatError(msg_0) from None
+        msg = f"{where}: {exc}" if not str(exc).startswith(where) else str(exc)
+        raise FileFormatError(msg) from None
+    if at < 0:
+        msg = f"{where}: at {action.get('at')!r} must not be negative (time from the start)"
+        raise FileFormatError(msg)
     for key in ("target", "agent"):
-        if key in action and action[key] not in known:
-            msg = f"{where}: {key} {action[key]!r} is unknown; declare it under 'entities'"
+        if key in action and (not isinstance(action[key], str)
+                              or (action[key] not in known and action[key] not in joints)):
+            msg = f"{where}: {key} {shown(action[key])} is unknown; declare it under 'entities'"
             raise FileFormatError(msg)
+    out = {**action, "verb": verb, "subject": subject, "at_ns": at}
     if verb == "move":
         pts = action.get("waypoints")
         if not isinstance(pts, list) or not pts:
             msg = f"{where}: move needs 'waypoints', a list of [x, y] or [x, y, z]"
             raise FileFormatError(msg)
-        for p in pts:
-            _vec(p, f"{where} waypoint")
+        out["waypoints"] = [_vec(p, f"{where} waypoint") for p in pts]
+        out["flat"] = [len(p) < 3 for p in pts]
         speed = action.get("speed", 1.0)
-        if isinstance(speed, bool) or not isinstance(speed, int | float) or speed <= 0:
-            msg = f"{where}: speed {speed!r} must be a positive number of m/s"
+        if isinstance(speed, bool) or not isinstance(speed, int | float) or not (
+                0 < _finite(speed, where, "speed") <= MAX_COORD):
+            msg = f"{where}: speed {shown(speed)} must be a positive number of m/s"
             raise FileFormatError(msg)
-    if verb in ("set_pose", "enter") and "position" in action:
-        _vec(action["position"], f"{where} position")
-    if verb == "put_in_hand" and ("agent" not in action or "hand" not in action):
-        msg = f"{where}: put_in_hand needs 'agent' and 'hand' (a joint name)"
+        out["speed"] = float(speed)
+    if verb in ("set_pose", "enter"):
+        if "position" in action:
+            out["position"] = _vec(action["position"], f"{where} position")
+        if "yaw" in action or "rpy" in action or "orientation" in action:
+            out["rpy"] = _rpy(action, where)
+    if verb == "put_in_hand":
+        agent, hand = action.get("agent"), action.get("hand")
+        if agent is None or hand is None:
+            msg = f"{where}: put_in_hand needs 'agent' and 'hand' (a joint name)"
+            raise FileFormatError(msg)
+        if not any(owner == agent and name == hand for owner, name in joints.values()):
+            msg = (f"{where}: agent {shown(agent)} has no joint {shown(hand)}; declare it "
+                   "under the agent's joints")
+            raise FileFormatError(msg)
+        if agent == subject:
+            msg = f"{where}: {subject!r} cannot be put in its own hand"
+            raise FileFormatError(msg)
+    if verb in ("look_at", "point", "stop_looking", "stop_pointing") and \
+            known[subject] not in ("human", "robot"):
+        msg = f"{where}: {verb} is for humans and robots, not {known[subject]} {subject!r}"
         raise FileFormatError(msg)
     if verb in ("look_at", "point") and "target" not in action:
         msg = f"{where}: {verb} needs a 'target' entity"
         raise FileFormatError(msg)
-    return {**action, "verb": verb, "subject": subject, "at_ns": at}
+    if verb == "point":
+        hand = action.get("hand", "rightHand")
+        if not any(owner == subject and name == hand for owner, name in joints.values()):
+            msg = (f"{where}: point: agent {subject!r} has no joint {shown(hand)}; declare it "
+                   "under its joints")
+            raise FileFormatError(msg)
+    return out
 
 
 class ScenarioSource:
@@ -219,20 +405,19 @@ class ScenarioSource:
         return self.scenario.end_ns
 
     def setup(self, world: World) -> None:
-        """Add the scenario's entities and joints to the world."""
+        """Add the scenario's entities and joints to the world (checked by the parser)."""
         for ent in self.scenario.entities:
-            eid, kind = ent["id"], str(ent.get("kind", "object")).lower()
-            world.add_entity(eid, kind, name=ent.get("name", ""), size=ent.get("size"),
-                             mobility=ent.get("mobility", "full"))
+            eid, kind = ent["id"], ent["kind"]
+            world.add_entity(eid, kind, name=ent["name"], size=ent["size"],
+                             mobility=ent["mobility"])
             self._kind[eid] = kind
-            if "role" in ent or "closed" in ent:
-                world.set_shape(eid, role=ent.get("role"), closed=ent.get("closed"))
-            self._pose[eid] = (_vec(ent.get("position", [0, 0, 0]), eid), _rpy(ent, eid))
-            for j in ent.get("joints", []) or []:
-                jid = j.get("id", f"{eid}/{j['name']}")
-                world.add_entity(jid, "joint", owner_id=eid, name=j["name"])
-                world.set_joint_local(jid, _vec(j.get("position", [0, 0, 0]), jid), _rpy(j, jid))
-            if ent.get("present", True):
+            if ent["role"] is not None or ent["closed"] is not None:
+                world.set_shape(eid, role=ent["role"], closed=ent["closed"])
+            self._pose[eid] = (list(ent["position"]), list(ent["rpy"]))
+            for j in ent["joints"]:
+                world.add_entity(j["id"], "joint", owner_id=eid, name=j["name"])
+                world.set_joint_local(j["id"], j["position"], j["rpy"])
+            if ent["present"]:
                 self._present.add(eid)
                 self._dirty.add(eid)
             else:
@@ -279,10 +464,8 @@ class ScenarioSource:
         pos, rpy = self._pose.get(eid, ([0.0] * 3, [0.0] * 3))
         if verb in ("set_pose", "enter"):
             self._motions.pop(eid, None)
-            if "position" in action:
-                pos = _vec(action["position"], eid)
-            if "yaw" in action or "rpy" in action:
-                rpy = _rpy(action, eid)
+            pos = list(action.get("position", pos))
+            rpy = list(action.get("rpy", rpy))
             self._pose[eid] = (pos, rpy)
             self._dirty.add(eid)
             if verb == "enter":
@@ -295,8 +478,8 @@ class ScenarioSource:
             self._motions.pop(eid, None)
             world.remove_entity(eid)
         elif verb == "move":
-            pts = np.array([pos] + [_vec(p, eid) for p in action["waypoints"]])
-            pts[1:, 2] = np.where([len(p) < 3 for p in action["waypoints"]], pos[2], pts[1:, 2])
+            pts = np.array([pos] + action["waypoints"])
+            pts[1:, 2] = np.where(action["flat"], pos[2], pts[1:, 2])
             cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
             self._motions[eid] = _Motion(at_ns, pts, cum, float(action.get("speed", 1.0)))
         elif verb == "put_in_hand":

@@ -19,13 +19,15 @@ from pathlib import Path
 import numpy as np
 
 from toaster.errors import FileFormatError, InvalidInputError
-from toaster.timeutil import NS_PER_S
+from toaster.model import MAX_COORD, check_id, shown
+from toaster.timeutil import MAX_NS, MAX_RATE_HZ, MIN_RATE_HZ, NS_PER_S, check_ns
 from toaster.world.live import quaternion_to_rpy
 from toaster.world.state import World
 
 OBSMAT_FPS = 25.0  # ETH/UCY videos: 25 fps, annotated every 10 frames (0.4 s, 2.5 Hz)
 OBSMAT_FRAME_NS = 40_000_000  # one frame at OBSMAT_FPS
 OBSMAT_COLUMNS = ("frame", "ped", "pos_x", "pos_z", "pos_y", "v_x", "v_z", "v_y")
+MAX_INT_ID = 2**53  # frame numbers and person ids beyond are not exact in a float column
 FPS_TOLERANCE = 1.5  # refuse an fps more than this factor away from what the velocities imply
 
 
@@ -46,9 +48,9 @@ class TrackSource:
         self.start_ns = int(self.t[0]) if len(self.t) else 0
         self.end_ns = int(self.t[-1]) if len(self.t) else 0
         self.sample_hz: float | None = None  # the annotation rate, when the file tells it
-        if len(self.t) > 1:  # else the median step between distinct sample times
-            steps = np.diff(np.unique(self.t))
-            self.sample_hz = NS_PER_S / float(np.median(steps))
+        steps = np.diff(np.unique(self.t))  # else the median step between sample times
+        if len(steps):
+            self.sample_hz = _clamp_rate(NS_PER_S / float(np.median(steps)))
 
     def setup(self, world: World) -> None:
         """Register every track id (not yet perceived, so not live until its first sample)."""
@@ -65,6 +67,9 @@ class TrackSource:
             self._cursor = stop
 
 
+def _clamp_rate(hz: float) -> float:
+    """A sample rate within what a run may tick at (MIN_RATE_HZ..MAX_RATE_HZ)."""
+    return min(max(hz, MIN_RATE_HZ), MAX_RATE_HZ)
 
 
 def _label(path: Path) -> str:
@@ -112,13 +117,18 @@ def _check_obsmat(label: str, data: np.ndarray, lines: np.ndarray) -> None:
     """Refuse non-finite numbers and frames / person ids that are not non-negative integers."""
     finite = np.isfinite(data)
     ints = data[:, :2]
-    bad_int = (ints < 0) | (ints != np.floor(ints))
-    bad = ~finite.all(axis=1) | bad_int.any(axis=1)
+    bad_int = (ints < 0) | (ints != np.floor(ints)) | (ints > MAX_INT_ID)
+    big = np.abs(np.where(finite[:, 2:], data[:, 2:], 0)) > MAX_COORD
+    bad = ~finite.all(axis=1) | bad_int.any(axis=1) | big.any(axis=1)
     if not bad.any():
         return
     i = int(np.argmax(bad))
     where = f"{label} line {lines[i]}"
-    if not finite[i].all():
+    if big[i].any():
+        column = OBSMAT_COLUMNS[2 + int(np.argmax(big[i]))]
+        value = data[i, OBSMAT_COLUMNS.index(column)]
+        msg = f"{where}: {column} {value:g} is beyond ±{MAX_COORD:g} m: fix or delete the line"
+    elif not finite[i].all():
         column = OBSMAT_COLUMNS[int(np.argmin(finite[i]))]
         value = data[i, OBSMAT_COLUMNS.index(column)]
         msg = f"{where}: {column} is {value}, not a finite number: fix or delete the line"
@@ -194,10 +204,15 @@ def read_obsmat(path: str | Path, prefix: str = "ped", start_ns: int = 0,
     ids = [f"{prefix}{p}" for p in ped.tolist()]
     pos = np.column_stack([data[:, 2], data[:, 4], np.zeros(len(data))])
     rpy = np.column_stack([np.zeros(len(data)), np.zeros(len(data)), yaw])
+    last = float(frame.max()) * (NS_PER_S / rate) + start_ns
+    if not (start_ns >= 0 and last <= MAX_NS - NS_PER_S):
+        msg = (f"{label}: frame {int(frame.max())} at {fps!r} fps is beyond the year 2262 "
+               "(times are 64-bit nanoseconds): fix the frame numbers or --fps")
+        raise FileFormatError(msg)
     t = start_ns + np.rint(frame * (NS_PER_S / rate)).astype(np.int64)
     source = TrackSource(t, ids, dict.fromkeys(ids, "human"), pos, rpy, name="obsmat")
     if step:
-        source.sample_hz = rate / step
+        source.sample_hz = _clamp_rate(rate / step)
     return source
 
 
@@ -230,8 +245,10 @@ def _rows(path: Path) -> list[tuple[int, dict]]:
         raise FileFormatError(msg) from None
 
 
-def _number(row: dict, key: str, default: float | None, where: str, unit: str) -> float:
-    """One finite number of a sample (``default`` when absent or empty; None: required)."""
+def _number(row: dict, key: str, default: float | None, where: str, unit: str,
+            limit: float = MAX_COORD) -> float:
+    """One finite number of a sample within ±``limit`` (``default`` when absent or empty;
+    None: required)."""
     raw = row.get(key)
     if raw is None or (isinstance(raw, str) and not raw.strip()):
         if default is None:
@@ -242,11 +259,15 @@ def _number(row: dict, key: str, default: float | None, where: str, unit: str) -
         if isinstance(raw, bool):
             raise TypeError
         value = float(raw)
-    except (TypeError, ValueError):
-        msg = f"{where}: {key} {raw!r} is not a number ({unit}): fix or delete the line"
+    except (TypeError, ValueError, OverflowError):
+        msg = f"{where}: {key} {shown(raw)} is not a number ({unit}): fix or delete the line"
         raise FileFormatError(msg) from None
     if not math.isfinite(value):
-        msg = f"{where}: {key} is {raw!r}, not a finite number ({unit}): fix or delete the line"
+        msg = (f"{where}: {key} is {shown(raw)}, not a finite number ({unit}): fix or delete "
+               "the line")
+        raise FileFormatError(msg)
+    if abs(value) > limit:
+        msg = f"{where}: {key} {shown(raw)} is beyond ±{limit:g} ({unit}): fix or delete the line"
         raise FileFormatError(msg)
     return value
 
@@ -256,17 +277,22 @@ def _time_ns(row: dict, where: str) -> int:
     if ("t_ns" in row) == ("t_s" in row):
         msg = f"{where}: give exactly one time column, t_ns (integer ns) or t_s (seconds)"
         raise FileFormatError(msg)
-    if "t_s" in row:
-        return round(_number(row, "t_s", None, where, "seconds") * NS_PER_S)
-    raw = row["t_ns"]
     try:
-        if isinstance(raw, bool | float):
-            raise ValueError
-        return int(str(raw).strip())
-    except ValueError:
-        msg = (f"{where}: t_ns {raw!r} is not an integer number of nanoseconds "
-               "(use t_s for seconds): fix or delete the line")
-        raise FileFormatError(msg) from None
+        if "t_s" in row:
+            return check_ns(round(_number(row, "t_s", None, where, "seconds",
+                                          MAX_NS / NS_PER_S) * NS_PER_S), f"{where}: t_s =")
+        raw = row["t_ns"]
+        text = str(raw).strip() if isinstance(raw, int | str) and not isinstance(
+            raw, bool) else ""
+        if not text.lstrip("+-").isdigit() or len(text) > 30:
+            msg = (f"{where}: t_ns {shown(raw)} is not an integer number of nanoseconds "
+                   "(use t_s for seconds): fix or delete the line")
+            raise FileFormatError(msg)
+        return check_ns(int(text), f"{where}: t_ns")
+    except InvalidInputError as exc:
+        if isinstance(exc, FileFormatError):
+            raise
+        raise FileFormatError(str(exc)) from None
 
 
 def read_tracks(path: str | Path) -> TrackSource:
@@ -305,13 +331,21 @@ def read_tracks(path: str | Path) -> TrackSource:
         if not 0 <= conf[i] <= 1:
             msg = f"{where}: confidence {conf[i]:g} must be between 0 and 1: fix the line"
             raise FileFormatError(msg)
-        eid = str(row.get("id") or "")
-        if not eid:
+        raw_id = row.get("id")
+        if raw_id in (None, ""):
             msg = f"{where}: missing id"
             raise FileFormatError(msg)
-        kind = str(row.get("kind") or "human").lower()
+        if isinstance(raw_id, int) and not isinstance(raw_id, bool):
+            raw_id = str(raw_id)
+        try:
+            eid = check_id(raw_id, "id")
+        except InvalidInputError as exc:
+            msg = f"{where}: {exc}"
+            raise FileFormatError(msg) from None
+        kind = row.get("kind") or "human"
+        kind = kind.lower() if isinstance(kind, str) else kind
         if kind not in ("human", "robot", "object"):
-            msg = f"{where}: kind {kind!r} must be human, robot or object"
+            msg = f"{where}: kind {shown(kind)} must be human, robot or object"
             raise FileFormatError(msg)
         ids.append(eid)
         kinds.setdefault(eid, kind)
