@@ -336,8 +336,5 @@ def test_unknown_revision(sqlite_fails: Fails) -> None:
     sqlite_fails("db", "upgrade", "0011@", message="unknown revision '0011@'")
 
 
-@pytest.mark.xfail(reason="db/migrate.py: a relative revision past the head or base (+1 at "
-                          "head) is alembic's CommandError; refuse it like an unknown one",
-                   strict=False)
 def test_relative_revision_past_the_head(sqlite_fails: Fails) -> None:
     sqlite_fails("db", "upgrade", "+1", message="+1")

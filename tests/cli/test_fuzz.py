@@ -100,11 +100,7 @@ class Harness:
 #: Tracebacks whose fix belongs to a file other engineers own (see issue 14's report): a case
 #: that matches is tolerated so that the rest of the campaign still runs. Remove an entry once
 #: its fix lands (test_bad_input.py's xfail turns into an XPASS then).
-KNOWN_TRACEBACKS: tuple[Callable[[Sequence[str], BaseException], bool], ...] = (
-    # db/migrate.py: a relative revision past the head (db upgrade +1) is alembic's CommandError
-    lambda args, exc: args[0] == "db" and type(exc).__module__.startswith("alembic")
-    and "Relative revision" in str(exc),
-)
+KNOWN_TRACEBACKS: tuple[Callable[[Sequence[str], BaseException], bool], ...] = ()
 #: Commands whose failure writes (see issue 14's report): live/control.ask submits the query,
 #: then withdraws it when no node answered (store_state.control_version bumped, an id of
 #: control_commands used).

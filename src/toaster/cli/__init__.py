@@ -46,6 +46,25 @@ class ToasterGroup(click.Group):
             if obj is not None and obj.debug:
                 raise
             raise click.ClickException(str(exc)) from None
+        except Exception as exc:  # a database error raised through a raw cursor (a lock
+            error = _database_error(ctx, exc)  # held too long, a corrupted file...)
+            obj = ctx.find_object(AppContext)
+            if error is None or (obj is not None and obj.debug):
+                raise
+            raise click.ClickException(str(error)) from None
+
+
+def _database_error(ctx: click.Context, exc: Exception) -> ToasterError | None:
+    """The one-line error of a driver error the engine's own handler did not see (raw DBAPI
+    cursors bypass it); None when ``exc`` is not the user's to fix (a bug)."""
+    from toaster.db.engine import database_error, describe, lock_timeout, parse_url
+
+    obj = ctx.find_object(AppContext)
+    try:
+        where = describe(parse_url(obj.url if obj is not None else None))
+        return database_error(exc, where, lock_timeout())
+    except ToasterError:
+        return None
 
 
 @click.group(cls=ToasterGroup, context_settings={"help_option_names": ["-h", "--help"]})

@@ -19,7 +19,17 @@ from toaster.db import schema as s
 from toaster.db.dialects import backend_for, insert_with_conflicts
 from toaster.db.views import agent_view_names, create_agent_views, drop_agent_views
 from toaster.errors import InvalidInputError, UnknownEntityError
-from toaster.model import AGENT_KINDS, Agent, Entity, Fact, OntologyRow, PropertyRow, check_id
+from toaster.model import (
+    AGENT_KINDS,
+    Agent,
+    Entity,
+    Fact,
+    OntologyRow,
+    PropertyRow,
+    check_id,
+    check_optional_id,
+    check_text,
+)
 from toaster.timeutil import now_ns
 
 if TYPE_CHECKING:
@@ -41,10 +51,8 @@ def normalise_kind(kind: object) -> str:
 def _entity_values(entity_id: str, kind: str, name: str, owner_id: str) -> dict[str, str]:
     """An entity's checked columns (one-line errors naming the bad value)."""
     check_id(entity_id, "entity id")
-    for value, what in ((name, "name"), (owner_id, "owner id")):
-        if not isinstance(value, str):
-            msg = f"invalid {what} {value!r} for entity {entity_id!r}: must be text"
-            raise InvalidInputError(msg)
+    check_text(name, f"name of entity {entity_id!r}")
+    check_optional_id(owner_id, f"owner id of entity {entity_id!r}")
     return {"name": name or entity_id, "kind": normalise_kind(kind), "owner_id": owner_id}
 
 

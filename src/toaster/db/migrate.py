@@ -19,6 +19,7 @@ from alembic import command
 from alembic.config import Config
 from alembic.runtime.migration import MigrationContext
 from alembic.script import ScriptDirectory
+from alembic.util.exc import CommandError
 from sqlalchemy import Connection, Engine, inspect
 
 from toaster.db.engine import describe, ensure_wal, lock_timeout, make_engine
@@ -100,11 +101,22 @@ def _check_revision(revision: str) -> None:
     raise InvalidInputError(msg)
 
 
+@contextlib.contextmanager
+def _revision_errors(revision: str) -> Iterator[None]:
+    """Alembic's refusal of a revision it cannot go to (``+1`` at head) as one line."""
+    try:
+        yield
+    except CommandError as exc:
+        msg = (f"cannot migrate to {revision!r} ({str(exc).splitlines()[0]}): give head, base "
+               "or a revision between them")
+        raise InvalidInputError(msg) from None
+
+
 def upgrade(engine: Engine, revision: str = "head") -> None:
     """Migrate the database up to ``revision``, in one transaction under the migration lock
     (a concurrent upgrade waits, then finds nothing left to do)."""
     _check_revision(revision)
-    with _migrating(engine) as conn:
+    with _migrating(engine) as conn, _revision_errors(revision):
         command.upgrade(alembic_config(conn), revision)
     _analyze(engine)
 
@@ -112,7 +124,7 @@ def upgrade(engine: Engine, revision: str = "head") -> None:
 def downgrade(engine: Engine, revision: str) -> None:
     """Migrate the database down to ``revision`` (``base`` removes everything)."""
     _check_revision(revision)
-    with _migrating(engine) as conn:
+    with _migrating(engine) as conn, _revision_errors(revision):
         command.downgrade(alembic_config(conn), revision)
 
 

@@ -44,7 +44,7 @@ from toaster.errors import (
     UnknownAgentError,
 )
 from toaster.model import Fact, check_fact, check_id, fact_key
-from toaster.timeutil import format_ns, now_ns
+from toaster.timeutil import check_ns, format_ns, now_ns
 
 if TYPE_CHECKING:
     from toaster.db.database import Database
@@ -348,6 +348,7 @@ class Store:
         if not isinstance(t_ns, int) or isinstance(t_ns, bool):
             msg = f"invalid time {t_ns!r}: times are integer nanoseconds"
             raise InvalidInputError(msg)
+        check_ns(t_ns)
         batch: FactArrays | None = None
         given: list[Fact] = []
         if isinstance(facts, list):  # the common case first: a protocol check costs ~10 µs
@@ -673,7 +674,7 @@ class Store:
         agent who made the change, if known.
         """
         fact = check_fact(fact)
-        t_ns = now_ns() if t_ns is None else t_ns
+        t_ns = now_ns() if t_ns is None else check_ns(t_ns)
         with self.acting(actor), self.transaction() as conn:
             self.check_agent(agent_id)
             if strict:
@@ -696,7 +697,7 @@ class Store:
         Returns the number of facts ended. ``actor``: the agent who ended them, if known.
         """
         check_id(property, "property")
-        t_ns = now_ns() if t_ns is None else t_ns
+        t_ns = now_ns() if t_ns is None else check_ns(t_ns)
         filters = {"subject_id": subject_id, "target_id": target_id,
                    "sub_property": sub_property, "subject_owner_id": subject_owner_id,
                    "target_owner_id": target_owner_id}
@@ -720,7 +721,7 @@ class Store:
                      source: str = "user") -> None:
         """Record a user event (the original's set_info EVENT) for an agent."""
         fact = check_fact(fact)
-        t_ns = now_ns() if t_ns is None else t_ns
+        t_ns = now_ns() if t_ns is None else check_ns(t_ns)
         with self.transaction() as conn:
             self.check_agent(agent_id)
             key = fact_key(fact)

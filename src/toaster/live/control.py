@@ -175,7 +175,8 @@ def remove_from_hand(db: Any, object_id: str) -> bool:
     """Release an object (``remove_from_hand``); False if it was in no hand."""
     with db.transaction(write=True) as conn:
         found = catalog.delete_setting(conn, IN_HAND, object_id) > 0
-        catalog.bump_control(conn)
+        if found:  # nothing changed otherwise: the node has nothing to re-read
+            catalog.bump_control(conn)
         return found
 
 

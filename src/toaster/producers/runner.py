@@ -17,7 +17,7 @@ from toaster.producers.diff import SnapshotDiff
 from toaster.producers.monitor import AgentMonitor
 from toaster.producers.perception import HandActors, PerceptionFacts
 from toaster.producers.spatial import SpatialFacts
-from toaster.timeutil import NS_PER_S
+from toaster.timeutil import NS_PER_S, check_rate
 from toaster.world.bags import is_bag, read_bag
 from toaster.world.scenario import ScenarioSource, load_scenario
 from toaster.world.state import World
@@ -134,7 +134,7 @@ class Runner:
         Every ``maintain_every_s`` seconds of wall time the database is maintained between two
         ticks (:meth:`toaster.db.Database.maintain`: PostgreSQL vacuums the hot tables).
         """
-        step = round(NS_PER_S / rate_hz)
+        step = round(NS_PER_S / check_rate(rate_hz))
         wall0 = last_maintained = time.monotonic()
         t = start_ns
         while t <= end_ns:
