@@ -9,8 +9,10 @@ the same number of processes, each on its own schema, so that what the machine's
 told apart from what sharing the database costs. The table gives, per case, the median over
 ``--repeats`` runs of the tick latency's p50 and p99 (all writers' ticks together, the first
 tick of each left out), the wall time, and the failed ticks (there must be none).
+``--holders none``: the scenario's people hold no beliefs, so the ticks measure the store
+alone (no belief run to serialize).
 Usage: python benchmarks/bench_writers.py [--writers 1,2,4,8] [--ticks 150] [--repeats 3]
-       [--pg URL]
+       [--holders humans|none] [--pg URL]
 """
 
 from __future__ import annotations
@@ -58,7 +60,8 @@ def _drop(url: str, urls: list[str]) -> None:
     engine.dispose()
 
 
-def once(url: str, writers: int, shared: bool, ticks: int) -> tuple[float, float, float, int]:
+def once(url: str, writers: int, shared: bool, ticks: int,
+         holders: str = "humans") -> tuple[float, float, float, int]:
     """(p50 ms, p99 ms, wall s, failed ticks) of one run."""
     urls = [_schema(url)] if shared else [_schema(url) for _ in range(writers)]
     with tempfile.TemporaryDirectory() as tmp:
@@ -66,7 +69,7 @@ def once(url: str, writers: int, shared: bool, ticks: int) -> tuple[float, float
         start = time.perf_counter()
         for i in range(writers):
             out = Path(tmp) / f"w{i}.json"
-            role = f"run:R{i}:{SCENARIO}:30:{ticks}"
+            role = f"run:R{i}:{SCENARIO}:30:{ticks}:{holders}"
             procs.append((out, subprocess.Popen(
                 [sys.executable, "-m", "tests.db.writers", urls[0 if shared else i], role,
                  "0", str(i), str(out)], cwd=ROOT)))
@@ -91,14 +94,19 @@ def main() -> None:
     parser.add_argument("--ticks", type=int, default=150)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--pg", default=PG)
+    parser.add_argument("--holders", default="humans",
+                        help="humans (the scenario's people hold beliefs) or none (no belief "
+                             "rule work: the store alone)")
     args = parser.parse_args()
     counts = [int(n) for n in args.writers.split(",")]
     print(f"{'writers':>7} {'database':>8} {'p50 ms':>8} {'p99 ms':>8} {'wall s':>7} "
-          f"{'failed':>6}   (medians of {args.repeats}; {args.ticks} ticks per writer)")
+          f"{'failed':>6}   (medians of {args.repeats}; {args.ticks} ticks per writer; "
+          f"holders: {args.holders})")
     for n in counts:
         results = {}
         for shared in (False, True):  # the baseline first
-            runs = [once(args.pg, n, shared, args.ticks) for _ in range(args.repeats)]
+            runs = [once(args.pg, n, shared, args.ticks, args.holders)
+                    for _ in range(args.repeats)]
             p50, p99, wall = (statistics.median(r[k] for r in runs) for k in range(3))
             failed = sum(r[3] for r in runs)
             results[shared] = p50, p99
