@@ -609,9 +609,8 @@ class Store:
                 self._run_rules(conn, changes)
 
     def _clocked(self, agent_id: str) -> bool:
-        """Writes follow the rules' clock (see :meth:`_writes`) when rules run and somebody
-        holds beliefs; ``agent_id`` is a self agent, or an agent written directly (told,
-        asserted), whose rows the rules also write."""
+        """Snapshots of ``agent_id`` follow the rules' clock (see :meth:`_writes`): rules run,
+        ``agent_id`` is registered and somebody holds beliefs."""
         agents = self.agents()
         return bool(self._rules) and agent_id in agents and not all(agents.values())
 
