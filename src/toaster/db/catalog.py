@@ -115,25 +115,18 @@ def register_agent(conn: Connection, agent_id: str, *, is_self: bool | None,
     registering agents at once wait for each other instead of taking the same number.
     """
     agents = s.agents.c
-    for attempt in (1, 2):
-        row = conn.execute(select(agents.num).where(agents.id == agent_id)).first()
-        if row is not None:
-            if is_self is not None:
-                conn.execute(update(s.agents).where(agents.id == agent_id)
-                             .values(is_self=is_self))
-            return
-        if attempt == 1:
-            backend_for(conn.dialect.name).lock_registrations(conn)
-    num = conn.execute(select(func.coalesce(func.max(agents.num), 0))).scalar_one() + 1
-    conn.execute(insert(s.agents).values(id=agent_id, num=num, is_self=bool(is_self),
-                                         registered_ns=t_ns))
-    if views:
-        create_agent_views(conn, agent_id, num)
+    known = conn.execute(select(agents.num).where(agents.id == agent_id)).first() is not None
+    if not known and register_agents(conn, [agent_id], t_ns=t_ns, views=views,
+                                      is_self=bool(is_self)):
+        return
+    if is_self is not None:  # known, or registered by another process meanwhile
+        conn.execute(update(s.agents).where(agents.id == agent_id).values(is_self=is_self))
 
 
 def register_agents(conn: Connection, agent_ids: list[str], *, t_ns: int,
-                    views: bool) -> None:
-    """:func:`register_agent` of many agents (not self) in a few statements."""
+                    views: bool, is_self: bool = False) -> list[str]:
+    """:func:`register_agent` of many agents in a few statements; return those it
+    registered (the others were agents already)."""
     agents = s.agents.c
     backend_for(conn.dialect.name).lock_registrations(conn)
     unique = list(dict.fromkeys(agent_ids))
@@ -143,13 +136,14 @@ def register_agents(conn: Connection, agent_ids: list[str], *, t_ns: int,
         known.update(conn.execute(select(agents.id).where(agents.id.in_(chunk))).scalars())
     new = [a for a in unique if a not in known]
     if not new:
-        return
+        return new
     first = conn.execute(select(func.coalesce(func.max(agents.num), 0))).scalar_one() + 1
-    conn.execute(insert(s.agents), [{"id": a, "num": first + i, "is_self": False,
+    conn.execute(insert(s.agents), [{"id": a, "num": first + i, "is_self": is_self,
                                      "registered_ns": t_ns} for i, a in enumerate(new)])
     if views:
         for i, agent_id in enumerate(new):
             create_agent_views(conn, agent_id, first + i)
+    return new
 
 
 def create_missing_views(conn: Connection, agent_ids: list[str] | None = None) -> list[str]:
