@@ -10,17 +10,30 @@ from __future__ import annotations
 
 import datetime as dt
 import json
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from toaster.errors import FileFormatError
+from toaster.errors import FileFormatError, InvalidInputError
 
 #: Deepest nesting of lists and mappings a document may have.
 MAX_DEPTH = 64
 #: Most values (scalars, lists, mappings) a document may hold.
 MAX_NODES = 2_000_000
+
+
+@contextmanager
+def located(where: str) -> Iterator[None]:
+    """A bad value checked inside becomes a :class:`FileFormatError` naming ``where`` (the
+    file and field) before the check's own one-line message."""
+    try:
+        yield
+    except InvalidInputError as exc:
+        msg = f"{where}: {exc}"
+        raise FileFormatError(msg) from None
 
 
 def read_document(path: str | Path, what: str = "file") -> Any:

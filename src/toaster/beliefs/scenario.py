@@ -37,7 +37,7 @@ from typing import Any
 from toaster.beliefs import api
 from toaster.beliefs import config as cfg
 from toaster.beliefs.tell import tell
-from toaster.documents import read_document
+from toaster.documents import located, read_document
 from toaster.errors import FileFormatError, InvalidInputError
 from toaster.model import (
     Fact,
@@ -103,11 +103,8 @@ def _id(where: str, value: object, what: str = "id") -> str:
     """An id (numbers written as text), or a one-line error naming ``where``."""
     if isinstance(value, int) and not isinstance(value, bool):
         value = str(value)
-    try:
+    with located(where):
         return check_id(value, what)
-    except InvalidInputError as exc:
-        msg = f"{where}: {exc}"
-        raise FileFormatError(msg) from None
 
 
 def _ids(where: str, raw: object, what: str) -> list[str]:
@@ -148,11 +145,8 @@ def _scalar(where: str, value: object, what: str) -> str:
         value = str(value).lower()
     elif isinstance(value, int | float):
         value = str(value)
-    try:
+    with located(where):
         return check_text(value, what)
-    except InvalidInputError as exc:
-        msg = f"{where}: {exc}"
-        raise FileFormatError(msg) from None
 
 
 def _fact(where: str, raw: object) -> Fact:

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from toaster.documents import read_document
+from toaster.documents import located, read_document
 from toaster.errors import FileFormatError, InvalidInputError
 from toaster.model import MAX_COORD, check_id, check_text, shown
 from toaster.timeutil import check_ns, check_rate, parse_duration, parse_time
@@ -84,11 +84,8 @@ def _rpy(item: Mapping[str, Any], where: str) -> list[float]:
 
 def _id(value: Any, where: str, what: str) -> str:
     """A valid id (:func:`toaster.model.check_id`) or a one-line error naming ``where``."""
-    try:
+    with located(where):
         return check_id(value, what)
-    except InvalidInputError as exc:
-        msg = f"{where}: {exc}"
-        raise FileFormatError(msg) from None
 
 
 def _flag(item: Mapping[str, Any], key: str, default: bool | None, where: str) -> bool | None:
@@ -197,11 +194,8 @@ def parse_scenario(data: Any, origin: str = "scenario") -> Scenario:
 
 
 def _text(value: Any, where: str, what: str) -> str:
-    try:
+    with located(where):
         return check_text(value, what)
-    except InvalidInputError as exc:
-        msg = f"{where}: {exc}"
-        raise FileFormatError(msg) from None
 
 
 def _entity(ent: Any, where: str) -> dict[str, Any]:
