@@ -10,9 +10,12 @@ told apart from what sharing the database costs. The table gives, per case, the 
 ``--repeats`` runs of the tick latency's p50 and p99 (all writers' ticks together, the first
 tick of each left out), the wall time, and the failed ticks (there must be none).
 ``--holders none``: the scenario's people hold no beliefs, so the ticks measure the store
-alone (no belief run to serialize).
+alone (no belief run to serialize). ``--pace live`` (default) paces each robot's ticks at
+30 Hz of wall time, as live robots tick (``toaster serve``, ``run --realtime``); ``--pace
+none`` ticks back to back, as an offline ``toaster run``: every writer then saturates the
+machine and, shared, the one timeline of the holders' beliefs (one belief run at a time).
 Usage: python benchmarks/bench_writers.py [--writers 1,2,4,8] [--ticks 150] [--repeats 3]
-       [--holders humans|none] [--pg URL]
+       [--holders humans|none] [--pace live|none] [--pg URL]
 """
 
 from __future__ import annotations
@@ -61,7 +64,7 @@ def _drop(url: str, urls: list[str]) -> None:
 
 
 def once(url: str, writers: int, shared: bool, ticks: int,
-         holders: str = "humans") -> tuple[float, float, float, int]:
+         holders: str = "humans", pace: str = "") -> tuple[float, float, float, int]:
     """(p50 ms, p99 ms, wall s, failed ticks) of one run."""
     urls = [_schema(url)] if shared else [_schema(url) for _ in range(writers)]
     with tempfile.TemporaryDirectory() as tmp:
@@ -69,7 +72,7 @@ def once(url: str, writers: int, shared: bool, ticks: int,
         start = time.perf_counter()
         for i in range(writers):
             out = Path(tmp) / f"w{i}.json"
-            role = f"run:R{i}:{SCENARIO}:30:{ticks}:{holders}"
+            role = f"run:R{i}:{SCENARIO}:30:{ticks}:{holders}:{pace}"
             procs.append((out, subprocess.Popen(
                 [sys.executable, "-m", "tests.db.writers", urls[0 if shared else i], role,
                  "0", str(i), str(out)], cwd=ROOT)))
@@ -94,6 +97,10 @@ def main() -> None:
     parser.add_argument("--ticks", type=int, default=150)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--pg", default=PG)
+    parser.add_argument("--pace", choices=("live", "none"), default="live",
+                        help="live (default): each robot ticks at 30 Hz of wall time, as "
+                             "`toaster serve` and `run --realtime` do; none: ticks back to "
+                             "back, as an offline `toaster run` (every writer saturates)")
     parser.add_argument("--holders", default="humans",
                         help="humans (the scenario's people hold beliefs) or none (no belief "
                              "rule work: the store alone)")
@@ -101,11 +108,12 @@ def main() -> None:
     counts = [int(n) for n in args.writers.split(",")]
     print(f"{'writers':>7} {'database':>8} {'p50 ms':>8} {'p99 ms':>8} {'wall s':>7} "
           f"{'failed':>6}   (medians of {args.repeats}; {args.ticks} ticks per writer; "
-          f"holders: {args.holders})")
+          f"holders: {args.holders}; pace: {args.pace})")
     for n in counts:
         results = {}
         for shared in (False, True):  # the baseline first
-            runs = [once(args.pg, n, shared, args.ticks, args.holders)
+            runs = [once(args.pg, n, shared, args.ticks, args.holders,
+                         "" if args.pace == "none" else args.pace)
                     for _ in range(args.repeats)]
             p50, p99, wall = (statistics.median(r[k] for r in runs) for k in range(3))
             failed = sum(r[3] for r in runs)

@@ -3,14 +3,18 @@
 CSV and JSON lines need nothing beyond the standard library; Parquet needs the ``export`` extra
 (pyarrow). Every file has one row per interval (or event) with the fields of
 :class:`~toaster.model.FactRow` (or :class:`~toaster.model.EventRow`), times as integer
-nanoseconds; :func:`read_rows` reads any of them back into the same typed rows.
+nanoseconds; :func:`read_rows` reads any of them back into the same typed rows and
+:func:`read_frame` into the DataFrame :func:`toaster.queries.to_dataframe` builds.
+
+Parquet keeps the types: text ``string``, integers ``int64`` (null where a field may be None:
+an open interval's ``valid_to_ns``; pandas reads it as nullable ``Int64``, never as floats),
+floats ``double``, and beside each ``X_ns`` time a column ``X`` of ``timestamp[ns, tz=UTC]``.
 """
 
 from __future__ import annotations
 
 import csv
 import json
-import typing
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -122,29 +126,51 @@ def write_rows(rows: Sequence[NamedTuple], rtype: type[NamedTuple], path: Path,
             for row in rows:
                 handle.write(json.dumps(dict(zip(fields, row, strict=True))) + "\n")
     else:
-        pa, pq = _pyarrow()
-        kinds = _field_kinds(rtype)
-        arrow = {str: pa.string(), int: pa.int64(), float: pa.float64()}
-        schema = pa.schema([(f, arrow[kinds[f][0]]) for f in fields])
-        columns = {f: [row[i] for row in rows] for i, f in enumerate(fields)}
-        pq.write_table(pa.table(columns, schema=schema), path)
+        _, pq = _pyarrow()
+        pq.write_table(arrow_table(rows, rtype), path)
+
+
+def arrow_table(rows: Sequence[NamedTuple], rtype: type[NamedTuple]) -> Any:
+    """The rows as a typed ``pyarrow.Table`` (see the module docstring), with the pandas
+    metadata that makes ``pandas.read_parquet`` give nullable ``Int64`` columns."""
+    from toaster.queries.frames import field_kinds, time_columns
+
+    pa, _ = _pyarrow()
+    kinds = field_kinds(rtype)
+    arrow = {str: pa.string(), int: pa.int64(), float: pa.float64(), bool: pa.bool_()}
+    fields = list(rtype._fields)
+    columns = {f: pa.array([row[i] for row in rows], arrow[kinds[f][0]])
+               for i, f in enumerate(fields)}
+    stamp = pa.timestamp("ns", tz="UTC")
+    for field, name in time_columns(fields).items():
+        columns[name] = columns[field].cast(stamp)
+    nullable_ints = [f for f in fields if kinds[f] == (int, True)]
+    pandas = {"index_columns": [], "column_indexes": [], "creator": {"library": "toaster"},
+              "columns": [{"name": f, "field_name": f, "pandas_type": "int64",
+                           "numpy_type": "Int64", "metadata": None} for f in nullable_ints]}
+    table = pa.table(columns)
+    return table.replace_schema_metadata({"pandas": json.dumps(pandas)})
 
 
 def read_rows(path: str | Path, kind: str, format: str | None = None) -> list[Any]:
     """Read an export back into :class:`FactRow` or :class:`EventRow` tuples."""
+    from toaster.queries.frames import field_kinds
+
     rtype = row_type(kind)
     fmt = export_format(path, format)
     path = Path(path)
     if fmt == "parquet":
         _, pq = _pyarrow()
-        records: list[dict[str, Any]] = pq.read_table(path).to_pylist()
+        present = set(pq.read_schema(path).names)
+        wanted = [f for f in rtype._fields if f in present]  # not the timestamp columns
+        records: list[dict[str, Any]] = pq.read_table(path, columns=wanted).to_pylist()
     elif fmt == "jsonl":
         with path.open(encoding="utf-8") as handle:
             records = [json.loads(line) for line in handle if line.strip()]
     else:
         with path.open(newline="", encoding="utf-8") as handle:
             records = list(csv.DictReader(handle))
-    kinds = _field_kinds(rtype)
+    kinds = field_kinds(rtype)
     try:
         return [rtype(*(_typed(rec[f], kinds[f]) for f in rtype._fields))
                 for rec in records]
@@ -153,15 +179,14 @@ def read_rows(path: str | Path, kind: str, format: str | None = None) -> list[An
         raise InvalidInputError(msg) from None
 
 
-def _field_kinds(rtype: type[NamedTuple]) -> dict[str, tuple[type, bool]]:
-    """Each field's base type and whether it may be None."""
-    hints = typing.get_type_hints(rtype)
-    out: dict[str, tuple[type, bool]] = {}
-    for name in rtype._fields:
-        args = typing.get_args(hints[name])
-        base = [a for a in args if a is not type(None)]
-        out[name] = (base[0], True) if base else (hints[name], False)
-    return out
+def read_frame(path: str | Path, kind: str, format: str | None = None) -> Any:
+    """Read an export (CSV, JSON lines or Parquet) into a typed pandas DataFrame: the frame
+    ``toaster.queries.to_dataframe(rows, times=True)`` gives for the exported rows (empty text
+    stays ``""``, missing integers are ``<NA>``, times also as ``datetime64[ns, UTC]``)."""
+    from toaster.queries.frames import to_dataframe
+
+    rows = read_rows(path, kind, format)
+    return to_dataframe(rows, None if rows else row_type(kind)._fields, times=True)
 
 
 def _typed(value: Any, kind: tuple[type, bool]) -> Any:
@@ -177,8 +202,8 @@ def _typed(value: Any, kind: tuple[type, bool]) -> Any:
 
 def _pyarrow() -> tuple[Any, Any]:
     try:
-        import pyarrow as pa
-        import pyarrow.parquet as pq
+        import pyarrow as pa  # type: ignore[import-untyped]  # (no py.typed)
+        import pyarrow.parquet as pq  # type: ignore[import-untyped]
     except ImportError:
         package = "pyarrow"
         raise MissingDependencyError(package, "export", "Parquet export") from None

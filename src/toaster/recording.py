@@ -1,45 +1,54 @@
-"""Recordings of a run that ROS tools replay: a rosbag2 bag stored as MCAP (the ``rosbag`` extra).
+"""Recordings of a run that ROS tools replay (the ``rosbag`` extra): a rosbag2 folder holding an
+MCAP file (ROS 2 distros) or a ROS 1 ``.bag`` file (``noetic``).
 
-Foxglove and Lichtblick open the ``.mcap`` file inside the bag directly; ``ros2 bag play`` and
-RViz 2 take the bag directory, and ``toaster run BAG_DIR`` replays it as input. Topics (see
-``docs/recordings.md``):
+Foxglove and Lichtblick open the ``.mcap`` (or the ``.bag``) directly; ``ros2 bag play`` /
+``rosbag play`` and RViz replay them, and ``toaster run BAG`` replays them as input. Topics
+(see ``docs/recordings.md``):
 
-* ``/tf`` (``tf2_msgs/msg/TFMessage``): every entity under ``map`` with pdg's frame names
+* ``/tf`` (``tf2_msgs/TFMessage``): every entity under ``map`` with pdg's frame names
   (objects ``<id>``, agents ``<id>/base``, joints ``<agent>/<joint>``), full 3D poses;
 * ``/pdg/humanList``, ``/pdg/robotList``, ``/pdg/objectList`` (``toaster_msgs``): the entities
   as pdg publishes them, joints as skeleton joints;
-* ``/toaster/entities`` and ``/toaster/areas`` (``visualization_msgs/msg/MarkerArray``): shapes
+* ``/toaster/entities`` and ``/toaster/areas`` (``visualization_msgs/MarkerArray``): shapes
   drawn by :mod:`toaster.ros1.markers` (real sizes, circles, owner-relative areas);
-* ``/area_manager/areaList`` (``toaster_msgs/msg/AreaList``): the areas and who is inside;
-* ``/<producer>/factList`` (``toaster_msgs/msg/FactList``): the self agent's facts of pdg,
+* ``/area_manager/areaList`` (``toaster_msgs/AreaList``): the areas and who is inside;
+* ``/<producer>/factList`` (``toaster_msgs/FactList``): the self agent's facts of pdg,
   area_manager, agent_monitor and move3d_facts whenever they changed (from the store);
-* ``/toaster/facts`` (``rcl_interfaces/msg/Log``): one line per belief change (an event).
+* ``/toaster/beliefs/<holder>`` (``toaster_recording/Beliefs``): everything each agent (and
+  nested holder) believes, whenever it changed (:mod:`toaster.recording_beliefs`);
+* ``/toaster/facts`` (``Log``): one line per belief change (an event).
 
 Poses are not in the fact store: callers hand :func:`record` (or :class:`Recorder`) frames
-``(t_ns, entities, areas)``: entities as :class:`EntityPose` (or its first six fields
-``(id, kind, x, y, z, yaw)``), areas as ``(id, spec)`` or ``(id, [(x, y), ...])``.
+``(t_ns, entities, areas)`` (:mod:`toaster.recording_input`).
 """
 
 from __future__ import annotations
 
 import heapq
-import math
 from collections.abc import Iterable, Iterator, Mapping, Sequence
-from itertools import pairwise
 from pathlib import Path
 from typing import Any, NamedTuple
 
-from toaster.errors import InvalidInputError, MissingDependencyError
+from toaster.errors import InvalidInputError
 from toaster.model import EventRow, Fact, FactRow
-from toaster.recording_msgs import (
-    EntityPose,
-    FactTimeline,
-    Messages,
-    Scene,
-    fit_metadata,
-    metadata_version,
-    toaster_types,
+from toaster.recording_beliefs import (
+    BELIEFS_TYPE,
+    BeliefTimeline,
+    beliefs_types,
+    chain,
+    holder_topic,
 )
+from toaster.recording_formats import BagWriter, bag_format, toaster_spelling
+from toaster.recording_input import (  # noqa: F401  (the input types, re-exported)
+    AreaOutline,
+    AreaSpec,
+    Frame,
+    area_spec,
+    check_frames,
+    entity_poses,
+    read_frames,
+)
+from toaster.recording_msgs import EntityPose, FactTimeline, Messages, Scene, toaster_types
 from toaster.ros1.markers import (  # noqa: F401  (re-exported marker constants)
     ADD,
     ARROW,
@@ -58,106 +67,74 @@ __all__ = ["EntityPose", "Frame", "Recorder", "RecordingResult", "event_line", "
 ENTITIES_TOPIC, AREAS_TOPIC, FACTS_TOPIC = "/toaster/entities", "/toaster/areas", "/toaster/facts"
 TF_TOPIC, AREA_LIST_TOPIC = "/tf", "/area_manager/areaList"
 LIST_TOPICS = {"human": "/pdg/humanList", "robot": "/pdg/robotList", "object": "/pdg/objectList"}
-MARKER_ARRAY, LOG = "visualization_msgs/msg/MarkerArray", "rcl_interfaces/msg/Log"
+MARKER_ARRAY = "visualization_msgs/msg/MarkerArray"
 TF_MESSAGE, FACT_LIST = "tf2_msgs/msg/TFMessage", "toaster_msgs/msg/FactList"
 AREA_LIST = "toaster_msgs/msg/AreaList"
 LIST_TYPES = {k: f"toaster_msgs/msg/{k.title()}ListStamped" for k in LIST_TOPICS}
-INFO = 20
-KINDS = ("human", "robot", "object", "joint")
-
-
-class AreaSpec(NamedTuple):
-    """An area: its spec (``shape`` polygon or circle, ``points`` / ``center`` + ``radius``,
-    ``owner`` for areas that move with an entity, as ``toaster area add``)."""
-
-    id: str
-    spec: dict[str, Any]
-
-
-AreaOutline = AreaSpec  # the name of older releases
-
-
-class Frame(NamedTuple):
-    """The world at ``t_ns``: entity poses and areas (None: areas unchanged)."""
-
-    t_ns: int
-    entities: Sequence[EntityPose | Sequence[Any] | Mapping[str, Any]]
-    areas: Sequence[AreaSpec | tuple[str, Any]] | None = None
 
 
 class RecordingResult(NamedTuple):
-    """What :func:`record` wrote: the bag directory, its MCAP file and message counts."""
+    """What :func:`record` wrote: the bag (folder or ``.bag``), the file a viewer opens (the
+    ``.mcap`` inside, or the ``.bag``) and message counts."""
 
     bag: Path
-    mcap: Path
+    file: Path
     frames: int
     facts: int
     fact_lists: int = 0
+    beliefs: int = 0
 
-
-def _rosbags() -> tuple[Any, Any, Any]:
-    try:
-        from rosbags.rosbag2 import StoragePlugin, Writer
-        from rosbags.typesys import Stores, get_typestore
-    except ImportError:
-        package = "rosbags"
-        raise MissingDependencyError(package, "rosbag", "recording") from None
-    return Writer, StoragePlugin, (Stores, get_typestore)
+    @property
+    def mcap(self) -> Path:
+        """The file a viewer opens (the name of older releases)."""
+        return self.file
 
 
 class Recorder:
-    """Writes frames, fact lists and fact lines into a new bag directory ``path`` (use as a
+    """Writes frames, fact lists, beliefs and fact lines into a new bag ``path`` (use as a
     context manager).
 
-    ``distro`` (humble, iron, jazzy, kilted) names the ROS 2 message definitions and the
-    rosbag2 metadata version written (5, 8, 9, 9: what that distro's ``ros2 bag`` reads).
-    ``toaster_names`` spells toaster_msgs' fields as ROS 2 requires (``ros2``, the default:
-    decoded by Foxglove and rosidl tools) or as the original (``ros1``); ``toaster run`` reads
-    both.
+    ``distro`` (humble, iron, jazzy, kilted; noetic for a ROS 1 ``.bag``; default noetic when
+    ``path`` ends in ``.bag``, else humble) names the message definitions and the container
+    (:mod:`toaster.recording_formats`: a rosbag2 folder with the metadata version that distro
+    writes). ``toaster_names`` spells toaster_msgs' fields as ROS 2 requires (``ros2``, the
+    default of ROS 2 bags: decoded by Foxglove and rosidl tools) or as the original (``ros1``,
+    the only spelling of ROS 1 bags); ``toaster run`` reads both.
     """
 
-    def __init__(self, path: str | Path, *, frame_id: str = "map", distro: str = "humble",
-                 toaster_names: str = "ros2") -> None:
-        writer_cls, plugin, (stores, get_typestore) = _rosbags()
-        types = toaster_types(toaster_names)
-        self.path = Path(path)
-        if self.path.exists():
-            msg = f"cannot record into {str(self.path)!r}: it exists; give a new directory name"
-            raise InvalidInputError(msg)
-        self.version, self.distro = metadata_version(distro), distro.lower()
-        self.types = get_typestore(stores[f"ROS2_{self.distro.upper()}"])
-        self.types.register(types)
+    def __init__(self, path: str | Path, *, frame_id: str = "map", distro: str | None = None,
+                 toaster_names: str | None = None) -> None:
+        fmt = bag_format(path, distro)
+        types = toaster_types(toaster_spelling(fmt, toaster_names))
+        self.bag = BagWriter(path, fmt, types | beliefs_types())
+        self.path, self.distro, self.version = self.bag.path, fmt.distro, fmt.version
+        self.types = self.bag.types
         self._messages = Messages(self.types)
         self.frame_id = frame_id
         self.scene = Scene(frame_id)
-        # rosbags writes versions 8 and 9; below 9 its QoS profiles are Humble's YAML strings
-        self._writer = writer_cls(self.path, version=min(max(self.version, 8), 9),
-                                  storage_plugin=plugin.MCAP)
-        self._writer.version = self.version
-        self._conns: dict[str, Any] = {}
         self.areas: dict[str, dict[str, Any]] = {}
         self._inside: dict[str, set[str]] = {}
         self._areas_changed = False
         self._owners: dict[str, tuple[float, ...]] = {}
-        self.frames = self.facts = self.fact_lists = 0
+        self.belief_topics: dict[str, str] = {}
+        self.frames = self.facts = self.fact_lists = self.beliefs = 0
 
     def __enter__(self) -> Recorder:
-        self._writer.open()
+        self.bag.open()
         for topic, msgtype in ((TF_TOPIC, TF_MESSAGE), (ENTITIES_TOPIC, MARKER_ARRAY),
-                               (AREAS_TOPIC, MARKER_ARRAY), (FACTS_TOPIC, LOG),
+                               (AREAS_TOPIC, MARKER_ARRAY), (FACTS_TOPIC, self.bag.log_type),
                                *((LIST_TOPICS[k], LIST_TYPES[k]) for k in LIST_TOPICS),
                                (AREA_LIST_TOPIC, AREA_LIST)):
-            self._connect(topic, msgtype)
+            self.bag.connect(topic, msgtype)
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self._writer.close()
-        fit_metadata(self.path, self.version, self.distro)
+    def __exit__(self, exc_type: object, *exc: object) -> None:
+        self.bag.close(discard=exc_type is not None)
 
     @property
     def mcap_path(self) -> Path:
-        """The MCAP file inside the bag (open this one in Foxglove or Lichtblick)."""
-        return next(self.path.glob("*.mcap"))
+        """The file a viewer opens: the MCAP file inside the folder, or the ROS 1 ``.bag``."""
+        return self.bag.file
 
     # -- writing --------------------------------------------------------------------------
     def write_frame(self, t_ns: int, entities: Iterable[Any],
@@ -197,22 +174,31 @@ class Recorder:
     def write_fact_list(self, t_ns: int, source: str, facts: Iterable[Fact | FactRow]) -> None:
         """Write the facts ``source`` holds at ``t_ns`` on ``/<source>/factList`` (FactRows
         keep their start as ``timeStart``)."""
-        from toaster.ros1.mapping import fact_fields
-
         if not source.isidentifier():
             msg = f"cannot publish facts of {source!r}: a producer name is a ROS name (pdg)"
             raise InvalidInputError(msg)
-        rows = list(facts)
-        held = [row if isinstance(row, Fact) else row.to_fact() for row in rows]
-        items = [fact_fields(fact, t_ns) | {"timeStart": getattr(row, "valid_from_ns", t_ns)}
-                 for fact, row in zip(held, rows, strict=True)]
+        held, items = _fact_items(facts, t_ns)
         topic = f"/{source}/factList"
-        if topic not in self._conns:
-            self._connect(topic, FACT_LIST)
+        if not self.bag.has(topic):
+            self.bag.connect(topic, FACT_LIST)
         self._put(topic, t_ns, FACT_LIST, {"factList": items})
         self.fact_lists += 1
         if source == "area_manager":
             self._note_inside(held)
+
+    def write_beliefs(self, t_ns: int, holder: str, facts: Iterable[Fact | FactRow], *,
+                      is_self: bool = False) -> None:
+        """Write everything ``holder`` (an agent, or a nested holder ``A>B``) believes at
+        ``t_ns`` on its channel ``/toaster/beliefs/<holder>``."""
+        topic = self.belief_topics.get(holder)
+        if topic is None:
+            topic = self.belief_topics[holder] = holder_topic(holder, self.belief_topics.values())
+            self.bag.connect(topic, BELIEFS_TYPE)
+        _, items = _fact_items(facts, t_ns)
+        self._put(topic, t_ns, BELIEFS_TYPE, {
+            "header": {"stamp": t_ns, "frame_id": self.frame_id}, "holder": holder,
+            "chain": chain(holder), "is_self": is_self, "facts": items})
+        self.beliefs += 1
 
     def _note_inside(self, facts: list[Fact]) -> None:
         inside: dict[str, set[str]] = {}
@@ -222,26 +208,30 @@ class Recorder:
         if inside != self._inside:
             self._inside, self._areas_changed = inside, True
 
-    def write_fact_line(self, t_ns: int, text: str, *, name: str = "toaster",
-                        level: int = INFO) -> None:
-        """Write one line on the facts channel."""
-        self._put(FACTS_TOPIC, t_ns, LOG, {"stamp": t_ns, "level": level, "name": name,
-                                           "msg": text})
+    def write_fact_line(self, t_ns: int, text: str, *, name: str = "toaster") -> None:
+        """Write one INFO line on the facts channel."""
+        self._put(FACTS_TOPIC, t_ns, self.bag.log_type, self.bag.log_fields(t_ns, name, text))
         self.facts += 1
 
     def write_event(self, event: EventRow) -> None:
         """Write one fact-store event as a line of the facts channel."""
         self.write_fact_line(event.stamp_ns, event_line(event), name=f"toaster.{event.agent_id}")
 
-    def _connect(self, topic: str, msgtype: str) -> None:
-        self._conns[topic] = self._writer.add_connection(topic, msgtype, typestore=self.types)
-
     def _put(self, topic: str, t_ns: int, msgtype: str, fields: Mapping[str, Any]) -> None:
-        if t_ns < 0:
-            msg = f"cannot record time {t_ns}: ROS times start at 0 (the Unix epoch)"
-            raise InvalidInputError(msg)
-        data = self.types.serialize_cdr(self._messages.build(msgtype, fields), msgtype)
-        self._writer.write(self._conns[topic], t_ns, data)
+        self.bag.write(topic, t_ns, self._messages.build(msgtype, fields), msgtype)
+
+
+def _fact_items(facts: Iterable[Fact | FactRow], t_ns: int
+                ) -> tuple[list[Fact], list[dict[str, Any]]]:
+    """The facts and their toaster_msgs/Fact fields at ``t_ns`` (a FactRow's start as
+    ``timeStart``)."""
+    from toaster.ros1.mapping import fact_fields
+
+    rows = list(facts)
+    held = [row if isinstance(row, Fact) else row.to_fact() for row in rows]
+    items = [fact_fields(fact, t_ns) | {"timeStart": getattr(row, "valid_from_ns", t_ns)}
+             for fact, row in zip(held, rows, strict=True)]
+    return held, items
 
 
 def event_line(event: EventRow) -> str:
@@ -257,154 +247,56 @@ def event_line(event: EventRow) -> str:
     return line
 
 
-# -- input checks -------------------------------------------------------------------------------
-_POSE_HELP = "give (id, kind, x, y, z, yaw[, roll, pitch, size, owner, name, held_by, t_ns])"
-
-
-def entity_poses(entities: Iterable[Any]) -> list[EntityPose]:
-    """Checked poses of one frame; a joint's owner must be one of its humans or robots."""
-    poses = [_entity(item) for item in entities]
-    agents = {p.id for p in poses if p.kind in ("human", "robot")}
-    for pose in poses:
-        if pose.kind == "joint" and pose.owner not in agents:
-            msg = (f"invalid entity pose {pose.id!r}: joint owner {pose.owner!r} is not a human "
-                   "or robot of the same frame")
-            raise InvalidInputError(msg)
-    return poses
-
-
-def _entity(item: Any) -> EntityPose:
-    """An EntityPose from a tuple (positional fields) or a mapping (field names)."""
-    fields = EntityPose._fields
-    try:
-        values = dict(item) if isinstance(item, Mapping) else dict(zip(fields, item, strict=False))
-        if set(values) - set(fields) or (not isinstance(item, Mapping) and len(item) > len(fields)):
-            raise ValueError
-        kind = str(values["kind"]).lower()
-        owner = str(values.get("owner") or "")
-        x, y, z, yaw = (float(values[k]) for k in ("x", "y", "z", "yaw"))
-        pose = EntityPose(
-            str(values["id"]), kind if kind in KINDS else "object", x, y, z, yaw,
-            float(values.get("roll") or 0.0), float(values.get("pitch") or 0.0),
-            _size(values.get("size")), owner, str(values.get("name") or ""),
-            str(values.get("held_by") or ""),
-            None if values.get("t_ns") is None else int(values["t_ns"]))
-    except (TypeError, ValueError, KeyError):
-        msg = f"invalid entity pose {item!r}: {_POSE_HELP}"
-        raise InvalidInputError(msg) from None
-    if not all(math.isfinite(v) for v in (*pose[2:8], *(pose.size or ()))):
-        msg = f"invalid entity pose {item!r}: coordinates and sizes must be finite"
-        raise InvalidInputError(msg)
-    if kind == "joint" and not pose.name:
-        pose = pose._replace(name=pose.id.removeprefix(f"{owner}/"))
-    return pose
-
-
-def _size(value: Any) -> tuple[float, float, float] | None:
-    if value is None:
-        return None
-    x, y, z = (float(v) for v in value)
-    if min(x, y, z) <= 0:
-        raise ValueError
-    return (x, y, z)
-
-
-def area_spec(item: Any) -> AreaSpec:
-    """An area from ``(id, spec)`` (checked as ``toaster area add``) or ``(id, polygon)``."""
-    from toaster.producers.areas import normalize_area
-
-    try:
-        area_id, shape = str(item[0]), item[1]
-        points = [] if isinstance(shape, Mapping) else [[float(x), float(y)] for x, y in shape]
-    except (TypeError, ValueError, IndexError, KeyError):
-        msg = f"invalid area {item!r}: give (id, [(x, y), ...]) or (id, spec)"
-        raise InvalidInputError(msg) from None
-    if isinstance(shape, Mapping):
-        return AreaSpec(area_id, normalize_area(area_id, shape))
-    if len(points) < 3:
-        msg = f"invalid area {area_id!r}: a polygon needs at least 3 points"
-        raise InvalidInputError(msg)
-    return AreaSpec(area_id, {"shape": "polygon", "points": points, "owner": ""})
-
-
-def _frame(item: Frame | Sequence[Any]) -> Frame:
-    """A checked frame (poses and areas parsed; a bad one fails before anything is written)."""
-    frame = item if isinstance(item, Frame) else Frame(*item)
-    if int(frame.t_ns) < 0:
-        msg = f"cannot record time {frame.t_ns}: ROS times start at 0 (the Unix epoch)"
-        raise InvalidInputError(msg)
-    areas = None if frame.areas is None else [area_spec(a) for a in frame.areas]
-    return Frame(int(frame.t_ns), entity_poses(frame.entities), areas)
-
-
 # -- whole recordings ---------------------------------------------------------------------------
 def record(path: str | Path, frames: Iterable[Frame | Sequence[Any]], *, db: Any = None,
            agent: str | Sequence[str] | None = None, since: int | None = None,
-           until: int | None = None, frame_id: str = "map", distro: str = "humble",
-           toaster_names: str = "ros2") -> RecordingResult:
-    """Record ``frames`` (in time order) and, with ``db``, the self agent's fact lists and the
-    events of ``agent`` (default: every agent) between ``since`` and ``until`` (default: the
-    first and last frame). ``distro`` and ``toaster_names`` as :class:`Recorder`. Returns the
-    bag directory and its MCAP file."""
-    frame_list = [_frame(f) for f in frames]
-    for before, after in pairwise(frame_list):
-        if after.t_ns < before.t_ns:
-            msg = (f"frames out of time order: {after.t_ns} comes after {before.t_ns}; "
-                   "sort the frames by time")
-            raise InvalidInputError(msg)
+           until: int | None = None, frame_id: str = "map", distro: str | None = None,
+           toaster_names: str | None = None) -> RecordingResult:
+    """Record ``frames`` (in time order) and, with ``db``, the self agent's fact lists, the
+    beliefs and the events of ``agent`` (default: every agent and holder) between ``since``
+    and ``until`` (default: the first and last frame). ``distro`` and ``toaster_names`` as
+    :class:`Recorder`. Returns the bag and the file to open."""
+    frame_list = check_frames(frames)
     if not frame_list and db is None:
         msg = "nothing to record: give at least one frame or a database"
         raise InvalidInputError(msg)
-    metadata_version(distro)
-    toaster_types(toaster_names)
+    toaster_spelling(bag_format(path, distro), toaster_names)
     events: list[EventRow] = []
-    timeline = FactTimeline([])
+    timeline, beliefs = FactTimeline([]), BeliefTimeline({}, [])
+    lo = since if since is not None else (frame_list[0].t_ns if frame_list else None)
+    hi = until if until is not None else (frame_list[-1].t_ns if frame_list else None)
     if db is not None:
         from toaster.export import select_rows
 
-        lo = since if since is not None else (frame_list[0].t_ns if frame_list else None)
-        hi = until if until is not None else (frame_list[-1].t_ns if frame_list else None)
         events = select_rows(db, "events", agent=agent, since=lo, until=hi)  # type: ignore[assignment]
         timeline = FactTimeline.from_db(db, lo, hi)
-    times = [f.t_ns for f in frame_list] or timeline.boundaries()
+        beliefs = BeliefTimeline.from_db(db, agent, lo, hi)
+    # snapshots at every frame and every change in the window (a change between frames too)
+    changes = {*timeline.boundaries(), *beliefs.boundaries()}
+    times = sorted({*(f.t_ns for f in frame_list),
+                    *(t for t in changes if (lo is None or t >= lo) and (hi is None or t <= hi))})
     with Recorder(path, frame_id=frame_id, distro=distro, toaster_names=toaster_names) as rec:
-        for kind, item in _merged(frame_list, events, timeline.snapshots(times)):
+        for kind, item in _merged(frame_list, events, timeline.snapshots(times),
+                                  beliefs.snapshots(times)):
             if kind == "facts":
                 rec.write_fact_list(*item)
+            elif kind == "beliefs":
+                rec.write_beliefs(*item, is_self=beliefs.is_self[item[1]])
             elif kind == "frame":
                 rec.write_frame(item.t_ns, item.entities, item.areas)
             else:
                 rec.write_event(item)
-    return RecordingResult(rec.path, rec.mcap_path, rec.frames, rec.facts, rec.fact_lists)
+    return RecordingResult(rec.path, rec.mcap_path, rec.frames, rec.facts, rec.fact_lists,
+                           rec.beliefs)
 
 
 def _merged(frames: list[Frame], events: list[EventRow],
-            snapshots: Iterable[tuple[int, str, list[Any]]]) -> Iterator[tuple[str, Any]]:
-    """Fact lists, frames and events in time order (in that order at one time)."""
+            snapshots: Iterable[tuple[int, str, list[Any]]],
+            beliefs: Iterable[tuple[int, str, list[Any]]]) -> Iterator[tuple[str, Any]]:
+    """Fact lists, beliefs, frames and events in time order (in that order at one time)."""
     keyed = [((s[0], 0, k, "facts", s) for k, s in enumerate(snapshots)),
-             ((f.t_ns, 1, k, "frame", f) for k, f in enumerate(frames)),
-             ((e.stamp_ns, 2, k, "event", e) for k, e in enumerate(events))]
+             ((b[0], 1, k, "beliefs", b) for k, b in enumerate(beliefs)),
+             ((f.t_ns, 2, k, "frame", f) for k, f in enumerate(frames)),
+             ((e.stamp_ns, 3, k, "event", e) for k, e in enumerate(events))]
     for *_, kind, item in heapq.merge(*keyed):
         yield kind, item
-
-
-def read_frames(path: str | Path) -> list[Frame]:
-    """Frames from a JSON-lines file: ``{"t_ns", "entities", "areas"}`` per line."""
-    import json
-
-    from toaster.errors import FileFormatError
-
-    frames = []
-    with Path(path).open(encoding="utf-8") as handle:
-        for number, line in enumerate(handle, 1):
-            if not line.strip():
-                continue
-            try:
-                item = json.loads(line)
-                frames.append(Frame(int(item["t_ns"]), item.get("entities", []),
-                                    item.get("areas")))
-            except (ValueError, KeyError, TypeError) as exc:
-                msg = (f"{Path(path).name} line {number}: not a frame ({exc}); write "
-                       '{"t_ns": 0, "entities": [["pr2", "robot", 0, 0, 0, 0]]}')
-                raise FileFormatError(msg) from None
-    return frames

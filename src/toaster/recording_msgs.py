@@ -5,31 +5,26 @@
 * :class:`Scene` keeps the recorded entities in a :class:`~toaster.world.state.World` (poses
   set, never simulated), so that the live bridge's code draws them: one definition of frame
   names, shapes, sizes and colours;
-* :class:`FactTimeline` replays the store's intervals as the producers' fact lists;
-* :func:`fit_metadata` makes ``metadata.yaml`` the version of the distro the bag claims.
+* :class:`FactTimeline` replays the store's intervals as complete snapshots over time: the
+  producers' fact lists, each holder's beliefs.
 """
 
 from __future__ import annotations
 
+import functools
 import heapq
 import re
 from collections.abc import Iterable, Iterator, Mapping, Sequence
-from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
 
-from toaster.errors import InvalidInputError
 from toaster.model import FactRow
 from toaster.ros1 import markers
 from toaster.ros1.mapping import strip_frame
 from toaster.world.state import World
 
 TIME = "builtin_interfaces/msg/Time"
-#: rosbag2 metadata version each distro's ``ros2 bag`` writes (and the newest it reads): Humble
-#: 5 (``files``), Iron 8 (``custom_data``, ``type_description_hash``, ``ros_distro``), Jazzy 9
-#: (QoS profiles as a YAML list); Kilted keeps 9.
-METADATA_VERSIONS = {"humble": 5, "iron": 8, "jazzy": 9, "kilted": 9}
 #: The original's fact producers, each on ``/<name>/factList``.
 PRODUCERS = ("pdg", "area_manager", "agent_monitor", "move3d_facts")
 _NP = {"bool": np.bool_, "float32": np.float32, "float64": np.float64, "byte": np.uint8,
@@ -60,12 +55,10 @@ class EntityPose(NamedTuple):
 def toaster_types(names: str = "ros1") -> dict[str, Any]:
     """toaster_msgs as rosbags types: the original's field names (``ros1``: ``humanList``, what
     ``toaster run`` reads back) or ROS 2 ones (``ros2``: ``human_list``, as rosidl and Foxglove
-    require of ROS 2 interfaces; same CDR layout)."""
+    require of ROS 2 interfaces; same CDR layout; checked by
+    :func:`toaster.recording_formats.toaster_spelling`)."""
     from toaster.world.bags import toaster_types as shipped
 
-    if names not in ("ros1", "ros2"):
-        msg = f"unknown toaster_msgs field names {names!r}: use ros1 or ros2"
-        raise InvalidInputError(msg)
     types = shipped()
     if names == "ros1":
         return types
@@ -73,6 +66,7 @@ def toaster_types(names: str = "ros1") -> dict[str, Any]:
             for name, (consts, fields) in types.items()}
 
 
+@functools.cache
 def snake(name: str) -> str:
     """A ROS 2 field name for an original one: ``insideEntities_`` → ``inside_entities``."""
     return re.sub(r"(?<!^)(?=[A-Z])", "_", name).lower().strip("_")
@@ -215,12 +209,14 @@ class Scene:
 
 # -- facts --------------------------------------------------------------------------------------
 class FactTimeline:
-    """The self agent's intervals of each producer, as the fact lists it held over time."""
+    """Intervals grouped by a field (``source``: the self agent's producers; ``agent_id``: the
+    holders), as the complete sets each group held over time."""
 
-    def __init__(self, rows: Iterable[FactRow]) -> None:
-        self.by_source: dict[str, list[FactRow]] = {}
+    def __init__(self, rows: Iterable[FactRow], key: str = "source",
+                 groups: Iterable[str] = ()) -> None:
+        self.by_source: dict[str, list[FactRow]] = {group: [] for group in groups}
         for row in rows:
-            self.by_source.setdefault(row.source, []).append(row)
+            self.by_source.setdefault(getattr(row, key), []).append(row)
 
     @classmethod
     def from_db(cls, db: Any, since: int | None, until: int | None) -> FactTimeline:
@@ -239,8 +235,8 @@ class FactTimeline:
                        for t in (r.valid_from_ns, r.valid_to_ns) if t is not None})
 
     def snapshots(self, times: Sequence[int]) -> Iterator[tuple[int, str, list[FactRow]]]:
-        """(t, source, facts held at t) at the first time and whenever a source's facts
-        changed (valid_from ≤ t < valid_to), in time order."""
+        """(t, group, facts held at t) at the first time and whenever a group's facts
+        changed (valid_from ≤ t < valid_to), in time order (groups in name order at one time)."""
         streams = [_changes(source, rows, times) for source, rows in sorted(self.by_source.items())]
         yield from heapq.merge(*streams, key=lambda item: item[0])
 
@@ -267,34 +263,3 @@ def _changes(source: str, rows: list[FactRow], times: Sequence[int]
             held = sorted((rows[k] for k in now),
                           key=lambda r: (r.subject_id, r.property, r.target_id))
             yield t, source, held
-
-
-# -- metadata -----------------------------------------------------------------------------------
-def metadata_version(distro: str) -> int:
-    """The rosbag2 metadata version of ``distro``, or a one-line error."""
-    try:
-        return METADATA_VERSIONS[distro.lower()]
-    except KeyError:
-        msg = f"unknown ROS 2 distro {distro!r}: use one of {', '.join(METADATA_VERSIONS)}"
-        raise InvalidInputError(msg) from None
-
-
-def fit_metadata(bag: Path, version: int, distro: str) -> None:
-    """Rewrite ``bag/metadata.yaml`` as ``distro`` writes it: its version, only the fields it
-    knows, ``ros_distro`` the distro's name (rosbags writes "rosbags")."""
-    import yaml
-
-    path = bag / "metadata.yaml"
-    data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    info = data["rosbag2_bagfile_information"]
-    info["version"] = version
-    if version < 8:
-        info.pop("ros_distro", None)
-    else:
-        info["ros_distro"] = distro.lower()
-    if version < 6:
-        info.pop("custom_data", None)
-    if version < 7:
-        for topic in info["topics_with_message_count"]:
-            topic["topic_metadata"].pop("type_description_hash", None)
-    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")

@@ -1,7 +1,9 @@
 """Time in toaster is integer nanoseconds since the Unix epoch (UTC), everywhere.
 
-`parse_time` accepts what a user types (``1700000000000000000``, ``12.5s``, ``250ms``,
-``2026-11-22T12:03:00Z``, ``now``) and `format_ns` shows a stored time readably.
+`parse_time` accepts what a user types (``1700000000000000000``, ``2026-11-22T12:03:00Z``,
+``now``, ``12.5s`` after the data's start, ``-5m`` before now) and `format_ns` shows a stored
+time as a date; a :class:`TimeFrame` (the data's start and a display style) shows times as
+elapsed seconds (``+12.500 s``) or dates, and reads them back (docs/time.md).
 """
 
 from __future__ import annotations
@@ -9,6 +11,7 @@ from __future__ import annotations
 import math
 import re
 import time
+from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 from fractions import Fraction
 
@@ -17,8 +20,8 @@ from toaster.model import shown
 
 NS_PER_S = 1_000_000_000
 _UNITS = {"ns": 1, "us": 1_000, "µs": 1_000, "ms": 1_000_000, "s": NS_PER_S,
-          "min": 60 * NS_PER_S, "h": 3600 * NS_PER_S}
-_DURATION = re.compile(r"^\s*([-+]?\d+(?:\.\d*)?|[-+]?\.\d+)\s*(ns|us|µs|ms|s|min|h)\s*$")
+          "m": 60 * NS_PER_S, "min": 60 * NS_PER_S, "h": 3600 * NS_PER_S}
+_DURATION = re.compile(r"^\s*([-+]?\d+(?:\.\d*)?|[-+]?\.\d+)\s*(ns|us|µs|ms|s|min|m|h)\s*$")
 #: Times are signed 64-bit nanoseconds in the database, and never before the epoch.
 MAX_NS = 2**63 - 1
 _RANGE = "0 (1970-01-01T00:00:00Z) to 2^63-1 ns (2262-04-11T23:47:16Z)"
@@ -98,12 +101,13 @@ def parse_duration(text: str | int | float) -> int:
     return value
 
 
-def parse_time(text: str | int, *, base_ns: int = 0) -> int:
+def parse_time(text: str | int, *, start_ns: int | None = None) -> int:
     """Parse a point in time into nanoseconds since the epoch.
 
     Integers are nanoseconds; ``now`` is the wall clock; ISO 8601 dates are taken as UTC unless
-    they carry an offset; a duration (``12.5s``) is relative to ``base_ns``. The result must lie
-    in 0 .. 2^63-1 ns (the database's range), else a one-line error names it.
+    they carry an offset; a duration (``12.5s``, ``+3m``) is that long after ``start_ns`` (the
+    data's start; None: the epoch); a negative one (``-5m``) is that long before now. The
+    result must lie in 0 .. 2^63-1 ns (the database's range), else a one-line error names it.
     """
     if isinstance(text, int) and not isinstance(text, bool):
         return check_ns(text)
@@ -117,8 +121,18 @@ def parse_time(text: str | int, *, base_ns: int = 0) -> int:
     if re.fullmatch(r"[-+]?\d+", stripped):
         return check_ns(int(stripped), f"time {stripped!r} =")
     if _DURATION.match(stripped):
-        return check_ns(base_ns + (_duration_ns(stripped) or 0), f"time {stripped!r} =")
+        offset = _duration_ns(stripped) or 0
+        if stripped.startswith("-"):
+            return check_ns(now_ns() + offset, f"time {stripped!r} =")  # before now
+        return check_ns((start_ns or 0) + offset, f"time {stripped!r} =")
     return check_ns(_parse_iso(stripped), f"time {stripped!r} =")
+
+
+def counts_from_start(text: str) -> bool:
+    """Whether :func:`parse_time` reads ``text`` from the data's start (a positive duration
+    such as ``12.5s``): only then does a caller need to know that start."""
+    stripped = text.strip()
+    return bool(_DURATION.match(stripped)) and not stripped.startswith("-")
 
 
 def _parse_iso(text: str) -> int:
@@ -156,3 +170,73 @@ def format_ns(value: int | None) -> str:
         width = 3 if len(digits) <= 3 else 6 if len(digits) <= 6 else 9
         stamp += "." + digits.ljust(width, "0")
     return stamp + "Z"
+
+
+def format_elapsed(value: int) -> str:
+    """A signed duration in seconds, to the ms (or finer when it needs): ``+12.500 s``."""
+    sign = "-" if value < 0 else "+"
+    seconds, frac = divmod(abs(value), NS_PER_S)
+    digits = f"{frac:09d}".rstrip("0")
+    width = 3 if len(digits) <= 3 else 6 if len(digits) <= 6 else 9
+    return f"{sign}{seconds}.{digits.ljust(width, '0')} s"
+
+
+#: How times are shown: ``elapsed`` seconds since the data's start, ``date`` (UTC), or
+#: ``auto`` (elapsed for data starting near the epoch, dates otherwise).
+TIME_STYLES = ("auto", "elapsed", "date")
+#: Data starting before this (1971-01-01) is simulated time: shown as elapsed seconds.
+NEAR_EPOCH_NS = 365 * 86_400 * NS_PER_S
+
+
+def start_from_first(first_ns: int) -> int:
+    """The start of data whose first time is ``first_ns`` when nothing recorded one: the
+    epoch for simulated time (before 1971, what typed durations count from), else itself."""
+    return 0 if first_ns < NEAR_EPOCH_NS else first_ns
+
+
+@dataclass(frozen=True)
+class TimeFrame:
+    """When a database's data starts, and how its times are shown and read.
+
+    ``start_ns`` is the data's start (None: unknown, taken as the epoch); ``style`` one of
+    :data:`TIME_STYLES`.
+    """
+
+    start_ns: int | None
+    style: str = "auto"
+
+    def __post_init__(self) -> None:
+        if self.style not in TIME_STYLES:
+            msg = f"invalid time style {self.style!r}: use one of {', '.join(TIME_STYLES)}"
+            raise InvalidInputError(msg)
+
+    @property
+    def origin_ns(self) -> int:
+        """What elapsed times count from: the data's start, else the epoch."""
+        return self.start_ns or 0
+
+    @property
+    def elapsed(self) -> bool:
+        """Times are shown as seconds since the start (auto: when the data starts before
+        1971, i.e. simulated time; a real date otherwise)."""
+        if self.style != "auto":
+            return self.style == "elapsed"
+        return self.start_ns is not None and self.start_ns < NEAR_EPOCH_NS
+
+    def show(self, ns: int | None) -> str:
+        """``+12.500 s`` since the start, or ``2026-11-22 12:03:00.500Z``; None gives ''."""
+        if ns is None:
+            return ""
+        return format_elapsed(ns - self.origin_ns) if self.elapsed else format_ns(ns)
+
+    def offset_s(self, ns: int) -> float:
+        """Seconds since the start (a plot's axis value)."""
+        return (ns - self.origin_ns) / NS_PER_S
+
+    def axis_label(self) -> str:
+        """The label of a time axis whose values are :meth:`offset_s`."""
+        return "seconds since the data's start" if self.elapsed else "time (UTC)"
+
+    def parse(self, text: str) -> int:
+        """:func:`parse_time` with durations counted from this start."""
+        return parse_time(text, start_ns=self.start_ns)

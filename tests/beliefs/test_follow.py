@@ -20,6 +20,7 @@ from toaster import Fact
 from toaster.beliefs import api
 from toaster.db import migrate
 from toaster.db.engine import make_engine
+from toaster.db.invariants import violations
 
 HUMANS = ("ANNE", "BOB", "CAROL")
 OBJECTS = ("MUG", "KEYS", "BALL")
@@ -248,6 +249,100 @@ def test_two_robots_writing_the_same_fact(db: toaster.Database) -> None:
     assert [(r.value_text, r.valid_from_ns, r.valid_to_ns) for r in colors] == [
         ("red", 1, 2), ("blue", 2, 3), ("green", 3, 6), ("black", 6, None)]
     assert _check_timelines(db, [1, 2, 3, 4, 5, 6]) >= 4
+
+
+S = 1_000_000_000
+ROBOT_ROOMS = {"ANNE": "OFFICE", "BOB": "OFFICE", "CARL": "KITCHEN"}
+
+
+def _two_robots(db: toaster.Database) -> toaster.Store:
+    st = db.store()
+    with st.transaction():
+        for robot in ("R1", "R2"):
+            st.add_entity(robot, "robot", is_self=True, t_ns=0)
+        for who in ROBOT_ROOMS:
+            st.add_entity(who, "human", t_ns=0)
+        for thing in ("PEN", "DRAWER", "OFFICE", "KITCHEN", "HALL"):
+            st.add_entity(thing, "object", t_ns=0)
+    return st
+
+
+def _rooms(where: dict[str, str]) -> list[Fact]:
+    return [Fact(who, "IsInRoom", room) for who, room in sorted(where.items())] + [
+        Fact("DRAWER", "IsInRoom", "OFFICE")]
+
+
+def _late_story(db: toaster.Database) -> None:
+    """R2 reports, 5 s late, a pen that was in the drawer for one second: R1's clock is ahead,
+    so the holders take R2's changes at R1's time. Bob leaves the office in between."""
+    st = _two_robots(db)
+    kitchen = {**ROBOT_ROOMS, "BOB": "KITCHEN"}
+    st.sync_many("R1", 100 * S, [("rooms", _rooms(ROBOT_ROOMS))])
+    st.sync_many("R2", 94 * S, [("rooms", _rooms(ROBOT_ROOMS))])
+    st.sync_many("R2", 95 * S, [("things", [Fact("PEN", "IsIn", "DRAWER")])])
+    st.sync_many("R1", 101 * S, [("rooms", _rooms(kitchen))])
+    st.sync_many("R2", 95 * S + S // 2, [("rooms", _rooms(kitchen))])
+    st.sync_many("R1", 102 * S, [("rooms", _rooms({**kitchen, "CARL": "HALL"}))])
+    st.sync_many("R2", 96 * S, [("things", [])])
+
+
+def test_a_late_robot_changes_beliefs_at_the_clock(db: toaster.Database, tmp_path: object) -> None:
+    """A robot whose snapshots lag another's by more than LIVE_CLOCK_SKEW_NS keeps its own
+    times; the holders take its changes when the rules run (the clock's time), even a fact
+    that ended in the robot's past before they began to follow it: who sees the pen go ends
+    the belief then, who left keeps it (a false belief), with one event per interval boundary
+    and the same timelines as with copied rows."""
+    _late_story(db)
+    pen = [(r.valid_from_ns, r.valid_to_ns)
+           for r in q.history(db, "R2", subject="PEN", property="IsIn")]
+    assert pen == [(95 * S, 96 * S)]
+    assert [(r.valid_from_ns, r.valid_to_ns)
+            for r in q.history(db, "ANNE", subject="PEN", property="IsIn")] == [(100 * S, 102 * S)]
+    assert [(e.kind, e.stamp_ns) for e in q.events(db, "ANNE")
+            if e.subject_id == "PEN"] == [("appeared", 100 * S), ("ended", 102 * S)]
+    assert [r.target_id for r in q.current_facts(db, "BOB") if r.subject_id == "PEN"] == [
+        "DRAWER"]
+    with db.transaction() as conn:
+        assert violations(conn) == []
+    with toaster.connect(f"sqlite:///{tmp_path}/copied.db") as copied:
+        api.configure(copied, share_rows=False)
+        _late_story(copied)
+        assert _timeline(db) == _timeline(copied)
+
+
+def test_two_robots_changing_a_belief_at_one_instant_give_one_event(
+        db: toaster.Database) -> None:
+    """R1 moves Bob to the kitchen at the clock's time; R2's late snapshot says the same and
+    runs at that instant too: Bob's belief starts once, with one event."""
+    st = _two_robots(db)
+    st.sync_many("R1", 100 * S, [("rooms", _rooms(ROBOT_ROOMS))])
+    st.sync_many("R1", 101 * S, [("rooms", _rooms({**ROBOT_ROOMS, "BOB": "KITCHEN"}))])
+    st.sync_many("R2", 99 * S, [("rooms", _rooms({**ROBOT_ROOMS, "BOB": "KITCHEN"}))])
+    kitchen = [(e.kind, e.stamp_ns) for e in q.events(db, "BOB")
+               if e.subject_id == "BOB" and e.target_id == "KITCHEN"]
+    assert kitchen == [("appeared", 101 * S)]
+    assert [(r.valid_from_ns, r.valid_to_ns) for r in q.history(
+        db, "BOB", subject="BOB", property="IsInRoom") if r.target_id == "KITCHEN"] == [
+        (101 * S, None)]
+    with db.transaction() as conn:
+        assert violations(conn) == []
+
+
+def test_a_robot_whose_lag_grows_past_the_skew_stays_on_the_clock(
+        db: toaster.Database) -> None:
+    """A live robot 0.5 s behind another is written on the rules' clock; when its lag then
+    grows past LIVE_CLOCK_SKEW_NS its snapshots stay on the clock (not before the one already
+    moved there, which would be a time-order error)."""
+    st = _two_robots(db)
+    st.sync_many("R1", 100 * S, [("rooms", _rooms(ROBOT_ROOMS))])
+    st.sync_many("R2", 100 * S - S // 2, [("rooms", _rooms(ROBOT_ROOMS))])
+    st.sync_many("R1", 103 * S, [("rooms", _rooms({**ROBOT_ROOMS, "BOB": "KITCHEN"}))])
+    st.sync_many("R2", 100 * S - S // 10, [("rooms", _rooms({**ROBOT_ROOMS, "CARL": "HALL"}))])
+    carl = {r.target_id: (r.valid_from_ns, r.valid_to_ns)
+            for r in q.history(db, "R2", subject="CARL", property="IsInRoom")}
+    assert carl == {"KITCHEN": (100 * S + 1, 103 * S + 1), "HALL": (103 * S + 1, None)}
+    with db.transaction() as conn:
+        assert violations(conn) == []
 
 
 def _timeline(db: toaster.Database) -> dict[str, tuple[list, list]]:

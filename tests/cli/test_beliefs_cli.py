@@ -39,8 +39,8 @@ def test_false_belief_while_sally_is_away(sally_anne) -> None:
 
 def test_holders_history_and_config(sally_anne) -> None:
     """Nested holders are listed; the history spans holders; settings round-trip."""
-    assert sally_anne("beliefs", "holders").output.split() == [
-        "ANNE", "SALLY", "ANNE>SALLY", "SALLY>ANNE"]
+    assert sally_anne("beliefs", "holders").output.split() == [  # piped: under a header
+        "holder", "ANNE", "SALLY", "ANNE>SALLY", "SALLY>ANNE"]
     history = sally_anne("beliefs", "history", "--subject", "MARBLE", "--property", "IsIn",
                          "--json").output.splitlines()
     assert {json.loads(x)["agent_id"] for x in history} >= {"ROBOT", "SALLY", "ANNE"}

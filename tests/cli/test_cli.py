@@ -156,16 +156,3 @@ def test_wrong_revision_names_the_fix(tmp_path: Path) -> None:
     assert "run `toaster db upgrade --db" in result.output
     assert CliRunner().invoke(cli, ["--db", url, "db", "upgrade"]).exit_code == 0
     assert CliRunner().invoke(cli, ["--db", url, "get-info", "AGENT"]).exit_code == 0
-
-
-def test_demo_runs_end_to_end(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """The README's first command: the demo replays the mug and answers from memory."""
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.delenv("TOASTER_DB", raising=False)
-    result = CliRunner().invoke(cli, ["demo"])
-    assert result.exit_code == 0, result.output
-    assert "BOB picked it up 5 minutes ago" in result.output
-    assert "MUG was IsOn TABLE from 2026-11-22 12:00:00Z to 2026-11-22 12:02:00Z" in result.output
-    assert (tmp_path / "toaster-demo.db").exists()
-    again = CliRunner().invoke(cli, ["demo"])
-    assert again.exit_code == 0, again.output

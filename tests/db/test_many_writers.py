@@ -149,3 +149,38 @@ def test_an_import_killed_at_any_moment_writes_all_or_nothing(db_url: str, seed:
     with toaster.connect(db_url) as db, db.transaction() as conn:
         assert violations(conn) == []
         assert conn.execute(sa.text("SELECT count(*) FROM agents")).scalar_one() == 2
+
+
+@pytest.mark.postgresql
+def test_a_store_session_keeps_its_scratch_tables_small(pg_schema_url: str) -> None:
+    """PostgreSQL: a store's runs leave their scratch tables empty without truncating them at
+    each commit (it cost as much as the run, under the lock that serializes robots' runs),
+    and the session vacuums them every VACUUM_SCRATCH_EVERY runs: a long run does not grow
+    them."""
+    from toaster.beliefs.rules import VACUUM_SCRATCH_EVERY
+
+    sizes = ("SELECT c.relname, pg_relation_size(c.oid), c.relpersistence FROM pg_class c "
+             "WHERE c.relnamespace = pg_my_temp_schema() AND c.relkind = 'r' "
+             "ORDER BY c.relname")
+    with toaster.connect(pg_schema_url) as db:
+        store = db.store()
+        store.add_entity("ROBOT", "robot", is_self=True, t_ns=0)
+        store.add_entity("SALLY", "human", t_ns=0)
+        store.add_entity("MARBLE", "object", t_ns=0)
+        for tick in range(2 * VACUUM_SCRATCH_EVERY):  # one belief run per tick
+            where = ("BASKET", "BOX")[tick % 2]
+            store.sync_snapshot("p", "ROBOT", (tick + 1) * 1_000_000,
+                                [Fact("MARBLE", "IsIn", where), Fact("SALLY", "IsInRoom", "ROOM"),
+                                 Fact("BASKET", "IsInRoom", "ROOM"),
+                                 Fact("BOX", "IsInRoom", "ROOM")])
+        with db.transaction() as conn:
+            tables = conn.exec_driver_sql(sizes).all()
+            rows = conn.exec_driver_sql("SELECT count(*) FROM pg_temp.belief_changed").scalar()
+        assert {name for name, _, _ in tables} >= {"belief_changed", "belief_in", "belief_seen"}
+        assert rows == 0  # the run emptied it
+        assert [(name, size) for name, size, _ in tables if size > 0] == []
+        with db.transaction() as conn:
+            followed = conn.execute(sa.text(
+                "SELECT target_id FROM current_facts WHERE agent_id = 'SALLY' "
+                "AND subject_id = 'MARBLE'")).scalars().all()
+        assert followed == ["BOX"]  # the last tick's change reached Sally (she is there)

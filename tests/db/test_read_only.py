@@ -21,11 +21,9 @@ import pytest
 from click.testing import CliRunner
 
 import toaster
-from tests.conftest import BACKENDS, PG_URL, require_postgres
+from tests.conftest import BACKENDS, PG_URL, pg_schema
 from toaster import queries as q
 from toaster.cli import cli
-from toaster.db import migrate
-from toaster.db.engine import make_engine
 from toaster.db.readonly import READER_ROLE, check_statement, tokenize
 from toaster.db.readonly import postgresql as readonly_pg
 from toaster.db.readonly import sqlite as readonly_sqlite
@@ -226,22 +224,8 @@ def read_url(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFa
         shutil.copy(sqlite_template, path)
         yield f"sqlite:///{path}"
         return
-    require_postgres()
-    schema = f"t_{uuid.uuid4().hex[:12]}"
-    admin = make_engine(PG_URL)
-    with admin.begin() as conn:
-        conn.exec_driver_sql(f'CREATE SCHEMA "{schema}"')
-    sep = "&" if "?" in PG_URL else "?"
-    url = f"{PG_URL}{sep}options=-csearch_path%3D{schema}"
-    try:
-        engine = make_engine(url)
-        migrate.upgrade(engine)
-        engine.dispose()
+    with pg_schema(migrated=True) as url:
         yield url
-    finally:
-        with admin.begin() as conn:
-            conn.exec_driver_sql(f'DROP SCHEMA "{schema}" CASCADE')
-        admin.dispose()
 
 
 @pytest.fixture(scope="module")

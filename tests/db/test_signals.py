@@ -148,8 +148,9 @@ def test_tolerance_command_shows_and_sets(db_url: str) -> None:
     from toaster.cli import cli
 
     runner = CliRunner()
-    shown = runner.invoke(cli, ["--db", db_url, "tolerance"])
-    assert shown.exit_code == 0 and json.loads(shown.output)["Distance"]["value"] == 0.05
+    shown = runner.invoke(cli, ["--db", db_url, "tolerance", "--json"])  # a listing
+    rows = {row["property"]: row for row in map(json.loads, shown.output.splitlines())}
+    assert shown.exit_code == 0 and rows["Distance"]["value"] == 0.05
     done = runner.invoke(cli, ["--db", db_url, "tolerance", "Distance", '{"value": 0.02}'])
     assert done.exit_code == 0, done.output
     bad = runner.invoke(cli, ["--db", db_url, "tolerance", "Distance", '"far"'])

@@ -1,7 +1,8 @@
 """One writer (or reader) process of the many-writers test and benchmark.
 
 ``python -m tests.db.writers URL ROLE SECONDS SEED OUT.json`` from the project root (ROLE:
-``ROBOT:rooms``, ``ROBOT:things``, ``reader`` or ``run:ROBOT:SCENARIO:RATE:TICKS[:HOLDERS]``).
+``ROBOT:rooms``, ``ROBOT:things``, ``reader`` or
+``run:ROBOT:SCENARIO:RATE:TICKS[:HOLDERS[:live]]``).
 A writer
 is one producer of one robot: it registers the robot (a self agent), the people and the
 things (the same ids in every process, so registrations race), then writes a snapshot of its
@@ -118,9 +119,11 @@ def read(url: str, seconds: float, seed: int) -> dict[str, Any]:
 
 
 def run(url: str, robot: str, path: str, rate: float, ticks: int,
-        holders: str | None = None) -> dict[str, Any]:
+        holders: str | None = None, pace: str = "") -> dict[str, Any]:
     """``toaster run PATH --rate RATE`` as robot ``robot`` (the library path of the command:
-    load, register, tick) for at most ``ticks`` ticks, timing each tick."""
+    load, register, tick) for at most ``ticks`` ticks, timing each tick. ``pace`` "live":
+    each tick starts at its time on the wall clock, as ``--realtime`` and a live node tick
+    (a late tick starts at once); else ticks follow one another at once."""
     from toaster.producers import Runner, load_session
 
     failures: list[str] = []
@@ -136,7 +139,10 @@ def run(url: str, robot: str, path: str, rate: float, ticks: int,
         except Exception as exc:
             failures.append(f"register: {type(exc).__name__}: {exc}"[:300])
         step = round(1e9 / rate)
-        for t in range(session.start_ns, session.end_ns + 1, step)[:ticks]:
+        wall0 = time.perf_counter()
+        for i, t in enumerate(range(session.start_ns, session.end_ns + 1, step)[:ticks]):
+            if pace == "live":
+                time.sleep(max(0.0, wall0 + i / rate - time.perf_counter()))
             start = time.perf_counter()
             try:
                 runner.tick(t)
@@ -151,7 +157,7 @@ def main(argv: list[str]) -> None:
     url, role, seconds, seed, out = argv
     if role == "reader":
         result = read(url, float(seconds), int(seed))
-    elif role.startswith("run:"):  # run:ROBOT:PATH:RATE:TICKS[:HOLDERS]
+    elif role.startswith("run:"):  # run:ROBOT:PATH:RATE:TICKS[:HOLDERS[:live]]
         _, robot, path, rate, ticks, *holders = role.split(":")
         result = run(url, robot, path, float(rate), int(ticks), *holders)
     else:

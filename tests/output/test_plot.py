@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -182,3 +183,177 @@ def test_numbers_of_the_run_get_their_own_panel(run_db: toaster.Database,
     assert [y != y for _, y in (points[0], points[-2])] == [True, True]  # NaN: not held
     assert line.axes.get_ylabel() == "Distance (m)"
     assert f'id="{number_gid(lane, "pr2")}"' in out.path.read_text()
+
+
+def test_the_most_relevant_facts_are_kept(run_db: toaster.Database, tmp_path: Path) -> None:
+    """With a cap, false beliefs come first (alice's mug on the table), then the facts that
+    change most (the robot's distance to alice, four values), and the result says how many
+    matching facts were left out; 0 draws every fact."""
+    def kept(max_facts: int) -> tuple[list[str], int]:
+        out = plot_facts(run_db, tmp_path / "capped.csv", max_facts=max_facts)
+        return [lane.label for lane in out.timeline.lanes], out.left_out
+
+    assert kept(1) == (["mug IsOn table"], 2)
+    assert kept(2) == (["alice Distance mug", "mug IsOn table"], 1)
+    assert kept(0) == (["alice Distance mug", "mug IsOn shelf", "mug IsOn table"], 0)
+    capped = plot_facts(run_db, tmp_path / "capped.png", max_facts=1)
+    assert [ax.get_title(loc="left") for ax in capped.figure.axes] == ["mug IsOn table"]
+    assert {d.lane for d in capped.timeline.divergences} == {"mug IsOn table"}
+    with pytest.raises(InvalidInputError, match="max facts -1 is negative"):
+        plot_facts(run_db, tmp_path / "x.csv", max_facts=-1)
+
+
+def test_progress_is_reported_per_panel(run_db: toaster.Database, tmp_path: Path) -> None:
+    """plot_facts tells a progress callback what it does: reading, one call per panel drawn,
+    saving."""
+    calls: list[tuple[str, int, int | None]] = []
+    out = plot_facts(run_db, tmp_path / "p.png", progress=lambda *call: calls.append(call))
+    panels = len(out.figure.axes)
+    assert calls[0][0] == "reading facts" and calls[-1][0] == "saving"
+    assert [c for c in calls if c[0] == "drawing"] == [
+        ("drawing", i, panels) for i in range(1, panels + 1)]
+
+
+def _changes(lane: object) -> int:
+    """Changes of value and of number of a lane (the relevance rule's third criterion)."""
+    return (sum(len(s.changes) - 1 for s in lane.series)  # type: ignore[attr-defined]
+            + sum(len(g.points) - 1 for g in lane.signals))  # type: ignore[attr-defined]
+
+
+def test_unfiltered_plot_of_a_large_replay_is_capped(db_url: str, tmp_path: Path) -> None:
+    """plot-facts with no filter on 200 s of the ETH hotel replay (about 200 facts) draws the
+    20 facts that change most, in bounded time and size, and says on stderr how many it left
+    out and how to choose others."""
+    import time
+
+    from click.testing import CliRunner
+
+    from tests.conftest import shared_data
+    from toaster.cli.plot import plot_facts as command
+    from toaster.plotting import MAX_FACTS
+    from toaster.runs import run_file
+
+    obsmat = shared_data("eth-ucy-opentraj", "ETH", "seq_hotel", "obsmat.txt")
+    db = toaster.connect(db_url)
+    try:
+        run_file(obsmat, db, holders="none", until_ns=200 * S)
+        every = build_timeline(db)
+    finally:
+        db.close()
+    assert len(every.lanes) > 5 * MAX_FACTS
+    started = time.perf_counter()
+    done = CliRunner().invoke(command, [str(tmp_path / "eth.png"), "--db", db_url])
+    elapsed = time.perf_counter() - started
+    assert done.exit_code == 0, done.output
+    assert elapsed < 120  # unbounded, it ran past 300 s
+    assert f"({MAX_FACTS} facts," in done.stdout
+    left = len(every.lanes) - MAX_FACTS
+    assert f"{left} more matched and were left out" in done.stderr
+    assert "--subject" in done.stderr and "--max-facts" in done.stderr
+    width, height = _png_size(tmp_path / "eth.png")
+    assert width < 2000 and height < 10_000
+    db = toaster.connect(db_url)
+    try:
+        kept = plot_facts(db, tmp_path / "eth.csv").timeline.lanes
+    finally:
+        db.close()
+    shown = {lane.label for lane in kept}
+    assert len(shown) == MAX_FACTS
+    left_out = [lane for lane in every.lanes if lane.label not in shown]
+    assert min(_changes(lane) for lane in kept) >= max(_changes(lane) for lane in left_out)
+
+
+def _png_size(path: Path) -> tuple[int, int]:
+    head = path.read_bytes()[:24]
+    assert head.startswith(MAGIC["png"])
+    return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+
+
+def _gnuplot() -> str:
+    import shutil
+
+    found = shutil.which("gnuplot")
+    if found is None:
+        pytest.skip("gnuplot is not installed (apt-get install gnuplot-nox)")
+    return found
+
+
+def _table_curves(path: Path) -> dict[str, list[list[tuple[float, float]]]]:
+    """The curves gnuplot plotted in ``set table`` mode, by title (one list per panel)."""
+    curves: dict[str, list[list[tuple[float, float]]]] = {}
+    points: list[tuple[float, float]] = []
+    for line in path.read_text().splitlines():
+        if line.startswith("# Curve title:"):
+            points = []
+            curves.setdefault(line.split('"')[1], []).append(points)
+        elif line.strip() and not line.startswith("#"):
+            x, y, _ = line.split()
+            points.append((float(x), float(y)))
+    return curves
+
+
+def test_gnuplot_runs_from_any_directory(run_db: toaster.Database, tmp_path: Path) -> None:
+    """The .gp reads its .dat beside itself whether gnuplot runs it from its own folder,
+    from another one by a relative or absolute path, or reads it on standard input; the
+    number panel plots alice's distance as stored (3.0, 1.0, 0.4 m from 1, 5, 8 s to 14 s)."""
+    import subprocess
+
+    gnuplot = _gnuplot()
+    (tmp_path / "out").mkdir()
+    (tmp_path / "elsewhere").mkdir()
+    out = plot_facts(run_db, tmp_path / "out" / "run.dat", subject="alice", until=T0 + 20 * S)
+    assert out.companion is not None
+    x = out.timeline.axis.offset_s
+    want = [(x(T0 + t * S), metres) for t, metres in ((1, 3.0), (5, 1.0), (8, 0.4), (14, 0.4))]
+    script = out.companion.read_text()
+    runs = {"own folder": (tmp_path / "out", ["run.gp"], None),
+            "relative": (tmp_path / "elsewhere", ["../out/run.gp"], None),
+            "absolute": (tmp_path / "elsewhere", [str(out.companion)], None),
+            "stdin": (tmp_path / "elsewhere", ["-"], script)}
+    for name, (cwd, args, stdin) in runs.items():
+        table = tmp_path / f"{name}.txt"
+        done = subprocess.run([gnuplot, "-e", f"set table '{table}'", *args], cwd=cwd,
+                              input=stdin, text=True, capture_output=True, check=False)
+        assert done.returncode == 0, (name, done.stderr)
+        assert "Cannot find" not in done.stderr, (name, done.stderr)
+        curves = _table_curves(table)
+        number_panel = curves["pr2"][-1]
+        assert [(round(a, 6), b) for a, b in number_panel] == [
+            (round(a, 6), b) for a, b in want], name
+
+
+@pytest.fixture
+def sally_anne_db(db_url: str) -> Iterator[toaster.Database]:
+    """The Sally-Anne belief replay: Anne believes Sally still believes the marble is in the
+    basket (ANNE>SALLY, a nested holder) after Anne moved it to the box."""
+    from importlib.resources import files
+
+    from tests.output.conftest import open_built
+    from toaster.beliefs.scenario import replay
+
+    def build(db: toaster.Database) -> None:
+        replay(db, Path(str(files("toaster") / "examples" / "beliefs_sally_anne.yaml")))
+
+    yield from open_built(db_url, build)
+
+
+def test_legend_says_what_a_nested_holder_is(sally_anne_db: toaster.Database,
+                                             tmp_path: Path) -> None:
+    """A plot showing ANNE>SALLY says in its legend (picture) and title (gnuplot) that it is
+    what Anne thinks Sally believes, beside what the red hatching means; without nested
+    holders, no such line."""
+    agents = ["ROBOT", "SALLY", "ANNE", "ANNE>SALLY"]
+    note = "ANNE>SALLY = what ANNE thinks SALLY believes"
+    out = plot_facts(sally_anne_db, tmp_path / "sa.png", subject="MARBLE", agents=agents)
+    (legend,) = out.figure.legends
+    texts = [t.get_text() for t in legend.get_texts()]
+    assert note in texts
+    assert "false belief: holds a value ROBOT (reference) does not" in texts
+    assert any(d.agent == "ANNE>SALLY" and d.kind == FALSE_BELIEF
+               for d in out.timeline.divergences)
+    dat = plot_facts(sally_anne_db, tmp_path / "sa.dat", subject="MARBLE", agents=agents)
+    assert dat.companion is not None
+    assert note in dat.companion.read_text()
+    plain = plot_facts(sally_anne_db, tmp_path / "plain.png", subject="MARBLE",
+                       agents=["ROBOT", "SALLY"])
+    assert not [t for t in plain.figure.legends[0].get_texts() if ">" in t.get_text()]

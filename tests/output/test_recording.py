@@ -90,9 +90,24 @@ def test_recording_replays_frames_and_facts(run_db: toaster.Database, tmp_path: 
     assert result.mcap.suffix == ".mcap"
     assert (result.bag / "metadata.yaml").exists()
     messages = _read(result.mcap)
-    # /tf, pdg's lists and the area list joined the three original topics; no factList topic:
-    # this database's facts come from "user" and "monitor", none of the four producers
-    assert {(t, s) for t, s, _, _ in messages} == FIXED_TOPICS
+    # /tf, pdg's lists, the area list and a belief channel per agent joined the three original
+    # topics; no factList topic: this database's facts come from "user" and "monitor", none of
+    # the four producers
+    beliefs = {(f"/toaster/beliefs/{a}", "toaster_recording/msg/Beliefs")
+               for a in ("pr2", "alice", "bob")}
+    assert {(t, s) for t, s, _, _ in messages} == FIXED_TOPICS | beliefs
+    assert result.beliefs == sum(t.startswith("/toaster/beliefs/") for t, *_ in messages)
+
+    def mug_on(agent: str, t_ns: int) -> set[str]:
+        held = [m for stamp, m in _on(messages, f"/toaster/beliefs/{agent}") if stamp <= t_ns]
+        return {f.target_id for f in held[-1].facts if (f.subject_id, f.property) == ("mug",
+                                                                                     "IsOn")}
+
+    # the robot saw the mug move to the shelf at 10 s; alice keeps her false belief (table);
+    # bob only learns of the shelf at 16 s
+    assert [mug_on(a, T0 + 12 * S) for a in ("pr2", "alice", "bob")] == [{"shelf"}, {"table"},
+                                                                         set()]
+    assert mug_on("bob", T0 + 17 * S) == {"shelf"}
     frames = [m for _, m in _on(messages, ENTITIES_TOPIC)]
     assert len(frames) == 6
     names = [{m.text for m in f.markers if m.type == TEXT} for f in frames]
@@ -315,6 +330,41 @@ def test_cli_record(run_db: toaster.Database, db_url: str, tmp_path: Path) -> No
     assert "wrote 7 frames" in done.output
     (_, tf) = _on(_read(next(out.glob("*.mcap"))), "/tf")[-1]
     assert {tr.child_frame_id for tr in tf.transforms} == {"pr2/base", "pr2/head"}
+    # a .bag name is a ROS 1 bag; --agent picks the belief channels (and the events)
+    ros1 = tmp_path / "run.bag"
+    done = CliRunner().invoke(record_cmd, [str(frames), str(ros1), "--db", db_url,
+                                           "--agent", "alice"])
+    assert done.exit_code == 0, done.output
+    assert f"to {ros1}" in done.output
+    from rosbags.rosbag1 import Reader
+
+    with Reader(ros1) as reader:
+        topics = {c.topic: c.msgtype for c in reader.connections}
+        names = {m.name for c, _, raw in reader.messages(
+            [c for c in reader.connections if c.topic == FACTS_TOPIC])
+            for m in [reader_log(raw, c)]}
+    assert topics["/toaster/beliefs/alice"] == "toaster_recording/msg/Beliefs"
+    assert topics[FACTS_TOPIC] == "rosgraph_msgs/msg/Log"
+    assert not any(t.startswith("/toaster/beliefs/") and t != "/toaster/beliefs/alice"
+                   for t in topics)
+    assert names == {"toaster.alice"}
+    bad = CliRunner().invoke(record_cmd, [str(frames), str(tmp_path / "x.bag"), "--distro",
+                                          "humble", "--db", db_url])
+    assert bad.exit_code != 0 and "a .bag file is ROS 1" in bad.output
+    assert not (tmp_path / "x.bag").exists()
+    typo = CliRunner().invoke(record_cmd, [str(frames), str(tmp_path / "y"), "--agent", "alic",
+                                           "--db", db_url])
+    assert typo.exit_code != 0 and "unknown agent 'alic'" in typo.output
+    assert not (tmp_path / "y").exists()
+
+
+def reader_log(raw: bytes, conn: Any) -> Any:
+    """A ROS 1 Log message decoded with the definition the bag carries."""
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    store = get_typestore(Stores.EMPTY)
+    store.register(get_types_from_msg(conn.msgdef.data, conn.msgtype))
+    return store.deserialize_ros1(raw, conn.msgtype)
 
 
 def test_bad_frames(tmp_path: Path) -> None:
@@ -329,13 +379,19 @@ def test_bad_frames(tmp_path: Path) -> None:
          "joint owner 'bob' is not a human or robot"),
         ([(1, [pose], [("a", [(0, 0), (1, 1)])])], {}, "a polygon needs at least 3 points"),
         ([(1, [pose], [("a", {"shape": "circle", "center": [0, 0]})])], {}, "radius"),
-        ([(1, [pose], None)], {"distro": "foxy"}, "unknown ROS 2 distro 'foxy': use one of humble"),
+        ([(1, [pose], None)], {"distro": "foxy"}, "unknown ROS distro 'foxy': use one of humble"),
         ([(1, [pose], None)], {"toaster_names": "ros3"}, "use ros1 or ros2"),
+        ([(1, [pose], None)], {"distro": "noetic"}, r"ROS 1 bag .*name the file <name>\.bag"),
     ]
     for k, (frames, options, message) in enumerate(bad):
         with pytest.raises(InvalidInputError, match=message):
             record(tmp_path / f"bad{k}", frames, **options)
         assert not (tmp_path / f"bad{k}").exists()
+    for options, message in (({"distro": "jazzy"}, r"a \.bag file is ROS 1"),
+                             ({"toaster_names": "ros2"}, "original's field names")):
+        with pytest.raises(InvalidInputError, match=message):
+            record(tmp_path / "bad.bag", [(1, [pose], None)], **options)
+        assert not (tmp_path / "bad.bag").exists()
     (tmp_path / "c").mkdir()
     with pytest.raises(InvalidInputError, match="it exists"):
         record(tmp_path / "c", [(1, [], None)])
@@ -374,16 +430,18 @@ def _self_facts(url: str) -> set[tuple[Any, ...]]:
              r.valid_to_ns) for r in rows}
 
 
-def test_recording_replays_as_input(tmp_path: Path) -> None:
-    """`toaster run BAG_DIR` (no options) replays a `toaster run --record` recording through
-    pdg's lists: the same poses at every tick, so the same entity-based facts."""
+@pytest.mark.parametrize("name", ["bag", "run.bag"])
+def test_recording_replays_as_input(tmp_path: Path, name: str) -> None:
+    """`toaster run BAG` (no options) replays a `toaster run --record` recording, rosbag2
+    folder or ROS 1 .bag, through pdg's lists: the same poses at every tick, so the same
+    entity-based facts."""
     from click.testing import CliRunner
 
     from toaster.cli import cli
     from toaster.producers import Runner, load_session
 
     scenario = Path(toaster.__file__).parent / "examples" / "scenario_flat.yaml"
-    bag, first, second = tmp_path / "bag", tmp_path / "a.db", tmp_path / "b.db"
+    bag, first, second = tmp_path / name, tmp_path / "a.db", tmp_path / "b.db"
     run = CliRunner().invoke(cli, ["--db", f"sqlite:///{first}", "run", str(scenario),
                                    "--until", "20s", "--record", str(bag)])
     assert run.exit_code == 0, run.output

@@ -4,7 +4,7 @@ the history of one belief across agents. Plain queries over the same tables as t
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from sqlalchemy import text
 
@@ -14,6 +14,9 @@ from toaster.beliefs.rules import holder_id
 from toaster.db import catalog
 from toaster.errors import InvalidInputError
 from toaster.model import FactRow
+
+if TYPE_CHECKING:
+    from toaster.db.database import Database
 
 
 class BeliefDiff(NamedTuple):
@@ -29,7 +32,7 @@ class BeliefDiff(NamedTuple):
     confidence_b: float | None
 
 
-def _holder(db: Any, agent: str, about: str | list[str] | tuple[str, ...] | None) -> str:
+def _holder(db: Database, agent: str, about: str | list[str] | tuple[str, ...] | None) -> str:
     chain = [] if about is None else ([about] if isinstance(about, str) else list(about))
     holder = holder_id(agent, *chain)
     with db.transaction() as conn:
@@ -43,14 +46,14 @@ def _holder(db: Any, agent: str, about: str | list[str] | tuple[str, ...] | None
     return holder
 
 
-def self_agent(db: Any) -> str:
+def self_agent(db: Database) -> str:
     """The robot whose beliefs others are compared with: the one self agent (an error asks
     to name it when there are several or none)."""
     return db.store().self_agent(
         fix="name the robot to compare with (other=ID; on the command line --other ID)")
 
 
-def beliefs(db: Any, agent: str, about: str | list[str] | None = None, *,
+def beliefs(db: Database, agent: str, about: str | list[str] | None = None, *,
             at: int | None = None, **filters: Any) -> list[FactRow]:
     """What ``agent`` believes (or believes ``about`` believes) now, or at time ``at``."""
     holder = _holder(db, agent, about)
@@ -59,13 +62,13 @@ def beliefs(db: Any, agent: str, about: str | list[str] | None = None, *,
     return q.beliefs_at(db, holder, at, **filters)
 
 
-def belief_value(db: Any, agent: str, subject: str, property: str, target: str = "", *,
+def belief_value(db: Database, agent: str, subject: str, property: str, target: str = "", *,
                  about: str | list[str] | None = None, at: int | None = None) -> FactRow | None:
     """One belief of ``agent`` (or of its model of ``about``) now or at ``at``; None if not held."""
     return q.fact_value(db, _holder(db, agent, about), subject, property, target, at=at)
 
 
-def false_beliefs(db: Any, agent: str, other: str | None = None, *, about: str | None = None,
+def false_beliefs(db: Database, agent: str, other: str | None = None, *, about: str | None = None,
                   at: int | None = None) -> list[BeliefDiff]:
     """Keys on which ``agent`` (A) and ``other`` (B, default the self agent) disagree: A believes
     what B does not, B believes what A does not, or both hold the key with different values."""
@@ -88,14 +91,14 @@ def false_beliefs(db: Any, agent: str, other: str | None = None, *, about: str |
     return diffs
 
 
-def belief_history(db: Any, subject: str, property: str, target: str | None = None, *,
+def belief_history(db: Database, subject: str, property: str, target: str | None = None, *,
                    agents: list[str] | None = None) -> list[FactRow]:
     """Every interval of one belief across holders (self, agents, nested), oldest first."""
     rows = q.history(db, agents, subject=subject, property=property, target=target)
     return sorted(rows, key=lambda r: (r.valid_from_ns, r.agent_id))
 
 
-def holders(db: Any) -> list[str]:
+def holders(db: Database) -> list[str]:
     """Every non-self belief holder, first order then nested (``A>B``), by depth and id."""
     with db.transaction() as conn:
         rows = conn.execute(text(
@@ -104,7 +107,7 @@ def holders(db: Any) -> list[str]:
     return [r[0] for r in rows]
 
 
-def configure(db: Any, **settings: Any) -> dict[str, Any]:
+def configure(db: Database, **settings: Any) -> dict[str, Any]:
     """Change belief-rule settings (validated); return the whole configuration."""
     store = db.store()
     for key, value in settings.items():
@@ -112,7 +115,7 @@ def configure(db: Any, **settings: Any) -> dict[str, Any]:
     return config(db)
 
 
-def reset(db: Any, *keys: str) -> dict[str, Any]:
+def reset(db: Database, *keys: str) -> dict[str, Any]:
     """Put settings back to their defaults (all of them when no key is given)."""
 
     with db.store().transaction() as conn:
@@ -121,7 +124,7 @@ def reset(db: Any, *keys: str) -> dict[str, Any]:
     return config(db)
 
 
-def config(db: Any) -> dict[str, Any]:
+def config(db: Database) -> dict[str, Any]:
     """The belief-rule configuration as stored (defaults filled in)."""
     with db.transaction() as conn:
         return cfg.read(conn)

@@ -101,7 +101,7 @@ STEADY = ("COALESCE((SELECT groups_for FROM store_state WHERE id = 1), '') = NEW
 REGROUP = "{{groups_ended}}"
 
 PIPELINE = Block("run", RUNS, (
-    *_steps("10_focus", "12_moves"),
+    *_steps("10_focus", "12_moves", "13_late", "58_frozen"),
     Block("ungroup", f"NOT ({STEADY})", _steps("15_ungroup")),
     *_steps("20_perceive", **AROUND),
     *_steps("30_changes", moves="0"),

@@ -32,11 +32,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from toaster.beliefs import api
 from toaster.beliefs import config as cfg
 from toaster.beliefs.tell import tell
+from toaster.db.catalog import note_data_start
 from toaster.documents import located, read_document
 from toaster.errors import FileFormatError, InvalidInputError
 from toaster.model import (
@@ -49,6 +50,9 @@ from toaster.model import (
     shown,
 )
 from toaster.timeutil import MAX_NS, check_ns
+
+if TYPE_CHECKING:
+    from toaster.db.database import Database
 
 SOURCE = "scenario"
 _FACT_FIELDS = ("subject", "property", "target", "value", "value_num", "confidence",
@@ -327,17 +331,19 @@ def load(path: str | Path) -> Scenario:
 class Replayer:
     """Replays steps as snapshots of the self agent, keeping the world state between them."""
 
-    def __init__(self, db: Any, scenario: Scenario) -> None:
+    def __init__(self, db: Database, scenario: Scenario) -> None:
         self.db, self.scenario = db, scenario
         self.store = db.store()
         self.state: dict[tuple[str, ...], Fact] = {}
 
     def setup(self) -> None:
-        """Register the entities and apply the scenario's settings."""
+        """Register the entities and apply the scenario's settings; its times count from 0,
+        the data's start."""
         sc = self.scenario
         if sc.settings:
             api.configure(self.db, **sc.settings)
-        with self.store.transaction():
+        with self.store.transaction() as conn:
+            note_data_start(conn, 0)
             self.store.add_entity(sc.self_agent, "robot", is_self=True, t_ns=0)
             for agent in sc.agents:
                 self.store.add_entity(agent, "human", t_ns=0)
@@ -381,7 +387,7 @@ class Replayer:
                 self.apply(step)
 
 
-def check(db: Any, scenario: Scenario) -> list[str]:
+def check(db: Database, scenario: Scenario) -> list[str]:
     """Evaluate the scenario's expectations; return one message per failure."""
     failures = []
     end = scenario.steps[-1].t_ns if scenario.steps else 0
@@ -402,7 +408,7 @@ def check(db: Any, scenario: Scenario) -> list[str]:
     return failures
 
 
-def replay_and_check(db: Any, path_or_scenario: str | Path | Scenario
+def replay_and_check(db: Database, path_or_scenario: str | Path | Scenario
                      ) -> tuple[Scenario, list[str]]:
     """:func:`replay` then :func:`check`, in one transaction: an error in either (an
     expectation about a holder deeper than the depth setting...) writes nothing."""
@@ -413,7 +419,7 @@ def replay_and_check(db: Any, path_or_scenario: str | Path | Scenario
         return sc, check(db, sc)
 
 
-def replay(db: Any, path_or_scenario: str | Path | Scenario) -> Scenario:
+def replay(db: Database, path_or_scenario: str | Path | Scenario) -> Scenario:
     """Load (if needed) and replay a scenario into ``db``; return it."""
     sc = (path_or_scenario if isinstance(path_or_scenario, Scenario)
           else load(path_or_scenario))

@@ -27,7 +27,7 @@ from importlib import resources
 
 #: The steps of the rule, in order (see :class:`toaster.beliefs.rules.BeliefRule` for when each
 #: one runs).
-STEPS = ("00_temp", "10_focus", "12_moves", "15_ungroup", "20_perceive", "30_changes",
+STEPS = ("00_temp", "10_focus", "12_moves", "13_late", "15_ungroup", "20_perceive", "30_changes",
          "32_expand", "35_freeze", "40_refresh", "42_keep_max", "45_resolve", "50_keys",
          "55_switch", "58_frozen", "60_plan", "70_events", "80_close", "85_refresh_rows",
          "90_follow", "91_open", "92_repconf", "94_keep_groups", "95_materialize", "96_regroup",

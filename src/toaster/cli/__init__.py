@@ -2,87 +2,50 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import click
 
-from toaster.errors import ToasterError
+from toaster.cli.context import AppContext, add_db_option, app_of, one_line
+from toaster.timeutil import TIME_STYLES
 
-if TYPE_CHECKING:
-    from toaster.db import Database
-
-
-class AppContext:
-    """What every command gets: the database URL, opened on first use."""
-
-    def __init__(self, url: str | None, debug: bool) -> None:
-        self.url = url
-        self.debug = debug
-        self._db: Database | None = None
-
-    @property
-    def db(self) -> Database:
-        """The database, created and migrated on first use when it is new."""
-        if self._db is None:
-            from toaster.session import connect
-
-            self._db = connect(self.url)
-        return self._db
-
-    def close(self) -> None:
-        if self._db is not None:
-            self._db.close()
+__all__ = ["AppContext", "cli", "main"]
 
 
 class ToasterGroup(click.Group):
     """Turns toaster's expected errors into one-line messages (exit 1); ``--debug`` shows them
-    with their traceback."""
+    with their traceback (:func:`toaster.cli.context.one_line`)."""
 
     def invoke(self, ctx: click.Context) -> Any:
         try:
             return super().invoke(ctx)
-        except ToasterError as exc:
-            obj = ctx.find_object(AppContext)
-            if obj is not None and obj.debug:
+        except Exception as exc:
+            error = one_line(ctx, exc)
+            if error is None:
                 raise
-            raise click.ClickException(str(exc)) from None
-        except Exception as exc:  # a database error raised through a raw cursor (a lock
-            error = _database_error(ctx, exc)  # held too long, a corrupted file...)
-            obj = ctx.find_object(AppContext)
-            if error is None or (obj is not None and obj.debug):
-                raise
-            raise click.ClickException(str(error)) from None
-
-
-def _database_error(ctx: click.Context, exc: Exception) -> ToasterError | None:
-    """The one-line error of a driver error the engine's own handler did not see (raw DBAPI
-    cursors bypass it); None when ``exc`` is not the user's to fix (a bug)."""
-    from toaster.db.engine import database_error, describe, lock_timeout, parse_url
-
-    obj = ctx.find_object(AppContext)
-    try:
-        where = describe(parse_url(obj.url if obj is not None else None))
-        return database_error(exc, where, lock_timeout())
-    except ToasterError:
-        return None
+            raise error from None
 
 
 @click.group(cls=ToasterGroup, context_settings={"help_option_names": ["-h", "--help"]})
-@click.option("--db", "url", envvar="TOASTER_DB", metavar="URL",
-              help="sqlite:///FILE.db or postgresql://HOST/DB (env TOASTER_DB; default "
-                   "sqlite:///toaster.db in the working directory, created on first use).")
+@click.option("--time", "time_style", envvar="TOASTER_TIME", default="auto", show_default=True,
+              type=click.Choice(TIME_STYLES, case_sensitive=False),
+              help="Show times as seconds since the data's start (+12.500 s), as UTC dates, "
+                   "or auto: elapsed for simulated data (starting in 1970), dates otherwise "
+                   "(env TOASTER_TIME; docs/time.md).")
 @click.option("--debug", is_flag=True, help="Show tracebacks for errors.")
 @click.version_option(package_name="toaster")
 @click.pass_context
-def cli(ctx: click.Context, url: str | None, debug: bool) -> None:
+def cli(ctx: click.Context, time_style: str, debug: bool) -> None:
     """toaster: situation assessment for human-robot interaction.
 
     Facts about the world and each agent's beliefs, kept as intervals in a temporal SQL
-    database (SQLite or PostgreSQL), with their events and memory.
+    database (SQLite or PostgreSQL), with their events and memory. Every command takes
+    --db URL, before or after its name (it wins over $TOASTER_DB); listings take --limit,
+    --json and --csv, and print tab-separated lines when piped. Reference: docs/cli.md.
     """
-    app = AppContext(url, debug)
-    ctx.obj = app
-    ctx.call_on_close(app.close)
+    app = app_of(ctx)  # made by --db (eager) if given
+    app.debug = debug
+    app.time_style = time_style.lower()
 
 
 def _register() -> None:
@@ -104,6 +67,7 @@ def _register() -> None:
                     monitor, plot_facts, pointing_cmd, record, relative_position, relpos, run,
                     serve, set_info, stream, tell_cmd, tolerance, watch):
         cli.add_command(command)
+    add_db_option(cli)
     guard(cli)
 
 

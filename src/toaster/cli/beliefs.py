@@ -8,7 +8,7 @@ from typing import Any
 import click
 
 from toaster.cli.checks import parse_json_option, parse_time_option
-from toaster.cli.output import emit, output_options, say
+from toaster.cli.output import emit, listing_options, say
 
 
 def _at(value: str | None) -> int | None:
@@ -34,16 +34,16 @@ def beliefs() -> None:
 @click.option("--subject")
 @click.option("--property")
 @click.option("--target")
-@output_options
+@listing_options
 @click.pass_obj
 def show(app: Any, agent: str, about: str | None, at: str | None, subject: str | None,
-         property: str | None, target: str | None, fmt: str | None) -> None:
+         property: str | None, target: str | None, fmt: str | None, limit: int | None) -> None:
     """What AGENT believes (now or --at TIME)."""
     from toaster.beliefs import api
 
     rows = api.beliefs(app.db, agent, _about(about), at=_at(at), subject=subject,
                        property=property, target=target)
-    emit(rows, fmt, empty=f"({agent} believes nothing that matches)")
+    emit(rows, fmt, limit=limit, empty=f"({agent} believes nothing that matches)")
 
 
 @beliefs.command("value")
@@ -53,16 +53,16 @@ def show(app: Any, agent: str, about: str | None, at: str | None, subject: str |
 @click.option("--target", default="")
 @click.option("--about", help="AGENT's model of this agent's beliefs.")
 @click.option("--at", "at", metavar="TIME")
-@output_options
+@listing_options
 @click.pass_obj
 def value(app: Any, agent: str, subject: str, property: str, target: str,
-          about: str | None, at: str | None, fmt: str | None) -> None:
+          about: str | None, at: str | None, fmt: str | None, limit: int | None) -> None:
     """One belief of AGENT: its value and interval, or that it is not held."""
     from toaster.beliefs import api
 
     row = api.belief_value(app.db, agent, subject, property, target, about=_about(about),
                            at=_at(at))
-    emit([row] if row else [], fmt, empty="(not believed)")
+    emit([row] if row else [], fmt, limit=limit, empty="(not believed)")
 
 
 @beliefs.command("diff")
@@ -70,15 +70,15 @@ def value(app: Any, agent: str, subject: str, property: str, target: str,
 @click.option("--other", help="Compare with this agent (default: the self agent).")
 @click.option("--about", help="Use AGENT's model of this agent.")
 @click.option("--at", "at", metavar="TIME")
-@output_options
+@listing_options
 @click.pass_obj
 def diff(app: Any, agent: str, other: str | None, about: str | None, at: str | None,
-         fmt: str | None) -> None:
+         fmt: str | None, limit: int | None) -> None:
     """False-belief report: where AGENT and OTHER disagree (value_a = AGENT's)."""
     from toaster.beliefs import api
 
     rows = api.false_beliefs(app.db, agent, other, about=about, at=_at(at))
-    emit(rows, fmt, empty="(no disagreement)")
+    emit(rows, fmt, limit=limit, empty="(no disagreement)")
 
 
 @beliefs.command("history")
@@ -86,25 +86,26 @@ def diff(app: Any, agent: str, other: str | None, about: str | None, at: str | N
 @click.option("--property", required=True)
 @click.option("--target")
 @click.option("--agent", "agents", multiple=True, help="Only these holders (repeatable).")
-@output_options
+@listing_options
 @click.pass_obj
 def history(app: Any, subject: str, property: str, target: str | None,
-            agents: tuple[str, ...], fmt: str | None) -> None:
+            agents: tuple[str, ...], fmt: str | None, limit: int | None) -> None:
     """Every interval of one belief across the robot, the agents and nested holders."""
     from toaster.beliefs import api
 
     rows = api.belief_history(app.db, subject, property, target, agents=list(agents) or None)
-    emit(rows, fmt)
+    emit(rows, fmt, limit=limit)
 
 
 @beliefs.command("holders")
+@listing_options
 @click.pass_obj
-def holders(app: Any) -> None:
+def holders(app: Any, fmt: str | None, limit: int | None) -> None:
     """Belief holders other than the self agent (first order, then nested A>B)."""
     from toaster.beliefs import api
 
-    for holder in api.holders(app.db):
-        click.echo(holder)
+    emit([(holder,) for holder in api.holders(app.db)], fmt, columns=["holder"], limit=limit,
+         empty="(no belief holder but the robot)")
 
 
 @beliefs.command("config")

@@ -10,12 +10,15 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from toaster.errors import InvalidInputError
 from toaster.model import check_text
+
+if TYPE_CHECKING:
+    from toaster.timeutil import TimeFrame
 
 _MAX_INT = 2**63 - 1
 
@@ -41,39 +44,74 @@ def _check(param: click.Parameter, value: Any) -> None:
         raise InvalidInputError(msg)
 
 
-def _checked(callback: Callable[..., Any], params: list[click.Parameter]) -> Callable[..., Any]:
+def _checked(callback: Callable[..., Any], params: list[click.Parameter],
+             path: str) -> Callable[..., Any]:
     checked = [p for p in params if p.name and not isinstance(p.type, click.Path | click.File)]
 
     @functools.wraps(callback)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
-        for param in checked:
-            _check(param, kwargs.get(param.name or ""))
-        return callback(*args, **kwargs)
+        from toaster.cli.context import one_line
+        from toaster.cli.extras import check_extras
+
+        try:
+            for param in checked:
+                _check(param, kwargs.get(param.name or ""))
+            check_extras(path, kwargs)
+            return callback(*args, **kwargs)
+        except Exception as exc:  # one line also when the command runs without the group
+            error = one_line(click.get_current_context(), exc)
+            if error is None:
+                raise
+            raise error from None
 
     return wrapper
 
 
-def guard(command: click.Command) -> None:
-    """Check the arguments of ``command`` (and of every subcommand) before it runs."""
+def guard(command: click.Command, path: str | None = None) -> None:
+    """Check the arguments of ``command`` (and of every subcommand) before it runs, and the
+    optional extras they need (:mod:`toaster.cli.extras`); its expected errors are one line
+    (:func:`toaster.cli.context.one_line`). ``path``: the command as typed after ``toaster``
+    (None: ``command`` is the ``toaster`` group)."""
     if command.callback is not None and not getattr(command, "_toaster_guarded", False):
-        command.callback = _checked(command.callback, command.params)
+        command.callback = _checked(command.callback, command.params, path or "")
         command._toaster_guarded = True  # type: ignore[attr-defined]
     if isinstance(command, click.Group):
-        for sub in command.commands.values():
-            guard(sub)
+        for name, sub in command.commands.items():
+            guard(sub, f"{path} {name}" if path else name)
 
 
-def parse_time_option(value: str | None, flag: str, *, base_ns: int = 0) -> int | None:
-    """``--at`` / ``--from`` / ``--to`` text as ns (None stays None); errors name ``flag``."""
-    from toaster.timeutil import parse_time
+def parse_time_option(value: str | None, flag: str, *, frame: TimeFrame | None = None
+                      ) -> int | None:
+    """``--at`` / ``--from`` / ``--to`` text as ns (None stays None); errors name ``flag``.
+
+    A duration (``12.5s``) counts from the start of ``frame``, by default the data of the
+    command's database (:func:`command_frame`, read only when needed);
+    ``-5m`` is five minutes ago; ns, ISO dates and ``now`` as they are (docs/time.md).
+    """
+    from toaster.timeutil import counts_from_start, parse_time
 
     if value is None:
         return None
     try:
-        return parse_time(value, base_ns=base_ns)
+        if frame is None and counts_from_start(value):
+            frame = command_frame()
+        return parse_time(value, start_ns=frame.start_ns if frame is not None else None)
     except InvalidInputError as exc:
         msg = f"{flag}: {exc}"
         raise InvalidInputError(msg) from None
+
+
+def command_frame() -> TimeFrame | None:
+    """The time frame of the running command's database, in the ``--time`` style (the
+    command's ``AppContext``: ``db`` and ``time_style``); None outside a command."""
+    ctx = click.get_current_context(silent=True)
+    while ctx is not None and not hasattr(type(ctx.obj), "db"):
+        ctx = ctx.parent
+    if ctx is None:
+        return None
+    app = ctx.obj
+    frame: TimeFrame = app.db.time_frame(getattr(app, "time_style", "auto"))
+    return frame
 
 
 def parse_duration_option(value: str, flag: str) -> int:

@@ -8,6 +8,7 @@ from typing import Any
 
 import click
 
+from toaster.cli.output import emit, listing_options
 from toaster.errors import InvalidInputError
 
 _WAIT = click.option("--timeout", type=float, default=2.0, show_default=True,
@@ -87,8 +88,10 @@ def monitor_list(app: Any) -> None:
 @click.command("stream")
 @click.argument("name", required=False)
 @click.argument("state", required=False, type=click.Choice(["on", "off"]))
+@listing_options
 @click.pass_obj
-def stream(app: Any, name: str | None, state: str | None) -> None:
+def stream(app: Any, name: str | None, state: str | None, fmt: str | None,
+           limit: int | None) -> None:
     """Switch input stream NAME on or off (manage_stream); no arguments: list them."""
     from toaster.live import control
 
@@ -98,10 +101,8 @@ def stream(app: Any, name: str | None, state: str | None) -> None:
             raise InvalidInputError(msg)
         with app.db.transaction() as conn:
             streams = control.read_state(conn).streams
-        for key, on in sorted(streams.items()):
-            click.echo(f"{key}: {'on' if on else 'off'}")
-        if not streams:
-            click.echo("(every stream on)")
+        rows = [(key, "on" if on else "off") for key, on in sorted(streams.items())]
+        emit(rows, fmt, columns=["stream", "state"], limit=limit, empty="(every stream on)")
         return
     control.set_stream(app.db, name, state == "on")
     click.echo(f"stream {name} {state}")

@@ -2,19 +2,21 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import click
 
 from toaster.cli.info import _self_agent, fact_options
-from toaster.cli.output import emit, output_options, say
+from toaster.cli.output import emit, listing_options, say
 from toaster.db import readonly
 
-COMMANDS = ("SQL", "ARE_IN_TABLE", "EMPTY", "PRINT")
+NAMES = ("SQL", "ARE_IN_TABLE", "EMPTY", "PRINT")
 
 
 @click.command()
-@click.argument("command", type=click.Choice(COMMANDS, case_sensitive=False))
+@click.argument("command", type=click.Choice(NAMES, case_sensitive=False))
 @click.argument("argument", required=False)
 @click.option("--write", is_flag=True,
               help="SQL: run any SQL (several statements, writes, settings) as the "
@@ -31,10 +33,9 @@ COMMANDS = ("SQL", "ARE_IN_TABLE", "EMPTY", "PRINT")
               help="SQL, read-only: fail past this many seconds.")
 @fact_options
 @click.option("--yes", is_flag=True, help="EMPTY: do not ask for confirmation.")
-@output_options
+@listing_options
 @click.pass_obj
-def execute(app: Any, command: str, argument: str | None, write: bool, params: tuple[str, ...],
-            max_rows: int, max_bytes: int, timeout_s: float, yes: bool, fmt: str | None,
+def execute(app: Any, command: str, argument: str | None, fmt: str | None, limit: int | None,
             **opts: Any) -> None:
     """Run SQL or one of the original's maintenance commands.
 
@@ -47,62 +48,95 @@ def execute(app: Any, command: str, argument: str | None, write: bool, params: t
     EMPTY ALL | EMPTY AGENT --agent A          delete facts, memory and events
     PRINT ALL | PRINT AGENT --agent A          print the tables
     """
+    COMMANDS[command.upper()](Call(app.db, argument, fmt, limit, opts))
+
+
+@dataclass(frozen=True)
+class Call:
+    """One execute call: the database, its ARGUMENT, the output choice and the options."""
+
+    db: Any
+    argument: str | None
+    fmt: str | None
+    limit: int | None
+    opts: dict[str, Any]
+
+
+def _sql(call: Call) -> None:
     from toaster import queries as q
 
-    db = app.db
-    command = command.upper()
-    if command == "SQL":
-        if not argument:
-            raise click.UsageError(
-                'execute SQL needs the statement: toaster execute SQL "SELECT 1"')
-        bad = next((p for p in params if "=" not in p), None)
-        if bad is not None:
-            raise click.UsageError(f"--param {bad!r} takes NAME=VALUE, e.g. --param {bad}=1")
-        bound = dict(p.split("=", 1) for p in params) if params else None
-        result = q.execute(db, argument, bound, write=write, max_rows=max_rows,
-                           max_bytes=max_bytes, timeout_s=timeout_s)
-        if result.columns:
-            emit(result.rows, fmt, columns=result.columns)
-            if result.truncated:
-                say(f"note: only the first {max_rows} rows are shown: add a LIMIT, or raise "
-                    "--max-rows")
-        else:
-            say(f"ok ({result.rowcount} row(s) affected)")
-    elif command == "ARE_IN_TABLE":
-        from toaster.model import Fact
+    opts = call.opts
+    if not call.argument:
+        raise click.UsageError('execute SQL needs the statement: toaster execute SQL "SELECT 1"')
+    bad = next((p for p in opts["params"] if "=" not in p), None)
+    if bad is not None:
+        raise click.UsageError(f"--param {bad!r} takes NAME=VALUE, e.g. --param {bad}=1")
+    bound = dict(p.split("=", 1) for p in opts["params"]) or None
+    max_rows = opts["max_rows"] if call.limit is None else max(1, min(opts["max_rows"],
+                                                                      call.limit))
+    result = q.execute(call.db, call.argument, bound, write=opts["write"], max_rows=max_rows,
+                       max_bytes=opts["max_bytes"], timeout_s=opts["timeout_s"])
+    if not result.columns:
+        say(f"ok ({result.rowcount} row(s) affected)")
+        return
+    emit(result.rows, call.fmt, columns=result.columns, limit=call.limit)
+    if result.truncated and (call.limit is None or call.limit > max_rows):
+        say(f"note: only the first {max_rows} rows are shown: add a LIMIT, or raise --max-rows")
 
-        agent = _self_agent(db, opts["agent"])
-        db.store().check_agent(agent)
-        if not (opts["subject"] and opts["property"]):
-            raise click.UsageError("ARE_IN_TABLE needs --subject and --property")
-        fact = Fact(opts["subject"], opts["property"], opts["target"] or "",
-                    sub_property=opts["sub_property"] or "")
-        answer = q.are_in_table(db, agent, [fact])[0]
-        click.echo("true" if answer else "false")
-        if not answer:
-            raise SystemExit(1)
-    elif command == "EMPTY":
-        scope = (argument or "").upper()
-        if scope not in ("ALL", "AGENT"):
-            raise click.UsageError("execute EMPTY needs ALL or AGENT --agent A")
-        emptied: str | None = opts["agent"] if scope == "AGENT" else None
-        if scope == "AGENT" and not emptied:
-            raise click.UsageError("execute EMPTY AGENT needs --agent")
-        what = f"agent {emptied!r}" if emptied else "every agent"
-        if not yes:
-            click.confirm(f"delete the facts, memory and events of {what}?", abort=True)
-        db.store().empty(emptied)
-        say(f"emptied {what}")
+
+def _are_in_table(call: Call) -> None:
+    from toaster import queries as q
+    from toaster.model import Fact
+
+    opts = call.opts
+    agent = _self_agent(call.db, opts["agent"])
+    call.db.store().check_agent(agent)
+    if not (opts["subject"] and opts["property"]):
+        raise click.UsageError("ARE_IN_TABLE needs --subject and --property")
+    fact = Fact(opts["subject"], opts["property"], opts["target"] or "",
+                sub_property=opts["sub_property"] or "")
+    answer = q.are_in_table(call.db, agent, [fact])[0]
+    click.echo("true" if answer else "false")
+    if not answer:
+        raise SystemExit(1)
+
+
+def _empty(call: Call) -> None:
+    scope = (call.argument or "").upper()
+    if scope not in ("ALL", "AGENT"):
+        raise click.UsageError("execute EMPTY needs ALL or AGENT --agent A")
+    emptied: str | None = call.opts["agent"] if scope == "AGENT" else None
+    if scope == "AGENT" and not emptied:
+        raise click.UsageError("execute EMPTY AGENT needs --agent")
+    what = f"agent {emptied!r}" if emptied else "every agent"
+    if not call.opts["yes"]:
+        click.confirm(f"delete the facts, memory and events of {what}?", abort=True)
+    call.db.store().empty(emptied)
+    say(f"emptied {what}")
+
+
+def _print(call: Call) -> None:
+    from toaster import queries as q
+
+    db, scope = call.db, (call.argument or "ALL").upper()
+    if scope not in ("ALL", "AGENT"):
+        raise click.UsageError("execute PRINT takes ALL or AGENT --agent A")
+    if scope == "AGENT":
+        agents = [_self_agent(db, call.opts["agent"])]
+        db.store().check_agent(agents[0])
     else:
-        scope = (argument or "ALL").upper()
         agents = [a.id for a in q.agents(db)]
-        if scope == "AGENT":
-            agents = [_self_agent(db, opts["agent"])]
-            db.store().check_agent(agents[0])
-        for agent in agents:
-            emit(q.current_facts(db, agent), fmt, title=f"fact_table_{agent}")
-            if scope == "ALL":
-                emit(q.memory(db, agent), fmt, title=f"memory_table_{agent}")
+    tables: list[tuple[str, Any]] = []
+    for agent in agents:
+        tables.append((f"fact_table_{agent}", q.current_facts(db, agent, limit=call.limit)))
         if scope == "ALL":
-            emit(q.entities(db), fmt, title="entities")
-            emit(q.events(db), fmt, title="events")
+            tables.append((f"memory_table_{agent}", q.memory(db, agent, limit=call.limit)))
+    if scope == "ALL":
+        tables += [("entities", q.entities(db)), ("events", q.events(db, limit=call.limit))]
+    for title, rows in tables:
+        emit(rows, call.fmt, title=title, limit=call.limit)
+
+
+#: execute COMMAND -> what runs it
+COMMANDS: dict[str, Callable[[Call], None]] = {
+    "SQL": _sql, "ARE_IN_TABLE": _are_in_table, "EMPTY": _empty, "PRINT": _print}

@@ -2,18 +2,17 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import click
 
 from toaster.cli.checks import parse_time_option
-from toaster.cli.output import emit, output_options, say
+from toaster.cli.output import emit, listing_options, say
 
 GET_TYPES = ("FACT", "EVENT", "ONTOLOGY", "ID", "ENTITY", "AGENT", "PROPERTY")
 SET_TYPES = ("ENTITY", "FACT", "EVENT", "ONTOLOGY", "PROPERTY")
-
-
-_MAX_LIMIT = 2**63 - 1
 
 
 def fact_options(func: Any) -> Any:
@@ -46,10 +45,10 @@ def _self_agent(db: Any, agent: str | None) -> str:
 @click.option("--at", "at", metavar="TIME", help="As of TIME (ns, ISO date, 12.5s).")
 @click.option("--from", "since", metavar="TIME", help="Window start (FACT, EVENT).")
 @click.option("--to", "until", metavar="TIME", help="Window end (FACT, EVENT).")
-@click.option("--limit", type=click.IntRange(0, _MAX_LIMIT), help="At most this many rows.")
-@output_options
+@listing_options
 @click.pass_obj
-def get_info(app: Any, info_type: str, sub_type: str, fmt: str | None, **opts: Any) -> None:
+def get_info(app: Any, info_type: str, sub_type: str, fmt: str | None, limit: int | None,
+             **opts: Any) -> None:
     """Read facts, events, ontology, entities, agents or properties.
 
     \b
@@ -62,68 +61,136 @@ def get_info(app: Any, info_type: str, sub_type: str, fmt: str | None, **opts: A
     AGENT                         belief-holding agents and their view names
     PROPERTY [ALL|VALUE]          static properties (VALUE: --id, --key)
     """
-    from toaster import queries as q
-
-    db = app.db
     kind, sub = info_type.upper(), sub_type.upper()
-    key = {"subject": opts["subject"], "property": opts["property"], "target": opts["target"],
-           "sub_property": opts["sub_property"], "subject_owner": opts["subject_owner"],
-           "target_owner": opts["target_owner"]}
-    at, since, until = (parse_time_option(opts["at"], "--at"),
-                        parse_time_option(opts["since"], "--from"),
-                        parse_time_option(opts["until"], "--to"))
-    if kind == "FACT":
-        _check_sub(sub, ("ALL", "CURRENT", "OLD", "VALUE"), kind)
-        agent = opts["agent"]
-        if sub == "VALUE":
-            agent = _self_agent(db, agent)
-            db.store().check_agent(agent)
-            if not (opts["subject"] and opts["property"]):
-                raise click.UsageError("FACT VALUE needs --subject and --property")
-            row = q.fact_value(db, agent, opts["subject"], opts["property"], opts["target"] or "",
-                               at=at, sub_property=opts["sub_property"],
-                               subject_owner=opts["subject_owner"],
-                               target_owner=opts["target_owner"])
-            emit([row] if row else [], fmt, empty="(the fact does not hold)")
-            return
+    readers = READERS[kind]
+    if sub not in readers:
+        raise click.UsageError(f"unknown {kind} subtype {sub!r}: use one of "
+                               f"{', '.join(readers)}")
+    ask = Ask(app.db, opts, limit, parse_time_option(opts["at"], "--at"),
+              parse_time_option(opts["since"], "--from"),
+              parse_time_option(opts["until"], "--to"))
+    rows, empty = readers[sub](ask)
+    emit(rows, fmt, limit=limit, empty=empty)
+
+
+@dataclass(frozen=True)
+class Ask:
+    """One get-info request: the database, the options, the parsed times."""
+
+    db: Any
+    opts: dict[str, Any]
+    limit: int | None
+    at: int | None
+    since: int | None
+    until: int | None
+
+    @property
+    def key(self) -> dict[str, Any]:
+        """The fact-key filters (subject, property, target, sub-property, owners)."""
+        return {name: self.opts[name] for name in KEY_OPTIONS}
+
+    def agent(self, *, self_by_default: bool = False) -> str | None:
+        """``--agent`` (checked), or the self agent when asked to default to it."""
+        agent = self.opts["agent"]
+        if agent is None and self_by_default:
+            agent = _self_agent(self.db, None)
         if agent:
-            db.store().check_agent(agent)
-        if at is not None:
-            if sub != "CURRENT":
-                raise click.UsageError("--at works with FACT CURRENT (beliefs as of TIME)")
-            rows = q.beliefs_at(db, _self_agent(db, agent), at, **key)
-        elif sub == "CURRENT":
-            rows = q.current_facts(db, agent, limit=opts["limit"], **key)
-        elif sub == "OLD":
-            rows = q.memory(db, agent, since=since, until=until, limit=opts["limit"], **key)
-        else:
-            rows = q.history(db, agent, since=since, until=until, limit=opts["limit"], **key)
-        emit(rows, fmt)
-    elif kind == "EVENT":
-        if opts["agent"]:
-            db.store().check_agent(opts["agent"])
-        emit(q.events(db, opts["agent"], since=since, until=until, kind=opts["kind"],
-                      limit=opts["limit"], **key), fmt)
-    elif kind == "ONTOLOGY":
-        _check_sub(sub, ("ALL", "VALUE", "LEAVE"), kind)
-        if sub != "ALL" and not opts["entity_class"]:
-            raise click.UsageError(f"ONTOLOGY {sub} needs --class")
-        edges = (q.descendants(db, opts["entity_class"]) if sub == "LEAVE"
-                 else q.ontology(db, opts["entity_class"] if sub == "VALUE" else None))
-        emit(edges, fmt)
-    elif kind in ("ID", "ENTITY"):
-        _check_sub(sub, ("ALL", "VALUE"), kind)
-        emit(q.entities(db, opts["entity_id"], kind=opts["kind"]), fmt)
-    elif kind == "AGENT":
-        emit(q.agents(db), fmt)
-    else:
-        _check_sub(sub, ("ALL", "VALUE"), kind)
-        emit(q.properties(db, opts["entity_id"], opts["key"]), fmt)
+            self.db.store().check_agent(agent)
+        return agent
+
+    def need(self, what: str, **flags: str) -> None:
+        """A usage error unless every option (name=flag) was given."""
+        if not all(self.opts[name] for name in flags):
+            raise click.UsageError(f"{what} needs {' and '.join(flags.values())}")
+
+    def without_at(self, what: str) -> None:
+        if self.at is not None:
+            raise click.UsageError(f"--at works with FACT CURRENT (beliefs as of TIME), not {what}")
 
 
-def _check_sub(sub: str, allowed: tuple[str, ...], kind: str) -> None:
-    if sub not in allowed:
-        raise click.UsageError(f"unknown {kind} subtype {sub!r}: use one of {', '.join(allowed)}")
+Rows = tuple[Sequence[Any], str]
+KEY_OPTIONS = ("subject", "property", "target", "sub_property", "subject_owner", "target_owner")
+NO_ROWS = "(no rows)"
+
+
+def _fact_value(ask: Ask) -> Rows:
+    agent = ask.agent(self_by_default=True)
+    ask.need("FACT VALUE", subject="--subject", property="--property")
+    o = ask.opts
+    row = _q().fact_value(ask.db, agent, o["subject"], o["property"], o["target"] or "",
+                         at=ask.at, sub_property=o["sub_property"],
+                         subject_owner=o["subject_owner"], target_owner=o["target_owner"])
+    return ([row] if row else []), "(the fact does not hold)"
+
+
+def _fact_current(ask: Ask) -> Rows:
+    if ask.at is not None:
+        agent = ask.agent(self_by_default=True)
+        return _q().beliefs_at(ask.db, agent, ask.at, **ask.key), NO_ROWS
+    return _q().current_facts(ask.db, ask.agent(), limit=ask.limit, **ask.key), NO_ROWS
+
+
+def _fact_old(ask: Ask) -> Rows:
+    ask.without_at("FACT OLD")
+    return _q().memory(ask.db, ask.agent(), since=ask.since, until=ask.until, limit=ask.limit,
+                      **ask.key), NO_ROWS
+
+
+def _fact_all(ask: Ask) -> Rows:
+    ask.without_at("FACT ALL")
+    return _q().history(ask.db, ask.agent(), since=ask.since, until=ask.until, limit=ask.limit,
+                       **ask.key), NO_ROWS
+
+
+def _events(ask: Ask) -> Rows:
+    return _q().events(ask.db, ask.agent(), since=ask.since, until=ask.until,
+                      kind=ask.opts["kind"], limit=ask.limit, **ask.key), NO_ROWS
+
+
+def _ontology(ask: Ask) -> Rows:
+    return _q().ontology(ask.db), NO_ROWS
+
+
+def _ontology_value(ask: Ask) -> Rows:
+    ask.need("ONTOLOGY VALUE", entity_class="--class")
+    return _q().ontology(ask.db, ask.opts["entity_class"]), NO_ROWS
+
+
+def _ontology_leave(ask: Ask) -> Rows:
+    ask.need("ONTOLOGY LEAVE", entity_class="--class")
+    return _q().descendants(ask.db, ask.opts["entity_class"]), NO_ROWS
+
+
+def _entities(ask: Ask) -> Rows:
+    return _q().entities(ask.db, ask.opts["entity_id"], kind=ask.opts["kind"]), NO_ROWS
+
+
+def _agents(ask: Ask) -> Rows:
+    return _q().agents(ask.db), NO_ROWS
+
+
+def _properties(ask: Ask) -> Rows:
+    return _q().properties(ask.db, ask.opts["entity_id"], ask.opts["key"]), NO_ROWS
+
+
+def _q() -> Any:
+    """:mod:`toaster.queries`, imported when a command runs (``toaster --help`` stays fast)."""
+    from toaster import queries
+
+    return queries
+
+
+#: get-info TYPE -> SUBTYPE -> the reader answering it
+READERS: dict[str, dict[str, Callable[[Ask], Rows]]] = {
+    "FACT": {"ALL": _fact_all, "CURRENT": _fact_current, "OLD": _fact_old,
+             "VALUE": _fact_value},
+    "EVENT": {"ALL": _events},
+    "ONTOLOGY": {"ALL": _ontology, "VALUE": _ontology_value, "LEAVE": _ontology_leave},
+    "ID": {"ALL": _entities, "VALUE": _entities},
+    "ENTITY": {"ALL": _entities, "VALUE": _entities},
+    "AGENT": {"ALL": _agents},
+    "PROPERTY": {"ALL": _properties, "VALUE": _properties},
+}
 
 
 @click.command("set-info")
@@ -166,73 +233,90 @@ def set_info(app: Any, info_type: str | None, files: tuple[str, ...], add: bool,
     PROPERTY --id X --key K --value V; --remove (without --key: all of X)
     --file F batch files (JSON / YAML / the original's XML seeds)
     """
-    from toaster.db.seed import fact_from_mapping, property_value
-
-    db = app.db
-    store = db.store()
-    if files:
-        for path in files:
-            report = store.load_file(path)
-            counts = ", ".join(f"{n} {kind}" for kind, n in report.items()) or "nothing"
-            say(f"{path}: {counts}")
-        if not info_type:
-            return
+    store = app.db.store()
+    for path in files:
+        report = store.load_file(path)
+        say(f"{path}: {', '.join(f'{n} {kind}' for kind, n in report.items()) or 'nothing'}")
     if not info_type:
-        raise click.UsageError("give a TYPE (ENTITY, FACT, EVENT, ONTOLOGY, PROPERTY) or --file")
-    kind = info_type.upper()
-    at = parse_time_option(opts["at"], "--at")
-    if kind == "ENTITY":
-        entity_id = _need(opts, "entity_id", "--id")
-        if add:
-            store.add_entity(entity_id, opts["entity_kind"], opts["name"], opts["owner"],
-                             is_self=opts["is_self"], t_ns=at)
-            say(f"entity {entity_id!r} saved")
-        else:
-            store.remove_entity(entity_id)
-            say(f"entity {entity_id!r} removed")
-    elif kind in ("FACT", "EVENT"):
-        agent = _self_agent(db, opts["agent"])
-        _need(opts, "property", "--property")
-        if kind == "FACT" and not add:
-            n = store.retract_facts(agent, opts["property"], opts["subject"], opts["target"],
-                                    sub_property=opts["sub_property"],
-                                    subject_owner_id=opts["subject_owner"],
-                                    target_owner_id=opts["target_owner"], t_ns=at,
-                                    actor=opts["actor"])
-            say(f"{n} fact(s) ended for {agent}")
+        if files:
             return
-        _need(opts, "subject", "--subject")
-        row = {k: opts[k] for k in ("subject", "property", "target", "sub_property",
-                                    "subject_owner", "target_owner", "confidence",
-                                    "observability", "property_type") if opts[k] is not None}
-        row["value"] = opts["value"] if opts["value"] is not None else "true"
-        if opts["num"] is not None:
-            row["num"] = opts["num"]
-        fact = fact_from_mapping(row)
-        if kind == "EVENT":
-            store.record_event(agent, fact, t_ns=at)
-            say(f"event recorded for {agent}")
-        else:
-            outcome = store.assert_fact(agent, fact, t_ns=at, actor=opts["actor"])
-            say(f"fact {outcome} for {agent}")
-    elif kind == "ONTOLOGY":
-        entity_class = _need(opts, "entity_class", "--class")
-        if add:
-            store.add_ontology(entity_class, _need(opts, "individual", "--individual"),
-                               opts["instantiated"])
-            say("ontology row saved")
-        else:
-            removed = store.remove_ontology(entity_class, opts["individual"])
-            say(f"{removed} ontology row(s) removed")
-    else:
-        entity_id = _need(opts, "entity_id", "--id")
-        if add:
-            key = _need(opts, "key", "--key")
-            store.set_property(entity_id, key, property_value(_need(opts, "value", "--value"),
-                                                              key))
-            say("property saved")
-        else:
-            say(f"{store.remove_property(entity_id, opts['key'])} property row(s) removed")
+        raise click.UsageError("give a TYPE (ENTITY, FACT, EVENT, ONTOLOGY, PROPERTY) or --file")
+    opts["at"] = parse_time_option(opts["at"], "--at")
+    say(WRITERS[info_type.upper()](store, add, opts))
+
+
+def _set_entity(store: Any, add: bool, opts: dict[str, Any]) -> str:
+    entity_id = _need(opts, "entity_id", "--id")
+    if not add:
+        store.remove_entity(entity_id)
+        return f"entity {entity_id!r} removed"
+    store.add_entity(entity_id, opts["entity_kind"], opts["name"], opts["owner"],
+                     is_self=opts["is_self"], t_ns=opts["at"])
+    return f"entity {entity_id!r} saved"
+
+
+def _fact(opts: dict[str, Any]) -> Any:
+    """The fact named by the options (``--value`` default 'true')."""
+    from toaster.db.seed import fact_from_mapping
+
+    _need(opts, "subject", "--subject")
+    row = {k: opts[k] for k in ("subject", "property", "target", "sub_property",
+                                "subject_owner", "target_owner", "confidence",
+                                "observability", "property_type") if opts[k] is not None}
+    row["value"] = opts["value"] if opts["value"] is not None else "true"
+    if opts["num"] is not None:
+        row["num"] = opts["num"]
+    return fact_from_mapping(row)
+
+
+def _set_fact(store: Any, add: bool, opts: dict[str, Any]) -> str:
+    agent = _self_agent(store.db, opts["agent"])
+    _need(opts, "property", "--property")
+    if not add:
+        n = store.retract_facts(agent, opts["property"], opts["subject"], opts["target"],
+                                sub_property=opts["sub_property"],
+                                subject_owner_id=opts["subject_owner"],
+                                target_owner_id=opts["target_owner"], t_ns=opts["at"],
+                                actor=opts["actor"])
+        return f"{n} fact(s) ended for {agent}"
+    outcome = store.assert_fact(agent, _fact(opts), t_ns=opts["at"], actor=opts["actor"])
+    return f"fact {outcome} for {agent}"
+
+
+def _set_event(store: Any, add: bool, opts: dict[str, Any]) -> str:
+    agent = _self_agent(store.db, opts["agent"])
+    _need(opts, "property", "--property")
+    if not add:
+        raise click.UsageError("an event cannot be removed: it happened")
+    store.record_event(agent, _fact(opts), t_ns=opts["at"])
+    return f"event recorded for {agent}"
+
+
+def _set_ontology(store: Any, add: bool, opts: dict[str, Any]) -> str:
+    entity_class = _need(opts, "entity_class", "--class")
+    if not add:
+        return f"{store.remove_ontology(entity_class, opts['individual'])} ontology row(s) removed"
+    store.add_ontology(entity_class, _need(opts, "individual", "--individual"),
+                       opts["instantiated"])
+    return "ontology row saved"
+
+
+def _set_property(store: Any, add: bool, opts: dict[str, Any]) -> str:
+    from toaster.db.seed import property_value
+
+    entity_id = _need(opts, "entity_id", "--id")
+    if not add:
+        return f"{store.remove_property(entity_id, opts['key'])} property row(s) removed"
+    key = _need(opts, "key", "--key")
+    store.set_property(entity_id, key, property_value(_need(opts, "value", "--value"), key))
+    return "property saved"
+
+
+#: set-info TYPE -> the writer doing it (returns the status line)
+WRITERS: dict[str, Callable[[Any, bool, dict[str, Any]], str]] = {
+    "ENTITY": _set_entity, "FACT": _set_fact, "EVENT": _set_event,
+    "ONTOLOGY": _set_ontology, "PROPERTY": _set_property,
+}
 
 
 def _need(opts: dict[str, Any], name: str, flag: str) -> str:

@@ -2,20 +2,13 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+import sys
+from collections.abc import Callable
 from typing import Any
 
 import click
 
-DEFAULT_DB = "sqlite:///toaster.db"
-
-
-def db_option(func: Callable[..., Any]) -> Callable[..., Any]:
-    """``--db URL`` (env TOASTER_DB); without it the main group's database is used."""
-    return click.option("--db", "url", envvar="TOASTER_DB", metavar="URL",
-                        help="sqlite:///FILE.db or postgresql://HOST/DB (env TOASTER_DB; "
-                             f"default {DEFAULT_DB}).")(func)
+from toaster.plotting.select import MAX_FACTS
 
 
 def window_options(func: Callable[..., Any]) -> Callable[..., Any]:
@@ -31,30 +24,6 @@ def parse_window(since: str | None, until: str | None) -> tuple[int | None, int 
     from toaster.cli.checks import parse_time_option
 
     return parse_time_option(since, "--from"), parse_time_option(until, "--to")
-
-
-@contextmanager
-def open_db(url: str | None) -> Iterator[Any]:
-    """The database named by ``--db``, else the group's (``ctx.obj.db``), else the default;
-    toaster's expected errors become one-line messages."""
-    from toaster.errors import ToasterError
-
-    ctx = click.get_current_context()
-    own = url is not None or not hasattr(ctx.obj, "db")
-    try:
-        if own:
-            import toaster
-
-            db = toaster.connect(url or DEFAULT_DB)
-        else:
-            db = ctx.obj.db
-        try:
-            yield db
-        finally:
-            if own:
-                db.close()
-    except ToasterError as exc:
-        raise click.ClickException(str(exc)) from None
 
 
 def _many(values: tuple[str, ...]) -> list[str] | None:
@@ -77,26 +46,35 @@ def _many(values: tuple[str, ...]) -> list[str] | None:
               show_default=True,
               help="Facts with a number (Distance, IsMoving speed, angles): also draw the "
                    "number over time (both), only the numbers (only), or the bars only (off).")
-@db_option
-def plot_facts(output: str, subject: tuple[str, ...], prop: tuple[str, ...],
+@click.option("--max-facts", "--max-rows", "max_facts", type=click.IntRange(min=0),
+              default=MAX_FACTS, show_default=True, metavar="N",
+              help="Draw at most N facts, the most relevant (false beliefs, then the "
+                   "reference agent's, then those that change most); 0 = every fact.")
+@click.pass_obj
+def plot_facts(app: Any, output: str, subject: tuple[str, ...], prop: tuple[str, ...],
                target: tuple[str, ...], agent: tuple[str, ...], reference: str | None,
                since: str | None, until: str | None, fmt: str | None, title: str | None,
-               numbers: str, url: str | None) -> None:
+               numbers: str, max_facts: int) -> None:
     """Draw the timeline of facts to OUTPUT (.png, .svg, .pdf, .dat for gnuplot, .csv).
 
     One row per agent and fact: value changes, confidence, and where an agent's belief
     differs from the reference agent's (false beliefs are hatched in red). Facts that carry
     a number (value_num) get a second panel: the number over time, one step line per agent,
-    gaps where the fact does not hold (--numbers). Pictures need matplotlib
+    gaps where the fact does not hold (--numbers). At most --max-facts facts are drawn, the
+    most relevant; stderr says how many were left out. Pictures need matplotlib
     (pip install 'toaster[plot]').
     """
+    from functools import partial
+
+    from toaster.cli.checks import command_frame
     from toaster.plotting import plot_facts as plot
 
-    with open_db(url) as db:
-        lo, hi = parse_window(since, until)
-        result = plot(db, output, subject=_many(subject), property=_many(prop),
-                      target=_many(target), agents=_many(agent), since=lo, until=hi,
-                      reference=reference, format=fmt, title=title, numbers=numbers)
+    db = app.db
+    lo, hi = parse_window(since, until)
+    result = _with_progress(partial(
+        plot, db, output, subject=_many(subject), property=_many(prop), target=_many(target),
+        agents=_many(agent), since=lo, until=hi, reference=reference, format=fmt, title=title,
+        numbers=numbers, max_facts=max_facts, frame=command_frame()))
     timeline = result.timeline
     false = sum(d.kind == "false_belief" for d in timeline.divergences)
     with_numbers = len(timeline.number_lanes) if numbers != "off" else 0
@@ -105,3 +83,30 @@ def plot_facts(output: str, subject: tuple[str, ...], prop: tuple[str, ...],
                f"{len(timeline.agents)} agents, {false} false-belief spans)")
     if result.companion is not None:
         click.echo(f"draw it with: gnuplot -p {result.companion}")
+    if result.left_out:
+        click.echo(f"plot-facts: drew the {facts} most relevant facts; {result.left_out} more "
+                   "matched and were left out (false beliefs come first, then facts "
+                   f"{timeline.reference} holds, then those that change most). Choose with "
+                   "--subject, --property, --target, --agent or --from/--to, or draw more "
+                   "with --max-facts N (0 = all).", err=True)
+
+
+def _with_progress(plot: Callable[..., Any]) -> Any:
+    """``plot(progress=...)`` with a rich progress bar on stderr when it is a terminal."""
+    if not sys.stderr.isatty():
+        return plot()
+    from rich.console import Console
+    from rich.progress import Progress
+
+    with Progress(console=Console(stderr=True), transient=True) as bar:
+        tasks: dict[str, Any] = {}
+
+        def report(step: str, done: int, total: int | None) -> None:
+            if step not in tasks:  # a new step: its own bar (pulsing when total is None)
+                for old in tasks.values():
+                    bar.remove_task(old)
+                tasks.clear()
+                tasks[step] = bar.add_task(step, total=total)
+            bar.update(tasks[step], completed=done)
+
+        return plot(progress=report)

@@ -1,36 +1,26 @@
-"""``toaster run`` (tick sources and producers into the store) and ``toaster area`` (areas)."""
+"""``toaster run`` (an input file into the store: :func:`toaster.runs.run_file`), ``toaster
+area`` (areas kept in the database) and ``toaster relpos``."""
 
 from __future__ import annotations
 
+import functools
 import json
 import sys
-import time
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import click
 
 from toaster.cli.checks import parse_duration_option
+from toaster.cli.output import emit, listing_options
 from toaster.cli.rosopts import pose_topics as parse_pose_topics
 from toaster.cli.rosopts import ros_input_options
 from toaster.errors import InvalidInputError
 
 
-def _database(ctx: click.Context, url: str | None) -> Any:
-    if url:
-        from toaster.session import connect
-
-        db = connect(url)
-        ctx.call_on_close(db.close)
-        return db
-    app = ctx.find_object(object)
-    return app.db if app is not None and hasattr(app, "db") else None
-
-
 @click.command("run")
 @click.argument("path", metavar="SCENARIO_OR_RECORDING",
                 type=click.Path(exists=True, path_type=Path))
-@click.option("--db", "url", metavar="URL", help="Database URL (default: the group's --db).")
 @click.option("--rate", type=float, help="Ticks per second (default: the file's, 30 / 2.5 Hz).")
 @click.option("--until", "until", metavar="T", help="Stop after this much input time (20s).")
 @click.option("--realtime", is_flag=True, help="Pace ticks to the wall clock.")
@@ -46,13 +36,14 @@ def _database(ctx: click.Context, url: str | None) -> Any:
 @ros_input_options
 @click.option("--no-db", is_flag=True, help="Compute only; write nothing.")
 @click.option("--record", "record_dir", type=click.Path(path_type=Path), metavar="DIR",
-              help="Also write the run as a rosbag2/MCAP recording in the new folder DIR (/tf, "
-                   "pdg's entity lists, markers, the producers' fact lists, the facts' events; "
-                   "docs/recordings.md) for Foxglove, Lichtblick, RViz 2 or `toaster run DIR`; "
+              help="Also write the run as a rosbag2/MCAP recording in the new folder DIR, or "
+                   "as a ROS 1 bag if DIR ends in .bag (/tf, shapes, areas, pdg's entity "
+                   "lists, the producers' fact lists, each agent's beliefs, the facts' events; "
+                   "docs/recordings.md) for Foxglove, Lichtblick, RViz or `toaster run DIR`; "
                    "needs toaster[rosbag].")
-@click.pass_context
-def run(ctx: click.Context, path: Path, url: str | None, rate: float | None, until: str | None,
-        realtime: bool, fps: float | None, holders: str | None, config_file: Path | None,
+@click.pass_obj
+def run(app: Any, path: Path, rate: float | None, until: str | None, realtime: bool,
+        fps: float | None, holders: str | None, config_file: Path | None,
         tf_map: Path | None, pose_topics: tuple[str, ...], no_db: bool,
         record_dir: Path | None) -> None:
     """Tick a scenario (.yaml/.json), recording (obsmat .txt, .csv, .jsonl) or ROS bag
@@ -61,65 +52,41 @@ def run(ctx: click.Context, path: Path, url: str | None, rate: float | None, unt
     Areas stored in the database are added to the file's; the file's areas are stored.
     Same input into a fresh database gives the same facts and events.
     """
-    from toaster.producers import Runner, load_session
     from toaster.producers.config import read_config_file
-    from toaster.timeutil import check_rate
+    from toaster.runs import check_run, run_file
 
-    if record_dir is not None and record_dir.exists():
-        msg = f"cannot record into {str(record_dir)!r}: it exists; give a new folder name"
-        raise InvalidInputError(msg)
-    if rate is not None:
-        rate = check_rate(rate, "--rate")
+    rate = check_run(path, record_dir=record_dir, rate_hz=rate)  # before the database opens
     until_ns = None if until is None else parse_duration_option(until, "--until")
-    overrides = read_config_file(config_file) if config_file is not None else None
-    store = None if no_db else _database(ctx, url).store()
-    session = load_session(path, store.areas() if store is not None else None, fps=fps,
-                           holders=holders, config=overrides, tf_map=tf_map,
-                           pose_topics=parse_pose_topics(pose_topics))
-    end = session.end_ns
-    if until_ns is not None:
-        end = min(end, session.start_ns + until_ns)
-    runner = Runner(session.world, session.sources, session.producers, store=store,
-                    agent_id=session.self_id, config=session.config)
-    if store is not None:
-        session.register(store)
-    hz = rate or session.rate_hz
-    total = max(1, int((end - session.start_ns) * hz / 1e9) + 1)
-    frames: list[tuple[Any, ...]] = []
-
-    def grab(t_ns: int) -> None:
-        if record_dir is not None:
-            frames.append(session.frame(t_ns, with_areas=not frames))
-
-    wall = time.perf_counter()
+    config = read_config_file(config_file) if config_file is not None else None
+    go = functools.partial(run_file, path, None if no_db else app.db, rate_hz=rate,
+                           until_ns=until_ns, realtime=realtime, fps=fps, holders=holders,
+                           config=config, tf_map=tf_map,
+                           pose_topics=parse_pose_topics(pose_topics), record_dir=record_dir)
     if sys.stderr.isatty():
         from rich.progress import Progress
 
         with Progress(transient=True) as bar:
-            task = bar.add_task(f"{path.name}", total=total)
-
-            def advance(t_ns: int) -> None:
-                grab(t_ns)
-                bar.advance(task)
-
-            runner.run(session.start_ns, end, hz, realtime=realtime, on_tick=advance)
+            task = bar.add_task(path.name, total=None)
+            _report(go(progress=lambda done, total: bar.update(task, completed=done,
+                                                               total=total)))
     else:
-        runner.run(session.start_ns, end, hz, realtime=realtime, on_tick=grab)
-    elapsed = time.perf_counter() - wall
-    stats = runner.stats
-    input_s = (end - session.start_ns) / 1e9
-    click.echo(f"{path.name}: {stats.ticks} ticks over {input_s:.1f} s of input in "
-               f"{elapsed:.2f} s ({input_s / elapsed if elapsed else 0:.0f}× real time)")
+        _report(go())
+
+
+def _report(report: Any) -> None:
+    """The run's summary: ticks, speed, facts and events, time per stage, the recording."""
+    stats, wall = report.stats, report.wall_s
+    click.echo(f"{report.name}: {stats.ticks} ticks over {report.input_s:.1f} s of input in "
+               f"{wall:.2f} s ({report.input_s / wall if wall else 0:.0f}× real time)")
     click.echo(f"facts: {stats.facts} emitted; events: {stats.events} (appeared "
                f"{stats.appeared}, changed {stats.changed}, ended {stats.ended})")
     for name, seconds in sorted(stats.seconds.items(), key=lambda kv: -kv[1]):
         click.echo(f"  {name:<14} {seconds * 1e3:9.1f} ms  "
                    f"({seconds / max(stats.ticks, 1) * 1e3:.3f} ms/tick)")
-    if record_dir is not None:
-        from toaster.recording import record
-
-        result = record(record_dir, frames, db=store.db if store is not None else None)
-        click.echo(f"recording: {result.mcap} ({result.frames} frames, {result.facts} fact lines)")
+    if report.recording is not None:
+        result = report.recording
+        click.echo(f"recording: {result.file} ({result.frames} frames, {result.facts} fact "
+                   f"lines, {result.beliefs} belief states)")
 
 
 @click.group("area")
@@ -133,8 +100,8 @@ def area() -> None:
               '"center": [1, 2], "radius": 1.5, "area_type": "support"}\'.')
 @click.option("--file", "spec_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
               help="A YAML/JSON file holding the spec.")
-@click.pass_context
-def area_add(ctx: click.Context, name: str, spec_text: str | None, spec_file: Path | None
+@click.pass_obj
+def area_add(app: Any, name: str, spec_text: str | None, spec_file: Path | None
              ) -> None:
     """Add or replace area NAME (see docs/producers.md for the spec)."""
     from toaster.documents import parse_text, read_document
@@ -149,44 +116,55 @@ def area_add(ctx: click.Context, name: str, spec_text: str | None, spec_file: Pa
         msg = "an area spec is a mapping such as {\"shape\": \"polygon\", \"points\": [...]}"
         raise InvalidInputError(msg)
     spec = check_area(name, raw, "area")
-    _database(ctx, None).store().put_area(name, spec, spec["owner"])
+    app.db.store().put_area(name, spec, spec["owner"])
     click.echo(f"area {name} stored")
 
 
 @area.command("clear")
-@click.pass_context
-def area_clear(ctx: click.Context) -> None:
+@click.pass_obj
+def area_clear(app: Any) -> None:
     """Remove every area (remove_all_areas)."""
-    count = _database(ctx, None).store().remove_all_areas()
+    count = app.db.store().remove_all_areas()
     click.echo(f"{count} areas removed")
 
 
 @area.command("remove")
 @click.argument("name")
-@click.pass_context
-def area_remove(ctx: click.Context, name: str) -> None:
+@click.pass_obj
+def area_remove(app: Any, name: str) -> None:
     """Remove area NAME."""
-    if not _database(ctx, None).store().remove_area(name):
+    if not app.db.store().remove_area(name):
         msg = f"no area named {name!r}: see `toaster area list`"
         raise InvalidInputError(msg)
     click.echo(f"area {name} removed")
 
 
+class AreaRow(NamedTuple):
+    """One stored area, as ``area list`` shows it."""
+
+    name: str
+    shape: str
+    area_type: str
+    owner: str
+
+
 @area.command("list")
-@click.pass_context
-def area_list(ctx: click.Context) -> None:
-    """List stored areas."""
-    for name, spec in sorted(_database(ctx, None).store().areas().items()):
-        owner = f" owner={spec.get('owner')}" if spec.get("owner") else ""
-        click.echo(f"{name}\t{spec.get('shape')}\t{spec.get('area_type', '')}{owner}")
+@listing_options
+@click.pass_obj
+def area_list(app: Any, fmt: str | None, limit: int | None) -> None:
+    """List stored areas (name, shape, type, owner)."""
+    rows = [AreaRow(name, str(spec.get("shape", "")), str(spec.get("area_type", "")),
+                    str(spec.get("owner", "")))
+            for name, spec in sorted(app.db.store().areas().items())]
+    emit(rows, fmt, limit=limit, empty="(no area)")
 
 
 @area.command("show")
 @click.argument("name")
-@click.pass_context
-def area_show(ctx: click.Context, name: str) -> None:
+@click.pass_obj
+def area_show(app: Any, name: str) -> None:
     """Show the spec of area NAME as JSON."""
-    areas = _database(ctx, None).store().areas()
+    areas = app.db.store().areas()
     if name not in areas:
         msg = f"no area named {name!r}: see `toaster area list`"
         raise InvalidInputError(msg)

@@ -8,14 +8,17 @@ from typing import Any
 import click
 
 from toaster.cli.checks import parse_json_option
+from toaster.cli.output import emit, listing_options
 
 
 @click.command("tolerance")
 @click.argument("property", required=False)
 @click.argument("value", required=False)
+@listing_options
 @click.pass_obj
-def tolerance(app: Any, property: str | None, value: str | None) -> None:
-    """Show the tolerances of continuous values, or set PROPERTY's to VALUE.
+def tolerance(app: Any, property: str | None, value: str | None, fmt: str | None,
+              limit: int | None) -> None:
+    """List the tolerances of continuous values (of PROPERTY), or set PROPERTY's to VALUE.
 
     VALUE is JSON: a number (the value's tolerance, in the property's unit) or
     '{"value": 0.05, "confidence": 0.05, "observability": 0}'. PROPERTY '*' is every property
@@ -26,11 +29,10 @@ def tolerance(app: Any, property: str | None, value: str | None) -> None:
     store = app.db.store()
     if value is None:
         table = store.tolerances()
-        shown = {p: t._asdict() for p, t in sorted(table.items())
-                 if property is None or p == property}
-        if property is not None and not shown:
-            shown = {property: table["*"]._asdict()}
-        click.echo(json.dumps(shown, indent=2))
+        rows = [(p, *t) for p, t in sorted(table.items()) if property is None or p == property]
+        if property is not None and not rows:
+            rows = [(property, *table["*"])]  # no own: the rest's
+        emit(rows, fmt, columns=["property", *tol.Tolerance._fields], limit=limit)
         return
     parsed = parse_json_option(value, "VALUE", usage=(
         f"VALUE {value!r} is not JSON: give 0.05 or '{{\"value\": 0.05, \"confidence\": 0.05}}'"))

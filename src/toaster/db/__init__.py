@@ -7,8 +7,9 @@ Its names load on first use (SQLAlchemy and Alembic are not imported by ``toaste
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from toaster._lazy import exports as _exports
 
 if TYPE_CHECKING:
     from toaster.db.database import Database, open_database
@@ -22,13 +23,5 @@ _HOMES = {"Database": "toaster.db.database", "open_database": "toaster.db.databa
 __all__ = ["ChangeSet", "Database", "Rule", "RuleFactory", "Store", "SyncResult",
            "open_database"]
 
-
-def __getattr__(name: str) -> Any:
-    if name in _HOMES:
-        return getattr(importlib.import_module(_HOMES[name]), name)
-    msg = f"module 'toaster.db' has no attribute {name!r}"
-    raise AttributeError(msg)
-
-
-def __dir__() -> list[str]:
-    return sorted([*globals(), *__all__])
+if not TYPE_CHECKING:  # hidden from type checkers, so that a misspelt name stays an error
+    __getattr__, __dir__ = _exports(__name__, _HOMES)

@@ -13,7 +13,18 @@ from __future__ import annotations
 import json
 from typing import TYPE_CHECKING, Any
 
-from sqlalchemy import Connection, bindparam, delete, func, insert, select, text, update
+from sqlalchemy import (
+    BigInteger,
+    Connection,
+    bindparam,
+    cast,
+    delete,
+    func,
+    insert,
+    select,
+    text,
+    update,
+)
 
 from toaster.db import schema as s
 from toaster.db.dialects import backend_for, insert_with_conflicts
@@ -123,12 +134,20 @@ def register_agent(conn: Connection, agent_id: str, *, is_self: bool | None,
         conn.execute(update(s.agents).where(agents.id == agent_id).values(is_self=is_self))
 
 
+def lock_registrations(conn: Connection) -> None:
+    """Take, until the transaction ends, the lock under which agents are numbered
+    (PostgreSQL). A transaction that registers agents after writing other tables takes it
+    first: their triggers lock ``store_state``, which another registration holding this lock
+    would wait for (a deadlock)."""
+    backend_for(conn.dialect.name).lock_registrations(conn)
+
+
 def register_agents(conn: Connection, agent_ids: list[str], *, t_ns: int,
                     views: bool, is_self: bool = False) -> list[str]:
     """:func:`register_agent` of many agents in a few statements; return those it
     registered (the others were agents already)."""
     agents = s.agents.c
-    backend_for(conn.dialect.name).lock_registrations(conn)
+    lock_registrations(conn)
     unique = list(dict.fromkeys(agent_ids))
     known: set[str] = set()
     for start in range(0, len(unique), 500):  # (SQLite's bound parameters are limited)
@@ -224,6 +243,7 @@ def empty_facts(conn: Connection, agent_id: str | None) -> None:
             conn.execute(delete(table))
         # No belief run happened yet: the rules' clock starts again (a replay from 0).
         conn.execute(update(s.store_state).values(beliefs_ns=None))
+        delete_setting(conn, "data", "start_ns")  # nor any data: the next run's start counts
         return
     keys = select(s.fact_keys.c.id).where(s.fact_keys.c.agent_id == agent_id)
     conn.execute(delete(s.events).where(s.events.c.agent_id == agent_id))
@@ -357,6 +377,24 @@ def settings(conn: Connection, scope: str) -> dict[str, Any]:
     table = s.settings
     rows = conn.execute(select(table.c.key, table.c.value_json).where(table.c.scope == scope))
     return {row[0]: json.loads(row[1]) for row in rows}
+
+
+def data_start_ns(conn: Connection) -> int | None:
+    """When the database's data starts (the earliest scenario, recording or batch start
+    recorded by :func:`note_data_start`); None when nothing recorded one."""
+    value = get_setting(conn, "data", "start_ns", None)
+    return value if isinstance(value, int) and not isinstance(value, bool) else None
+
+
+def note_data_start(conn: Connection, t_ns: int) -> None:
+    """Record that data starts at ``t_ns``: keeps the earliest (writes only to lower it; one
+    statement, so that concurrent runs keep the earliest too)."""
+    table = s.settings
+    statement = insert_with_conflicts(conn.dialect.name)(table).values(
+        scope="data", key="start_ns", value_json=json.dumps(int(t_ns)))
+    conn.execute(statement.on_conflict_do_update(
+        index_elements=["scope", "key"], set_={"value_json": statement.excluded.value_json},
+        where=cast(table.c.value_json, BigInteger) > int(t_ns)))
 
 
 # -- reads (toaster.queries re-exports them) --------------------------------------------------

@@ -24,6 +24,7 @@ from toaster.errors import DatabaseOpenError
 
 if TYPE_CHECKING:
     from toaster.db.store import RuleFactory, Store
+    from toaster.timeutil import TimeFrame
 
 
 class Database:
@@ -83,6 +84,15 @@ class Database:
         raw = self.connection.connection.dbapi_connection
         self.backend.maintain(raw)
 
+    def vacuum_scratch(self) -> bool:
+        """Vacuum this session's scratch tables of the belief rule (PostgreSQL; see
+        :mod:`toaster.beliefs.rules`), outside any transaction; False, doing nothing, inside
+        one."""
+        if self.connection.in_transaction():
+            return False
+        self.backend.vacuum_scratch(self.connection.connection.dbapi_connection)
+        return True
+
     def store(self) -> Store:
         """The write API (one per database handle, it remembers what each source wrote), with
         this handle's rules installed (the belief rule, for :func:`toaster.connect`)."""
@@ -96,6 +106,23 @@ class Database:
                 store.add_rule(make_rule(store))
             self._store = store
         return self._store
+
+    def time_frame(self, style: str = "auto") -> TimeFrame:
+        """The frame of this database's data (:class:`toaster.timeutil.TimeFrame`): its
+        recorded start; without one, its first event (the epoch when that is simulated time,
+        before 1971), so that durations typed before and after a write agree."""
+        from sqlalchemy import func, select
+
+        from toaster.db import schema
+        from toaster.db.catalog import data_start_ns
+        from toaster.timeutil import TimeFrame, start_from_first
+
+        with self.transaction() as conn:
+            start = data_start_ns(conn)
+            if start is None:
+                first = conn.execute(select(func.min(schema.events.c.stamp_ns))).scalar()
+                start = None if first is None else start_from_first(int(first))
+        return TimeFrame(start, style)
 
     def close(self) -> None:
         """Close the connection and dispose of the engine."""

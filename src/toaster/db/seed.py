@@ -33,11 +33,11 @@ from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
-from toaster.db.catalog import entities
+from toaster.db.catalog import entities, note_data_start
 from toaster.documents import read_document
 from toaster.errors import FileFormatError, InvalidInputError
 from toaster.model import MAX_ID_BYTES, Fact, check_fact, check_id, check_text, shown, utf8_size
-from toaster.timeutil import parse_time
+from toaster.timeutil import parse_time, start_from_first
 
 if TYPE_CHECKING:
     from toaster.db.store import Store
@@ -72,6 +72,8 @@ class Plan:
 
     origin: str
     writes: list[tuple[str, str, Callable[[Store], object]]] = field(default_factory=list)
+    #: when the batch's data starts (recorded as the database's data start); None: untimed
+    start_ns: int | None = None
 
     def add(self, where: str, kind: str, write: Callable[[Store], object]) -> None:
         self.writes.append((where, kind, write))
@@ -79,6 +81,9 @@ class Plan:
     def apply(self, store: Store) -> BatchReport:
         """Write every row (inside the caller's transaction); errors name the row."""
         report = BatchReport()
+        if self.start_ns is not None:
+            with store.transaction() as conn:
+                note_data_start(conn, self.start_ns)
         for where, kind, write in self.writes:
             try:
                 write(store)
@@ -148,7 +153,12 @@ def plan_document(data: dict[str, Any], *, origin: str = "batch") -> Plan:
                    f"; a step has {', '.join(sorted(_STEP_KEYS))}")
             raise FileFormatError(msg)
         t_ns = _time(step.get("at", 0), base, origin, f"{where} 'at'")
-        _plan_step(plan, step, t_ns, origin, where)
+        first = _plan_step(plan, step, t_ns, origin, where)
+        plan.start_ns = first if plan.start_ns is None else min(plan.start_ns, first)
+    if "base_time" in data:  # what its durations count from
+        plan.start_ns = base
+    elif plan.start_ns is not None:
+        plan.start_ns = start_from_first(plan.start_ns)
     return plan
 
 
@@ -203,7 +213,9 @@ def property_value(value: object, key: str) -> str:
     return value
 
 
-def _plan_step(plan: Plan, step: dict[str, Any], t_ns: int, origin: str, where: str) -> None:
+def _plan_step(plan: Plan, step: dict[str, Any], t_ns: int, origin: str, where: str) -> int:
+    """Plan a step's rows; return its earliest time."""
+    first = t_ns
     for section, kind in (("retract", "retracted"), ("facts", "facts"), ("assert", "facts"),
                           ("events", "events")):
         rows = step.get(section) or []
@@ -213,7 +225,9 @@ def _plan_step(plan: Plan, step: dict[str, Any], t_ns: int, origin: str, where: 
         for index, row in enumerate(rows):
             label = where if where.startswith(section) else f"{where}: {section}[{index}]"
             at = _time(row.get("at", t_ns), t_ns, origin, f"{label} 'at'")
+            first = min(first, at)
             plan.add(label, kind, _checked(origin, label, partial(_write, row, section, at)))
+    return first
 
 
 def _write(row: dict[str, Any], section: str, t_ns: int) -> Callable[[Store], object]:
@@ -314,7 +328,7 @@ def _time(value: Any, base: int, origin: str, what: str) -> int:
         if isinstance(value, bool) or not isinstance(value, int | str):
             msg = f"invalid time {shown(value)}: give nanoseconds, an ISO date or 12.5s"
             raise InvalidInputError(msg)
-        return parse_time(value, base_ns=base)
+        return parse_time(value, start_ns=base)
     except InvalidInputError as exc:
         msg = f"{origin}: {what}: {exc}"
         raise FileFormatError(msg) from None

@@ -83,7 +83,11 @@ class ChangeSet(NamedTuple):
 
 
 class Rule(Protocol):
-    """A rule run in the transaction of every fact write (the belief rule is one)."""
+    """A rule run in the transaction of every fact write (the belief rule is one).
+
+    A rule may also have a ``committed()`` method: the store calls it after each of its write
+    transactions committed (outside it), for housekeeping that must not lengthen the
+    transaction, which may hold the rules' clock."""
 
     def __call__(self, conn: Connection, changes: ChangeSet) -> None:
         """Apply the rule to what one write changed."""
@@ -139,6 +143,8 @@ class Store:
         self._actor: str | None = None  # who makes the changes being written (acting())
         self._actor_of: Callable[[Fact], str | None] | None = None  # per fact (acting())
         self._in_tx = False
+        # (agent, source) -> where its last snapshot moved to the clock was written (_writes)
+        self._moved_to: dict[tuple[str, str], int] = {}
 
     # ------------------------------------------------------------------ transactions, caches
     @contextmanager
@@ -159,6 +165,10 @@ class Store:
             raise
         finally:
             self._in_tx = False
+        for rule in self._rules:
+            committed = getattr(rule, "committed", None)
+            if committed is not None:
+                committed()
 
     def forget(self) -> None:
         """Drop everything remembered about the database (it is re-read on demand)."""
@@ -623,16 +633,23 @@ class Store:
         :data:`LIVE_CLOCK_SKEW_NS` (a live robot or producer whose clock is a little behind
         another's) is written 1 ns after it, so that the self rows and the holders' rows that
         follow them share one timeline and a late write never shares the instant of the run
-        before it. Older snapshots (one source imported after another) and single writes
-        (assert, retract, tell) keep their time: their runs happen at the clock's. On
-        PostgreSQL reading the clock locks it: such writes run one at a time (their belief
-        runs would anyway)."""
+        before it. A source's later snapshots are never written before one so moved: a live
+        robot whose lag grows past the skew stays on the clock's timeline instead of failing
+        with a time-order error. Older snapshots (one source imported after another) and
+        single writes (assert, retract, tell) keep their time: their runs happen at the
+        clock's. On PostgreSQL reading the clock locks it: such writes run one at a time
+        (their belief runs would anyway)."""
         if snapshot and self._clocked(agent_id):
             last = conn.execute(text(
                 "UPDATE store_state SET beliefs_ns = beliefs_ns WHERE id = 1 "
                 "RETURNING beliefs_ns")).scalar()
+            moved = self._moved_to.get((agent_id, source))
             if last is not None and t_ns < last <= t_ns + LIVE_CLOCK_SKEW_NS:
                 t_ns = last + 1
+                self._moved_to[(agent_id, source)] = t_ns
+            elif moved is not None and t_ns < moved:
+                t_ns = moved if last is None else max(moved, last + 1)
+                self._moved_to[(agent_id, source)] = t_ns
         return _Writes(agent_id, source, t_ns, self._actor, self._actor_of)
 
     def _run_rules(self, conn: Connection, changes: ChangeSet) -> None:

@@ -9,16 +9,19 @@
 Facts that carry numbers (``value_num``: Distance, IsMoving speeds, angles) are also drawn as
 step lines of their number over time, refreshes included (``numbers``: ``both``, ``only``,
 ``off``). Pictures need the ``plot`` extra (matplotlib); data files need nothing beyond toaster.
+At most :data:`MAX_FACTS` facts are drawn, the most relevant (``max_facts``;
+:mod:`toaster.plotting.select`), so that a plot stays readable at any database size.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from toaster.errors import InvalidInputError
 from toaster.plotting.datafiles import CSV_COLUMNS, gnuplot_script, write_csv, write_dat
+from toaster.plotting.select import MAX_FACTS, Selection, check_max_facts, ranked, select_facts
 from toaster.plotting.timeline import (
     FALSE_BELIEF,
     NUMBERS,
@@ -41,18 +44,26 @@ from toaster.plotting.timeline import (
     timeline_from_rows,
 )
 
+if TYPE_CHECKING:
+    from toaster.timeutil import TimeFrame
+
 IMAGE_FORMATS = ("png", "svg", "pdf")
 FORMATS = (*IMAGE_FORMATS, "dat", "csv")
 
+#: ``progress(step, done, total)``: what plot_facts is doing (total None: unknown).
+Progress = Callable[[str, int, int | None], None]
+
 
 class PlotResult(NamedTuple):
-    """What :func:`plot_facts` wrote: the output file, any companion file, the data and, for a
-    picture, the matplotlib ``Figure`` that was saved."""
+    """What :func:`plot_facts` wrote: the output file, any companion file, the data drawn
+    (the facts kept), for a picture the matplotlib ``Figure`` that was saved, and how many
+    matching facts were left out (see :data:`MAX_FACTS`)."""
 
     path: Path
     companion: Path | None  # the gnuplot script beside a .dat
     timeline: Timeline
     figure: Any = None
+    left_out: int = 0
 
 
 def output_format(path: str | Path, format: str | None = None) -> str:
@@ -71,7 +82,9 @@ def plot_facts(db: Any, output: str | Path, *, subject: str | Sequence[str] | No
                agents: str | Sequence[str] | None = None, since: int | None = None,
                until: int | None = None, reference: str | None = None,
                format: str | None = None, title: str | None = None,
-               dpi: int = 120, numbers: str = "both") -> PlotResult:
+               dpi: int = 120, numbers: str = "both", frame: TimeFrame | None = None,
+               max_facts: int | None = MAX_FACTS, progress: Progress | None = None
+               ) -> PlotResult:
     """Write the timeline of the matching facts to ``output``.
 
     Args:
@@ -87,31 +100,48 @@ def plot_facts(db: Any, output: str | Path, *, subject: str | Sequence[str] | No
             plus a panel with the number over time; number blocks in a ``.dat``, number rows
             in a CSV), ``only`` (the numbers only; facts without numbers are left out) or
             ``off`` (the bars only).
+        frame: the time axis (default ``db.time_frame()``: seconds since the data's start,
+            dates for real data; ``db.time_frame("elapsed")`` or ``"date"`` to choose).
+        max_facts: draw (or write) at most this many facts, the most relevant ones
+            (:mod:`toaster.plotting.select`); ``PlotResult.left_out`` says how many matched
+            beyond; 0 or None: every matching fact.
+        progress: called as ``progress(step, done, total)`` while it works (steps: reading,
+            drawing with one call per panel, saving).
     """
+    report: Progress = progress or (lambda _step, _done, _total: None)
     fmt = output_format(output, format)
     check_numbers(numbers)
+    check_max_facts(max_facts)
     if fmt in IMAGE_FORMATS:
         from toaster.plotting.render import _matplotlib
 
         _matplotlib()  # fail on a missing extra before reading the database
+    report("reading facts", 0, None)
     timeline = build_timeline(db, subject=subject, property=property, target=target,
                               agents=agents, since=since, until=until, reference=reference,
-                              numbers=numbers != "off")
+                              numbers=numbers != "off", frame=frame)
     panels(timeline, numbers)  # "only" with no number: one-line error before writing
+    chosen = select_facts(timeline, max_facts, numbers_only=numbers == "only")
+    timeline, left_out = chosen.timeline, chosen.left_out
     path = Path(output)
     if fmt == "dat":
-        return PlotResult(path, write_dat(timeline, path, numbers), timeline)
+        report("writing", 0, None)
+        return PlotResult(path, write_dat(timeline, path, numbers), timeline, None, left_out)
     if fmt == "csv":
-        return PlotResult(write_csv(timeline, path, numbers), None, timeline)
+        report("writing", 0, None)
+        return PlotResult(write_csv(timeline, path, numbers), None, timeline, None, left_out)
     from toaster.plotting.render import render
 
-    figure = render(timeline, title=title, numbers=numbers)
+    figure = render(timeline, title=title, numbers=numbers,
+                    on_panel=lambda done, total: report("drawing", done, total))
+    report("saving", 0, None)
     figure.savefig(path, format=fmt, dpi=dpi)
-    return PlotResult(path, None, timeline, figure)
+    return PlotResult(path, None, timeline, figure, left_out)
 
 
-__all__ = ["CSV_COLUMNS", "FALSE_BELIEF", "FORMATS", "IMAGE_FORMATS", "NUMBERS", "UNAWARE",
-           "UNITS", "Change", "Divergence", "Lane", "PlotResult", "Point", "Series", "Signal",
-           "Timeline", "add_signals", "build_timeline", "check_numbers", "fact_label",
-           "gnuplot_script", "number_unit", "output_format", "panels", "plot_facts",
-           "signal_points", "timeline_from_rows", "write_csv", "write_dat"]
+__all__ = ["CSV_COLUMNS", "FALSE_BELIEF", "FORMATS", "IMAGE_FORMATS", "MAX_FACTS", "NUMBERS",
+           "UNAWARE", "UNITS", "Change", "Divergence", "Lane", "PlotResult", "Point", "Progress",
+           "Selection", "Series", "Signal", "Timeline", "add_signals", "build_timeline",
+           "check_max_facts", "check_numbers", "fact_label", "gnuplot_script", "number_unit",
+           "output_format", "panels", "plot_facts", "ranked", "select_facts", "signal_points",
+           "timeline_from_rows", "write_csv", "write_dat"]

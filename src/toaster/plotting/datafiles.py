@@ -16,15 +16,16 @@ import csv
 from pathlib import Path
 from typing import Any
 
-from toaster.plotting.timeline import Signal, Timeline, check_numbers, panels
-from toaster.timeutil import NS_PER_S, format_ns
+from toaster.plotting.timeline import Signal, Timeline, check_numbers, holder_note, panels
+from toaster.timeutil import format_ns
 
 CSV_COLUMNS = ("fact", "agent", "t_ns", "time_s", "value_text", "value_num", "confidence",
                "level", "diverges", "kind")
 
 
-def _seconds(t_ns: int, since_ns: int) -> str:
-    return f"{(t_ns - since_ns) / NS_PER_S:.9f}"
+def _seconds(t_ns: int, timeline: Timeline) -> str:
+    """The time axis value: seconds since the data's start (:attr:`Timeline.axis`)."""
+    return f"{timeline.axis.offset_s(t_ns):.9f}"
 
 
 def _quoted(text: str) -> str:
@@ -40,7 +41,7 @@ def _number(value: float | None) -> str:
     return "nan" if value is None else repr(float(value))
 
 
-def _number_lines(signal: Signal, since_ns: int, until_ns: int) -> list[str]:
+def _number_lines(signal: Signal, timeline: Timeline) -> list[str]:
     """One line per held point; each held stretch ends with a line at its end time repeating
     the last number, then a blank line (gnuplot breaks the step line there)."""
     lines: list[str] = []
@@ -49,11 +50,11 @@ def _number_lines(signal: Signal, since_ns: int, until_ns: int) -> list[str]:
         if point.value_num is None:
             continue
         numbers = f"{_number(point.value_num)} {_number(point.confidence)}"
-        lines.append(f"{_seconds(point.t_ns, since_ns)} {point.t_ns} {numbers}")
+        lines.append(f"{_seconds(point.t_ns, timeline)} {point.t_ns} {numbers}")
         after = points[i + 1] if i + 1 < len(points) else None
         if after is None or after.value_num is None:  # the stretch ends here
-            end = until_ns if after is None else after.t_ns
-            lines += [f"{_seconds(end, since_ns)} {end} {numbers}", ""]
+            end = timeline.until_ns if after is None else after.t_ns
+            lines += [f"{_seconds(end, timeline)} {end} {numbers}", ""]
     return lines[:-1] if lines else lines
 
 
@@ -61,7 +62,7 @@ def write_dat(timeline: Timeline, path: str | Path, numbers: str = "both") -> Pa
     """Write the gnuplot data file and, beside it, ``<name>.gp``; return the script's path.
 
     One data block per (fact, agent), blocks separated by two blank lines (gnuplot ``index``).
-    Columns: seconds since the window start, time in ns, level, confidence, value. Facts that
+    Columns: seconds since the data's start, time in ns, level, confidence, value. Facts that
     carry numbers add, after their own blocks, one block per agent with its numbers (header
     ``# numbers:``; columns: seconds, time in ns, value_num, confidence). ``numbers`` as in
     :func:`~toaster.plotting.render.render`.
@@ -69,6 +70,8 @@ def write_dat(timeline: Timeline, path: str | Path, numbers: str = "both") -> Pa
     path = Path(path)
     lines = [f"# toaster fact timeline from {format_ns(timeline.since_ns)} "
              f"to {format_ns(timeline.until_ns)} (window start = {timeline.since_ns} ns)",
+             f"# time_s: seconds since the data's start, {format_ns(timeline.axis.origin_ns)} "
+             f"({timeline.axis.origin_ns} ns)",
              "# columns: time_s t_ns level confidence value   (level 0 = not believed)",
              "# '# numbers:' blocks: time_s t_ns value_num confidence   (one line per point; "
              "a blank line = the fact does not hold)",
@@ -80,7 +83,7 @@ def write_dat(timeline: Timeline, path: str | Path, numbers: str = "both") -> Pa
             for signal in lane.signals:
                 block = [f"# numbers: {lane.label} | agent: {signal.agent} | "
                          f"value_num: {lane.number_label} | unit: {unit}"]
-                block += _number_lines(signal, timeline.since_ns, timeline.until_ns)
+                block += _number_lines(signal, timeline)
                 blocks.append("\n".join(block))
             continue
         codes = ", ".join(f"{i} = {v}" for i, v in enumerate(lane.values, 1))
@@ -90,24 +93,64 @@ def write_dat(timeline: Timeline, path: str | Path, numbers: str = "both") -> Pa
             for change in [*series.changes, closing]:
                 conf = "nan" if change.confidence is None else f"{change.confidence:.6g}"
                 value = '"-"' if change.value is None else _quoted(change.value)
-                block.append(f"{_seconds(change.t_ns, timeline.since_ns)} {change.t_ns} "
+                block.append(f"{_seconds(change.t_ns, timeline)} {change.t_ns} "
                              f"{change.level} {conf} {value}")
             blocks.append("\n".join(block))
     path.write_text("\n".join(lines) + "\n" + "\n\n\n".join(blocks) + "\n", encoding="utf-8")
     script = path.with_suffix(".gp")
-    script.write_text(gnuplot_script(timeline, path.name, numbers), encoding="utf-8")
+    script.write_text(gnuplot_script(timeline, path.name, numbers,
+                                     directory=str(path.resolve().parent)), encoding="utf-8")
     return script
 
 
-def gnuplot_script(timeline: Timeline, dat_name: str, numbers: str = "both") -> str:
+def _gp_string(text: str) -> str:
+    """A gnuplot single-quoted string (no escapes inside; a quote is doubled)."""
+    return "'" + text.replace("'", "''") + "'"
+
+
+def _script_directory(fallback: str | None) -> list[str]:
+    """gnuplot lines setting ``dir`` to the script's own directory (from ``ARG0``, the path
+    it was run or loaded by), or to ``fallback`` when read from standard input."""
+    slash = 'ARG0[i:i] eq "/" || ARG0[i:i] eq "\\\\"'
+    lines = ['dir = ""',
+             'if (exists("ARG0")) { do for [i=1:strlen(ARG0)] { if (' + slash + ') '
+             '{ dir = ARG0[1:i] } } }']
+    if fallback:
+        sep = "" if fallback.endswith(("/", "\\")) else "/"
+        lines.append('if (!exists("ARG0") || strlen(ARG0) == 0) { dir = '
+                     + _gp_string(fallback + sep) + " }")
+    return lines
+
+
+def gnuplot_script(timeline: Timeline, dat_name: str, numbers: str = "both", *,
+                   directory: str | None = None) -> str:
     """The gnuplot commands that draw ``dat_name``: one panel per fact, one step line per agent,
-    and one panel per fact's numbers (y: the property and its unit)."""
-    shown = panels(timeline, numbers)
-    out = [f"# gnuplot -p {Path(dat_name).with_suffix('.gp').name}",
-           f"set multiplot layout {len(shown)},1 title "
-           f"\"toaster facts from {format_ns(timeline.since_ns)}\"",
-           "set key outside right", "set xlabel 'seconds since window start'",
-           f"set xrange [0:{(timeline.until_ns - timeline.since_ns) / NS_PER_S:.9g}]"]
+    and one panel per fact's numbers (y: the property and its unit).
+
+    The data file is read beside the script whatever the working directory (gnuplot's
+    ``ARG0``: ``gnuplot -p some/dir/run.gp`` or ``load``); a script fed on standard input
+    reads it from ``directory`` (absolute) if given, else from the working directory.
+    The title says what each nested holder plotted means (``A>B = what A thinks B believes``).
+    """
+    shown, axis = panels(timeline, numbers), timeline.axis
+    script = Path(dat_name).with_suffix(".gp").name
+    data_path = (_gp_string(dat_name) if Path(dat_name).is_absolute()
+                 else f"dir . {_gp_string(dat_name)}")
+    height = 120 + 240 * len(shown)
+    nested = [f"{a} = {holder_note(a)}" for a in timeline.agents if holder_note(a)]
+    lines = [f"toaster facts from {format_ns(timeline.since_ns)}", *nested]
+    title = '"' + "\\n".join(_quoted(line)[1:-1] for line in lines) + '"'  # gnuplot's \n
+    out = [f"# gnuplot -p {script}   (from any directory: {Path(dat_name).name} is read "
+           "beside this script)",
+           f"# a PNG: gnuplot -e \"set terminal pngcairo size 1200,{height}; set output "
+           f"'facts.png'\" {script}",
+           *_script_directory(directory),
+           f"data = {data_path}",
+           f"set multiplot layout {len(shown)},1 title {title}",
+           "set key outside right",
+           f"set xlabel \"seconds since the data's start ({format_ns(axis.origin_ns)})\"",
+           f"set xrange [{axis.offset_s(timeline.since_ns):.9g}:"
+           f"{axis.offset_s(timeline.until_ns):.9g}]"]
     index = 0
     for kind, lane in shown:
         if kind == "numbers":
@@ -115,8 +158,8 @@ def gnuplot_script(timeline: Timeline, dat_name: str, numbers: str = "both") -> 
                     f'set ylabel "{lane.number_label}"', "set autoscale y", "set ytics auto"]
             plots = []
             for signal in lane.signals:
-                plots.append(f"'{dat_name}' index {index} using 1:3 with steps lw 2 "
-                             f'title "{signal.agent}"')
+                plots.append(f"data index {index} using 1:3 with steps lw 2 "
+                             f"title {_quoted(signal.agent)}")
                 index += 1
             out.append("plot " + ", \\\n     ".join(plots))
             continue
@@ -127,8 +170,8 @@ def gnuplot_script(timeline: Timeline, dat_name: str, numbers: str = "both") -> 
         plots = []
         for k, series in enumerate(lane.series):
             offset = 0.06 * k  # keep agents' lines apart where they agree
-            plots.append(f"'{dat_name}' index {index} using 1:($3+{offset:g}) with steps "
-                         f'lw 2 title "{series.agent}"')
+            plots.append(f"data index {index} using 1:($3+{offset:g}) with steps "
+                         f"lw 2 title {_quoted(series.agent)}")
             index += 1
         out.append("plot " + ", \\\n     ".join(plots))
     out.append("unset multiplot")
@@ -148,7 +191,7 @@ def write_csv(timeline: Timeline, path: str | Path, numbers: str = "both") -> Pa
         writer.writerow(CSV_COLUMNS)
         def row(label: str, agent: str, t_ns: int, state: Any, number: Any, kind: str) -> None:
             writer.writerow([
-                label, agent, t_ns, _seconds(t_ns, timeline.since_ns),
+                label, agent, t_ns, _seconds(t_ns, timeline),
                 *("" if v is None else v for v in (state.value, number.value_num,
                                                    number.confidence)),
                 state.level, int(_diverges(timeline, label, agent, t_ns)), kind])

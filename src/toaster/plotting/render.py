@@ -11,11 +11,12 @@ so no GUI backend and no global pyplot state are involved.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from toaster.errors import MissingDependencyError
-from toaster.plotting.timeline import FALSE_BELIEF, Lane, Timeline, panels
-from toaster.timeutil import NS_PER_S, format_ns
+from toaster.plotting.timeline import FALSE_BELIEF, Lane, Timeline, legend_notes, panels
+from toaster.timeutil import NS_PER_S
 
 BAR = 0.6
 NUMBER_PANEL_HEIGHT = 1.7  # inches
@@ -36,13 +37,17 @@ def number_gid(lane: Lane, agent: str) -> str:
     return f"numbers: {lane.label} | {agent}"
 
 
-def render(timeline: Timeline, *, title: str | None = None, numbers: str = "both") -> Any:
+def render(timeline: Timeline, *, title: str | None = None, numbers: str = "both",
+           on_panel: Callable[[int, int], None] | None = None) -> Any:
     """A matplotlib ``Figure`` of the timeline (save it with ``fig.savefig(path)``).
 
     ``numbers``: ``both`` (bars, and a number panel under each fact that carries numbers),
     ``only`` (the number panels only) or ``off`` (the bars only). A number line is a
-    ``Line2D`` whose ``gid`` is :func:`number_gid` and whose data are seconds since the window
-    start and the numbers (NaN: the fact does not hold).
+    ``Line2D`` whose ``gid`` is :func:`number_gid` and whose data are seconds since the data's
+    start (:attr:`Timeline.axis`) and the numbers (NaN: the fact does not hold).
+    ``on_panel(done, total)`` is called after each panel is drawn. The legend says what the
+    hatching and dots mean and what each nested holder ``A>B`` plotted is
+    (:func:`~toaster.plotting.timeline.legend_notes`).
     """
     figure_cls = _matplotlib()
     from matplotlib.patches import Patch
@@ -54,22 +59,41 @@ def render(timeline: Timeline, *, title: str | None = None, numbers: str = "both
     axes = fig.subplots(len(shown), 1, sharex=True, squeeze=False,
                         gridspec_kw={"height_ratios": heights})[:, 0]
     span = (timeline.until_ns - timeline.since_ns) / NS_PER_S
-    for ax, (kind, lane) in zip(axes, shown, strict=True):
+    for i, (ax, (kind, lane)) in enumerate(zip(axes, shown, strict=True), 1):
         if kind == "bars":
             _draw_lane(ax, lane, timeline, span)
         else:
             _draw_numbers(ax, lane, timeline)
-    axes[-1].set_xlim(0, span)
-    axes[-1].set_xlabel(f"seconds since {format_ns(timeline.since_ns)}")
+        if on_panel is not None:
+            on_panel(i, len(shown))
+    _time_axis(axes[-1], timeline)
     facts = len({lane.label for _, lane in shown})
     fig.suptitle(title or f"toaster facts ({facts}), reference agent: {timeline.reference}")
+    notes = legend_notes(timeline)
+    handles = [Patch(visible=False, label=note) for note in notes[2:]]  # A>B: no symbol
     if any(kind == "bars" for kind, _ in shown):
-        handles = [Patch(facecolor="none", edgecolor="red", hatch="////", label="false belief"),
-                   Patch(facecolor="none", edgecolor="grey", linestyle=":", label="unaware"),
+        handles = [Patch(facecolor="none", edgecolor="red", hatch="////", label=notes[0]),
+                   Patch(facecolor="none", edgecolor="grey", linestyle=":", label=notes[1]),
                    Patch(facecolor="0.6", edgecolor="black",
-                         label="held value (opacity, black line = confidence)")]
-        fig.legend(handles=handles, loc="outside lower center", ncols=3, fontsize="small")
+                         label="held value (opacity, black line = confidence)"), *handles]
+    if handles:
+        fig.legend(handles=handles, loc="outside lower center", ncols=min(3, len(handles)),
+                   fontsize="small")
     return fig
+
+
+def _time_axis(ax: Any, timeline: Timeline) -> None:
+    """x from the window start to its end, in seconds since the data's start; labelled as
+    elapsed seconds or, for dates, with a UTC date at each tick."""
+    axis = timeline.axis
+    ax.set_xlim(axis.offset_s(timeline.since_ns), axis.offset_s(timeline.until_ns))
+    ax.set_xlabel(axis.axis_label())
+    if not axis.elapsed:
+        from matplotlib.ticker import FuncFormatter
+
+        ax.xaxis.set_major_formatter(FuncFormatter(
+            lambda x, _pos: axis.show(axis.origin_ns + round(x * NS_PER_S))))
+        ax.tick_params(axis="x", labelrotation=15)
 
 
 def _draw_numbers(ax: Any, lane: Lane, timeline: Timeline) -> None:
@@ -79,7 +103,7 @@ def _draw_numbers(ax: Any, lane: Lane, timeline: Timeline) -> None:
 
     colours = mpl.colormaps["Dark2"]
     for signal in lane.signals:
-        xs, ys = signal.steps(timeline.since_ns, timeline.until_ns)
+        xs, ys = signal.steps(timeline.since_ns, timeline.until_ns, timeline.axis)
         reference = signal.agent == timeline.reference
         style = {"linewidth": 2.4} if reference else {"linewidth": 1.4, "linestyle": "--"}
         ax.plot(xs, ys, drawstyle="steps-post", label=(f"{signal.agent} (reference)"
@@ -97,13 +121,13 @@ def _draw_lane(ax: Any, lane: Lane, timeline: Timeline, span: float) -> None:
     import matplotlib as mpl
 
     colours = mpl.colormaps["tab10"]
-    since = timeline.since_ns
+    x = timeline.axis.offset_s
     for row, series in enumerate(lane.series):
         ends = [c.t_ns for c in series.changes[1:]] + [timeline.until_ns]
         for change, end in zip(series.changes, ends, strict=True):
             if change.value is None:
                 continue
-            x0, width = (change.t_ns - since) / NS_PER_S, (end - change.t_ns) / NS_PER_S
+            x0, width = x(change.t_ns), (end - change.t_ns) / NS_PER_S
             conf = 1.0 if change.confidence is None else change.confidence
             ax.broken_barh([(x0, width)], (row - BAR / 2, BAR),
                            facecolors=colours((change.level - 1) % 10),
@@ -118,7 +142,7 @@ def _draw_lane(ax: Any, lane: Lane, timeline: Timeline, span: float) -> None:
         if div.lane != lane.label:
             continue
         row = agents.index(div.agent)
-        x0, width = (div.start_ns - since) / NS_PER_S, (div.end_ns - div.start_ns) / NS_PER_S
+        x0, width = x(div.start_ns), (div.end_ns - div.start_ns) / NS_PER_S
         if div.kind == FALSE_BELIEF:
             style = {"facecolors": "none", "edgecolor": "red", "hatch": "////", "linewidth": 1.5}
         else:

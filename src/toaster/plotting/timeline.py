@@ -20,7 +20,7 @@ from typing import Any, NamedTuple
 
 from toaster.errors import InvalidInputError, UnknownAgentError
 from toaster.model import FactKey, FactRow
-from toaster.timeutil import NS_PER_S, format_ns
+from toaster.timeutil import TimeFrame, format_ns
 
 #: Divergence kinds: the agent holds a value the reference does not share, or holds nothing
 #: while the reference holds a value.
@@ -91,13 +91,16 @@ class Signal(NamedTuple):
         """The point in force at ``t_ns`` (the first one before the window start)."""
         return _in_force(self.points, t_ns)
 
-    def steps(self, since_ns: int, until_ns: int) -> tuple[list[float], list[float]]:
-        """x (seconds since ``since_ns``) and y (NaN where nothing is held) of a post-step
-        line: one entry per point plus one closing entry at ``until_ns``."""
+    def steps(self, since_ns: int, until_ns: int, axis: TimeFrame | None = None
+              ) -> tuple[list[float], list[float]]:
+        """x (seconds since the start of ``axis``, default ``since_ns``) and y (NaN where
+        nothing is held) of a post-step line: one entry per point plus one closing entry at
+        ``until_ns``."""
         nan = float("nan")
-        xs = [(p.t_ns - since_ns) / NS_PER_S for p in self.points]
+        axis = axis if axis is not None else TimeFrame(since_ns, "elapsed")
+        xs = [axis.offset_s(p.t_ns) for p in self.points]
         ys = [nan if p.value_num is None else float(p.value_num) for p in self.points]
-        return [*xs, (until_ns - since_ns) / NS_PER_S], [*ys, ys[-1] if ys else nan]
+        return [*xs, axis.offset_s(until_ns)], [*ys, ys[-1] if ys else nan]
 
 
 class Divergence(NamedTuple):
@@ -151,6 +154,14 @@ class Timeline:
     reference: str
     lanes: list[Lane]
     divergences: list[Divergence]
+    #: the data's time frame (:meth:`toaster.db.Database.time_frame`); None: the window's
+    frame: TimeFrame | None = None
+
+    @property
+    def axis(self) -> TimeFrame:
+        """The frame of the time axis (x = :meth:`~toaster.timeutil.TimeFrame.offset_s`,
+        seconds since the data's start), else one starting at the window start."""
+        return self.frame if self.frame is not None else TimeFrame(self.since_ns, "elapsed")
 
     @property
     def number_lanes(self) -> list[Lane]:
@@ -186,6 +197,21 @@ def panels(timeline: Timeline, numbers: str = "both") -> list[tuple[str, Lane]]:
                "without --numbers only")
         raise InvalidInputError(msg)
     return out
+
+
+def holder_note(agent: str) -> str | None:
+    """What a nested holder's name means (``ANNE>SALLY``: what ANNE thinks SALLY believes);
+    None for an agent."""
+    parts = agent.split(">")
+    return None if len(parts) < 2 else "what " + " thinks ".join(parts) + " believes"
+
+
+def legend_notes(timeline: Timeline) -> list[str]:
+    """The words of a plot's legend: what the hatching, the dots and each ``A>B`` mean."""
+    ref = timeline.reference
+    notes = [f"false belief: holds a value {ref} (reference) does not",
+             f"unaware: holds nothing while {ref} holds a value"]
+    return notes + [f"{a} = {holder_note(a)}" for a in timeline.agents if holder_note(a)]
 
 
 def fact_label(key: FactKey) -> str:
@@ -232,7 +258,7 @@ def build_timeline(db: Any, *, subject: str | Sequence[str] | None = None,
                    target: str | Sequence[str] | None = None,
                    agents: str | Sequence[str] | None = None, since: int | None = None,
                    until: int | None = None, reference: str | None = None,
-                   numbers: bool = True) -> Timeline:
+                   numbers: bool = True, frame: TimeFrame | None = None) -> Timeline:
     """Read the matching intervals and turn them into a :class:`Timeline`.
 
     ``since``/``until`` default to the first and last time found in the matching intervals.
@@ -240,7 +266,8 @@ def build_timeline(db: Any, *, subject: str | Sequence[str] | None = None,
     compared with. Agents named in ``agents`` get a row in every lane; by default a lane shows
     only the agents concerned (see :func:`timeline_from_rows`). With ``numbers`` (default)
     the lanes whose facts carry numbers get their :class:`Signal` per agent (see
-    :func:`add_signals`).
+    :func:`add_signals`). Its time axis counts from the data's start (``frame``, default
+    ``db.time_frame()``).
     """
     from toaster.queries import history
 
@@ -263,6 +290,7 @@ def build_timeline(db: Any, *, subject: str | Sequence[str] | None = None,
     since, until = _window(rows, since, until)
     timeline = timeline_from_rows(rows, since, until, names, reference or default_ref,
                                   show_all=agents is not None)
+    timeline.frame = frame if frame is not None else db.time_frame()
     if numbers:
         add_signals(db, timeline, subject=_as_list(subject), property=_as_list(property),
                     target=_as_list(target))

@@ -2,17 +2,20 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import text
 
 from toaster.model import EventRow
 from toaster.queries.facts import _where
 
+if TYPE_CHECKING:
+    from toaster.db.database import Database
+
 EVENT_COLUMNS = ", ".join(EventRow._fields)
 
 
-def events(db: Any, agent: str | None = None, *, since: int | None = None,
+def events(db: Database, agent: str | None = None, *, since: int | None = None,
            until: int | None = None, kind: str | list[str] | None = None,
            limit: int | None = None, newest_first: bool = False,
            **filters: Any) -> list[EventRow]:

@@ -7,10 +7,13 @@ tuples. Ids are always bound parameters; only column names from a fixed list rea
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from toaster.beliefs import sqltext
 from toaster.model import FactRow
+
+if TYPE_CHECKING:
+    from toaster.db.database import Database
 
 FACT_COLUMNS = ", ".join(FactRow._fields)
 _FILTERABLE = ("agent_id", "subject_id", "subject_owner_id", "property", "property_type",
@@ -42,7 +45,7 @@ def _where(filters: dict[str, Any], prefix: str = "") -> tuple[str, dict[str, An
     return (" AND ".join(clauses) or "1 = 1"), params
 
 
-def _rows(db: Any, sql: str, params: dict[str, Any], *, raw: bool = False) -> list[Any]:
+def _rows(db: Database, sql: str, params: dict[str, Any], *, raw: bool = False) -> list[Any]:
     # The driver's cursor directly: these reads are the API's hot path (as-of, point reads).
     with db.transaction():
         cur = db.cursor()
@@ -52,7 +55,7 @@ def _rows(db: Any, sql: str, params: dict[str, Any], *, raw: bool = False) -> li
         return [FactRow(*row) for row in cur.fetchall()]
 
 
-def _select(db: Any, view: str, filters: dict[str, Any], *, since: int | None,
+def _select(db: Database, view: str, filters: dict[str, Any], *, since: int | None,
             until: int | None, limit: int | None, order: str, extra: str = "") -> list[Any]:
     where, params = _where(filters)
     if since is not None:  # intervals still true at or after `since`
@@ -68,15 +71,15 @@ def _select(db: Any, view: str, filters: dict[str, Any], *, since: int | None,
     return _rows(db, sql, params, raw=bool(extra))
 
 
-def current_facts(db: Any, agent: str | Sequence[str] | None = None, *, limit: int | None = None,
-                  **filters: Any) -> list[FactRow]:
+def current_facts(db: Database, agent: str | Sequence[str] | None = None, *,
+                  limit: int | None = None, **filters: Any) -> list[FactRow]:
     """Facts currently believed (open intervals), filtered by agent, subject, property, target,
     sub_property, source, value... (a list matches any of its items)."""
     return _select(db, "current_facts", {"agent": agent, **filters}, since=None, until=None,
                    limit=limit, order="agent_id, subject_id, property, target_id, fact_id")
 
 
-def memory(db: Any, agent: str | Sequence[str] | None = None, *, since: int | None = None,
+def memory(db: Database, agent: str | Sequence[str] | None = None, *, since: int | None = None,
            until: int | None = None, limit: int | None = None, **filters: Any) -> list[FactRow]:
     """Past beliefs (closed intervals), oldest first; ``since``/``until`` keep intervals that
     overlap the window."""
@@ -84,7 +87,7 @@ def memory(db: Any, agent: str | Sequence[str] | None = None, *, since: int | No
                    limit=limit, order="valid_from_ns, fact_id")
 
 
-def history(db: Any, agent: str | Sequence[str] | None = None, *, since: int | None = None,
+def history(db: Database, agent: str | Sequence[str] | None = None, *, since: int | None = None,
             until: int | None = None, limit: int | None = None, **filters: Any) -> list[FactRow]:
     """Every interval, current and past, oldest first (the timeline of the matching facts)."""
     return _select(db, "fact_history", {"agent": agent, **filters}, since=since, until=until,
@@ -108,7 +111,7 @@ def _followed_numbers(backend: str) -> str:
     return _numbers_at(sqltext.expand(conf, backend))
 
 
-def beliefs_at(db: Any, agent: str, t_ns: int, **filters: Any) -> list[FactRow]:
+def beliefs_at(db: Database, agent: str, t_ns: int, **filters: Any) -> list[FactRow]:
     """Everything ``agent`` believed at ``t_ns`` (as-of): one seek per fact key of the agent,
     numbers as they were then (within their tolerance, from ``fact_samples``).
 
@@ -149,7 +152,7 @@ class SignalPoint(NamedTuple):
     confidence: float | None
 
 
-def signal(db: Any, agent: str | Sequence[str] | None = None, *, since: int | None = None,
+def signal(db: Database, agent: str | Sequence[str] | None = None, *, since: int | None = None,
            until: int | None = None, **filters: Any) -> list[SignalPoint]:
     """The numbers of the matching facts over time, as step points: each interval's start,
     each stored refresh (``fact_samples``) and its end (``value_num`` None). Sorted by key,
@@ -190,7 +193,7 @@ def signal(db: Any, agent: str | Sequence[str] | None = None, *, since: int | No
     return points
 
 
-def fact_value(db: Any, agent: str, subject: str, property: str, target: str = "", *,
+def fact_value(db: Database, agent: str, subject: str, property: str, target: str = "", *,
                at: int | None = None, sub_property: str | None = None,
                subject_owner: str | None = None,
                target_owner: str | None = None) -> FactRow | None:

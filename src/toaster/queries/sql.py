@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from sqlalchemy import text
 
 from toaster.db import readonly
 from toaster.errors import ToasterError
 from toaster.model import Fact
+
+if TYPE_CHECKING:
+    from toaster.db.database import Database
 
 
 class SQLResult(NamedTuple):
@@ -21,7 +24,7 @@ class SQLResult(NamedTuple):
     truncated: bool = False
 
 
-def execute(db: Any, sql: str, params: dict[str, Any] | list[Any] | None = None, *,
+def execute(db: Database, sql: str, params: dict[str, Any] | list[Any] | None = None, *,
             write: bool = False, max_rows: int = readonly.DEFAULT_MAX_ROWS,
             max_bytes: int = readonly.DEFAULT_MAX_BYTES,
             timeout_s: float = readonly.DEFAULT_TIMEOUT_S) -> SQLResult:
@@ -79,7 +82,7 @@ def _one_line(exc: Exception) -> str:
     return lines[0] if lines else type(inner).__name__
 
 
-def are_in_table(db: Any, agent: str, facts: list[Fact]) -> list[bool]:
+def are_in_table(db: Database, agent: str, facts: list[Fact]) -> list[bool]:
     """For each fact pattern, is it among ``agent``'s current facts? ``"NULL"`` subject or
     target is a wildcard; property type and value are ignored unless given (non-empty)."""
     from toaster.queries.facts import current_facts

@@ -15,12 +15,15 @@ import fnmatch
 import threading
 import time
 from collections.abc import Iterator
-from typing import Any
+from typing import TYPE_CHECKING
 
 from sqlalchemy import text
 
 from toaster.model import EventRow
 from toaster.queries.events import EVENT_COLUMNS
+
+if TYPE_CHECKING:
+    from toaster.db.database import Database
 
 EVENTS_CHANNEL = "toaster_events"
 
@@ -28,7 +31,7 @@ EVENTS_CHANNEL = "toaster_events"
 class _Listen:
     """PostgreSQL: wait for ``NOTIFY toaster_events`` on a connection of its own."""
 
-    def __init__(self, db: Any) -> None:
+    def __init__(self, db: Database) -> None:
         import psycopg
 
         self.conn = psycopg.connect(db.engine.url.set(drivername="postgresql")
@@ -46,7 +49,7 @@ class _Listen:
 class _DataVersion:
     """SQLite: poll ``PRAGMA data_version``, which moves when another connection commits."""
 
-    def __init__(self, db: Any, poll_s: float) -> None:
+    def __init__(self, db: Database, poll_s: float) -> None:
         self.raw = db.engine.raw_connection()
         self.poll_s = poll_s
         self.seen = self._version()
@@ -54,7 +57,9 @@ class _DataVersion:
     def _version(self) -> int:
         cur = self.raw.cursor()
         cur.execute("PRAGMA data_version")
-        return int(cur.fetchone()[0])
+        row = cur.fetchone()
+        assert row is not None  # the pragma always answers one row
+        return int(row[0])
 
     def wait(self, timeout_s: float) -> None:
         deadline = time.monotonic() + timeout_s
@@ -74,7 +79,7 @@ def _matches(row: EventRow, patterns: dict[str, str | None]) -> bool:
                for field, pattern in patterns.items())
 
 
-def watch(db: Any, *, agent: str | None = None, subject: str | None = None,
+def watch(db: Database, *, agent: str | None = None, subject: str | None = None,
           property: str | None = None, target: str | None = None,
           after_id: int | None = None, poll_s: float = 0.02,
           timeout_s: float | None = None,

@@ -46,12 +46,12 @@ class DbPool:
     @contextmanager
     def db(self) -> Iterator[Any]:
         """Borrow a connection."""
-        import toaster
+        from toaster.session import connect
 
         with self._lock:
             db = self._free.pop() if self._free else None
         if db is None:
-            db = toaster.connect(self.url)
+            db = connect(self.url)
             with self._lock:
                 self._all.append(db)
         try:

@@ -36,15 +36,15 @@ class Watchers:
 
     def open(self, agent: str, subject: str, prop: str, target: str) -> str:
         """Start publishing the events that match; return the topic."""
-        import toaster
         from toaster.queries import watch
         from toaster.ros1.messages import to_msg
+        from toaster.session import connect
 
         topic = f"{TOPIC_PREFIX}{len(self.publishers)}"
         cls = self.registry.msg("BeliefEvent")
         pub = self.rospy.Publisher(topic, cls, queue_size=1000, latch=False)
         self.publishers.append(pub)
-        db = toaster.connect(self.url)
+        db = connect(self.url)
         stream = watch(db, agent=agent or None, subject=subject or None, property=prop or None,
                        target=target or None, stop=self.stop)
 

@@ -1,9 +1,12 @@
 -- PostgreSQL only: the session's own scratch tables of a rule run, shadowing the shared ones of
 -- the schema (belief_changed, belief_focus, ... in toaster.db.schema) so that concurrent writers
 -- never share rows; SQLite (one writer at a time) uses the schema's tables, the only ones its
--- triggers can read. Emptied by 99_clear, and truncated in place at commit (ON COMMIT DELETE
--- ROWS): temporary tables are never vacuumed, so the dead rows of DELETE would pile up tick
--- after tick in them and their indexes (a 10-agent run slowed from 4.8k to 1k changes/s).
+-- triggers can read. Emptied by 99_clear. For the SQL clients whose triggers create them they
+-- are also truncated at commit (ON COMMIT DELETE ROWS): temporary tables are never vacuumed,
+-- so the dead rows of DELETE would pile up tick after tick in them and their indexes (a
+-- 10-agent run slowed from 4.8k to 1k changes/s). A store's session creates them first,
+-- without it, and vacuums them every few runs (toaster.beliefs.rules._scratch): truncating
+-- them at each commit cost as much as the run, while it held the rules' clock.
 {{#postgresql}}
 CREATE TEMP TABLE IF NOT EXISTS belief_changed (key_id bigint PRIMARY KEY, refreshed boolean NOT NULL, prev_num float8, prev_conf float8, prev_obs float8, move text, actor_id text) ON COMMIT DELETE ROWS;
 CREATE TEMP TABLE IF NOT EXISTS belief_focus (entity_id text PRIMARY KEY) ON COMMIT DELETE ROWS;

@@ -6,4 +6,6 @@ FROM belief_freeze WHERE value_text IS NOT NULL;
 UPDATE belief_follow SET to_ns = z.cut_ns, events_to_ns = z.cut_ns FROM belief_freeze z
 WHERE z.follow_id = belief_follow.id
   -- (the IN list: SQLite, with no statistics of the scratch table, otherwise scans every period)
-  AND belief_follow.id IN (SELECT follow_id FROM belief_freeze)
+  AND belief_follow.id IN (SELECT follow_id FROM belief_freeze);
+-- (applied: 13_late's periods are frozen before the changes are taken, 35_freeze's after)
+DELETE FROM belief_freeze

@@ -79,6 +79,10 @@ class Backend(Protocol):
     def maintain(self, raw: Any) -> None:
         """Housekeeping of long runs on an idle DBAPI connection ``raw`` (no transaction)."""
 
+    def vacuum_scratch(self, raw: Any) -> None:
+        """Reclaim the dead rows of the session's scratch tables of the belief rule on an idle
+        DBAPI connection ``raw`` (a no-op where they are emptied otherwise)."""
+
     def set_read_only(self, cur: Any) -> None:
         """Make the current transaction read-only, enforced by the database."""
 

@@ -7,9 +7,24 @@ Arrays travel in binary (``%b``): psycopg's text-array quoting costs ~1 µs per 
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 from toaster.db.dialects import Key
+
+
+@contextmanager
+def _autocommit(raw: Any) -> Iterator[Any]:
+    """A cursor of the idle DBAPI connection ``raw`` outside any transaction (VACUUM cannot
+    run in a transaction block)."""
+    raw.autocommit = True
+    try:
+        with raw.cursor() as cur:
+            yield cur
+    finally:
+        raw.autocommit = False
+
 
 _NAMED = re.compile(r"(?<![:\w]):(\w+)")
 _KEY_COLS = "subject_id, subject_owner_id, property, sub_property, target_id, target_owner_id"
@@ -126,13 +141,17 @@ class PostgreSQLBackend:
         )
 
     def maintain(self, raw: Any) -> None:
-        raw.autocommit = True  # VACUUM cannot run in a transaction block
-        try:
-            with raw.cursor() as cur:
-                cur.execute("VACUUM (ANALYZE) facts, fact_samples, events, fact_keys, "
-                            "belief_follow")
-        finally:
-            raw.autocommit = False
+        with _autocommit(raw) as cur:
+            cur.execute("VACUUM (ANALYZE) facts, fact_samples, events, fact_keys, "
+                        "belief_follow")
+
+    def vacuum_scratch(self, raw: Any) -> None:
+        with _autocommit(raw) as cur:
+            cur.execute("SELECT c.relname FROM pg_class c WHERE c.relnamespace = "
+                        "pg_my_temp_schema() AND c.relkind = 'r' ORDER BY c.relname")
+            names = [row[0] for row in cur.fetchall()]
+            if names:  # the session's temporary tables: the scratch tables (00_temp)
+                cur.execute("VACUUM " + ", ".join(f'pg_temp."{name}"' for name in names))
 
     def begin_writes(self, cur: Any) -> tuple[int, int]:
         # A transaction-local setting: other sessions never see it; one round trip in all.

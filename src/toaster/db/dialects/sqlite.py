@@ -168,6 +168,9 @@ class SQLiteBackend:
             [(entity_id, entity_id, owner, t) for entity_id, owner, t in rows],
         )
 
+    def vacuum_scratch(self, raw: Any) -> None:
+        """Nothing to do: SQLite's scratch tables are the schema's, emptied by each run."""
+
     def maintain(self, raw: Any) -> None:
         cur = raw.cursor()
         cur.execute("PRAGMA optimize")  # may write statistics: before the checkpoint
