@@ -2,8 +2,9 @@
 
 Each writer is one robot running ``toaster run`` on the spatial Sally-Anne scenario at 30 Hz
 (the library path of the command, tests/db/writers.py ``run:`` role: load, register, tick)
-for ``--ticks`` ticks, all started at once: several robots in one world, the same people and
-things registered by all of them, every robot's ticks running the belief rules. "shared" puts
+for ``--ticks`` ticks, all started at once: several robots in one world (each is the scene's
+robot body under its own id), the same people and things registered by all of them, every
+robot's ticks running the belief rules. "shared" puts
 every writer on one database (one schema); "own" is the baseline measured in the same run:
 the same number of processes, each on its own schema, so that what the machine's CPUs cost is
 told apart from what sharing the database costs. The table gives, per case, the median over

@@ -16,8 +16,11 @@ from __future__ import annotations
 
 import json
 import random
+import re
 import sys
+import tempfile
 import time
+from pathlib import Path
 from typing import Any
 
 import toaster
@@ -121,17 +124,24 @@ def read(url: str, seconds: float, seed: int) -> dict[str, Any]:
 def run(url: str, robot: str, path: str, rate: float, ticks: int,
         holders: str | None = None, pace: str = "") -> dict[str, Any]:
     """``toaster run PATH --rate RATE`` as robot ``robot`` (the library path of the command:
-    load, register, tick) for at most ``ticks`` ticks, timing each tick. ``pace`` "live":
+    load, register, tick) for at most ``ticks`` ticks, timing each tick. The scenario's self
+    (its robot's body) is renamed ``robot``: each writer is its own robot in the same scene,
+    and no other robot of the scene is a belief holder. ``pace`` "live":
     each tick starts at its time on the wall clock, as ``--realtime`` and a live node tick
     (a late tick starts at once); else ticks follow one another at once."""
     from toaster.producers import Runner, load_session
 
     failures: list[str] = []
     latencies: list[float] = []
-    with toaster.connect(url) as db:
+    with toaster.connect(url) as db, tempfile.TemporaryDirectory() as tmp:
         store = db.store()
         session = load_session(path, store.areas(), holders=holders)
-        session.self_id = robot
+        if session.self_id != robot:  # the scene's robot body is this robot, under its id
+            text = Path(path).read_text(encoding="utf-8")
+            mine = Path(tmp) / Path(path).name
+            mine.write_text(re.sub(rf"\b{re.escape(session.self_id)}\b", robot, text),
+                            encoding="utf-8")
+            session = load_session(mine, store.areas(), holders=holders)
         runner = Runner(session.world, session.sources, session.producers, store=store,
                         agent_id=robot, config=session.config)
         try:
