@@ -17,14 +17,31 @@ written AS MATERIALIZED (
   FROM belief_changed b WHERE NOT b.refreshed
 ),
 -- the interval the late write closed: it ends where the write happened
+late AS MATERIALIZED (
+  SELECT x.key_id, x.at_ns,
+         (SELECT f.id FROM facts f WHERE f.key_id = x.key_id AND f.valid_from_ns < x.at_ns
+          ORDER BY f.valid_from_ns DESC, f.id DESC LIMIT 1) AS fact_id
+  FROM written x WHERE x.at_ns < :t
+),
 closed AS MATERIALIZED (
   SELECT l.key_id, l.value_text, l.value_num, l.confidence, l.observability, l.valid_to_ns
-  FROM written x {{pinned_join}} facts l
-    ON l.id = (SELECT f.id FROM facts f WHERE f.key_id = x.key_id AND f.valid_from_ns < x.at_ns
-               ORDER BY f.valid_from_ns DESC, f.id DESC LIMIT 1)
-  WHERE x.at_ns < :t AND l.valid_to_ns = x.at_ns
+{{#sqlite}}
+  FROM late x CROSS JOIN facts l ON l.id = x.fact_id
+{{/sqlite}}
+{{#postgresql}}
+  -- (index probes, one per late key and its followers: OFFSET 0 keeps each subquery a loop,
+  -- which the planner otherwise made a hash join over every fact or every open period)
+  FROM late x CROSS JOIN LATERAL (SELECT * FROM facts l WHERE l.id = x.fact_id OFFSET 0) AS l
+{{/postgresql}}
+  WHERE l.valid_to_ns = x.at_ns
 )
 SELECT w.id, w.hkey, w.from_ns, w.from_ns, c.value_text, c.value_num,
        {{lo}}(1.0, c.confidence * w.pconf), c.observability
-FROM closed c {{pinned_join}} belief_follow w ON w.self_key = c.key_id AND w.to_ns IS NULL
+{{#sqlite}}
+FROM closed c CROSS JOIN belief_follow w ON w.self_key = c.key_id AND w.to_ns IS NULL
+{{/sqlite}}
+{{#postgresql}}
+FROM closed c CROSS JOIN LATERAL (SELECT * FROM belief_follow w WHERE w.self_key = c.key_id
+                                    AND w.to_ns IS NULL OFFSET 0) AS w
+{{/postgresql}}
 WHERE c.valid_to_ns <= w.from_ns
