@@ -19,7 +19,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
-from toaster.errors import InvalidInputError, MissingDependencyError, UnknownAgentError
+from toaster.errors import InvalidInputError, UnknownAgentError
+from toaster.extras import require
 from toaster.model import EventRow, FactRow
 from toaster.timeutil import format_ns
 
@@ -201,10 +202,7 @@ def _typed(value: Any, kind: tuple[type, bool]) -> Any:
 
 
 def _pyarrow() -> tuple[Any, Any]:
-    try:
-        import pyarrow as pa  # type: ignore[import-untyped]  # (no py.typed)
-        import pyarrow.parquet as pq  # type: ignore[import-untyped]
-    except ImportError:
-        package = "pyarrow"
-        raise MissingDependencyError(package, "export", "Parquet export") from None
+    require("export", "Parquet export")
+    import pyarrow as pa  # type: ignore[import-untyped]  # (no py.typed)
+    import pyarrow.parquet as pq  # type: ignore[import-untyped]
     return pa, pq

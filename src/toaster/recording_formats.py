@@ -15,7 +15,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, NamedTuple
 
-from toaster.errors import InvalidInputError, MissingDependencyError
+from toaster.errors import InvalidInputError
+from toaster.extras import require
 
 #: rosbag2 metadata version each distro's ``ros2 bag`` writes (and the newest it reads): Humble
 #: 5 (``files``), Iron 8 (``custom_data``, ``type_description_hash``, ``ros_distro``), Jazzy 9
@@ -77,13 +78,10 @@ def toaster_spelling(fmt: BagFormat, names: str | None) -> str:
 
 
 def _rosbags() -> Any:
-    try:
-        import rosbags.rosbag1
-        import rosbags.rosbag2
-        import rosbags.typesys
-    except ImportError:
-        package = "rosbags"
-        raise MissingDependencyError(package, "rosbag", "recording") from None
+    require("rosbag", "recording")
+    import rosbags.rosbag1
+    import rosbags.rosbag2
+    import rosbags.typesys
     return rosbags
 
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from toaster.errors import MissingDependencyError
+from toaster.extras import require
 from toaster.plotting.timeline import FALSE_BELIEF, Lane, Timeline, legend_notes, panels
 from toaster.timeutil import NS_PER_S
 
@@ -24,11 +24,8 @@ _MIN_LABEL_FRACTION = 0.06
 
 
 def _matplotlib() -> Any:
-    try:
-        from matplotlib.figure import Figure
-    except ImportError:
-        package = "matplotlib"
-        raise MissingDependencyError(package, "plot", "plot-facts") from None
+    require("plot", "plot-facts")
+    from matplotlib.figure import Figure
     return Figure
 
 

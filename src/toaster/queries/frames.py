@@ -14,7 +14,7 @@ import typing
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
-from toaster.errors import MissingDependencyError
+from toaster.extras import require
 
 #: Fields ending so hold integer nanoseconds since the epoch (UTC).
 TIME_SUFFIX = "_ns"
@@ -53,12 +53,9 @@ def to_dataframe(rows: Sequence[NamedTuple], columns: Sequence[str] | None = Non
                  times: bool = False) -> Any:
     """A DataFrame with one column per field of the rows, typed as described in the module
     docstring (``*_ns`` columns stay exact integers; ``times`` adds timestamp columns)."""
-    try:
-        import numpy as np
-        import pandas as pd
-    except ImportError:
-        package = "pandas"
-        raise MissingDependencyError(package, package, "to_dataframe") from None
+    require("pandas", "to_dataframe")
+    import numpy as np
+    import pandas as pd
     names = list(columns) if columns is not None else list(rows[0]._fields) if rows else []
     kinds = field_kinds(type(rows[0])) if rows and columns is None else {}
     data: dict[str, Any] = {}

@@ -29,7 +29,8 @@ from typing import Any
 
 import numpy as np
 
-from toaster.errors import FileFormatError, MissingDependencyError
+from toaster.errors import FileFormatError
+from toaster.extras import require
 from toaster.model import MAX_COORD, check_id, shown
 from toaster.timeutil import MAX_NS, MAX_RATE_HZ, MIN_RATE_HZ
 from toaster.world.state import World
@@ -147,11 +148,9 @@ def _sample_hz(times: np.ndarray, updates: list[Any]) -> float | None:
 def read_bag(path: str | Path, *, tf_map: str | Path | Mapping[str, Any] | None = None,
              pose_topics: Mapping[str, tuple[str, str]] | None = None) -> BagSource:
     """Read a bag's poses (see the module's doc); one-line errors for unreadable bags."""
-    try:
-        from rosbags.highlevel import AnyReader
-    except ImportError:
-        package = "rosbags"
-        raise MissingDependencyError(package, "rosbag", "reading bags") from None
+    require("rosbag", "reading bags")
+    from rosbags.highlevel import AnyReader
+
     from toaster.ros1 import mapping
 
     path = Path(path)
