@@ -44,6 +44,10 @@ BAD_URLS = {
     "mysql://127.0.0.1/test": "unsupported database 'mysql'",
     "sqlite:///file:x.db?mode=ro&uri=true": "takes no options",
     "no-scheme": "invalid database URL",
+    "": "empty database URL ''",  # --db "" is not the default file
+    " ": "empty database URL ' '",
+    "sqlite:///a\x00b.db": "NUL character",
+    "sqlite:///\udc80.db": "not valid UTF-8",
 }
 
 
@@ -73,6 +77,15 @@ def test_bad_urls_are_refused_in_one_line(url: str, expected: str, tmp_path: Pat
         toaster.connect(url)
     for command in (["db", "check"], ["db", "upgrade"], ["get-info", "AGENT"]):
         assert expected in one_line_error(["--db", url, *command])
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("url", [5, b"sqlite:///x.db", ["sqlite:///x.db"]])
+def test_urls_that_are_not_text_are_refused(url: object, tmp_path: Path,
+                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(InvalidInputError, match="invalid database URL"):
+        toaster.connect(url)  # type: ignore[arg-type]
     assert list(tmp_path.iterdir()) == []
 
 

@@ -40,8 +40,11 @@ class AppContext:
 
     @property
     def url(self) -> str | None:
-        """``--db`` if given, else ``$TOASTER_DB``, else None (the default file)."""
-        return self.flag_url or os.environ.get(ENV_VAR) or None
+        """``--db`` if given (an empty one is refused when the database is opened), else
+        ``$TOASTER_DB``, else None (the default file)."""
+        if self.flag_url is not None:
+            return self.flag_url
+        return os.environ.get(ENV_VAR) or None
 
     def name(self, url: str) -> None:
         """Take ``--db URL``; a second, different one on the same line is refused."""

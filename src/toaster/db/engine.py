@@ -17,6 +17,7 @@ from sqlalchemy.engine import ExceptionContext, make_url
 from sqlalchemy.exc import ArgumentError
 
 from toaster.errors import DatabaseLockedError, DatabaseOpenError, InvalidInputError, ToasterError
+from toaster.model import check_text, shown
 
 DEFAULT_SQLITE_FILE = "toaster.db"
 ENV_VAR = "TOASTER_DB"
@@ -67,6 +68,19 @@ def normalise_url(url: str) -> str:
     return url
 
 
+def check_url(url: object) -> str:
+    """``url`` if it is text that may name a database: not empty (an empty ``--db`` is a
+    mistake, not the default), no NUL, valid UTF-8; else a one-line error."""
+    if not isinstance(url, str):
+        msg = f"invalid database URL {shown(url)}: give text, e.g. sqlite:///toaster.db"
+        raise InvalidInputError(msg)
+    if not url.strip():
+        msg = (f"empty database URL {url!r}: give one ({_FORMS}), or leave --db and "
+               f"${ENV_VAR} out for sqlite:///{DEFAULT_SQLITE_FILE}")
+        raise InvalidInputError(msg)
+    return check_text(url, "database URL")
+
+
 def parse_url(url: str | None = None, *, allow_memory: bool = False) -> URL:
     """The checked URL of ``url`` (default :func:`default_url`).
 
@@ -75,7 +89,7 @@ def parse_url(url: str | None = None, *, allow_memory: bool = False) -> URL:
     or carry options; PostgreSQL URLs that name no database or carry an option libpq does not
     know; other databases and drivers.
     """
-    raw = normalise_url(url or default_url())
+    raw = normalise_url(default_url() if url is None else check_url(url))
     try:
         parsed = make_url(raw)
     except ArgumentError:
