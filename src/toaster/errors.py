@@ -6,9 +6,32 @@ and keeps its traceback.
 
 from __future__ import annotations
 
+import re
+from typing import ClassVar
+
+#: Line breaks and other control characters (C0, DEL, C1, Unicode line/paragraph separators)
+_CONTROL = re.compile("[\x00-\x1f\x7f-\x9f\u2028\u2029]")
+
+
+def one_line(message: str) -> str:
+    """``message`` on one line: control characters (those of the values it names: ids with
+    line breaks, escape sequences) shown as escapes such as ``\\n``, ``\\x1b``."""
+    return _CONTROL.sub(lambda m: repr(m.group())[1:-1], message)
+
 
 class ToasterError(Exception):
-    """Base class of toaster's expected errors (bad input, bad state, missing extras)."""
+    """Base class of toaster's expected errors (bad input, bad state, missing extras).
+
+    Its message is one line (:func:`one_line`), whatever the values it names, unless the
+    class reports several lines (:attr:`multiline`)."""
+
+    #: True for a report of several lines (``toaster db check``'s violations)
+    multiline: ClassVar[bool] = False
+
+    def __init__(self, *args: object) -> None:
+        if not self.multiline and args and isinstance(args[0], str):
+            args = (one_line(args[0]), *args[1:])
+        super().__init__(*args)
 
 
 class InvalidInputError(ToasterError, ValueError):
@@ -65,4 +88,6 @@ class DatabaseLockedError(ToasterError):
 
 class InvariantViolationError(ToasterError):
     """``toaster db check`` found stored intervals or events that break the temporal
-    invariants (:mod:`toaster.db.invariants`)."""
+    invariants (:mod:`toaster.db.invariants`): one line per violation."""
+
+    multiline = True

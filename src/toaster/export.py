@@ -21,8 +21,8 @@ from typing import Any, NamedTuple
 
 from toaster.errors import InvalidInputError, UnknownAgentError
 from toaster.extras import require
-from toaster.model import EventRow, FactRow
-from toaster.timeutil import format_ns
+from toaster.model import EventRow, FactRow, check_list, listed, shown
+from toaster.timeutil import check_optional_ns, format_ns
 
 KINDS = ("facts", "memory", "history", "events")
 FORMATS = ("csv", "jsonl", "parquet")
@@ -70,6 +70,7 @@ def select_rows(db: Any, kind: str, *, agent: str | Sequence[str] | None = None,
 
     check_kind(kind)
     _check_agents(db, agent)
+    since, until = check_optional_ns(since, "since"), check_optional_ns(until, "until")
     if since is not None and until is not None and until < since:
         msg = (f"empty time window: until {format_ns(until)} is before since "
                f"{format_ns(since)}; swap them")
@@ -92,9 +93,9 @@ def _check_agents(db: Any, agent: str | Sequence[str] | None) -> None:
     from toaster.queries import agents
 
     known = [a.id for a in agents(db)]
-    for name in [agent] if isinstance(agent, str) else agent:
+    for name in [agent] if isinstance(agent, str) else check_list(agent, "agent"):
         if name not in known:
-            msg = f"unknown agent {name!r}: known agents are {', '.join(known) or 'none'}"
+            msg = f"unknown agent {shown(name)}: known agents are {listed(known)}"
             raise UnknownAgentError(msg)
 
 

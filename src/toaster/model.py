@@ -10,6 +10,7 @@ from __future__ import annotations
 import builtins
 import math
 import re
+from collections.abc import Iterable
 from typing import NamedTuple
 
 from toaster.errors import InvalidInputError
@@ -170,6 +171,16 @@ def shown(value: object) -> str:
     return text if len(text) <= 60 else f"{text[:45]}...({len(text)} chars)"
 
 
+def listed(names: Iterable[object], most: int = 10, none: str = "none") -> str:
+    """Names for a message: each shown as :func:`shown` does, at most ``most`` of them and
+    then how many more (a crowd's thousands of agents), ``none`` when there is none."""
+    items = list(names)
+    if not items:
+        return none
+    head = ", ".join(shown(item) for item in items[:most])
+    return head if len(items) <= most else f"{head} and {len(items) - most} more"
+
+
 def check_text(value: object, what: str) -> str:
     """Return ``value`` if it is text a database can store (no NUL, no lone surrogate, which
     non-UTF-8 bytes of a file name or argument become), else raise a one-line error."""
@@ -204,6 +215,14 @@ def check_id(value: object, what: str) -> str:
                f"({MAX_ID_BYTES} ASCII characters), not {size}; use a shorter id")
         raise InvalidInputError(msg)
     return check_text(value, what)
+
+
+def check_list(value: object, what: str) -> list[object]:
+    """``value``'s items if it is a list, tuple or set (not text), else a one-line error."""
+    if not isinstance(value, list | tuple | set | frozenset):
+        msg = f"invalid {what} {shown(value)}: give a list"
+        raise InvalidInputError(msg)
+    return list(value)
 
 
 def check_optional_id(value: object, what: str) -> str:

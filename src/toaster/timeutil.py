@@ -37,13 +37,49 @@ def now_ns() -> int:
     return time.time_ns()
 
 
-def check_ns(value: int, what: str = "time") -> int:
-    """Return ``value`` if it is a time the database can hold (0 to 2^63-1 ns), else raise
-    a one-line error naming it and the range."""
+def check_ns(value: object, what: str = "time") -> int:
+    """Return ``value`` if it is a time the database can hold (an integer from 0 to 2^63-1
+    ns), else raise a one-line error naming it and the range."""
+    if not isinstance(value, int) or isinstance(value, bool):
+        msg = f"invalid {what} {shown(value)}: times are integer nanoseconds"
+        raise InvalidInputError(msg)
     if not 0 <= value <= MAX_NS:
-        msg = f"{what} {value} ns is out of range: times go from {_RANGE}"
+        msg = f"{what} {_digits(value)} ns is out of range: times go from {_RANGE}"
         raise InvalidInputError(msg)
     return value
+
+
+def check_optional_ns(value: object, what: str = "time") -> int | None:
+    """``value`` if it is None (no time given) or a valid time (:func:`check_ns`)."""
+    return None if value is None else check_ns(value, what)
+
+
+def check_count(value: object, what: str) -> int | None:
+    """``value`` if it is None (no bound) or a whole number from 0 to 2^63-1 (a row limit,
+    an id), else a one-line error naming it."""
+    if value is None:
+        return None
+    if not isinstance(value, int) or isinstance(value, bool) or not 0 <= value <= MAX_NS:
+        msg = f"invalid {what} {shown(value)}: give a whole number from 0 to 2^63-1"
+        raise InvalidInputError(msg)
+    return value
+
+
+def check_seconds(value: object, what: str) -> float:
+    """``value`` as a number of seconds if it is a finite number >= 0 (a time-out, a polling
+    period), else a one-line error naming it."""
+    number = float(value) if isinstance(value, int | float) and not isinstance(
+        value, bool) and abs(value) < 1e300 else math.nan
+    if not (math.isfinite(number) and number >= 0):
+        msg = f"invalid {what} {shown(value)}: give a number of seconds >= 0"
+        raise InvalidInputError(msg)
+    return number
+
+
+def _digits(value: int) -> str:
+    """An integer for a message, cut when it is huge."""
+    text = str(value) if abs(value) < 10**_MAX_DIGITS else f"{str(value)[:_MAX_DIGITS]}..."
+    return text
 
 
 def check_rate(value: object, what: str = "rate") -> float:

@@ -133,6 +133,6 @@ def test_false_beliefs_needs_the_robot_named_when_there_are_two(db: toaster.Data
     for robot in ("R1", "R2"):
         st.add_entity(robot, "robot", is_self=True, t_ns=0)
     st.add_entity("H", "human", t_ns=0)
-    with pytest.raises(InvalidInputError, match=r"\(R1, R2\): name the robot .*other=ID"):
+    with pytest.raises(InvalidInputError, match=r"\('R1', 'R2'\): name the robot .*other=ID"):
         api.false_beliefs(db, "H")
     assert api.false_beliefs(db, "H", "R2") == []

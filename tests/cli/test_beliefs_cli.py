@@ -59,7 +59,7 @@ def test_with_several_robots_commands_say_how_to_name_one(sally_anne) -> None:
     assert added.exit_code == 0, added.output
     diff = sally_anne("beliefs", "diff", "SALLY", "--at", "4s")
     assert diff.exit_code == 1
-    assert "(R2, ROBOT)" in diff.output and "--other ID" in diff.output
+    assert "('R2', 'ROBOT')" in diff.output and "--other ID" in diff.output
     assert len(diff.output.strip().splitlines()) == 1
     named = sally_anne("beliefs", "diff", "SALLY", "--at", "4s", "--other", "ROBOT", "--json")
     assert named.exit_code == 0 and "BASKET" in named.output

@@ -32,7 +32,7 @@ def test_commands_fail_in_one_line(run_db: toaster.Database, db_url: str,
     assert done.exit_code == 1
     lines = done.output.strip().splitlines()
     assert len(lines) == 1
-    assert lines[0].startswith("Error: unknown agent 'carol': known agents are pr2, alice, bob")
+    assert lines[0].startswith("Error: unknown agent 'carol': known agents are 'pr2', 'alice', 'bob'")
     done = run(export, ["memory", str(tmp_path / "x.txt"), "--db", db_url])
     assert done.exit_code == 1
     assert "unknown export file suffix" in done.output

@@ -13,7 +13,7 @@ from toaster.beliefs import config as cfg
 from toaster.beliefs.rules import holder_id
 from toaster.db import catalog
 from toaster.errors import InvalidInputError
-from toaster.model import FactRow
+from toaster.model import FactRow, check_id, check_list
 
 if TYPE_CHECKING:
     from toaster.db.database import Database
@@ -33,8 +33,9 @@ class BeliefDiff(NamedTuple):
 
 
 def _holder(db: Database, agent: str, about: str | list[str] | tuple[str, ...] | None) -> str:
-    chain = [] if about is None else ([about] if isinstance(about, str) else list(about))
-    holder = holder_id(agent, *chain)
+    chain = [] if about is None else ([about] if isinstance(about, str) else check_list(
+        about, "about"))
+    holder = holder_id(check_id(agent, "agent id"), *(check_id(a, "about") for a in chain))
     with db.transaction() as conn:
         found = conn.execute(text("SELECT 1 FROM holders WHERE id = :a"), {"a": holder}).first()
     if found is None:

@@ -24,8 +24,8 @@ from sqlalchemy import Connection, text
 from toaster.beliefs import config as cfg
 from toaster.beliefs.rules import holder_id
 from toaster.errors import InvalidInputError
-from toaster.model import Fact, check_fact
-from toaster.timeutil import now_ns
+from toaster.model import Fact, check_fact, check_id, check_list
+from toaster.timeutil import check_ns, now_ns
 
 if TYPE_CHECKING:
     from toaster.db.database import Database
@@ -40,7 +40,10 @@ def tell(db: Database, speaker: str, fact: Fact, *, listeners: Sequence[str] | N
     """``speaker`` tells ``fact`` to ``listeners`` (None: everyone in its room) at ``t_ns``
     (default now), in one transaction; returns the holders that learnt it."""
     fact = check_fact(fact)
-    t = now_ns() if t_ns is None else t_ns
+    t = now_ns() if t_ns is None else check_ns(t_ns)
+    check_id(speaker, "speaker")
+    if listeners is not None:
+        listeners = [check_id(who, "listener") for who in check_list(listeners, "listeners")]
     store = db.store()
     with store.transaction() as conn:
         agents = store.agents()

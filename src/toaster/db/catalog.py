@@ -11,6 +11,7 @@ transaction or open a read one.
 from __future__ import annotations
 
 import json
+import math
 from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import (
@@ -40,8 +41,9 @@ from toaster.model import (
     check_id,
     check_optional_id,
     check_text,
+    shown,
 )
-from toaster.timeutil import now_ns
+from toaster.timeutil import check_ns, now_ns
 
 if TYPE_CHECKING:
     from toaster.db.database import Database
@@ -78,7 +80,7 @@ def upsert_entity(conn: Connection, entity_id: str, kind: str, name: str, owner_
     """Insert or update an entity; register it as an agent when it is one (with its
     per-agent views unless ``views`` is false: see :func:`register_agent`)."""
     values = _entity_values(entity_id, kind, name, owner_id)
-    stamp = now_ns() if t_ns is None else t_ns
+    stamp = now_ns() if t_ns is None else check_ns(t_ns, f"registration time of {entity_id!r}")
     # One statement whoever registers the same entity at the same time (another process
     # waits for this transaction, then updates).
     conn.execute(upsert(conn, s.entities, ["id"], values, created_ns=stamp, id=entity_id))
@@ -90,6 +92,7 @@ def upsert_entities(conn: Connection, rows: list[tuple[str, str, str, str, bool 
                     t_ns: int, views: bool) -> None:
     """:func:`upsert_entity` of many ``(id, kind, name, owner_id, agent)`` rows (none self)
     in a few statements: a recording's thousands of people register in about a second."""
+    check_ns(t_ns, "registration time")
     checked = [(entity_id, _entity_values(entity_id, kind, name, owner), agent)
                for entity_id, kind, name, owner, agent in rows]
     if not checked:
@@ -278,9 +281,11 @@ def upsert_ontology(conn: Connection, entity_class: str, individual: str,
 
 def delete_ontology(conn: Connection, entity_class: str, individual: str | None) -> int:
     """Delete one edge or all edges of a class."""
-    query = delete(s.ontology).where(s.ontology.c.entity_class == entity_class)
+    query = delete(s.ontology).where(s.ontology.c.entity_class == check_id(entity_class,
+                                                                           "ontology class"))
     if individual is not None:
-        query = query.where(s.ontology.c.individual == individual)
+        query = query.where(s.ontology.c.individual == check_id(individual,
+                                                                "ontology individual"))
     return conn.execute(query).rowcount
 
 
@@ -288,32 +293,32 @@ def upsert_property(conn: Connection, entity_id: str, key: str, value: object) -
     """Set one static property of a registered entity."""
     check_id(key, "property key")
     check_entities(conn, [check_id(entity_id, "entity id")])
-    if value is None or isinstance(value, dict | list):
-        msg = (f"invalid value {value!r} for property {key!r} of {entity_id!r}: "
-               "give text or a number")
+    if not isinstance(value, str | int | float) or (
+            isinstance(value, float) and not math.isfinite(value)):
+        msg = (f"invalid value {shown(value)} for property {key!r} of {entity_id!r}: "
+               "give text or a finite number")
         raise InvalidInputError(msg)
     table = s.properties
     stored = str(value).lower() if isinstance(value, bool) else str(value)
+    check_text(stored, f"value of property {key!r} of {entity_id!r}")
     conn.execute(upsert(conn, table, ["entity_id", "key"], {"value": stored},
                         entity_id=entity_id, key=key))
 
 
 def delete_property(conn: Connection, entity_id: str, key: str | None) -> int:
     """Delete one property or all properties of an entity."""
-    query = delete(s.properties).where(s.properties.c.entity_id == entity_id)
+    query = delete(s.properties).where(s.properties.c.entity_id == check_id(entity_id,
+                                                                            "entity id"))
     if key is not None:
-        query = query.where(s.properties.c.key == key)
+        query = query.where(s.properties.c.key == check_id(key, "property key"))
     return conn.execute(query).rowcount
 
 
 def put_area(conn: Connection, area_id: str, spec: dict[str, Any], owner_id: str) -> None:
     """Insert or replace an area definition."""
     check_id(area_id, "area id")
-    try:
-        body = json.dumps(spec, sort_keys=True)
-    except (TypeError, ValueError) as exc:
-        msg = f"invalid spec for area {area_id!r}: {exc}"
-        raise InvalidInputError(msg) from None
+    check_optional_id(owner_id, f"owner of area {area_id!r}")
+    body = to_json(spec, f"spec for area {area_id!r}", sort_keys=True)
     conn.execute(upsert(conn, s.areas, ["id"], {"owner_id": owner_id or "", "spec_json": body,
                                                  "updated_ns": now_ns()}, id=area_id))
     bump_control(conn)
@@ -321,7 +326,8 @@ def put_area(conn: Connection, area_id: str, spec: dict[str, Any], owner_id: str
 
 def remove_area(conn: Connection, area_id: str) -> bool:
     """Delete an area; False when it did not exist."""
-    found = bool(conn.execute(delete(s.areas).where(s.areas.c.id == area_id)).rowcount)
+    found = bool(conn.execute(delete(s.areas).where(s.areas.c.id == check_id(area_id,
+                                                                             "area id"))).rowcount)
     if found:
         bump_control(conn)
     return found
@@ -341,15 +347,24 @@ def areas(conn: Connection) -> dict[str, dict[str, Any]]:
     return {row[0]: json.loads(row[1]) for row in rows}
 
 
+def to_json(value: object, what: str, *, sort_keys: bool = False) -> str:
+    """``value`` as JSON text for a ``*_json`` column; a one-line error naming ``what`` when
+    it has no JSON form (NaN and infinities included) or holds text that is not UTF-8."""
+    try:
+        body = json.dumps(value, sort_keys=sort_keys, allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        msg = f"invalid {what}: {exc} (give JSON values: text, finite numbers, lists, objects)"
+        raise InvalidInputError(msg) from None
+    if "\\u" in body:  # non-ASCII text, escaped: lone surrogates are not text
+        check_text(json.dumps(value, ensure_ascii=False), what)
+    return body
+
+
 def put_setting(conn: Connection, scope: str, key: str, value: object) -> None:
     """Insert or replace one JSON-able setting."""
     check_id(scope, "setting scope")
     check_id(key, "setting key")
-    try:
-        body = json.dumps(value)
-    except (TypeError, ValueError) as exc:
-        msg = f"invalid value for setting {scope}.{key}: {exc}"
-        raise InvalidInputError(msg) from None
+    body = to_json(value, f"value for setting {scope}.{key}")
     table = s.settings
     conn.execute(upsert(conn, table, ["scope", "key"], {"value_json": body},
                         scope=scope, key=key))
@@ -358,17 +373,18 @@ def put_setting(conn: Connection, scope: str, key: str, value: object) -> None:
 def delete_setting(conn: Connection, scope: str, key: str | None = None) -> int:
     """Delete one setting, or every setting of a scope; return how many there were."""
     table = s.settings
-    query = delete(table).where(table.c.scope == scope)
+    query = delete(table).where(table.c.scope == check_id(scope, "setting scope"))
     if key is not None:
-        query = query.where(table.c.key == key)
+        query = query.where(table.c.key == check_id(key, "setting key"))
     return int(conn.execute(query).rowcount or 0)
 
 
 def get_setting(conn: Connection, scope: str, key: str, default: object) -> Any:
     """One setting's value, or ``default``."""
     table = s.settings
-    row = conn.execute(select(table.c.value_json).where(table.c.scope == scope,
-                                                        table.c.key == key)).first()
+    row = conn.execute(select(table.c.value_json).where(
+        table.c.scope == check_id(scope, "setting scope"),
+        table.c.key == check_id(key, "setting key"))).first()
     return default if row is None else json.loads(row[0])
 
 
@@ -408,7 +424,7 @@ def entities(db: Database, entity_id: str | None = None, *, kind: str | None = N
     query = select(table.c.id, table.c.name, table.c.kind, table.c.owner_id).order_by(table.c.id)
     for column, value in ((table.c.id, entity_id), (table.c.kind, kind), (table.c.name, name)):
         if value is not None:
-            query = query.where(column == value)
+            query = query.where(column == check_text(value, f"entity {column.name} filter"))
     with db.transaction() as conn:
         return [Entity(*row) for row in conn.execute(query)]
 
@@ -428,7 +444,7 @@ def ontology(db: Database, entity_class: str | None = None) -> list[OntologyRow]
     table = s.ontology
     query = select(table.c.entity_class, table.c.individual, table.c.instantiated)
     if entity_class is not None:
-        query = query.where(table.c.entity_class == entity_class)
+        query = query.where(table.c.entity_class == check_text(entity_class, "ontology class"))
     query = query.order_by(table.c.entity_class, table.c.individual)
     with db.transaction() as conn:
         return [OntologyRow(row[0], row[1], bool(row[2])) for row in conn.execute(query)]
@@ -446,6 +462,7 @@ def descendants(db: Database, entity_class: str, *,
         "FROM ontology o JOIN tree t ON o.entity_class = t.individual WHERE t.depth < :depth) "
         "SELECT DISTINCT entity_class, individual, instantiated FROM tree"
     )
+    check_text(entity_class, "ontology class")
     with db.transaction() as conn:
         rows = conn.execute(text(sql), {"c": entity_class, "depth": _MAX_DEPTH}).all()
     found = sorted(OntologyRow(r[0], r[1], bool(r[2])) for r in rows)
@@ -459,9 +476,9 @@ def properties(db: Database, entity_id: str | None = None,
     query = select(table.c.entity_id, table.c.key, table.c.value).order_by(
         table.c.entity_id, table.c.key)
     if entity_id is not None:
-        query = query.where(table.c.entity_id == entity_id)
+        query = query.where(table.c.entity_id == check_text(entity_id, "entity id"))
     if key is not None:
-        query = query.where(table.c.key == key)
+        query = query.where(table.c.key == check_text(key, "property key"))
     with db.transaction() as conn:
         return [PropertyRow(*row) for row in conn.execute(query)]
 

@@ -18,6 +18,7 @@ from toaster.db.engine import (
     make_engine,
     normalise_url,
     parse_url,
+    refused_value,
     sqlite_file,
 )
 from toaster.errors import DatabaseOpenError
@@ -61,14 +62,22 @@ class Database:
     @contextmanager
     def transaction(self, *, write: bool = False) -> Iterator[Connection]:
         """One transaction (nested calls join the open one). ``write`` takes SQLite's write
-        lock up front so that two writers never deadlock half-way."""
+        lock up front so that two writers never deadlock half-way. A value the database
+        refuses (:func:`~toaster.db.engine.refused_value`) leaves the outermost transaction,
+        rolled back, as one :class:`~toaster.errors.InvalidInputError`."""
         conn = self.connection
         if conn.in_transaction():
             yield conn
             return
         conn.info["write"] = write
-        with conn.begin():
-            yield conn
+        try:
+            with conn.begin():
+                yield conn
+        except Exception as exc:  # raw cursors raise the drivers' own errors
+            error = refused_value(exc)
+            if error is None:
+                raise
+            raise error from exc
 
     def cursor(self) -> Any:
         """A raw DBAPI cursor on the shared connection (inside a transaction)."""

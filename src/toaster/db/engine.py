@@ -271,6 +271,50 @@ def database_error(exc: BaseException, where: str, timeout_s: float) -> ToasterE
     return None
 
 
+#: SQLSTATE of a unique key another writer inserted meanwhile: a conflict the store retries,
+#: not a refused value (:func:`refused_value`).
+_UNIQUE_CONFLICT = "23505"
+
+
+def refused_value(exc: BaseException) -> InvalidInputError | None:
+    """The one-line error of a value the database or its driver cannot take (``exc``, raised
+    by a statement of a transaction now rolled back); None for any other error.
+
+    These are values no check of the caller's stopped: integers past 64 bits, text that is
+    not UTF-8, a type the driver cannot bind, a constraint the schema enforces (SQLSTATE
+    classes 22 and 23 on PostgreSQL, SQLite's integrity errors). A unique key taken by a
+    concurrent writer is a conflict the store retries, not a refused value.
+    """
+    orig = getattr(exc, "orig", None) or exc
+    reason = (str(orig).strip().splitlines() or [type(orig).__name__])[0]
+    if isinstance(orig, OverflowError):
+        return InvalidInputError(f"a number the database cannot hold ({reason}): integers and "
+                                 "times in ns go up to 2^63-1 (rolled back, nothing written)")
+    if isinstance(orig, UnicodeEncodeError):
+        return InvalidInputError(f"text the database cannot hold ({reason}): give valid UTF-8 "
+                                 "text (rolled back, nothing written)")
+    if _refused_by_database(orig, reason):
+        return InvalidInputError(f"the database refused a value ({reason}): check the values "
+                                 "given (rolled back, nothing written)")
+    return None
+
+
+def _refused_by_database(orig: BaseException, reason: str) -> bool:
+    """A constraint or data error (a value), or a value the driver cannot bind."""
+    if isinstance(orig, sqlite3.IntegrityError | sqlite3.DataError):
+        return True
+    if isinstance(orig, sqlite3.ProgrammingError | sqlite3.InterfaceError):
+        return reason.startswith(("Error binding parameter", "Incorrect number of bindings"))
+    if type(orig).__module__.split(".")[0] != "psycopg":
+        return False
+    sqlstate = getattr(orig, "sqlstate", None)
+    if sqlstate is None:  # refused by psycopg before sending (NUL in text, a Python type)
+        kind = type(orig).__name__
+        return kind == "DataError" or (kind == "ProgrammingError"
+                                       and reason.startswith("cannot adapt type"))
+    return sqlstate[:2] in ("22", "23") and sqlstate != _UNIQUE_CONFLICT
+
+
 def _sqlite_error(name: str, reason: str, where: str, timeout_s: float) -> ToasterError | None:
     if name.startswith("SQLITE_BUSY"):
         return _locked(where, timeout_s, "another process")

@@ -43,7 +43,7 @@ from toaster.errors import (
     TimeOrderError,
     UnknownAgentError,
 )
-from toaster.model import Fact, check_fact, check_id, fact_key
+from toaster.model import Fact, check_fact, check_id, fact_key, listed
 from toaster.timeutil import check_ns, format_ns, now_ns
 
 if TYPE_CHECKING:
@@ -266,7 +266,7 @@ class Store:
         if agent_id not in self.agents():
             self._agents = None
             if agent_id not in self.agents():
-                known = ", ".join(sorted(self.agents())) or "none yet"
+                known = listed(sorted(self.agents()), none="none yet")
                 msg = (f"unknown agent {agent_id!r} (known: {known}): register it with "
                        f"`toaster set-info ENTITY --id {agent_id} --type human` (or robot)")
                 raise UnknownAgentError(msg)
@@ -279,7 +279,7 @@ class Store:
         selves = [agent for agent, is_self in self.agents().items() if is_self]
         if len(selves) != 1:
             msg = (f"no agent given and there is not exactly one self agent "
-                   f"({', '.join(sorted(selves)) or 'none'}): {fix}")
+                   f"({listed(sorted(selves))}): {fix}")
             raise InvalidInputError(msg)
         return selves[0]
 
@@ -309,6 +309,7 @@ class Store:
 
     def remove_entity(self, entity_id: str) -> None:
         """Remove an entity (an agent loses its beliefs, views and events too)."""
+        check_id(entity_id, "entity id")
         with self.transaction() as conn:
             if entity_id in self.agents():
                 for holder in (entity_id, *catalog.nested_holders_of(conn, entity_id)):
@@ -355,9 +356,6 @@ class Store:
             with self.acting(actor, actors):
                 return self.sync_snapshot(source, agent_id, t_ns, facts)
         check_id(source, "source")
-        if not isinstance(t_ns, int) or isinstance(t_ns, bool):
-            msg = f"invalid time {t_ns!r}: times are integer nanoseconds"
-            raise InvalidInputError(msg)
         check_ns(t_ns)
         batch: FactArrays | None = None
         given: list[Fact] = []
@@ -457,7 +455,12 @@ class Store:
         if given == state.last_list:  # the same facts in the same order: nothing to do
             state.last_t = t_ns
             return SyncResult(0, 0, 0, 0, len(old))
-        new = dict(zip(map(_KEY, given), given, strict=True))
+        try:
+            new = dict(zip(map(_KEY, given), given, strict=True))
+        except (TypeError, IndexError):  # not facts, or a key field that is no text: say which
+            for fact in given:
+                check_fact(fact)
+            raise
         if new == old:
             state.last_list, state.last_t = given, t_ns
             return SyncResult(0, 0, 0, 0, len(new))

@@ -19,8 +19,8 @@ from itertools import pairwise
 from typing import Any, NamedTuple
 
 from toaster.errors import InvalidInputError, UnknownAgentError
-from toaster.model import FactKey, FactRow
-from toaster.timeutil import TimeFrame, format_ns
+from toaster.model import FactKey, FactRow, check_list, check_text, listed, shown
+from toaster.timeutil import TimeFrame, check_optional_ns, format_ns
 
 #: Divergence kinds: the agent holds a value the reference does not share, or holds nothing
 #: while the reference holds a value.
@@ -225,10 +225,12 @@ def fact_label(key: FactKey) -> str:
     return " ".join(part for part in (subject, prop, target) if part)
 
 
-def _as_list(value: str | Sequence[str] | None) -> list[str] | None:
+def _as_list(value: str | Sequence[str] | None, what: str = "filter") -> list[str] | None:
+    """None, or the names ``value`` gives (one text, or a list of texts), checked."""
     if value is None:
         return None
-    return [value] if isinstance(value, str) else list(value)
+    names = [value] if isinstance(value, str) else check_list(value, what)
+    return [check_text(name, what) for name in names]
 
 
 def check_agents(db: Any, agents: str | Sequence[str] | None) -> tuple[list[str], str]:
@@ -239,12 +241,12 @@ def check_agents(db: Any, agents: str | Sequence[str] | None) -> tuple[list[str]
 
     known = list_agents(db)
     names = [a.id for a in known]
-    wanted = _as_list(agents) or names
+    wanted = _as_list(agents, "agent") or names
     nested = [h for h in holders(db) if h not in names]
     for name in wanted:
         if name not in names and name not in nested:
-            shown = ", ".join(names) or "none registered"
-            msg = f"unknown agent {name!r}: known agents are {shown}"
+            msg = (f"unknown agent {shown(name)}: known agents are "
+                   f"{listed(names, none='none registered')}")
             raise UnknownAgentError(msg)
     if not wanted:
         msg = "no agent to plot: register agents first (toaster set-info entity --kind robot)"
@@ -272,6 +274,7 @@ def build_timeline(db: Any, *, subject: str | Sequence[str] | None = None,
     from toaster.queries import history
 
     names, default_ref = check_agents(db, agents)
+    since, until = check_optional_ns(since, "since"), check_optional_ns(until, "until")
     if reference is not None and reference not in names:
         msg = f"reference agent {reference!r} is not plotted: add it to the agents ({names})"
         raise InvalidInputError(msg)

@@ -6,8 +6,9 @@ from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import text
 
-from toaster.model import EventRow
+from toaster.model import EventRow, check_list, check_text
 from toaster.queries.facts import _where
+from toaster.timeutil import check_count, check_optional_ns
 
 if TYPE_CHECKING:
     from toaster.db.database import Database
@@ -24,10 +25,13 @@ def events(db: Database, agent: str | None = None, *, since: int | None = None,
     Filters: agent, subject, property, target, sub_property, source, value (lists match any).
     """
     where, params = _where({"agent": agent, **filters})
+    since, until = check_optional_ns(since, "since"), check_optional_ns(until, "until")
+    limit = check_count(limit, "limit")
     if kind is not None:
-        kinds = [kind] if isinstance(kind, str) else list(kind)
+        kinds = [check_text(kind, "kind")] if isinstance(kind, str) else [
+            check_text(k, "kind") for k in check_list(kind, "kind")]
         names = [f"kind_{i}" for i in range(len(kinds))]
-        where += f" AND kind IN ({', '.join(':' + n for n in names)})"
+        where += f" AND kind IN ({', '.join(':' + n for n in names)})" if names else " AND 1 = 0"
         params.update(zip(names, kinds, strict=True))
     if since is not None:
         where += " AND stamp_ns >= :since"
@@ -40,6 +44,6 @@ def events(db: Database, agent: str | None = None, *, since: int | None = None,
            f"ORDER BY stamp_ns {order}, id {order}")
     if limit is not None:
         sql += " LIMIT :limit"
-        params["limit"] = int(limit)
+        params["limit"] = limit
     with db.transaction() as conn:
         return [EventRow(*row) for row in conn.execute(text(sql), params)]

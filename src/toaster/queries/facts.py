@@ -10,7 +10,9 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 from toaster.beliefs import sqltext
-from toaster.model import FactRow
+from toaster.errors import InvalidInputError
+from toaster.model import FactRow, check_id, check_text, shown
+from toaster.timeutil import check_count, check_ns, check_optional_ns
 
 if TYPE_CHECKING:
     from toaster.db.database import Database
@@ -28,16 +30,32 @@ _KEY_COLS = (f"{_KEY_ONLY}, f.value_text, f.value_num, f.confidence, f.observabi
              "f.valid_from_ns, f.valid_to_ns, f.recorded_ns, f.source")
 
 
+def check_filter(arg: str, value: object) -> object:
+    """``value`` if it is a filter the read path takes: None (any), text, or a list, tuple or
+    set of texts (any of them); else a one-line error naming it. ``arg`` must be one of
+    :data:`_FILTER_ARGS`."""
+    if arg not in _FILTER_ARGS:
+        msg = f"unknown filter {arg}={shown(value)}: filter by {', '.join(_FILTER_ARGS)}"
+        raise InvalidInputError(msg)
+    if isinstance(value, list | tuple | set | frozenset):
+        for item in value:
+            check_text(item, f"{arg} filter")
+    elif value is not None:
+        check_text(value, f"{arg} filter")
+    return value
+
+
 def _where(filters: dict[str, Any], prefix: str = "") -> tuple[str, dict[str, Any]]:
     clauses: list[str] = []
     params: dict[str, Any] = {}
     for arg, value in filters.items():
-        if value is None or value == "NULL":
+        if check_filter(arg, value) is None or value == "NULL":
             continue
         column = _FILTER_ARGS[arg]
         if isinstance(value, list | tuple | set | frozenset):
             names = [f"{column}_{i}" for i in range(len(value))]
-            clauses.append(f"{prefix}{column} IN ({', '.join(':' + n for n in names)})")
+            clauses.append(f"{prefix}{column} IN ({', '.join(':' + n for n in names)})"
+                           if names else "1 = 0")  # an empty list matches nothing
             params.update(zip(names, value, strict=True))
         else:
             clauses.append(f"{prefix}{column} = :{column}")
@@ -58,6 +76,8 @@ def _rows(db: Database, sql: str, params: dict[str, Any], *, raw: bool = False) 
 def _select(db: Database, view: str, filters: dict[str, Any], *, since: int | None,
             until: int | None, limit: int | None, order: str, extra: str = "") -> list[Any]:
     where, params = _where(filters)
+    since, until = check_optional_ns(since, "since"), check_optional_ns(until, "until")
+    limit = check_count(limit, "limit")
     if since is not None:  # intervals still true at or after `since`
         where += " AND (valid_to_ns IS NULL OR valid_to_ns > :since)"
         params["since"] = since
@@ -67,7 +87,7 @@ def _select(db: Database, view: str, filters: dict[str, Any], *, since: int | No
     sql = f"SELECT {FACT_COLUMNS}{extra} FROM {view} WHERE {where} ORDER BY {order}"
     if limit is not None:
         sql += " LIMIT :limit"
-        params["limit"] = int(limit)
+        params["limit"] = limit
     return _rows(db, sql, params, raw=bool(extra))
 
 
@@ -118,8 +138,8 @@ def beliefs_at(db: Database, agent: str, t_ns: int, **filters: Any) -> list[Fact
     A holder key that followed the self agent's key at ``t_ns`` (``belief_follow``) takes the
     self's interval then, clipped to the period, confidence x the period's ``pconf``."""
     backend = db.backend
-    where, params = _where({"agent": agent, **filters}, prefix="k.")
-    params["t"] = t_ns
+    where, params = _where({"agent": check_id(agent, "agent id"), **filters}, prefix="k.")
+    params["t"] = check_ns(t_ns)
     samples = backend.sample_join.format(fact="f.id")
     own = (f"SELECT {_KEY_ONLY}, f.value_text, {_numbers_at()}, f.valid_from_ns, "
            "f.valid_to_ns, f.recorded_ns, f.source, k.id AS key_id FROM fact_keys k "
@@ -199,7 +219,8 @@ def fact_value(db: Database, agent: str, subject: str, property: str, target: st
                target_owner: str | None = None) -> FactRow | None:
     """The interval of one fact holding now (``at`` None) or at time ``at``; None if it does
     not hold. ``sub_property`` and owners None match any (the first match is returned)."""
-    filters = {"agent": agent, "subject": subject, "property": property, "target": target,
+    filters = {"agent": check_id(agent, "agent id"), "subject": check_id(subject, "subject id"),
+               "property": check_id(property, "property"), "target": target,
                "sub_property": sub_property, "subject_owner": subject_owner,
                "target_owner": target_owner}
     if at is None:

@@ -7,8 +7,8 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 from sqlalchemy import text
 
 from toaster.db import readonly
-from toaster.errors import ToasterError
-from toaster.model import Fact
+from toaster.errors import InvalidInputError, ToasterError
+from toaster.model import Fact, check_list, shown
 
 if TYPE_CHECKING:
     from toaster.db.database import Database
@@ -88,7 +88,10 @@ def are_in_table(db: Database, agent: str, facts: list[Fact]) -> list[bool]:
     from toaster.queries.facts import current_facts
 
     answers = []
-    for fact in facts:
+    for fact in check_list(facts, "facts"):
+        if not isinstance(fact, Fact):
+            msg = f"invalid fact pattern {shown(fact)}: give toaster.Fact(subject, property, ...)"
+            raise InvalidInputError(msg)
         filters: dict[str, Any] = {"subject": fact.subject_id, "property": fact.property,
                                    "target": fact.target_id or None}
         if fact.target_id == "":

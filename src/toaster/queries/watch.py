@@ -19,8 +19,9 @@ from typing import TYPE_CHECKING
 
 from sqlalchemy import text
 
-from toaster.model import EventRow
+from toaster.model import EventRow, check_text
 from toaster.queries.events import EVENT_COLUMNS
+from toaster.timeutil import check_count, check_seconds
 
 if TYPE_CHECKING:
     from toaster.db.database import Database
@@ -88,8 +89,12 @@ def watch(db: Database, *, agent: str | None = None, subject: str | None = None,
     oldest first, as they are committed; stops after ``timeout_s`` without a match (None: never)
     or within half a second of ``stop`` being set.
     """
-    patterns = {"agent_id": agent, "subject_id": subject, "property": property,
-                "target_id": target}
+    patterns = {field: None if value is None else check_text(value, f"{field} pattern")
+                for field, value in (("agent_id", agent), ("subject_id", subject),
+                                     ("property", property), ("target_id", target))}
+    after_id = check_count(after_id, "after_id")
+    poll_s = check_seconds(poll_s, "poll_s")
+    timeout_s = None if timeout_s is None else check_seconds(timeout_s, "timeout_s")
     with db.transaction() as conn:
         last = after_id if after_id is not None else int(
             conn.execute(text("SELECT COALESCE(MAX(id), 0) FROM events")).scalar_one())
