@@ -163,7 +163,7 @@ def test_dat_has_one_line_per_number(signal_db: toaster.Database, tmp_path: Path
     assert out.companion is not None
     script = out.companion.read_text()
     assert "using 1:3 with steps" in script
-    assert 'set ylabel "Distance (m)"' in script
+    assert "set ylabel 'Distance (m)' noenhanced" in script
     if shutil.which("gnuplot") is None:
         return
     done = subprocess.run(["gnuplot"], input=f"set terminal svg\nset output 'd.svg'\n{script}",

@@ -68,6 +68,7 @@ def plot_facts(app: Any, output: str, subject: tuple[str, ...], prop: tuple[str,
 
     from toaster.cli.checks import command_frame
     from toaster.plotting import plot_facts as plot
+    from toaster.quoting import shell_word, visible
 
     db = app.db
     lo, hi = parse_window(since, until)
@@ -82,12 +83,12 @@ def plot_facts(app: Any, output: str, subject: tuple[str, ...], prop: tuple[str,
     click.echo(f"wrote {result.path} ({facts} facts, {with_numbers} with numbers, "
                f"{len(timeline.agents)} agents, {false} false-belief spans)")
     if result.companion is not None:
-        click.echo(f"draw it with: gnuplot -p {result.companion}")
+        click.echo(f"draw it with: gnuplot -p {shell_word(str(result.companion))}")
     if result.left_out:
         click.echo(f"plot-facts: drew the {facts} most relevant facts; {result.left_out} more "
                    "matched and were left out (false beliefs come first, then facts "
-                   f"{timeline.reference} holds, then those that change most). Choose with "
-                   "--subject, --property, --target, --agent or --from/--to, or draw more "
+                   f"{visible(timeline.reference)} holds, then those that change most). Choose "
+                   "with --subject, --property, --target, --agent or --from/--to, or draw more "
                    "with --max-facts N (0 = all).", err=True)
 
 

@@ -17,6 +17,13 @@ from pathlib import Path
 from typing import Any
 
 from toaster.plotting.timeline import Signal, Timeline, check_numbers, holder_note, panels
+from toaster.quoting import (
+    gnuplot_comment,
+    gnuplot_datum,
+    gnuplot_label,
+    gnuplot_string,
+    shell_word,
+)
 from toaster.timeutil import format_ns
 
 CSV_COLUMNS = ("fact", "agent", "t_ns", "time_s", "value_text", "value_num", "confidence",
@@ -26,10 +33,6 @@ CSV_COLUMNS = ("fact", "agent", "t_ns", "time_s", "value_text", "value_num", "co
 def _seconds(t_ns: int, timeline: Timeline) -> str:
     """The time axis value: seconds since the data's start (:attr:`Timeline.axis`)."""
     return f"{timeline.axis.offset_s(t_ns):.9f}"
-
-
-def _quoted(text: str) -> str:
-    return '"' + text.replace("\\", "/").replace('"', "'") + '"'
 
 
 def _diverges(timeline: Timeline, label: str, agent: str, t_ns: int) -> bool:
@@ -75,24 +78,26 @@ def write_dat(timeline: Timeline, path: str | Path, numbers: str = "both") -> Pa
              "# columns: time_s t_ns level confidence value   (level 0 = not believed)",
              "# '# numbers:' blocks: time_s t_ns value_num confidence   (one line per point; "
              "a blank line = the fact does not hold)",
-             f"# draw it with: gnuplot -p {path.with_suffix('.gp').name}"]
+             gnuplot_comment("draw it with: gnuplot -p "
+                             + shell_word(path.with_suffix(".gp").name))]
     blocks = []
     for kind, lane in panels(timeline, numbers):
         if kind == "numbers":
             unit = lane.unit or "unknown unit"
             for signal in lane.signals:
-                block = [f"# numbers: {lane.label} | agent: {signal.agent} | "
-                         f"value_num: {lane.number_label} | unit: {unit}"]
+                block = [gnuplot_comment(f"numbers: {lane.label} | agent: {signal.agent} | "
+                                         f"value_num: {lane.number_label} | unit: {unit}")]
                 block += _number_lines(signal, timeline)
                 blocks.append("\n".join(block))
             continue
         codes = ", ".join(f"{i} = {v}" for i, v in enumerate(lane.values, 1))
         for series in lane.series:
-            block = [f"# fact: {lane.label} | agent: {series.agent} | levels: 0 = none, {codes}"]
+            block = [gnuplot_comment(f"fact: {lane.label} | agent: {series.agent} | "
+                                     f"levels: 0 = none, {codes}")]
             closing = series.changes[-1]._replace(t_ns=timeline.until_ns)
             for change in [*series.changes, closing]:
                 conf = "nan" if change.confidence is None else f"{change.confidence:.6g}"
-                value = '"-"' if change.value is None else _quoted(change.value)
+                value = '"-"' if change.value is None else gnuplot_datum(change.value)
                 block.append(f"{_seconds(change.t_ns, timeline)} {change.t_ns} "
                              f"{change.level} {conf} {value}")
             blocks.append("\n".join(block))
@@ -101,11 +106,6 @@ def write_dat(timeline: Timeline, path: str | Path, numbers: str = "both") -> Pa
     script.write_text(gnuplot_script(timeline, path.name, numbers,
                                      directory=str(path.resolve().parent)), encoding="utf-8")
     return script
-
-
-def _gp_string(text: str) -> str:
-    """A gnuplot single-quoted string (no escapes inside; a quote is doubled)."""
-    return "'" + text.replace("'", "''") + "'"
 
 
 def _script_directory(fallback: str | None) -> list[str]:
@@ -118,7 +118,7 @@ def _script_directory(fallback: str | None) -> list[str]:
     if fallback:
         sep = "" if fallback.endswith(("/", "\\")) else "/"
         lines.append('if (!exists("ARG0") || strlen(ARG0) == 0) { dir = '
-                     + _gp_string(fallback + sep) + " }")
+                     + gnuplot_string(fallback + sep) + " }")
     return lines
 
 
@@ -134,44 +134,47 @@ def gnuplot_script(timeline: Timeline, dat_name: str, numbers: str = "both", *,
     """
     shown, axis = panels(timeline, numbers), timeline.axis
     script = Path(dat_name).with_suffix(".gp").name
-    data_path = (_gp_string(dat_name) if Path(dat_name).is_absolute()
-                 else f"dir . {_gp_string(dat_name)}")
+    data_path = (gnuplot_string(dat_name) if Path(dat_name).is_absolute()
+                 else f"dir . {gnuplot_string(dat_name)}")
     height = 120 + 240 * len(shown)
     nested = [f"{a} = {holder_note(a)}" for a in timeline.agents if holder_note(a)]
     lines = [f"toaster facts from {format_ns(timeline.since_ns)}", *nested]
-    title = '"' + "\\n".join(_quoted(line)[1:-1] for line in lines) + '"'  # gnuplot's \n
-    out = [f"# gnuplot -p {script}   (from any directory: {Path(dat_name).name} is read "
-           "beside this script)",
-           f"# a PNG: gnuplot -e \"set terminal pngcairo size 1200,{height}; set output "
-           f"'facts.png'\" {script}",
+    title = ' . "\\n" . '.join(gnuplot_label(line) for line in lines)  # one line each
+    out = [gnuplot_comment(f"gnuplot -p {shell_word(script)}   (from any directory: "
+                           f"{Path(dat_name).name} is read beside this script)"),
+           gnuplot_comment(f"a PNG: gnuplot -e \"set terminal pngcairo size 1200,{height}; set "
+                           f"output 'facts.png'\" {shell_word(script)}"),
            *_script_directory(directory),
            f"data = {data_path}",
-           f"set multiplot layout {len(shown)},1 title {title}",
+           f"set multiplot layout {len(shown)},1 title {title} noenhanced",
            "set key outside right",
-           f"set xlabel \"seconds since the data's start ({format_ns(axis.origin_ns)})\"",
+           "set xlabel " + gnuplot_label(f"seconds since the data's start "
+                                         f"({format_ns(axis.origin_ns)})") + " noenhanced",
            f"set xrange [{axis.offset_s(timeline.since_ns):.9g}:"
            f"{axis.offset_s(timeline.until_ns):.9g}]"]
     index = 0
     for kind, lane in shown:
         if kind == "numbers":
-            out += [f'set title "{lane.label}: {lane.number_label}"',
-                    f'set ylabel "{lane.number_label}"', "set autoscale y", "set ytics auto"]
+            out += [f"set title {gnuplot_label(f'{lane.label}: {lane.number_label}')} noenhanced",
+                    f"set ylabel {gnuplot_label(lane.number_label)} noenhanced",
+                    "set autoscale y", "set ytics auto"]
             plots = []
             for signal in lane.signals:
                 plots.append(f"data index {index} using 1:3 with steps lw 2 "
-                             f"title {_quoted(signal.agent)}")
+                             f"title {gnuplot_label(signal.agent)} noenhanced")
                 index += 1
             out.append("plot " + ", \\\n     ".join(plots))
             continue
-        tics = ", ".join([f"{_quoted(v)} {i}" for i, v in enumerate(lane.values, 1)])
-        out += [f'set title "{lane.label}"', "unset ylabel",
+        tics = "".join(f", {gnuplot_label(v, tic=True)} {i}"
+                       for i, v in enumerate(lane.values, 1))
+        out += [f"set title {gnuplot_label(lane.label)} noenhanced", "unset ylabel",
                 f"set yrange [-0.5:{len(lane.values) + 0.5}]",
-                f'set ytics ("none" 0{", " + tics if tics else ""})']
+                f"set ytics ('none' 0{tics}) noenhanced"]
         plots = []
         for k, series in enumerate(lane.series):
             offset = 0.06 * k  # keep agents' lines apart where they agree
             plots.append(f"data index {index} using 1:($3+{offset:g}) with steps "
-                         f"lw 2 title {_quoted(series.agent)}")
+                         f"lw 2 title {gnuplot_label(series.agent)} noenhanced")
             index += 1
         out.append("plot " + ", \\\n     ".join(plots))
     out.append("unset multiplot")

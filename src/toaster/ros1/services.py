@@ -16,6 +16,7 @@ from contextlib import contextmanager
 from typing import Any
 
 from toaster.live import control
+from toaster.quoting import shell_word, visible
 from toaster.ros1 import dbcalls
 from toaster.ros1.mapping import area_from_msg, quat, vec
 from toaster.ros1.messages import to_msg
@@ -333,7 +334,9 @@ class Handlers:
     def plot_facts(self, req: Any, resp: Any) -> Any:
         with self.pool.db() as db:
             path = dbcalls.plot_facts(db, req)
-        self.log(f"plot_facts: wrote {path.resolve()} (draw it with gnuplot -p {path.stem}.gp)")
+        script = shell_word(str(path.with_suffix(".gp").resolve()))
+        self.log(f"plot_facts: wrote {visible(str(path.resolve()))} (draw it with gnuplot -p "
+                 f"{visible(script)})")
         resp.boolAnswer = True
         return resp
 
