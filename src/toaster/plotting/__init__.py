@@ -130,12 +130,13 @@ def plot_facts(db: Any, output: str | Path, *, subject: str | Sequence[str] | No
     if fmt == "csv":
         report("writing", 0, None)
         return PlotResult(write_csv(timeline, path, numbers), None, timeline, None, left_out)
-    from toaster.plotting.render import render
+    from toaster.plotting.render import render, text_settings
 
     figure = render(timeline, title=title, numbers=numbers,
                     on_panel=lambda done, total: report("drawing", done, total))
     report("saving", 0, None)
-    figure.savefig(path, format=fmt, dpi=dpi)
+    with text_settings():  # tick labels are made while saving
+        figure.savefig(path, format=fmt, dpi=dpi)
     return PlotResult(path, None, timeline, figure, left_out)
 
 

@@ -16,6 +16,7 @@ from typing import Any
 
 from toaster.extras import require
 from toaster.plotting.timeline import FALSE_BELIEF, Lane, Timeline, legend_notes, panels
+from toaster.quoting import mpl_text, visible
 from toaster.timeutil import NS_PER_S
 
 BAR = 0.6
@@ -29,9 +30,18 @@ def _matplotlib() -> Any:
     return Figure
 
 
+def text_settings() -> Any:
+    """The settings under which ids show as they are (:func:`toaster.quoting.mpl_text`): no
+    LaTeX, ``$`` escapes read (a user's matplotlibrc may say otherwise); draw and save in it."""
+    import matplotlib as mpl
+
+    return mpl.rc_context({"text.usetex": False, "text.parse_math": True})
+
+
 def number_gid(lane: Lane, agent: str) -> str:
-    """The ``gid`` of the number line of ``agent`` in ``lane`` (an ``id`` in an SVG)."""
-    return f"numbers: {lane.label} | {agent}"
+    """The ``gid`` of the number line of ``agent`` in ``lane`` (an ``id`` in an SVG; ids
+    :func:`~toaster.quoting.visible`, XML holds no control character)."""
+    return f"numbers: {visible(lane.label)} | {visible(agent)}"
 
 
 def render(timeline: Timeline, *, title: str | None = None, numbers: str = "both",
@@ -44,9 +54,16 @@ def render(timeline: Timeline, *, title: str | None = None, numbers: str = "both
     start (:attr:`Timeline.axis`) and the numbers (NaN: the fact does not hold).
     ``on_panel(done, total)`` is called after each panel is drawn. The legend says what the
     hatching and dots mean and what each nested holder ``A>B`` plotted is
-    (:func:`~toaster.plotting.timeline.legend_notes`).
+    (:func:`~toaster.plotting.timeline.legend_notes`). Ids and values show as they are
+    (:func:`~toaster.quoting.mpl_text`); ``title`` is matplotlib text (``$...$`` is math).
     """
     figure_cls = _matplotlib()
+    with text_settings():
+        return _figure(figure_cls, timeline, title, numbers, on_panel)
+
+
+def _figure(figure_cls: Any, timeline: Timeline, title: str | None, numbers: str,
+            on_panel: Callable[[int, int], None] | None) -> Any:
     from matplotlib.patches import Patch
 
     shown = panels(timeline, numbers)
@@ -65,8 +82,9 @@ def render(timeline: Timeline, *, title: str | None = None, numbers: str = "both
             on_panel(i, len(shown))
     _time_axis(axes[-1], timeline)
     facts = len({lane.label for _, lane in shown})
-    fig.suptitle(title or f"toaster facts ({facts}), reference agent: {timeline.reference}")
-    notes = legend_notes(timeline)
+    fig.suptitle(title or f"toaster facts ({facts}), reference agent: "
+                 f"{mpl_text(timeline.reference)}")
+    notes = [mpl_text(note) for note in legend_notes(timeline)]
     handles = [Patch(visible=False, label=note) for note in notes[2:]]  # A>B: no symbol
     if any(kind == "bars" for kind, _ in shown):
         handles = [Patch(facecolor="none", edgecolor="red", hatch="////", label=notes[0]),
@@ -103,13 +121,13 @@ def _draw_numbers(ax: Any, lane: Lane, timeline: Timeline) -> None:
         xs, ys = signal.steps(timeline.since_ns, timeline.until_ns, timeline.axis)
         reference = signal.agent == timeline.reference
         style = {"linewidth": 2.4} if reference else {"linewidth": 1.4, "linestyle": "--"}
-        ax.plot(xs, ys, drawstyle="steps-post", label=(f"{signal.agent} (reference)"
-                                                       if reference else signal.agent),
+        ax.plot(xs, ys, drawstyle="steps-post", label=mpl_text(f"{signal.agent} (reference)"
+                                                                if reference else signal.agent),
                 color=colours(timeline.agents.index(signal.agent) % 8),
                 gid=number_gid(lane, signal.agent), **style)
-    label = lane.number_label
+    label = mpl_text(lane.number_label)
     ax.set_ylabel(label.replace(" (", "\n(") if len(label) > 18 else label, fontsize="small")
-    ax.set_title(f"{lane.label}: number", loc="left", fontsize="medium")
+    ax.set_title(mpl_text(f"{lane.label}: number"), loc="left", fontsize="medium")
     ax.legend(loc="best", fontsize="small")
     ax.grid(alpha=0.3)
 
@@ -132,7 +150,7 @@ def _draw_lane(ax: Any, lane: Lane, timeline: Timeline, span: float) -> None:
             y = row - BAR / 2 + BAR * conf
             ax.plot([x0, x0 + width], [y, y], color="black", linewidth=0.8)
             if width >= _MIN_LABEL_FRACTION * span:
-                ax.text(x0 + width / 2, row, f"{change.value} ({conf:.2g})", ha="center",
+                ax.text(x0 + width / 2, row, mpl_text(f"{change.value} ({conf:.2g})"), ha="center",
                         va="center", fontsize="small", clip_on=True)
     agents = [s.agent for s in lane.series]
     for div in timeline.divergences:
@@ -145,8 +163,8 @@ def _draw_lane(ax: Any, lane: Lane, timeline: Timeline, span: float) -> None:
         else:
             style = {"facecolors": "none", "edgecolor": "grey", "linestyle": ":"}
         ax.broken_barh([(x0, width)], (row - BAR / 2 - 0.08, BAR + 0.16), **style)
-    ax.set_yticks(range(len(agents)),
-                  [f"{a} (reference)" if a == timeline.reference else a for a in agents])
+    ax.set_yticks(range(len(agents)), [mpl_text(f"{a} (reference)" if a == timeline.reference
+                                                else a) for a in agents])
     ax.set_ylim(len(agents) - 0.5, -0.5)
-    ax.set_title(lane.label, loc="left", fontsize="medium", fontweight="bold")
+    ax.set_title(mpl_text(lane.label), loc="left", fontsize="medium", fontweight="bold")
     ax.grid(axis="x", alpha=0.3)
