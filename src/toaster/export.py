@@ -6,6 +6,10 @@ CSV and JSON lines need nothing beyond the standard library; Parquet needs the `
 nanoseconds; :func:`read_rows` reads any of them back into the same typed rows and
 :func:`read_frame` into the DataFrame :func:`toaster.queries.to_dataframe` builds.
 
+CSV text cells that a spreadsheet would read as a formula (``=``, ``+``, ``-``, ``@``...) or
+that start with ``'`` get one leading ``'`` (:func:`toaster.quoting.csv_text`); the readers
+strip it. JSON lines are ASCII (:func:`toaster.quoting.json_line`).
+
 Parquet keeps the types: text ``string``, integers ``int64`` (null where a field may be None:
 an open interval's ``valid_to_ns``; pandas reads it as nullable ``Int64``, never as floats),
 floats ``double``, and beside each ``X_ns`` time a column ``X`` of ``timestamp[ns, tz=UTC]``.
@@ -22,6 +26,7 @@ from typing import Any, NamedTuple
 from toaster.errors import InvalidInputError, UnknownAgentError
 from toaster.extras import require
 from toaster.model import EventRow, FactRow, check_list, listed, shown
+from toaster.quoting import csv_cells, csv_untext, json_line
 from toaster.timeutil import check_optional_ns, format_ns
 
 KINDS = ("facts", "memory", "history", "events")
@@ -122,11 +127,11 @@ def write_rows(rows: Sequence[NamedTuple], rtype: type[NamedTuple], path: Path,
         with path.open("w", newline="", encoding="utf-8") as handle:
             writer = csv.writer(handle)
             writer.writerow(fields)
-            writer.writerows(["" if v is None else v for v in row] for row in rows)
+            writer.writerows(csv_cells("" if v is None else v for v in row) for row in rows)
     elif fmt == "jsonl":
         with path.open("w", encoding="utf-8") as handle:
             for row in rows:
-                handle.write(json.dumps(dict(zip(fields, row, strict=True))) + "\n")
+                handle.write(json_line(dict(zip(fields, row, strict=True))) + "\n")
     else:
         _, pq = _pyarrow()
         pq.write_table(arrow_table(rows, rtype), path)
@@ -170,8 +175,10 @@ def read_rows(path: str | Path, kind: str, format: str | None = None) -> list[An
         with path.open(encoding="utf-8") as handle:
             records = [json.loads(line) for line in handle if line.strip()]
     else:
+        text = {f for f, (base, _) in field_kinds(rtype).items() if base is str}
         with path.open(newline="", encoding="utf-8") as handle:
-            records = list(csv.DictReader(handle))
+            records = [{k: csv_untext(v) if k in text and v else v for k, v in rec.items()}
+                       for rec in csv.DictReader(handle)]
     kinds = field_kinds(rtype)
     try:
         return [rtype(*(_typed(rec[f], kinds[f]) for f in rtype._fields))

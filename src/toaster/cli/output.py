@@ -6,18 +6,21 @@ same columns and cells are plain tab-separated lines under one header line; ``--
 lines) and ``--csv`` carry every field, times in integer ns. Tables show every column of a
 row's identity (agent, subject and its owner, property, sub-property, target and its owner);
 on a terminal an owner or sub-property column empty in every row is left out.
+
+Data is quoted by :mod:`toaster.quoting`: terminal and tab-separated cells show every character
+(control characters escaped, no rich markup), text cells of CSV and tab-separated lines that a
+spreadsheet would read as a formula start with ``'``, JSON lines are ASCII.
 """
 
 from __future__ import annotations
 
-import csv
-import json
 import sys
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import click
 
+from toaster.quoting import csv_line, csv_text, json_line, visible
 from toaster.timeutil import format_ns
 
 if TYPE_CHECKING:
@@ -97,7 +100,8 @@ class Listing(NamedTuple):
         shown = shown_columns(self.kind, self.columns, self.records, terminal=terminal)
         index = [self.columns.index(name) for name in shown]
         frame = self.frame if self.frame is not None else _frame_for(shown)
-        cells = [[_cell(name, record[i], frame) for name, i in zip(shown, index, strict=True)]
+        cell = _cell if terminal else _tsv_cell
+        cells = [[cell(name, record[i], frame) for name, i in zip(shown, index, strict=True)]
                  for record in self.records]
         return [_HEADERS.get(name, name) for name in shown], cells
 
@@ -105,16 +109,19 @@ class Listing(NamedTuple):
 def _json(out: Listing) -> None:
     for record in out.records:
         obj = dict(zip(out.columns, record, strict=True))
-        click.echo(json.dumps(obj if out.title is None else {"table": out.title, **obj},
-                              default=str))
+        click.echo(json_line(obj if out.title is None else {"table": out.title, **obj}))
 
 
 def _csv(out: Listing) -> None:
     if out.title is not None:
-        click.echo(f"# {out.title}")
-    writer = csv.writer(sys.stdout, lineterminator="\n")
-    writer.writerow(out.columns)
-    writer.writerows(out.records)
+        click.echo(f"# {visible(out.title)}")
+    for line in (out.columns, *out.records):
+        _write(csv_line(line))
+
+
+def _write(line: str) -> None:
+    """One line of data on stdout as it is (``click.echo`` would strip escape sequences)."""
+    sys.stdout.write(line + "\n")
 
 
 def _tsv(out: Listing) -> None:
@@ -123,24 +130,26 @@ def _tsv(out: Listing) -> None:
         return
     headers, cells = out.cells(terminal=False)
     if out.title is not None:
-        click.echo(f"# {out.title}")
+        click.echo(f"# {visible(out.title)}")
     for line in (headers, *cells):
-        click.echo("\t".join(_plain(cell) for cell in line))
+        click.echo("\t".join(visible(cell) for cell in line))
 
 
 def _table(out: Listing) -> None:
     from rich.console import Console
     from rich.table import Table
+    from rich.text import Text
 
     if not out.records:
         click.echo(out.empty)
         return
     headers, cells = out.cells(terminal=True)
-    table = Table(title=out.title, show_lines=False)
+    table = Table(title=None if out.title is None else Text(visible(out.title)),
+                  show_lines=False)
     for header in headers:
         table.add_column(header, overflow="fold")
     for line in cells:
-        table.add_row(*line)
+        table.add_row(*(Text(visible(cell)) for cell in line))  # Text: no markup
     Console(highlight=False).print(table)
 
 
@@ -178,10 +187,10 @@ def _cell(name: str, value: Any, frame: TimeFrame | None) -> str:
     return str(value)
 
 
-def _plain(cell: str) -> str:
-    """A cell on one tab-separated line (tabs and line breaks escaped)."""
-    return cell.replace("\\", "\\\\").replace("\t", "\\t").replace("\n", "\\n").replace("\r",
-                                                                                       "\\r")
+def _tsv_cell(name: str, value: Any, frame: TimeFrame | None) -> str:
+    """A tab-separated cell: text as :func:`~toaster.quoting.csv_text` (a spreadsheet opening
+    it reads no formula), the rest as in a table."""
+    return csv_text(value) if isinstance(value, str) else _cell(name, value, frame)
 
 
 class RowWriter:
@@ -193,16 +202,15 @@ class RowWriter:
         self.how = mode(fmt)
         self.columns = list(columns)
         self.line = line
-        self._csv = csv.writer(sys.stdout, lineterminator="\n")
         self._started = False
 
     def write(self, row: Any, frame: TimeFrame | None = None) -> None:
         """Print one row (a NamedTuple with :attr:`columns`) now."""
         record = tuple(row)
         if self.how == "json":
-            click.echo(json.dumps(dict(zip(self.columns, record, strict=True)), default=str))
+            click.echo(json_line(dict(zip(self.columns, record, strict=True))))
         elif self.how == "table":
-            click.echo(self.line(row))
+            click.echo(visible(self.line(row)))
         else:
             kind = type(row).__name__
             shown = shown_columns(kind, self.columns, [record], terminal=False)
@@ -213,16 +221,16 @@ class RowWriter:
             if self.how == "csv":
                 self._emit(record)
             else:
-                self._emit([_cell(name, record[self.columns.index(name)], frame)
+                self._emit([_tsv_cell(name, record[self.columns.index(name)], frame)
                             for name in shown])
         self._started = True
         sys.stdout.flush()
 
     def _emit(self, values: Sequence[Any]) -> None:
         if self.how == "csv":
-            self._csv.writerow(values)
+            _write(csv_line(values))
         else:
-            click.echo("\t".join(_plain(str(v)) for v in values))
+            click.echo("\t".join(visible(str(v)) for v in values))
 
 
 def say(message: str) -> None:

@@ -29,11 +29,14 @@ Rules every command follows:
   else `$TOASTER_DB`, else `sqlite:///toaster.db` in the working directory. Two different
   `--db` on one line are refused.
 - **Listings** (every command that prints rows) take `--limit N`, `--json` (JSON lines, every
-  field, times in ns) and `--csv` (every field, times in ns). On a terminal rows are a table;
-  piped, the same columns are tab-separated lines under one header line (tabs and line breaks
-  in values escaped as `\\t`, `\\n`), and "no rows" goes to stderr. Tables show every key
-  column of a row (agent, subject and its owner, property, sub-property, target and its owner);
-  on a terminal an owner or sub-property column empty in every row is left out.
+  field, times in ns, ASCII) and `--csv` (every field, times in ns). On a terminal rows are a
+  table; piped, the same columns are tab-separated lines under one header line (tabs, line
+  breaks and other control characters in values escaped as `\\t`, `\\n`, `\\x1b`, a backslash
+  doubled), and "no rows" goes to stderr. In CSV and tab-separated lines a text value starting
+  with `=`, `+`, `-`, `@`, a tab, a line break or `'` gets one leading `'`, so that a
+  spreadsheet reads no formula (docs/plotting.md). Tables show every key column of a row
+  (agent, subject and its owner, property, sub-property, target and its owner); on a terminal
+  an owner or sub-property column empty in every row is left out.
 - **Optional extras** are checked before a command reads or writes anything: a missing one is
   one line naming `pip install 'toaster[EXTRA]'` (`plot` for pictures, `export` for Parquet,
   `rosbag` for bags and recordings).

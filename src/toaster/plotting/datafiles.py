@@ -18,6 +18,7 @@ from typing import Any
 
 from toaster.plotting.timeline import Signal, Timeline, check_numbers, holder_note, panels
 from toaster.quoting import (
+    csv_text,
     gnuplot_comment,
     gnuplot_datum,
     gnuplot_label,
@@ -186,17 +187,18 @@ def write_csv(timeline: Timeline, path: str | Path, numbers: str = "both") -> Pa
     (``kind`` = ``state``) and, for facts that carry numbers, one row per number point
     (``kind`` = ``number``: value_num and confidence from then on, empty where the fact does
     not hold; value_text, level and diverges are the state's at that time). ``numbers`` as in
-    :func:`~toaster.plotting.render.render`."""
+    :func:`~toaster.plotting.render.render`. Text cells (fact, agent, value_text) that a
+    spreadsheet would read as a formula start with ``'`` (:func:`toaster.quoting.csv_text`)."""
     path = Path(path)
     check_numbers(numbers)
     with path.open("w", newline="", encoding="utf-8") as handle:
         writer = csv.writer(handle)
         writer.writerow(CSV_COLUMNS)
         def row(label: str, agent: str, t_ns: int, state: Any, number: Any, kind: str) -> None:
+            value = "" if state.value is None else csv_text(state.value)
             writer.writerow([
-                label, agent, t_ns, _seconds(t_ns, timeline),
-                *("" if v is None else v for v in (state.value, number.value_num,
-                                                   number.confidence)),
+                csv_text(label), csv_text(agent), t_ns, _seconds(t_ns, timeline), value,
+                *("" if v is None else v for v in (number.value_num, number.confidence)),
                 state.level, int(_diverges(timeline, label, agent, t_ns)), kind])
 
         for kind, lane in panels(timeline, numbers):
