@@ -6,7 +6,8 @@ Foxglove and Lichtblick open the ``.mcap`` (or the ``.bag``) directly; ``ros2 ba
 (see ``docs/recordings.md``):
 
 * ``/tf`` (``tf2_msgs/TFMessage``): every entity under ``map`` with pdg's frame names
-  (objects ``<id>``, agents ``<id>/base``, joints ``<agent>/<joint>``), full 3D poses;
+  (objects ``<id>``, agents ``<id>/base``, joints ``<agent>/<joint>``; each id one name token,
+  :func:`toaster.quoting.ros_name`), full 3D poses;
 * ``/pdg/humanList``, ``/pdg/robotList``, ``/pdg/objectList`` (``toaster_msgs``): the entities
   as pdg publishes them, joints as skeleton joints;
 * ``/toaster/entities`` and ``/toaster/areas`` (``visualization_msgs/MarkerArray``): shapes
@@ -31,6 +32,7 @@ from typing import Any, NamedTuple
 
 from toaster.errors import InvalidInputError
 from toaster.model import EventRow, Fact, FactRow
+from toaster.quoting import ros_name
 from toaster.recording_beliefs import (
     BELIEFS_TYPE,
     BeliefTimeline,
@@ -174,7 +176,7 @@ class Recorder:
     def write_fact_list(self, t_ns: int, source: str, facts: Iterable[Fact | FactRow]) -> None:
         """Write the facts ``source`` holds at ``t_ns`` on ``/<source>/factList`` (FactRows
         keep their start as ``timeStart``)."""
-        if not source.isidentifier():
+        if ros_name(source) != source:
             msg = f"cannot publish facts of {source!r}: a producer name is a ROS name (pdg)"
             raise InvalidInputError(msg)
         held, items = _fact_items(facts, t_ns)
@@ -192,7 +194,7 @@ class Recorder:
         ``t_ns`` on its channel ``/toaster/beliefs/<holder>``."""
         topic = self.belief_topics.get(holder)
         if topic is None:
-            topic = self.belief_topics[holder] = holder_topic(holder, self.belief_topics.values())
+            topic = self.belief_topics[holder] = holder_topic(holder)
             self.bag.connect(topic, BELIEFS_TYPE)
         _, items = _fact_items(facts, t_ns)
         self._put(topic, t_ns, BELIEFS_TYPE, {

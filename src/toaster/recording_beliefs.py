@@ -6,16 +6,18 @@ One topic per holder, ``/toaster/beliefs/<AGENT>`` (nested holders as a path: ``
 what Anne thinks Sally believes, on ``/toaster/beliefs/ANNE/SALLY``), of type
 ``toaster_recording/msg/Beliefs`` (:data:`BELIEFS_MSG`): the holder's complete set of facts,
 not a delta, at the first frame and whenever it changed. The definition travels in the bag.
+Each agent of the chain is one name token (:func:`toaster.quoting.ros_name`); the message's
+``holder`` and ``chain`` keep the exact ids.
 """
 
 from __future__ import annotations
 
-import re
 from collections.abc import Iterable, Sequence
 from typing import Any
 
 from toaster.errors import InvalidInputError
 from toaster.model import FactRow
+from toaster.quoting import ros_name
 from toaster.recording_msgs import FactTimeline
 
 BELIEFS_TOPIC = "/toaster/beliefs"
@@ -32,7 +34,6 @@ bool is_self
 # Each fact: time = this message's time, timeStart = when the holder came to believe it.
 toaster_msgs/Fact[] facts
 """
-_TOKEN = re.compile(r"[A-Za-z][A-Za-z0-9]*(?:_[A-Za-z0-9]+)*")
 
 
 def beliefs_types() -> dict[str, Any]:
@@ -42,15 +43,6 @@ def beliefs_types() -> dict[str, Any]:
     return get_types_from_msg(BELIEFS_MSG, BELIEFS_TYPE)
 
 
-def _token(name: str) -> str:
-    """A ROS name token for one agent id: the id itself when it is one (letters, digits, single
-    inner underscores, a letter first), else its letters and digits joined by ``_``."""
-    if _TOKEN.fullmatch(name):
-        return name
-    clean = "_".join(re.findall(r"[A-Za-z0-9]+", name))
-    return clean if clean[:1].isalpha() else f"h_{clean}".rstrip("_")
-
-
 def chain(holder: str) -> list[str]:
     """A holder as its chain of agents: ``ANNE>SALLY`` → ``[ANNE, SALLY]``."""
     from toaster.beliefs.rules import SEPARATOR
@@ -58,15 +50,10 @@ def chain(holder: str) -> list[str]:
     return holder.split(SEPARATOR)
 
 
-def holder_topic(holder: str, taken: Iterable[str] = ()) -> str:
-    """The topic of ``holder``'s beliefs, not one of ``taken`` (ids that are not ROS names are
-    cleaned and numbered; the message's ``holder`` field keeps the exact id)."""
-    base = "/".join([BELIEFS_TOPIC, *(_token(part) for part in chain(holder))])
-    used, topic, number = set(taken), base, 1
-    while topic in used:
-        number += 1
-        topic = f"{base}_{number}"
-    return topic
+def holder_topic(holder: str) -> str:
+    """The topic of ``holder``'s beliefs: one name token per agent of its chain
+    (:func:`~toaster.quoting.ros_name`, injective: two holders never share a topic)."""
+    return "/".join([BELIEFS_TOPIC, *(ros_name(part) for part in chain(holder))])
 
 
 class BeliefTimeline:

@@ -266,10 +266,10 @@ def test_ros1_bag_reads_with_debian_rosbag(tmp_path: Path) -> None:
 
 
 def test_holder_topics_are_ros_names(tmp_path: Path) -> None:
-    """Holder ids that are not ROS names get a valid, distinct topic; the message keeps the
-    exact id and its chain."""
+    """Holder ids that are not ROS names get a valid, distinct topic by one rule (whatever the
+    order they come in); the message keeps the exact id and its chain."""
     from toaster.beliefs.rules import SEPARATOR
-    from toaster.recording_beliefs import holder_topic
+    from toaster.quoting import ros_id
 
     holders = ["alice", "alice-1", "alice_1", "3po", f"anne{SEPARATOR}sally", "anne/sally"]
     path = tmp_path / "odd"
@@ -286,7 +286,10 @@ def test_holder_topics_are_ros_names(tmp_path: Path) -> None:
     assert all(re.fullmatch(rf"(/{token})+", t) for t in names), names
     assert got["alice"][0] == "/toaster/beliefs/alice"
     assert got[f"anne{SEPARATOR}sally"] == ("/toaster/beliefs/anne/sally", ["anne", "sally"])
-    assert holder_topic("alice", ["/toaster/beliefs/alice"]) == "/toaster/beliefs/alice_2"
+    assert got["alice-1"][0] == "/toaster/beliefs/x0alice_2d1"
+    assert got["anne/sally"][0] == "/toaster/beliefs/x0anne_2fsally"
+    assert all(ros_id(topic.rsplit("/", 1)[1]) == holder for holder, (topic, _) in got.items()
+               if SEPARATOR not in holder)
 
 
 def test_failed_recording_leaves_nothing(tmp_path: Path) -> None:

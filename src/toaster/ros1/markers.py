@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from toaster.model import Fact
+from toaster.quoting import ros_name
 from toaster.ros1.mapping import Quat, rotate, rpy_to_quat
 from toaster.world.history import NO_TIME
 from toaster.world.state import HUMAN, JOINT, OBJECT, ROBOT, World
@@ -36,14 +37,16 @@ def live_rows(world: World) -> np.ndarray:
 
 
 def frame_of(world: World, row: int) -> str:
-    """pdg's TF frame names: objects "/<id>", agents "<id>/base", joints "/<agent>/<joint>"."""
+    """pdg's TF frame names: objects "/<id>", agents "<id>/base", joints "/<agent>/<joint>",
+    each id one ROS name token (:func:`toaster.quoting.ros_name`: ``a b`` → ``x0a_20b``), so
+    that every entity has a frame of its own."""
     kind = int(world.kind[row])
     if kind in (HUMAN, ROBOT):
-        return f"{world.ids[row]}/base"
+        return f"{ros_name(world.ids[row])}/base"
     if kind == JOINT:
         owner = world.ids[int(world.owner[row])]
-        return f"/{owner}/{world.joint_names[row] or world.ids[row]}"
-    return f"/{world.ids[row]}"
+        return f"/{ros_name(owner)}/{ros_name(world.joint_names[row] or world.ids[row])}"
+    return f"/{ros_name(world.ids[row])}"
 
 
 def quat_of(world: World, row: int) -> Quat:
