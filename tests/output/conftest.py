@@ -4,6 +4,8 @@ run with three agents, facts changing over time and a false belief."""
 from __future__ import annotations
 
 import os
+import shutil
+import subprocess
 import uuid
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -13,6 +15,7 @@ import pytest
 import toaster
 from toaster import Fact
 
+SYSTEM_PYTHON = "/usr/bin/python3"
 PG_URL = os.environ.get("TOASTER_TEST_POSTGRES_URL", "postgresql://postgres@127.0.0.1:5432/test")
 S = 1_000_000_000
 T0 = 1_700_000_000 * S  # the run starts here
@@ -111,3 +114,31 @@ def run_scenario(db: toaster.Database, name: str, seconds: float) -> list[tuple[
     end = session.start_ns + int(seconds * S)
     runner.run(session.start_ns, end, session.rate_hz, on_tick=grab)
     return frames
+
+
+def require_tool(found: bool, reason: str) -> None:
+    """Skip the test when a consumer it runs is missing (``reason`` says how to install it);
+    under CI (``CI`` set) fail instead: CI must have it (.ci/run)."""
+    if found:
+        return
+    if os.environ.get("CI"):
+        pytest.fail(f"{reason}; CI must install it (.ci/run)")
+    pytest.skip(reason)
+
+
+def require_gnuplot() -> str:
+    """The gnuplot program (skips without it, fails under CI)."""
+    found = shutil.which("gnuplot")
+    require_tool(found is not None, "gnuplot is not installed (apt-get install gnuplot-nox)")
+    return str(found)
+
+
+def require_system_rosbag() -> None:
+    """Debian's python3-rosbag under /usr/bin/python3 (skips without it, fails under CI)."""
+    probe = subprocess.run([SYSTEM_PYTHON, "-c", "import sys; sys.path.append("
+                            "'/usr/lib/python3/dist-packages'); import rosbag, genpy, "
+                            "tf2_msgs.msg, visualization_msgs.msg, rosgraph_msgs.msg"],
+                           capture_output=True, text=True, check=False)
+    require_tool(probe.returncode == 0, "Debian's python3-rosbag is not importable under "
+                 "/usr/bin/python3 (apt-get install python3-rosbag python3-tf2-msgs "
+                 "python3-visualization-msgs)")

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 import toaster
-from tests.output.conftest import T0, S, run_scenario
+from tests.output.conftest import T0, S, require_gnuplot, run_scenario
 from toaster.errors import InvalidInputError, MissingDependencyError, UnknownAgentError
 from toaster.plotting import FALSE_BELIEF, UNAWARE, Timeline, build_timeline, plot_facts
 from toaster.queries import history
@@ -90,12 +90,10 @@ def test_gnuplot_dat_has_one_line_per_change(run_db: toaster.Database, tmp_path:
 
 
 def test_gnuplot_draws_the_script(run_db: toaster.Database, tmp_path: Path) -> None:
-    """gnuplot, when installed, runs the generated script without an error."""
-    import shutil
+    """gnuplot runs the generated script without an error."""
     import subprocess
 
-    if shutil.which("gnuplot") is None:
-        pytest.skip("gnuplot is not installed (apt-get install gnuplot-nox)")
+    require_gnuplot()
     out = plot_facts(run_db, tmp_path / "all.dat")
     assert out.companion is not None
     script = f"set terminal svg\nset output 'all.svg'\n{out.companion.read_text()}"
@@ -269,15 +267,6 @@ def _png_size(path: Path) -> tuple[int, int]:
     return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
 
 
-def _gnuplot() -> str:
-    import shutil
-
-    found = shutil.which("gnuplot")
-    if found is None:
-        pytest.skip("gnuplot is not installed (apt-get install gnuplot-nox)")
-    return found
-
-
 def _table_curves(path: Path) -> dict[str, list[list[tuple[float, float]]]]:
     """The curves gnuplot plotted in ``set table`` mode, by title (one list per panel)."""
     curves: dict[str, list[list[tuple[float, float]]]] = {}
@@ -298,7 +287,7 @@ def test_gnuplot_runs_from_any_directory(run_db: toaster.Database, tmp_path: Pat
     number panel plots alice's distance as stored (3.0, 1.0, 0.4 m from 1, 5, 8 s to 14 s)."""
     import subprocess
 
-    gnuplot = _gnuplot()
+    gnuplot = require_gnuplot()
     (tmp_path / "out").mkdir()
     (tmp_path / "elsewhere").mkdir()
     out = plot_facts(run_db, tmp_path / "out" / "run.dat", subject="alice", until=T0 + 20 * S)

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import re
 import subprocess
 from itertools import pairwise
@@ -20,6 +19,7 @@ import yaml  # type: ignore[import-untyped]
 from click.testing import CliRunner
 
 import toaster
+from tests.output.conftest import SYSTEM_PYTHON, require_system_rosbag
 from toaster.cli import cli
 from toaster.recording import CUBE, CYLINDER, LINE_STRIP, Recorder, record
 from toaster.ros1.mapping import rpy_to_quat
@@ -30,7 +30,6 @@ S = 1_000_000_000
 EXAMPLES = Path(toaster.__file__).parent / "examples"
 SALLY = EXAMPLES / "scenario_spatial_sally_anne.yaml"
 FLAT = EXAMPLES / "scenario_flat.yaml"
-SYSTEM_PYTHON = "/usr/bin/python3"
 HERE = Path(__file__).resolve().parent
 
 
@@ -223,24 +222,11 @@ print(json.dumps(out))
 """
 
 
-def _system_rosbag() -> None:
-    probe = subprocess.run([SYSTEM_PYTHON, "-c", "import sys; sys.path.append("
-                            "'/usr/lib/python3/dist-packages'); import rosbag, genpy, "
-                            "tf2_msgs.msg, visualization_msgs.msg, rosgraph_msgs.msg"],
-                           capture_output=True, text=True, check=False)
-    if probe.returncode != 0:
-        reason = ("Debian's python3-rosbag is not importable under /usr/bin/python3 (apt-get "
-                  "install python3-rosbag python3-tf2-msgs python3-visualization-msgs)")
-        if os.environ.get("CI"):
-            pytest.fail(reason)
-        pytest.skip(reason)
-
-
 def test_ros1_bag_reads_with_debian_rosbag(tmp_path: Path) -> None:
     """`--record NAME.bag` writes a ROS 1 bag that Debian's rosbag reads: standard types with
     Debian's md5 sums, toaster_msgs with the original's (genmsg's), the wall's box, /tf under
     map, ROS 1 log levels and the belief channels with Sally's false belief."""
-    _system_rosbag()
+    require_system_rosbag()
     bag = tmp_path / "sally.bag"
     _run(f"sqlite:///{tmp_path / 'sally.db'}", SALLY, bag)
     messages_py = Path(toaster.__file__).parent / "ros1" / "messages.py"

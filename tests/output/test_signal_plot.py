@@ -10,7 +10,6 @@ from __future__ import annotations
 import csv
 import math
 import re
-import shutil
 import subprocess
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator
@@ -21,7 +20,7 @@ import pytest
 from click.testing import CliRunner
 
 import toaster
-from tests.output.conftest import T0, S, open_built
+from tests.output.conftest import T0, S, open_built, require_gnuplot
 from toaster import Fact
 from toaster.cli.plot import plot_facts as plot_command
 from toaster.errors import InvalidInputError
@@ -150,8 +149,7 @@ def _number_blocks(dat: Path) -> dict[str, list[list[tuple[int, float, float]]]]
 
 def test_dat_has_one_line_per_number(signal_db: toaster.Database, tmp_path: Path) -> None:
     """The .dat number block: one line per stored number at its time, each stretch closed at
-    its end and followed by a blank line; the script draws it with steps (and gnuplot, when
-    installed, runs it)."""
+    its end and followed by a blank line; the script draws it with steps and gnuplot runs it."""
     out = plot_facts(signal_db, tmp_path / "dist.dat", subject="alice", property="Distance",
                      since=SINCE, until=UNTIL)
     blocks = _number_blocks(out.path)
@@ -164,8 +162,7 @@ def test_dat_has_one_line_per_number(signal_db: toaster.Database, tmp_path: Path
     script = out.companion.read_text()
     assert "using 1:3 with steps" in script
     assert "set ylabel 'Distance (m)' noenhanced" in script
-    if shutil.which("gnuplot") is None:
-        return
+    require_gnuplot()
     done = subprocess.run(["gnuplot"], input=f"set terminal svg\nset output 'd.svg'\n{script}",
                           text=True, cwd=tmp_path, capture_output=True, check=False)
     assert done.returncode == 0, done.stderr
