@@ -19,11 +19,14 @@ from typing import Any
 import psycopg
 import pytest
 from click.testing import CliRunner
+from sqlalchemy import make_url
 
 import toaster
-from tests.conftest import BACKENDS, PG_URL, pg_schema
+from tests.conftest import BACKENDS, PG_URL, pg_schema, require_postgres
 from toaster import queries as q
 from toaster.cli import cli
+from toaster.db import migrate
+from toaster.db.engine import make_engine
 from toaster.db.readonly import READER_ROLE, check_statement, tokenize
 from toaster.db.readonly import postgresql as readonly_pg
 from toaster.db.readonly import sqlite as readonly_sqlite
@@ -68,6 +71,31 @@ HOSTILE: list[tuple[str, str | tuple[str, str]]] = [
     ("query-to-xml", "SELECT query_to_xml('SELECT set_config(''role'', ''postgres'', "
                      "true)', true, false, '')"),
     ("ts-stat", "SELECT * FROM ts_stat('SELECT pg_advisory_lock(1)::text::tsvector')"),
+    # SQL given as text to a function (where the statement check cannot see it)
+    ("query-to-xml-terminate", "SELECT query_to_xml('SELECT pg_terminate_backend({pid})', "
+                               "true, false, '')"),
+    ("query-to-xml-schema", "SELECT query_to_xml_and_xmlschema('SELECT pg_advisory_lock(1)',"
+                            " true, false, '')"),
+    ("cursor-to-xml", "SELECT cursor_to_xml('c'::refcursor, 1, true, false, '')"),
+    ("ts-stat-terminate", "SELECT * FROM ts_stat('SELECT pg_terminate_backend({pid})::text"
+                          "::tsvector')"),
+    ("ts-rewrite-query", "SELECT ts_rewrite('a'::tsquery, 'SELECT ''a''::tsquery, "
+                         "pg_terminate_backend({pid})::text::tsquery')::text"),
+    ("crosstab", "SELECT * FROM crosstab('SELECT pg_terminate_backend({pid})::text, "
+                 "''a'', ''b''') AS t(a text, b text)"),
+    ("connectby", "SELECT * FROM connectby('settings', 'key', 'scope', 'x', 0) "
+                  "AS t(a text, b text, c int)"),
+    # toaster's own functions: the read-only wrapper (pg_temp), the triggers' functions
+    ("wrapper-terminate", "SELECT * FROM pg_temp.toaster_readonly_run('SELECT "
+                          "pg_terminate_backend({pid})::text', 100, 1000000) AS t(a text)"),
+    ("wrapper-quoted", """SELECT * FROM "pg_temp"."toaster_readonly_run"('SELECT """
+                       """pg_advisory_lock(1)::text', 100, 1000000) AS t(a text)"""),
+    ("wrapper-set-role", "SELECT * FROM pg_temp . toaster_readonly_run /* */ ('SELECT "
+                         "set_config(''role'', ''postgres'', false)', 1, 1000) AS t(a text)"),
+    ("wrapper-numbered", "SELECT * FROM pg_temp_1.toaster_readonly_run('SELECT 1', 1, 1000) "
+                         "AS t(a int)"),
+    ("trigger-function", "SELECT toaster_guard()"),
+    ("trigger-function-qualified", "SELECT public.toaster_belief_run()"),
     ("alter-system", "ALTER SYSTEM SET work_mem = '1GB'"),
     ("discard", "DISCARD ALL"),
     # files, programs, large objects
@@ -434,6 +462,100 @@ def test_a_role_that_cannot_create_roles_falls_back(plain_role_url: str, scratch
     finally:
         plain.close()
         other.close()
+
+
+def _admin() -> psycopg.Connection[Any]:
+    return psycopg.connect(PG_URL.replace("postgresql+psycopg://", "postgresql://"),
+                           autocommit=True)
+
+
+@pytest.fixture(scope="module")
+def owner_url() -> Iterator[str]:
+    """A database of its own, owned by a fresh login role without CREATEROLE that migrated
+    it (so it owns every table), as that role's URL; both dropped afterwards."""
+    require_postgres()
+    name = f"toaster_owner_{uuid.uuid4().hex[:8]}"
+    with _admin() as admin:
+        admin.execute(f"CREATE ROLE {name} LOGIN NOSUPERUSER NOCREATEROLE NOCREATEDB")
+        admin.execute(f"CREATE DATABASE {name} OWNER {name}")
+    url = make_url(PG_URL).set(username=name, database=name)
+    try:
+        engine = make_engine(url.render_as_string(hide_password=False))
+        migrate.upgrade(engine)
+        engine.dispose()
+        yield url.render_as_string(hide_password=False)
+    finally:
+        with _admin() as admin:
+            admin.execute(f"DROP DATABASE IF EXISTS {name} WITH (FORCE)")
+            admin.execute(f"DROP ROLE IF EXISTS {name}")
+
+
+#: Finding 1 of issue 24, as reported: toaster's own wrapper, called by name, runs the SQL in
+#: its string literal, which the statement check does not read.
+WRAPPER_CALL = ("SELECT * FROM pg_temp.toaster_readonly_run('SELECT pg_terminate_backend(pid)"
+                "::text FROM pg_stat_activity WHERE application_name = ''victim''', 100, "
+                "1000000) AS t(a text)")
+
+
+@pytest.mark.postgresql
+@pytest.mark.parametrize("reader", [False, True], ids=["fallback", "reader-role"])
+def test_the_wrapper_cannot_be_called_by_a_statement(owner_url: str, reader: bool,
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """A role owning its database, without CREATEROLE, once ended its own other session
+    through ``pg_temp.toaster_readonly_run('...')``. The check refuses pg_temp; with the
+    check switched off, the wrapper refuses to run inside a statement (it reads the call
+    stack); the session named victim lives on. Both as the role itself (it cannot take the
+    reader role) and as the reader role (an administrator granted it)."""
+    owner = make_url(owner_url).username
+    if reader:  # as an administrator would: the role, its grants, and the owner may take it
+        admin_url = make_url(PG_URL).set(database=make_url(owner_url).database)
+        with psycopg.connect(admin_url.render_as_string(hide_password=False).replace(
+                "postgresql+psycopg://", "postgresql://")) as admin:
+            assert readonly_pg.ensure_reader_role(admin.cursor()) is None
+            admin.execute(f"GRANT {READER_ROLE} TO {owner}")
+    victim = psycopg.connect(owner_url.replace("postgresql+psycopg://", "postgresql://"),
+                             application_name="victim", autocommit=True)
+    try:
+        with closing(toaster.connect(owner_url)) as db:
+            assert q.execute(db, "SELECT current_user::text").rows == [
+                (READER_ROLE if reader else owner,)]
+        runner = CliRunner()
+        refused = runner.invoke(cli, ["--db", owner_url, "execute", "SQL", WRAPPER_CALL])
+        assert (refused.exit_code, victim.execute("SELECT 1").fetchone()) == (1, (1,))
+        assert "pg_temp" in refused.output and len(refused.output.splitlines()) == 1
+        monkeypatch.setattr(readonly_pg, "check_statement", tokenize)
+        unchecked = runner.invoke(cli, ["--db", owner_url, "execute", "SQL", WRAPPER_CALL])
+        assert (unchecked.exit_code, victim.execute("SELECT 1").fetchone()) == (1, (1,))
+        assert "wrapper cannot be called" in unchecked.output, unchecked.output
+    finally:
+        victim.close()
+        if reader:
+            with _admin() as admin:
+                admin.execute(f"REVOKE {READER_ROLE} FROM {owner}")
+
+
+@pytest.mark.postgresql
+def test_toasters_own_functions_are_refused(read_db: toaster.Database) -> None:
+    """Every function in toaster's schema (the triggers' functions of the migrations and
+    the belief rules), as the catalog lists them, and the wrapper in pg_temp, however
+    spelled, are refused by the statement check."""
+    if read_db.dialect_name != "postgresql":
+        pytest.skip("PostgreSQL functions")
+    names = [name for (name,) in q.execute(
+        read_db, "SELECT proname::text FROM pg_proc WHERE pronamespace = "
+                 "current_schema()::regnamespace").rows]
+    assert "toaster_guard" in names and "toaster_belief_run" in names
+    schema = q.execute(read_db, "SELECT current_schema()::text").rows[0][0]
+    for name in names:
+        for sql in (f"SELECT {name}()", f'SELECT "{schema}"."{name}"()',
+                    f"SELECT x FROM {schema}.{name}() AS x"):
+            with pytest.raises(ReadOnlyError, match=name):
+                check_statement(sql, "postgresql")
+    for spelling in ("pg_temp", '"pg_temp"', "PG_TEMP", "pg_temp_12", "pg_toast_temp_3",
+                     '"pg_temp_3"'):
+        with pytest.raises(ReadOnlyError, match="temporary schema"):
+            check_statement(f"SELECT * FROM {spelling}.toaster_readonly_run('SELECT 1', 1, "
+                            "1) AS t(a int)", "postgresql")
 
 
 # ---------------------------------------------------------------------------- reads

@@ -30,13 +30,21 @@ _RUN_SIGNATURE = f"{_RUN}(text, integer, bigint)"
 # "session_authorization" by any means (SET ROLE, set_config, in any nested function), even
 # for a superuser session. Its owner is READER_ROLE (else the connecting role). No SET
 # search_path: the statement resolves names as the caller would. Stops after max_rows + 1
-# rows (the extra one says "truncated") and before max_bytes of text.
+# rows (the extra one says "truncated") and before max_bytes of text. It runs only as the
+# outermost call: PG_CONTEXT (the call stack, which no statement can forge) is one line
+# then, and longer when a statement calls it, e.g. to run SQL hidden in a string literal.
 _RUN_BODY = """
 DECLARE
   r record;
   n integer := 0;
   size bigint := 0;
+  stack text;
 BEGIN
+  GET DIAGNOSTICS stack = PG_CONTEXT;
+  IF pg_catalog.strpos(stack, E'\\n') > 0 THEN
+    RAISE EXCEPTION 'toaster: the read-only wrapper cannot be called by a statement'
+      USING ERRCODE = '42501';
+  END IF;
   FOR r IN EXECUTE q LOOP
     n := n + 1;
     size := size + coalesce(pg_catalog.octet_length(r::text), 0);

@@ -166,7 +166,9 @@ _ACTIONS = frozenset((
 #: Words that make a read statement write (writable CTEs, SELECT INTO, row locks).
 _WRITE_WORDS = frozenset(("insert", "update", "delete", "merge", "truncate", "into"))
 #: PostgreSQL functions with effects beyond the transaction or the session's own reads
-#: (settings, locks, files, programs, other sessions, SQL run from a string).
+#: (settings, locks, files, programs, other sessions), and those that run SQL given as text
+#: (PostgreSQL 15: query_to_xml*, cursor_to_xml*, ts_stat, ts_rewrite(tsquery, text); the
+#: contrib modules' dblink*, crosstab*, connectby, xpath_table), where the check cannot see.
 _PG_CALLS = frozenset((
     "set_config", "pg_notify", "nextval", "setval", "loread", "lowrite", "pg_read_file",
     "pg_read_binary_file", "pg_stat_file", "pg_terminate_backend", "pg_cancel_backend",
@@ -175,11 +177,19 @@ _PG_CALLS = frozenset((
     "pg_stop_backup", "pg_log_backend_memory_contexts", "pg_logical_emit_message",
     "pg_import_system_collations", "query_to_xml", "query_to_xmlschema",
     "query_to_xml_and_xmlschema", "cursor_to_xml", "cursor_to_xmlschema", "ts_stat",
-    "ts_rewrite", "pg_logical_slot_get_changes", "pg_logical_slot_peek_changes"))
+    "ts_rewrite", "pg_logical_slot_get_changes", "pg_logical_slot_peek_changes", "connectby",
+    "xpath_table"))
+#: Families of them (a call of a name that starts so).
 _PG_CALL_PREFIXES = ("pg_advisory", "pg_try_advisory", "dblink", "lo_", "pg_ls_", "pg_file_",
                      "pg_stat_reset", "pg_replication_", "pg_create_", "pg_drop_", "pg_copy_",
                      "pg_wal_replay_", "binary_upgrade_", "table_to_xml", "schema_to_xml",
-                     "database_to_xml", "pg_logdir_")
+                     "database_to_xml", "pg_logdir_", "crosstab")
+#: toaster's own functions (the triggers' functions the migrations and toaster.beliefs
+#: install, the read-only wrapper): no statement has a reason to call them.
+_PG_OWN = "toaster_"
+#: The session's temporary schemas (``pg_temp``, ``pg_temp_3``, ``pg_toast_temp_3``): they
+#: hold toaster's read-only wrapper, never anything a statement may use.
+_PG_TEMP = re.compile(r"pg_(?:toast_)?temp(?:_\d+)?")
 #: SQLite functions that load code or touch files (the SQLite authorizer denies them too).
 SQLITE_CALLS = frozenset(("load_extension", "fts3_tokenizer", "readfile", "writefile", "edit"))
 
@@ -216,7 +226,13 @@ def check_statement(sql: str, dialect: str) -> list[Token]:
         if token.kind == "word" and token.name == "for" and index + 1 < len(tokens) and \
                 tokens[index + 1].name in ("update", "share", "no", "key"):
             _refuse("row locks (FOR UPDATE / FOR SHARE)")
+        if dialect == "postgresql" and token.kind in ("word", "ident") and \
+                _PG_TEMP.fullmatch(token.name):
+            _refuse(f"{token.name} (the session's temporary schema, toaster's own)")
         called = index + 1 < len(tokens) and tokens[index + 1].text == "("
+        if dialect == "postgresql" and called and token.kind in ("word", "ident") and \
+                token.name.startswith(_PG_OWN):
+            _refuse(f"{token.name}() (toaster's own function)")
         if token.kind in ("word", "ident") and _denied_call(token.name, dialect, called):
             _refuse(f"{token.name}() (a side effect beyond the statement)")
     return tokens
