@@ -25,7 +25,7 @@ import toaster
 from tests.conftest import BACKENDS, PG_URL, pg_schema, require_postgres
 from toaster import queries as q
 from toaster.cli import cli
-from toaster.db import migrate
+from toaster.db import migrate, open_database
 from toaster.db.engine import make_engine
 from toaster.db.readonly import READER_ROLE, check_statement, tokenize
 from toaster.db.readonly import postgresql as readonly_pg
@@ -618,6 +618,58 @@ def test_sqlite_memory_is_bounded(read_db: toaster.Database,
         q.execute(read_db, _ENDLESS + "SELECT x, hex(randomblob(50)) FROM c ORDER BY 2",
                   timeout_s=60)
     assert server_state(read_db)["pragmas"][4] == 0  # hard_heap_limit given back
+
+
+def test_rows_stream_in_batches(read_db: toaster.Database) -> None:
+    """execute_stream gives the columns, then the rows as they are fetched (over several
+    batches), and says ``truncated`` once they are read; a statement past a bound fails as
+    it is opened, before any row."""
+    with q.execute_stream(read_db, _ENDLESS + "SELECT x FROM c", max_rows=1000) as rows:
+        assert rows.columns == ["x"]
+        assert [x for (x,) in rows] == list(range(1, 1001))
+    assert rows.truncated
+    wide = _ENDLESS + ("SELECT x, hex(randomblob(100)) FROM c LIMIT 5000"
+                       if read_db.dialect_name == "sqlite" else
+                       "SELECT x, repeat('x', 200) FROM c LIMIT 5000")
+    with pytest.raises(ToasterError, match="--max-bytes"), \
+            q.execute_stream(read_db, wide, max_bytes=100_000):
+        pytest.fail("a refused statement gave rows")
+
+
+def test_sqlite_printf_past_the_bound_is_refused(read_db: toaster.Database) -> None:
+    """SQLite's printf() and format() return NULL when their result passes the length limit,
+    which would pass for an answer: read-only SQL refuses it, naming --max-bytes."""
+    if read_db.dialect_name != "sqlite":
+        pytest.skip("SQLite's printf")
+    for sql in ("SELECT printf('%.*c', 5000, 'x')", "SELECT format('%5000d', 1)",
+                "SELECT length(printf('%s-%.*c', 'a', 2000000000, 'x'))"):
+        with pytest.raises(ToasterError, match="printf.*--max-bytes"):
+            q.execute(read_db, sql, max_bytes=4096)
+    same = ("SELECT printf('%d-%s', 5, 'a'), printf(NULL), format('%.3c|%5.1f|%x', 'x', "
+            "2.25, x'41'), printf('%s', NULL), printf('%!.3g %q', 1e20, 'it''s')")
+    with closing(sqlite3.connect(":memory:")) as plain:
+        assert q.execute(read_db, same, max_bytes=4096).rows == [plain.execute(same).fetchone()]
+
+
+def test_a_long_function_call_stops_at_the_deadline(read_db: toaster.Database) -> None:
+    """SQLite looks at its deadline only between steps of its virtual machine, never inside
+    one function call: this instr() alone runs for minutes (its cost is the product of the
+    two lengths). The statement's process is killed at the deadline."""
+    if read_db.dialect_name != "sqlite":
+        pytest.skip("SQLite's function calls (PostgreSQL's statement_timeout stops them)")
+    haystack = "replace(hex(zeroblob(2097152)), '0', 'a')"  # 4 MiB of 'a'
+    needle = "replace(hex(zeroblob(1048576)), '0', 'a') || 'b'"  # 2 MiB of 'a', then 'b'
+    with pytest.raises(ToasterError, match="--timeout"):
+        q.execute(read_db, f"SELECT instr({haystack}, {needle})", timeout_s=1.0,
+                  max_bytes=8 * 2**20)
+    assert q.execute(read_db, "SELECT 1").rows == [(1,)]
+
+
+def test_in_memory_sqlite_is_refused_in_one_line() -> None:
+    """The statement's process cannot open an in-memory database: one line, not a guess."""
+    with open_database("sqlite://", allow_memory=True) as db, \
+            pytest.raises(ToasterError, match="in-memory database"):
+        q.execute(db, "SELECT 1")
 
 
 def test_bad_bounds_are_refused(read_db: toaster.Database) -> None:

@@ -17,7 +17,7 @@ from toaster.queries.facts import (
     signal,
 )
 from toaster.queries.frames import to_dataframe
-from toaster.queries.sql import SQLResult, are_in_table, execute
+from toaster.queries.sql import SQLResult, are_in_table, execute, execute_stream
 from toaster.queries.watch import watch
 
 __all__ = [
@@ -31,6 +31,7 @@ __all__ = [
     "entities",
     "events",
     "execute",
+    "execute_stream",
     "fact_value",
     "history",
     "memory",

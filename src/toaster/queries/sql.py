@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 from sqlalchemy import text
@@ -44,11 +46,10 @@ def execute(db: Database, sql: str, params: dict[str, Any] | list[Any] | None = 
     with a dict on both).
     """
     if not write:
-        bounds = readonly.limits(max_rows, max_bytes, timeout_s)
-        run = readonly.run_postgresql if db.dialect_name == "postgresql" else \
-            readonly.run_sqlite
-        read = run(db, sql, params, bounds)
-        return SQLResult(read.columns, read.rows, len(read.rows), read.truncated)
+        with execute_stream(db, sql, params, max_rows=max_rows, max_bytes=max_bytes,
+                            timeout_s=timeout_s) as stream:
+            rows = list(stream)
+        return SQLResult(stream.columns, rows, len(rows), stream.truncated)
     named = params if isinstance(params, dict) else None  # ``:name`` style, both backends
     try:
         with db.transaction(write=True) as conn:
@@ -74,6 +75,27 @@ def execute(db: Database, sql: str, params: dict[str, Any] | list[Any] | None = 
         msg = f"SQL error: {_one_line(exc)}"
         raise ToasterError(msg) from None
     return SQLResult(columns, rows, count)
+
+
+@contextmanager
+def execute_stream(db: Database, sql: str, params: dict[str, Any] | list[Any] | None = None,
+                   *, max_rows: int = readonly.DEFAULT_MAX_ROWS,
+                   max_bytes: int = readonly.DEFAULT_MAX_BYTES,
+                   timeout_s: float = readonly.DEFAULT_TIMEOUT_S) -> Iterator[readonly.ReadRows]:
+    """Run one read-only statement as :func:`execute` does, and give its rows as they are
+    fetched: ``columns``, then the rows, ``truncated`` once they are read. Every bound is
+    checked before the first row (a refused statement gives none); the caller holds one
+    batch of rows at a time, so memory does not grow with the result.
+
+    >>> with q.execute_stream(db, "SELECT * FROM events") as rows:  # doctest: +SKIP
+    ...     for row in rows:
+    ...         print(*row)
+    """
+    bounds = readonly.limits(max_rows, max_bytes, timeout_s)
+    read = readonly.read_postgresql if db.dialect_name == "postgresql" else \
+        readonly.read_sqlite
+    with read(db, sql, params, bounds) as rows:
+        yield rows
 
 
 def _one_line(exc: Exception) -> str:

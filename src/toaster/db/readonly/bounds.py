@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator
 from typing import Any, NamedTuple
 
 from toaster.errors import InvalidInputError, ToasterError
@@ -19,12 +20,24 @@ class Limits(NamedTuple):
     timeout_s: float
 
 
-class ReadResult(NamedTuple):
-    """Columns and rows (at most ``max_rows``; ``truncated`` when there were more)."""
+class ReadRows:
+    """The rows of one read-only statement as they are fetched, each bound already checked
+    (no row comes from a statement that is then refused): ``columns``, then at most
+    ``max_rows`` rows; ``truncated`` is True once they are read if there were more."""
 
-    columns: list[str]
-    rows: list[tuple[Any, ...]]
-    truncated: bool
+    def __init__(self, columns: list[str], rows: Iterable[tuple[Any, ...]],
+                 max_rows: int) -> None:
+        self.columns = columns
+        self.truncated = False
+        self._rows = rows
+        self._max_rows = max_rows
+
+    def __iter__(self) -> Iterator[tuple[Any, ...]]:
+        for count, row in enumerate(self._rows):
+            if count == self._max_rows:
+                self.truncated = True
+                return
+            yield row
 
 
 def limits(max_rows: int, max_bytes: int, timeout_s: float) -> Limits:
@@ -47,8 +60,11 @@ def timeout_error(bounds: Limits) -> ToasterError:
                         "(read-only SQL's bound): narrow it (WHERE, LIMIT) or raise --timeout")
 
 
-def too_big_error(bounds: Limits) -> ToasterError:
-    """The error of a result past ``max_bytes``."""
+def too_big_error(bounds: Limits, value: str | None = None) -> ToasterError:
+    """The error of a result past ``max_bytes``, or of one ``value`` (what makes it)."""
+    if value is not None:
+        return ToasterError(f"SQL error: {value} is larger than {bounds.max_bytes} bytes "
+                            "(--max-bytes): make it smaller, or raise --max-bytes")
     return ToasterError(f"SQL error: the result is larger than {bounds.max_bytes} bytes "
                         "(--max-bytes): select fewer rows or columns, or raise --max-bytes")
 

@@ -13,7 +13,7 @@ from typing import Any, NamedTuple
 
 from toaster.db.readonly.bounds import (
     Limits,
-    ReadResult,
+    ReadRows,
     first_line,
     require_own_transaction,
     timeout_error,
@@ -88,6 +88,9 @@ SELECT pg_catalog.set_config('statement_timeout', %(timeout)s, true),
   (SELECT {_SAFE} AND pg_catalog.pg_has_role(r.oid, 'MEMBER') AND {_USAGE}
     FROM pg_catalog.pg_roles r WHERE r.rolname = %(reader)s)
 """
+#: The cursor over the wrapper's result, and how many rows each FETCH takes.
+_CURSOR = "toaster_rows"
+_BATCH = 256
 _RELATION_DENIED = re.compile(r"permission denied for (table|view|materialized view|relation)")
 #: Connections where READER_ROLE cannot be used, and why (they run as their own role).
 _NO_READER: weakref.WeakKeyDictionary[Any, str] = weakref.WeakKeyDictionary()
@@ -110,9 +113,12 @@ class _State(NamedTuple):
     reader_ready: bool | None
 
 
-def run_postgresql(db: Any, sql: str, params: Any, bounds: Limits) -> ReadResult:
-    """Run one read statement on PostgreSQL (see the module's doc); roll back whatever
-    happens. Sets up READER_ROLE and the wrapper on first use (:func:`ensure_reader_role`)."""
+@contextmanager
+def read_postgresql(db: Any, sql: str, params: Any, bounds: Limits) -> Iterator[ReadRows]:
+    """Run one read statement on PostgreSQL (see the module's doc) and give its rows, fetched
+    in batches from the wrapper's result (held by the server) while the transaction is open;
+    roll back whatever happens. Sets up READER_ROLE and the wrapper on first use
+    (:func:`ensure_reader_role`)."""
     raw = db.connection.connection.dbapi_connection
     text = _pg_text(raw, sql, params)
     check_statement(text, "postgresql")
@@ -123,10 +129,13 @@ def run_postgresql(db: Any, sql: str, params: Any, bounds: Limits) -> ReadResult
             role = _role(raw, state)
             if role is not None:
                 try:
-                    return _pg_run(db, cur, raw, text, state, role, bounds)
+                    rows = _pg_start(db, cur, raw, text, state, role, bounds)
                 except _Denied as denied:  # a table made since the grants, perhaps
                     if prepared or role != READER_ROLE:
                         raise denied.error from None
+                else:
+                    yield rows
+                    return
             elif prepared:
                 msg = (f"cannot set up read-only SQL on PostgreSQL ({_NO_READER.get(raw)}): "
                        f"fix role {READER_ROLE} or this role's TEMP privilege, or use --write")
@@ -297,9 +306,10 @@ def _pg_text(raw: Any, sql: str, params: Any) -> str:
         raise ToasterError(msg) from None
 
 
-def _pg_run(db: Any, cur: Any, raw: Any, text: str, state: _State, role: str,
-            bounds: Limits) -> ReadResult:
-    """Describe the statement, run it through the wrapper as ``role``, check what is left."""
+def _pg_start(db: Any, cur: Any, raw: Any, text: str, state: _State, role: str,
+              bounds: Limits) -> ReadRows:
+    """Describe the statement, run it through the wrapper as ``role`` (a plpgsql set-returning
+    function runs to its end on the first FETCH), check what is left, then give its rows."""
     import psycopg
     from psycopg import pq
 
@@ -325,24 +335,45 @@ def _pg_run(db: Any, cur: Any, raw: Any, text: str, state: _State, role: str,
             raise ToasterError(msg)
     columns = ", ".join(f"c{i} {type_name}" for i, (type_name, _) in enumerate(types))
     try:
-        cur.execute(f"SELECT * FROM {_RUN}(%s::text, %s::integer, %s::bigint) "
-                    f"AS t({columns})", [text, bounds.max_rows, bounds.max_bytes])
-        rows = cur.fetchall()
+        cur.execute(f"DECLARE {_CURSOR} NO SCROLL CURSOR FOR SELECT * FROM "
+                    f"{_RUN}(%s::text, %s::integer, %s::bigint) AS t({columns})",
+                    [text, bounds.max_rows, bounds.max_bytes])
+        first = _fetch(cur)
     except psycopg.Error as exc:
         error = _pg_error(exc.sqlstate, first_line(exc), bounds)
         if exc.sqlstate == "42501" and _RELATION_DENIED.search(first_line(exc)):
             raise _Denied(error) from None
         raise error from None
-    cur.execute(f"SELECT current_user, current_setting('transaction_read_only'), {_VXID}")
+    cur.execute(f"SELECT current_user, current_setting('transaction_read_only'), {_VXID}, "
+                f"({_ADVISORY})")
     after = cur.fetchone()
     if raw.info.transaction_status != pq.TransactionStatus.INTRANS or \
-            tuple(after) != (role, "on", state.vxid):
+            tuple(after) != (role, "on", state.vxid, state.advisory):
         db.connection.invalidate()
-        msg = ("statement refused, it left its read-only transaction or role (rolled back, "
-               "connection closed): rerun with --write")
+        msg = ("statement refused, it left its read-only transaction or role, or took locks "
+               "(rolled back, connection closed): rerun with --write")
         raise ReadOnlyError(msg)
-    return ReadResult(names, [tuple(r) for r in rows[:bounds.max_rows]],
-                      len(rows) > bounds.max_rows)
+    return ReadRows(names, _pg_rows(cur, first, bounds), bounds.max_rows)
+
+
+def _fetch(cur: Any) -> list[tuple[Any, ...]]:
+    cur.execute(f"FETCH FORWARD {_BATCH} FROM {_CURSOR}")
+    return [tuple(r) for r in cur.fetchall()]
+
+
+def _pg_rows(cur: Any, batch: list[tuple[Any, ...]],
+             bounds: Limits) -> Iterator[tuple[Any, ...]]:
+    """The rows, a batch at a time: the client holds one batch."""
+    import psycopg
+
+    while True:
+        yield from batch
+        if len(batch) < _BATCH:
+            return
+        try:
+            batch = _fetch(cur)
+        except psycopg.Error as exc:
+            raise _pg_error(exc.sqlstate, first_line(exc), bounds) from None
 
 
 def _describe(raw: Any, text: str, bounds: Limits) -> tuple[list[str], list[list[int]]]:
