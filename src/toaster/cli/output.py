@@ -15,7 +15,7 @@ spreadsheet would read as a formula start with ``'``, JSON lines are ASCII.
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import click
@@ -231,6 +231,26 @@ class RowWriter:
             _write(csv_line(values))
         else:
             click.echo("\t".join(visible(str(v)) for v in values))
+
+
+def emit_rows(rows: Iterable[tuple[Any, ...]], fmt: str | None, *, columns: Sequence[str],
+              frame: TimeFrame | None = None) -> None:
+    """Print tuples under ``columns`` as :func:`emit` does, each as it comes when piped
+    (JSON, CSV, tab-separated lines, by :class:`RowWriter`: one row is held at a time); a
+    terminal table needs them all (it sizes its columns to them). Blobs are shown in hex as
+    PostgreSQL prints them (``\\x0a1b``). ``*_ns`` times are shown through ``frame`` (look it
+    up before a transaction that yields the rows is opened)."""
+    records = (tuple("\\x" + v.hex() if isinstance(v, bytes) else v for v in row)
+               for row in rows)
+    if mode(fmt) == "table":
+        emit(list(records), fmt, columns=columns, frame=frame)
+        return
+    writer = RowWriter(fmt, columns, str)
+    written = 0
+    for written, record in enumerate(records, 1):  # noqa: B007 (written is read after it)
+        writer.write(record, frame)
+    if not written:  # what emit prints for no rows: CSV's header, or a note on stderr
+        emit([], fmt, columns=columns, frame=frame)
 
 
 def say(message: str) -> None:
