@@ -7,8 +7,12 @@ large object, and a connection that still works.
 
 from __future__ import annotations
 
+import json
+import re
 import shutil
 import sqlite3
+import subprocess
+import sys
 import time
 import uuid
 from collections.abc import Iterator
@@ -670,6 +674,102 @@ def test_in_memory_sqlite_is_refused_in_one_line() -> None:
     with open_database("sqlite://", allow_memory=True) as db, \
             pytest.raises(ToasterError, match="in-memory database"):
         q.execute(db, "SELECT 1")
+
+
+#: Runs the CLI (its arguments after the first) in a fresh interpreter, then writes to the
+#: first the peak RSS in KiB of that program (VmHWM: getrusage's would start from the pytest
+#: process it was forked from) and of its children (the SQLite statement's process).
+_PEAK = """
+import json, re, resource, sys
+from pathlib import Path
+from toaster.cli import main
+out = sys.argv.pop(1)
+sys.argv[0] = "toaster"
+try:
+    main()
+finally:
+    own = re.search(r"VmHWM:\\s*(\\d+)", Path("/proc/self/status").read_text()).group(1)
+    children = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    Path(out).write_text(json.dumps([int(own), children]))
+"""
+
+
+def peak_rss(tmp_path: Path, *args: str) -> tuple[subprocess.CompletedProcess[str], int, int]:
+    """The CLI's result (stdout to /dev/null), its peak RSS and its children's, in bytes (a
+    child's counts at least its parent's pages from before it ran its own program)."""
+    if not Path("/proc/self/status").exists():
+        pytest.skip("peak RSS is read from /proc (Linux)")
+    out = tmp_path / "rss.json"
+    result = subprocess.run([sys.executable, "-c", _PEAK, str(out), *args],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            check=False)
+    own, children = json.loads(out.read_text())
+    return result, own * 1024, children * 1024
+
+
+@pytest.mark.parametrize("fmt", ["tsv", "--json"])
+def test_a_result_at_the_bound_prints_with_bounded_memory(read_url: str, tmp_path: Path,
+                                                          fmt: str) -> None:
+    """Piped output is written as rows arrive: printing ~30 MiB of rows (under --max-bytes
+    32 MiB) holds one batch, so the process's peak RSS stays within half the bound of
+    printing one row (it held every row, then every formatted cell, before)."""
+    bound = 32 * 2**20
+    sql = ("WITH RECURSIVE c(x) AS (SELECT 1 UNION ALL SELECT x + 1 FROM c LIMIT 30000) "
+           "SELECT x, hex(randomblob(500)) FROM c") if read_url.startswith("sqlite") else \
+        "SELECT x, repeat(md5(x::text), 31) FROM generate_series(1, 30000) AS x"
+    options = ["--max-bytes", str(bound), *([fmt] if fmt != "tsv" else [])]
+    args = ["--db", read_url, "execute", "SQL"]
+    base, base_own, _ = peak_rss(tmp_path, *args, "SELECT 1 AS one", *options)
+    big, own, children = peak_rss(tmp_path, *args, sql, *options)
+    assert (base.returncode, big.returncode) == (0, 0), big.stderr
+    assert own - base_own < bound / 2, (own >> 20, base_own >> 20)
+    assert children < base_own + 2 * bound, (children >> 20, base_own >> 20)
+
+
+def test_big_values_are_refused_before_they_are_held(read_url: str, tmp_path: Path) -> None:
+    """Rows of 900 kB values past a 1 MiB bound are refused at the second row (the whole
+    batch of 1000 rows was fetched, ~0.9 GB, before the size was looked at), in one line,
+    with nothing printed and memory near that of printing one row."""
+    bound = 2**20
+    sql = ("WITH RECURSIVE c(x) AS (SELECT 1 UNION ALL SELECT x + 1 FROM c LIMIT 1000) "
+           "SELECT randomblob(900000) FROM c") if read_url.startswith("sqlite") else \
+        "SELECT decode(repeat('ab', 450000), 'hex') FROM generate_series(1, 1000)"
+    args = ["--db", read_url, "execute", "SQL"]
+    _, base_own, _ = peak_rss(tmp_path, *args, "SELECT 1 AS one")
+    big, own, children = peak_rss(tmp_path, *args, sql, "--max-bytes", str(bound))
+    assert big.returncode == 1 and len(big.stderr.splitlines()) == 1, big.stderr
+    assert "--max-bytes" in big.stderr and "Traceback" not in big.stderr
+    assert max(own, children) < base_own + 64 * 2**20, (own >> 20, children >> 20,
+                                                        base_own >> 20)
+
+
+#: (id, SQLite SQL, PostgreSQL SQL or None, options, the option the message names)
+REFUSALS = [
+    ("result-bytes", _ENDLESS + "SELECT x, hex(randomblob(100)) FROM c",
+     _ENDLESS + "SELECT x, repeat('x', 200) FROM c", ["--max-bytes", "100000"], "--max-bytes"),
+    ("one-value", "SELECT randomblob(2000000)", "SELECT repeat('x', 2000000)",
+     ["--max-bytes", "1048576"], "--max-bytes"),
+    ("time", _ENDLESS + "SELECT count(*) FROM c", _ENDLESS + "SELECT count(*) FROM c",
+     ["--timeout", "0.5"], "--timeout"),
+    ("printf-null", "SELECT length(printf('%.*c', 1000000000, 'x'))", None,
+     ["--timeout", "2", "--max-bytes", "1048576"], "--max-bytes|--timeout"),
+]
+
+
+@pytest.mark.parametrize(("sqlite_sql", "pg_sql", "options", "bound"),
+                         [pytest.param(*case[1:], id=case[0]) for case in REFUSALS])
+def test_cli_refusal_names_the_bound(read_url: str, sqlite_sql: str, pg_sql: str | None,
+                                     options: list[str], bound: str) -> None:
+    """Each bound's refusal is one line naming the option that raises it, exit 1, nothing
+    on stdout (no row is printed before a statement is known to pass). The reported case:
+    printf() made a NULL past the length limit, printed as an empty answer with exit 0."""
+    sql = sqlite_sql if read_url.startswith("sqlite") else pg_sql
+    if sql is None:
+        pytest.skip("SQLite only")
+    result = CliRunner().invoke(cli, ["--db", read_url, "execute", "SQL", sql, *options])
+    assert (result.exit_code, result.stdout) == (1, ""), result.output
+    assert len(result.stderr.splitlines()) == 1, result.stderr
+    assert re.search(bound, result.stderr) and "Traceback" not in result.stderr, result.stderr
 
 
 def test_bad_bounds_are_refused(read_db: toaster.Database) -> None:

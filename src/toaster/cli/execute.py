@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -9,7 +10,7 @@ from typing import Any
 import click
 
 from toaster.cli.info import _self_agent, fact_options
-from toaster.cli.output import emit, listing_options, say
+from toaster.cli.output import emit, emit_rows, listing_options, mode, say
 from toaster.db import readonly
 
 NAMES = ("SQL", "ARE_IN_TABLE", "EMPTY", "PRINT")
@@ -64,6 +65,7 @@ class Call:
 
 def _sql(call: Call) -> None:
     from toaster import queries as q
+    from toaster.cli.checks import command_frame
 
     opts = call.opts
     if not call.argument:
@@ -72,15 +74,27 @@ def _sql(call: Call) -> None:
     if bad is not None:
         raise click.UsageError(f"--param {bad!r} takes NAME=VALUE, e.g. --param {bad}=1")
     bound = dict(p.split("=", 1) for p in opts["params"]) or None
+    # Times are shown through the data's frame, looked up outside the statement's transaction.
+    shows_times = mode(call.fmt) in ("tsv", "table")
+    if opts["write"]:
+        result = q.execute(call.db, call.argument, bound, write=True)
+        if not result.columns:
+            say(f"ok ({result.rowcount} row(s) affected)")
+            return
+        emit_rows(itertools.islice(result.rows, call.limit), call.fmt, columns=result.columns,
+                  frame=command_frame() if shows_times else None)
+        return
     max_rows = opts["max_rows"] if call.limit is None else max(1, min(opts["max_rows"],
                                                                       call.limit))
-    result = q.execute(call.db, call.argument, bound, write=opts["write"], max_rows=max_rows,
-                       max_bytes=opts["max_bytes"], timeout_s=opts["timeout_s"])
-    if not result.columns:
-        say(f"ok ({result.rowcount} row(s) affected)")
-        return
-    emit(result.rows, call.fmt, columns=result.columns, limit=call.limit)
-    if result.truncated and (call.limit is None or call.limit > max_rows):
+    frame = command_frame() if shows_times else None
+    with q.execute_stream(call.db, call.argument, bound, max_rows=max_rows,
+                          max_bytes=opts["max_bytes"], timeout_s=opts["timeout_s"]) as rows:
+        if not rows.columns:
+            say("ok (0 row(s) affected)")
+            return
+        emit_rows(itertools.islice(rows, call.limit), call.fmt, columns=rows.columns,
+                  frame=frame)
+    if rows.truncated and (call.limit is None or call.limit > max_rows):
         say(f"note: only the first {max_rows} rows are shown: add a LIMIT, or raise --max-rows")
 
 

@@ -8,7 +8,7 @@ from typing import Any, NamedTuple
 from toaster.errors import InvalidInputError, ToasterError
 
 DEFAULT_MAX_ROWS = 100_000
-DEFAULT_MAX_BYTES = 128 * 2**20
+DEFAULT_MAX_BYTES = 32 * 2**20
 DEFAULT_TIMEOUT_S = 60.0
 
 
