@@ -225,6 +225,22 @@ def check_list(value: object, what: str) -> list[object]:
     return list(value)
 
 
+#: Joins the agents of a nested belief holder: ``ANNE>SALLY`` is Anne's model of Sally.
+HOLDER_SEPARATOR = ">"
+
+
+def check_agent_id(value: object, what: str = "agent id") -> str:
+    """``value`` if it is a valid id (:func:`check_id`) an agent may have: without
+    :data:`HOLDER_SEPARATOR`, which would make it a nested holder's id."""
+    agent = check_id(value, what)
+    if HOLDER_SEPARATOR in agent:
+        msg = (f"invalid {what} {shown(value)}: {HOLDER_SEPARATOR!r} joins nested belief "
+               f"holders (ANNE{HOLDER_SEPARATOR}SALLY is Anne's model of Sally); an agent's "
+               "id cannot hold it: rename the agent")
+        raise InvalidInputError(msg)
+    return agent
+
+
 def check_optional_id(value: object, what: str) -> str:
     """``value`` if it is ``""`` (none) or a valid id (:func:`check_id`)."""
     return value if value == "" else check_id(value, what)

@@ -169,6 +169,21 @@ def test_hostile_ids_are_stored_literally(store: toaster.Store) -> None:
     assert result.rows == [("o'neil; DELETE", "%(x)s ?")]
 
 
+def test_an_agent_id_cannot_pose_as_a_nested_holder(store: toaster.Store) -> None:
+    """'BOB>ANNE' is Bob's model of Anne: no human or robot may take that id (its beliefs
+    would be read as his, its actions taken for none); an object may."""
+    toaster.beliefs.configure(store.db, depth=2)
+    before = toaster.beliefs.holders(store.db)
+    for kind in ("human", "robot"):
+        with pytest.raises(InvalidInputError, match="'>' joins nested belief holders"):
+            store.add_entity("BOB>ANNE", kind)
+    with pytest.raises(InvalidInputError, match="'>' joins"):
+        store.add_entities([("CROWD>1", "human", "", "", None)])
+    assert toaster.beliefs.holders(store.db) == before
+    store.add_entity("BOX>LID", "object")
+    assert [e.kind for e in q.entities(store.db, "BOX>LID")] == ["object"]
+
+
 def test_long_agent_ids_get_distinct_views(store: toaster.Store) -> None:
     """View names fit PostgreSQL's 63 bytes and stay distinct for long ids."""
     ids = ["h" * 80 + "1", "h" * 80 + "2"]

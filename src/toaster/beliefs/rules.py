@@ -26,13 +26,14 @@ from sqlalchemy import Connection, text
 from toaster.beliefs import sqltext
 from toaster.beliefs.pipeline import statements as split
 from toaster.beliefs.sqltext import UNGROUP
+from toaster.model import HOLDER_SEPARATOR
 from toaster.timeutil import now_ns
 
 if TYPE_CHECKING:
     from toaster.db.store import ChangeSet, Store
 
 SOURCE = "beliefs"
-SEPARATOR = ">"
+SEPARATOR = HOLDER_SEPARATOR
 _RUN = text("INSERT INTO belief_runs (self_id, t_ns, recorded_ns) VALUES (:s, :t, :r)")
 # Periods to copy into own rows before a write that bypasses the rule (see BeliefRule.detach).
 _HOLDER_OPEN = ("SELECT w.id FROM fact_keys k JOIN belief_follow w ON w.hkey = k.id "

@@ -38,6 +38,7 @@ from toaster.model import (
     Fact,
     OntologyRow,
     PropertyRow,
+    check_agent_id,
     check_id,
     check_optional_id,
     check_text,
@@ -150,8 +151,8 @@ def register_agents(conn: Connection, agent_ids: list[str], *, t_ns: int,
     """:func:`register_agent` of many agents in a few statements; return those it
     registered (the others were agents already)."""
     agents = s.agents.c
+    unique = [check_agent_id(a) for a in dict.fromkeys(agent_ids)]
     lock_registrations(conn)
-    unique = list(dict.fromkeys(agent_ids))
     known: set[str] = set()
     for start in range(0, len(unique), 500):  # (SQLite's bound parameters are limited)
         chunk = unique[start:start + 500]
