@@ -25,6 +25,7 @@ from typing import Any, Protocol
 from sqlalchemy.exc import SQLAlchemyError
 
 from toaster.db import catalog
+from toaster.db.maintenance import Maintainer
 from toaster.errors import ToasterError
 from toaster.live import control
 from toaster.model import Fact
@@ -47,6 +48,10 @@ from toaster.world.state import World
 
 log = logging.getLogger("toaster.live")
 
+
+#: the page cache of the node's SQLite connections, KiB: a scene of tens of entities ticks as
+#: fast with 2 MB as with the engine's 64 MB, which a day of input would fill (docs/live.md)
+LIVE_PAGE_CACHE_KIB = 2000
 
 #: ticks follow input no sooner than this share of a period after the previous tick...
 FOLLOW_GAP = 0.8
@@ -82,6 +87,8 @@ class LiveNode:
                  sources: Sequence[Source] | None = None,
                  outputs: Sequence[Output] = ()) -> None:
         self.db = db
+        if db is not None:
+            db.set_page_cache(LIVE_PAGE_CACHE_KIB)
         self.store = db.store() if db is not None else None
         self.config = make_config(config)
         self.self_id = self_id
@@ -321,7 +328,9 @@ class LiveNode:
         rate), and without input ``IDLE_WAIT`` periods after it. So a 30 Hz sensor's pose
         becomes a fact in one tick's computation time instead of waiting up to a period.
         A tick that takes longer than the period counts as an overrun; the next one may start
-        at once (no burst of catch-up ticks).
+        at once (no burst of catch-up ticks). Every ``maintain_every_s`` seconds the database
+        is maintained on a thread and connection of its own (:mod:`toaster.db.maintenance`),
+        never between two ticks, where it stalled the node.
         """
         if rate_hz <= 0:
             msg = f"rate {rate_hz} must be a positive number of ticks per second"
@@ -335,7 +344,19 @@ class LiveNode:
         # passes, which otherwise stalled a tick by tens of milliseconds
         gc.collect()
         gc.freeze()
-        begin = last_maintained = time.monotonic()
+        maintainer = None
+        if self.db is not None and maintain_every_s is not None:
+            maintainer = Maintainer(self.db, maintain_every_s).start()
+        try:
+            self._loop(period, stop, ticks, seconds)
+        finally:
+            if maintainer is not None:
+                maintainer.stop()
+        return self.stats
+
+    def _loop(self, period: float, stop: threading.Event, ticks: int | None,
+              seconds: float | None) -> None:
+        begin = time.monotonic()
         count = 0
         while not stop.is_set():
             if ticks is not None and count >= ticks:
@@ -347,13 +368,7 @@ class LiveNode:
             count += 1
             took = time.monotonic() - start
             self._record(took, period)
-            now = time.monotonic()
-            if (self.db is not None and maintain_every_s is not None
-                    and now - last_maintained >= maintain_every_s):
-                self.db.maintain()
-                last_maintained = time.monotonic()
             self._pace(start, period, stop)
-        return self.stats
 
     def _woken(self) -> None:
         if not self.wake.is_set():  # cheaper than setting it for every pose of a message

@@ -76,8 +76,14 @@ class Backend(Protocol):
     def insert_entities(self, cur: Any, rows: list[tuple[str, str, int]]) -> None:
         """``(id, owner_id, created_ns)``: register entities (kind '') unless they exist."""
 
-    def maintain(self, raw: Any) -> None:
-        """Housekeeping of long runs on an idle DBAPI connection ``raw`` (no transaction)."""
+    def maintain(self, raw: Any, *, beside_writer: bool = False) -> None:
+        """Housekeeping of long runs on an idle DBAPI connection ``raw`` (no transaction);
+        ``beside_writer``: on a connection of its own while a writer goes on, so nothing
+        that would make the writer wait (:mod:`toaster.db.maintenance`)."""
+
+    def set_page_cache(self, raw: Any, kib: int) -> None:
+        """Bound the page cache of the DBAPI connection ``raw`` to ``kib`` KiB (a no-op
+        where the server holds the cache)."""
 
     def vacuum_scratch(self, raw: Any) -> None:
         """Reclaim the dead rows of the session's scratch tables of the belief rule on an idle

@@ -140,10 +140,15 @@ class PostgreSQLBackend:
             _columns(rows, 3),
         )
 
-    def maintain(self, raw: Any) -> None:
+    def maintain(self, raw: Any, *, beside_writer: bool = False) -> None:
+        # VACUUM takes a lock that only schema changes and other vacuums wait for: the same
+        # statement serves beside a writer
         with _autocommit(raw) as cur:
             cur.execute("VACUUM (ANALYZE) facts, fact_samples, events, fact_keys, "
                         "belief_follow")
+
+    def set_page_cache(self, raw: Any, kib: int) -> None:
+        """Nothing to bound: the server holds the page cache (shared_buffers)."""
 
     def vacuum_scratch(self, raw: Any) -> None:
         with _autocommit(raw) as cur:

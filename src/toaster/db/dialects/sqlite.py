@@ -171,10 +171,23 @@ class SQLiteBackend:
     def vacuum_scratch(self, raw: Any) -> None:
         """Nothing to do: SQLite's scratch tables are the schema's, emptied by each run."""
 
-    def maintain(self, raw: Any) -> None:
+    def maintain(self, raw: Any, *, beside_writer: bool = False) -> None:
         cur = raw.cursor()
-        cur.execute("PRAGMA optimize")  # may write statistics: before the checkpoint
-        cur.execute("PRAGMA wal_checkpoint(TRUNCATE)")  # the WAL back to zero bytes
+        if beside_writer:
+            # optimize writes statistics under the write lock: a bounded sample keeps that
+            # short; a passive checkpoint copies what no reader needs and waits for nobody
+            # (a truncating one waits for the writer and then holds it off)
+            cur.execute("PRAGMA analysis_limit=400")
+            cur.execute("PRAGMA optimize")
+            cur.execute("PRAGMA wal_checkpoint(PASSIVE)")
+        else:
+            cur.execute("PRAGMA optimize")  # may write statistics: before the checkpoint
+            cur.execute("PRAGMA wal_checkpoint(TRUNCATE)")  # the WAL back to zero bytes
+        cur.close()
+
+    def set_page_cache(self, raw: Any, kib: int) -> None:
+        cur = raw.cursor()
+        cur.execute(f"PRAGMA cache_size=-{int(kib)}")
         cur.close()
 
     def begin_writes(self, cur: Any) -> tuple[int, int]:
