@@ -3,7 +3,9 @@
 and out of its zone once a second at staggered times (live_scene.py), and listens to
 /area_manager/factList.
 
-    /usr/bin/python3 benchmarks/live_client.py HUMANS OBJECTS SECONDS
+    /usr/bin/python3 benchmarks/live_client.py HUMANS OBJECTS SECONDS [CYCLE]
+
+(CYCLE: seconds of each human's in-and-out cycle, 1 by default.)
 
 Prints one JSON object: ``toggles`` [[human, inside, publish wall ns]] and ``seen``
 [[human, inside, receive wall ns]] (a change of the human's IsInArea zone_<human> in a
@@ -43,6 +45,7 @@ def transform(child: str, x: float, y: float, z: float, stamp: rospy.Time) -> Tr
 
 def main() -> None:
     humans, objects, seconds = int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3])
+    cycle = float(sys.argv[4]) if len(sys.argv) > 4 else 1.0
     # rospy sends from a thread of its own: hand it the interpreter within 1 ms, as the node
     # does, so that the client's Python does not add its own 5 ms steps to the latency
     sys.setswitchinterval(0.001)
@@ -77,7 +80,7 @@ def main() -> None:
         wall = time.time_ns()
         transforms = []
         for i in range(humans):
-            want, x, y = human_pose(i, humans, elapsed)
+            want, x, y = human_pose(i, humans, elapsed, cycle)
             if want != inside[i]:
                 inside[i] = want
                 toggles.append([f"h{i}", want, wall])

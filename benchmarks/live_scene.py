@@ -18,10 +18,12 @@ def zone(i: int) -> dict[str, object]:
             "area_type": "interaction"}
 
 
-def human_pose(i: int, humans: int, elapsed: float) -> tuple[bool, float, float]:
+def human_pose(i: int, humans: int, elapsed: float,
+               cycle: float = 1.0) -> tuple[bool, float, float]:
     """(inside its zone, x, y) of human i at ``elapsed`` seconds: inside during the first half
-    of its own 1 s cycle, staggered by i / humans, from the first second on."""
-    phase = (elapsed - 1.0 + i / humans) % 1.0
+    of its own ``cycle`` seconds, staggered by i / humans of a cycle, from the first second
+    on."""
+    phase = ((elapsed - 1.0) / cycle + i / humans) % 1.0
     inside = elapsed >= 1.0 and phase < 0.5
     x, y = SPACING * (i % 10), SPACING * (i // 10)
     return inside, (x + 1.0 if inside else x - 0.6), y
