@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import Connection, Engine
@@ -100,6 +100,17 @@ class Database:
             if error is None:
                 raise
             raise error from exc
+
+    def reset_connection(self) -> None:
+        """Drop the long-lived connection and the pool's others, unused and without a word
+        from the server (after a lost connection or a server restart: they are dead, or
+        may be); the next use connects again. Outside a transaction."""
+        conn, self._conn = self._conn, None
+        if conn is not None:
+            with suppress(Exception):  # a dead connection may fail to say goodbye
+                conn.invalidate()  # its driver connection is closed, not returned to the pool
+                conn.close()
+        self.engine.dispose()
 
     def cursor(self) -> Any:
         """A raw DBAPI cursor on the shared connection (inside a transaction)."""
