@@ -79,12 +79,15 @@ class Runner:
         for source in self.sources:
             source.setup(world)
 
-    def tick(self, t_ns: int) -> dict[str, list[Fact] | FactBatch]:
+    def tick(self, t_ns: int, *, on_error: Callable[[str, Exception], None] | None = None
+             ) -> dict[str, list[Fact] | FactBatch]:
         """Advance every source to ``t_ns``, compute every producer, write the snapshots.
 
         Producers with ``compute_batch`` hand over array snapshots (Fact tuples are only built
         for the store; ``as_facts`` turns a returned batch into tuples). The changes of where
         a held object is are written as made by the agent holding it (:class:`HandActors`).
+        With ``on_error``, a producer that raises is left out of the tick (its stored facts
+        stay as they were) and ``on_error(name, exc)`` is told; without, the error propagates.
         """
         clock = time.perf_counter
         start = clock()
@@ -97,7 +100,13 @@ class Runner:
         for producer in self.producers:
             start = clock()
             batch = getattr(producer, "compute_batch", None)
-            facts = batch(self.world, t_ns) if batch else producer.compute(self.world, t_ns)
+            try:
+                facts = batch(self.world, t_ns) if batch else producer.compute(self.world, t_ns)
+            except Exception as exc:
+                if on_error is None:
+                    raise
+                on_error(producer.name, exc)
+                continue
             self._add(producer.name, clock() - start)
             out[producer.name] = facts
             start = clock()
