@@ -76,3 +76,6 @@ def serve(app: Any, rate: float, config_file: Path | None, self_id: str, holders
     click.echo(f"toaster serve: stopped after {stats.ticks} ticks ({stats.overruns} overran "
                f"{1e3 / rate:.1f} ms; median {p50:.1f} ms, worst {stats.worst_ms:.1f} ms); "
                f"{stats.commands} commands, {stats.warnings} warnings", err=True)
+    faults = node.faults.summary()  # only when something failed (docs/live.md, "Faults")
+    if faults:
+        click.echo(f"toaster serve: {faults}", err=True)

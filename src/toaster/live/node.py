@@ -8,7 +8,8 @@ the facts to the outputs, then answer pending queries from the world as it is no
 never queues input (sources keep the newest pose per entity), counts ticks that overran their
 period, and stops between two ticks when asked (SIGINT/SIGTERM in :func:`serve`): the last
 tick is committed whole or not at all. A restart on the same database carries on: entities,
-areas and control state are read back, and the store's open intervals continue.
+areas and control state are read back, and the store's open intervals continue. No error
+inside a tick stops the node: :mod:`toaster.live.faults` says what happens instead.
 """
 
 from __future__ import annotations
@@ -22,12 +23,11 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
-from sqlalchemy.exc import SQLAlchemyError
-
 from toaster.db import catalog
 from toaster.db.maintenance import Maintainer
 from toaster.errors import ToasterError
 from toaster.live import control
+from toaster.live.faults import GAP_SOURCE, RECONNECT_KINDS, Faults
 from toaster.model import Fact
 from toaster.producers.areas import AreaManager, multiple_relative_position, relative_position
 from toaster.producers.batch import FactBatch
@@ -110,6 +110,7 @@ class LiveNode:
         self.runner = Runner(self.world, [], self.producers, store=self.store, agent_id=self_id,
                              config=self.config)
         self.stats = LiveStats()
+        self.faults = Faults(self.warn)
         self._version = -1
         self._last_t = 0
         self.wake = threading.Event()  # set by sources when a pose arrives
@@ -165,7 +166,7 @@ class LiveNode:
                     self.warn(f"command {command.kind} {command.args} refused: {exc}")
                     control.finish(conn, command.id, error=str(exc))
                 self.stats.commands += 1
-            self._version = version
+        self._version = version  # committed: a failed transaction is read again next tick
         self._apply_state(state, stored_areas)
         return True
 
@@ -228,7 +229,6 @@ class LiveNode:
         after the control version moved: a query bumps it)."""
         if self.db is None or not self._queries_waiting:
             return 0
-        self._queries_waiting = False
         with self.db.transaction(write=True) as conn:
             queries = control.pending(conn, control.QUERIES)
             for query in queries:
@@ -236,6 +236,7 @@ class LiveNode:
                     control.finish(conn, query.id, self.query(query.kind, query.args))
                 except (ToasterError, KeyError, TypeError, ValueError) as exc:
                     control.finish(conn, query.id, error=str(exc))
+        self._queries_waiting = False  # answered and committed (else: again next tick)
         return len(queries)
 
     def query(self, kind: str, args: Mapping[str, Any]) -> Any:
@@ -284,9 +285,20 @@ class LiveNode:
         self._registered.update(world.ids[r] for r in new)
 
     def tick(self, t_ns: int | None = None) -> dict[str, list[Fact]]:
-        """One tick at ``t_ns`` (default: now); returns the facts per producer."""
+        """One tick at ``t_ns`` (default: now); returns the facts per producer, none when
+        the tick was not stored. It never raises: a failed tick is rolled back and handled
+        as :mod:`toaster.live.faults` says (logged once, a new connection after a database
+        fault, the gap recorded once a tick is stored again)."""
         t = max(now_ns() if t_ns is None else t_ns, self._last_t + 1)  # time only moves on
         self._last_t = t
+        try:
+            return self._tick(t)
+        except Exception as exc:  # contained: see toaster.live.faults
+            if self.faults.tick_failed(exc, t) in RECONNECT_KINDS:
+                self._reconnect()
+            return {}
+
+    def _tick(self, t: int) -> dict[str, list[Fact]]:
         self.apply_control(t)
         for entity_id, pose in self._simulated.items():
             self.simu.push(entity_id, t_ns=t, **pose)
@@ -303,20 +315,53 @@ class LiveNode:
         self.wake.clear()
         if self.store is not None:
             self._register_new(t)
-        try:
-            out = self.runner.tick(t)
-        except (ToasterError, SQLAlchemyError) as exc:  # rolled back: nothing of it is stored
-            self.warn(f"tick at {t} not stored: {str(exc).splitlines()[0]}")
-            return {}
+        out = self.runner.tick(t, on_error=self._producer_failed)  # raises: rolled back
+        self.faults.tick_stored(t)
+        for name in out:
+            self.faults.part_worked(f"producer {name}")
+        if self.faults.pending:
+            self._record_gaps()
         facts = {name: (f.facts() if isinstance(f, FactBatch) else f) for name, f in out.items()}
         for output in self.outputs:
+            name = f"output {type(output).__name__}"
             try:
                 output.publish(t, facts, self.world)
             except Exception as exc:  # an output failing must not stop the node
-                self.warn(f"output {type(output).__name__}: {exc}")
-        self.answer_queries()
+                self.faults.part_failed(name, exc, "the others go on")
+            else:
+                self.faults.part_worked(name)
         self.stats.ticks += 1
+        self.answer_queries()
         return facts
+
+    def _producer_failed(self, name: str, exc: Exception) -> None:
+        self.faults.part_failed(f"producer {name}", exc)
+
+    def _record_gaps(self) -> None:
+        """Store the events of the gaps healed (kept for a later tick if that fails)."""
+        if self.store is None:
+            self.faults.pending.clear()
+            return
+        for gap in list(self.faults.pending):
+            try:
+                self.store.record_event(self.self_id, gap.fact(self.self_id), t_ns=gap.start_ns,
+                                        source=GAP_SOURCE)
+            except Exception as exc:
+                effect = "it is recorded at a later tick"
+                if self.faults.noted("recording a gap", exc, effect) in RECONNECT_KINDS:
+                    self._reconnect()
+                return
+            self.faults.recorded(gap)
+        self.faults.part_worked("recording a gap")
+
+    def _reconnect(self) -> None:
+        """Drop a connection that may be dead (the next tick connects again) and what the
+        store remembers of the database."""
+        if self.db is None:
+            return
+        self.db.reset_connection()
+        if self.store is not None:
+            self.store.forget()
 
     def run(self, rate_hz: float = 30.0, *, stop: threading.Event | None = None,
             ticks: int | None = None, seconds: float | None = None,
@@ -328,9 +373,11 @@ class LiveNode:
         rate), and without input ``IDLE_WAIT`` periods after it. So a 30 Hz sensor's pose
         becomes a fact in one tick's computation time instead of waiting up to a period.
         A tick that takes longer than the period counts as an overrun; the next one may start
-        at once (no burst of catch-up ticks). Every ``maintain_every_s`` seconds the database
-        is maintained on a thread and connection of its own (:mod:`toaster.db.maintenance`),
-        never between two ticks, where it stalled the node.
+        at once (no burst of catch-up ticks). After a tick that failed on a database fault the
+        next attempt waits for the backoff (:mod:`toaster.live.faults`), or for ``stop``.
+        Every ``maintain_every_s`` seconds the database is maintained on a thread and
+        connection of its own (:mod:`toaster.db.maintenance`), never between two ticks, where
+        it stalled the node.
         """
         if rate_hz <= 0:
             msg = f"rate {rate_hz} must be a positive number of ticks per second"
@@ -366,8 +413,11 @@ class LiveNode:
             start = time.monotonic()
             self.tick()
             count += 1
-            took = time.monotonic() - start
-            self._record(took, period)
+            if self.faults.delay:  # a database fault: wait for the backoff, or a stop
+                stop.wait(self.faults.delay)
+                continue
+            if not self.faults.failing:
+                self._record(time.monotonic() - start, period)
             self._pace(start, period, stop)
 
     def _woken(self) -> None:
