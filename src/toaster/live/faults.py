@@ -8,7 +8,8 @@ in memory meanwhile and the sources keep the newest pose per entity.
 
 The time during which no tick was stored is recorded, once a tick is stored again, as one
 event of the self agent (:class:`Gap`: property ``RecordingGap``, stamped at the last tick
-stored before the outage, ``value_num`` its length in ns, ``value_text`` the first fault),
+stored before the outage, ``value_num`` its length in ns, ``value_text`` its length in
+seconds and the first fault),
 so that a reader can tell "nobody was watching" from "nothing changed". Open intervals are
 not closed at the outage: the first tick stored after it writes the state then, so a fact
 that ended during the gap ends at that tick.
@@ -163,7 +164,7 @@ class Gap:
             self_id,
             GAP_PROPERTY,
             "",
-            self.reason[:200] or "unknown",
+            f"{(self.end_ns - self.start_ns) / 1e9:.3f} s not stored; {self.reason}"[:300],
             float(self.end_ns - self.start_ns),
         )
 
