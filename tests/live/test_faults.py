@@ -369,10 +369,7 @@ def test_serve_heals_when_the_server_comes_back_and_sigterm_during_an_outage_sto
                 )  # fmt: skip
                 wait_for(lambda: ("cup", "kitchen") in stored(db, "IsInRoom"), "the cup")
                 proxy.down()  # the server "restarts": connections reset, none accepted
-                wait_for(
-                    lambda: err.count("tick not stored") == 1,
-                    "the fault's line",
-                )
+                wait_for(lambda: err.count("tick not stored") == 1, "the outage's line")
                 time.sleep(0.5)  # a few refused attempts (not a measure: any number will do)
                 proxy.up()
                 wait_for(lambda: len(gaps(db)) == 1, "the gap event")
