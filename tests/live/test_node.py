@@ -193,7 +193,7 @@ def test_a_restart_carries_on_the_open_intervals(db_url):
 def test_bad_poses_are_refused_with_a_reason_and_the_node_keeps_ticking(db):
     node, clock = LiveNode(db), Clock()
     assert not node.api.push("bob", (float("nan"), 0.0), t_ns=clock.t)
-    assert "finite" in node.api.take_warnings()[-1]
+    assert "finite" in node.api.last_error
     assert not node.api.push("", (0, 0))
     assert not node.api.push("bob", (0, 0), kind="dragon")
     assert not node.api.push("bob", (0, 0), quat=(0, 0, 0, 0))

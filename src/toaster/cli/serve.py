@@ -26,12 +26,16 @@ from toaster.errors import InvalidInputError
               help="Humans that hold beliefs (store agents).")
 @click.option("--seconds", type=float, default=None,
               help="Stop after this many seconds (default: until SIGINT/SIGTERM).")
+@click.option("--status-every", "status_every", type=float, default=10.0, show_default=True,
+              metavar="S", help="Log a status line every S seconds (uptime, ticks, overruns, "
+              "dropped inputs, warnings, tick times since the last line); with --ros1 also "
+              "on /toaster/status. 0: none.")
 @click.option("--ros1", is_flag=True, help="Bridge to ROS 1 (needs Debian's ROS 1 packages; "
               "see docs/ros1.md).")
 @ros_input_options
 @click.pass_obj
 def serve(app: Any, rate: float, config_file: Path | None, self_id: str, holders: str,
-          seconds: float | None, ros1: bool, tf_map: Path | None,
+          seconds: float | None, status_every: float, ros1: bool, tf_map: Path | None,
           pose_topics: tuple[str, ...]) -> None:
     """Run toaster live: poses in, facts and beliefs stored and published every tick.
 
@@ -42,9 +46,10 @@ def serve(app: Any, rate: float, config_file: Path | None, self_id: str, holders
     """
     from toaster.live import LiveNode
     from toaster.live import serve as serve_node
-    from toaster.timeutil import check_rate
+    from toaster.timeutil import check_rate, check_seconds
 
     rate = check_rate(rate, "--rate")
+    status_every = check_seconds(status_every, "--status-every")
     if seconds is not None and seconds < 0:
         msg = f"--seconds {seconds:g} must not be negative"
         raise InvalidInputError(msg)
@@ -60,6 +65,13 @@ def serve(app: Any, rate: float, config_file: Path | None, self_id: str, holders
         choice = [h.strip() for h in holders.split(",") if h.strip()]
     logging.basicConfig(stream=sys.stderr, level=logging.WARNING,
                         format="toaster serve: %(message)s")
+    # status lines at INFO on a handler of their own (rospy's set-up raises the root's level)
+    status = logging.getLogger("toaster.live.status")
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("toaster serve: %(message)s"))
+    status.addHandler(handler)
+    status.setLevel(logging.INFO)
+    status.propagate = False
     node = LiveNode(app.db, config=config, self_id=self_id, holders=choice)
     bridge = None
     if ros1:
@@ -68,14 +80,15 @@ def serve(app: Any, rate: float, config_file: Path | None, self_id: str, holders
         bridge = start_bridge(node, tf_map=tf_map, pose_topics=topics)
     click.echo(f"toaster serve: {rate:g} Hz on {app.db.url} (Ctrl-C stops)", err=True)
     try:
-        stats = serve_node(node, rate, seconds=seconds)
+        stats = serve_node(node, rate, seconds=seconds, status_every_s=status_every)
     finally:
         if bridge is not None:
             bridge.shutdown()
     p50 = sorted(stats.tick_ms)[len(stats.tick_ms) // 2] if stats.tick_ms else 0.0
     click.echo(f"toaster serve: stopped after {stats.ticks} ticks ({stats.overruns} overran "
                f"{1e3 / rate:.1f} ms; median {p50:.1f} ms, worst {stats.worst_ms:.1f} ms); "
-               f"{stats.commands} commands, {stats.warnings} warnings", err=True)
+               f"{stats.commands} commands, {stats.warnings} warnings; dropped "
+               f"{node.drops.summary()}", err=True)
     faults = node.faults.summary()  # only when something failed (docs/live.md, "Faults")
     if faults:
         click.echo(f"toaster serve: {faults}", err=True)

@@ -76,12 +76,29 @@ def _agents(state: ControlState) -> list[str]:
 def read_state(conn: Connection) -> ControlState:
     """The stored control state."""
     monitor = catalog.settings(conn, MONITOR)
-    hands = {obj: (str(v["agent"]), str(v["joint"]))
-             for obj, v in catalog.settings(conn, IN_HAND).items()}
-    return ControlState(agents=monitor.get("agents"), excluded=list(monitor.get("except", [])),
-                        joints=monitor.get("joints"),
+    hands = {obj: (v["agent"], v["joint"]) for obj, v in catalog.settings(conn, IN_HAND).items()
+             if isinstance(v, dict) and _texts(v.get("agent"), v.get("joint"))}
+    agents = monitor.get("agents")
+    joints = monitor.get("joints")
+    if isinstance(joints, dict):
+        joints = {a: list(j) for a, j in joints.items() if isinstance(j, list) and _texts(*j)}
+    return ControlState(agents=list(agents) if isinstance(agents, list) and _texts(*agents)
+                        else None,
+                        excluded=list(monitor.get("except", []))
+                        if _text_list(monitor.get("except", [])) else [],
+                        joints=joints if isinstance(joints, dict) else None,
                         streams={k: bool(v) for k, v in catalog.settings(conn, STREAMS).items()},
                         in_hand=hands)
+
+
+def _texts(*values: object) -> bool:
+    return all(isinstance(v, str) for v in values)
+
+
+def _text_list(value: object) -> bool:
+    """Whether a stored setting is a list of texts (anything else, written by hand with SQL,
+    is ignored as absent)."""
+    return isinstance(value, list) and _texts(*value)
 
 
 # -- monitored agents (agent_monitor services) ---------------------------------------------------
@@ -187,7 +204,7 @@ class Command:
 
     id: int
     kind: str
-    args: dict[str, Any]
+    args: Any  # a dict when well-formed; the node refuses anything else
 
 
 def submit(db: Any, kind: str, args: Mapping[str, Any]) -> int:
@@ -234,8 +251,17 @@ def pending(conn: Connection, kinds: Iterable[str] | None = None) -> list[Comman
     rows = conn.execute(text("SELECT id, kind, args_json FROM control_commands "
                              "WHERE state = 'pending' ORDER BY id")).all()
     wanted = set(kinds) if kinds is not None else None
-    return [Command(int(r.id), str(r.kind), json.loads(r.args_json)) for r in rows
+    return [Command(int(r.id), str(r.kind), _json(r.args_json)) for r in rows
             if wanted is None or r.kind in wanted]
+
+
+def _json(text: object) -> Any:
+    """Arguments as stored; text that is not JSON (a row written by hand) is returned as it is,
+    and the node refuses it as arguments that are not a JSON object."""
+    try:
+        return json.loads(text)  # type: ignore[arg-type]
+    except (TypeError, ValueError, RecursionError):
+        return text
 
 
 def finish(conn: Connection, command_id: int, answer: object = None, *,

@@ -25,10 +25,10 @@ from typing import Any, Protocol
 
 from toaster.db import catalog
 from toaster.db.maintenance import Maintainer
-from toaster.errors import ToasterError
+from toaster.errors import InvalidInputError, ToasterError, UnknownEntityError
 from toaster.live import control
 from toaster.live.faults import GAP_SOURCE, RECONNECT_KINDS, Faults
-from toaster.model import Fact
+from toaster.model import Fact, shown
 from toaster.producers.areas import AreaManager, multiple_relative_position, relative_position
 from toaster.producers.batch import FactBatch
 from toaster.producers.config import make_config
@@ -43,10 +43,13 @@ from toaster.producers.runner import (
 )
 from toaster.producers.spatial import SpatialFacts, relative_position_from
 from toaster.timeutil import now_ns
-from toaster.world.live import LiveSource
+from toaster.world.drops import Drops
+from toaster.world.live import LiveSource, check_entity
 from toaster.world.state import World
 
 log = logging.getLogger("toaster.live")
+#: the periodic status lines (``toaster serve`` shows them at INFO)
+status_log = logging.getLogger("toaster.live.status")
 
 
 #: the page cache of the node's SQLite connections, KiB: a scene of tens of entities ticks as
@@ -67,9 +70,13 @@ class Output(Protocol):
     def publish(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None: ...
 
 
+#: a status window keeps at most this many tick durations (the newest)
+WINDOW_TICKS = 100_000
+
+
 @dataclass
 class LiveStats:
-    """Counters of a live run."""
+    """Counters of a live run, and the ticks of the current status window."""
 
     ticks: int = 0
     overruns: int = 0
@@ -77,6 +84,40 @@ class LiveStats:
     warnings: int = 0
     commands: int = 0
     tick_ms: list[float] = field(default_factory=list)  # the last 1,000 tick durations
+    started: float = field(default_factory=time.monotonic)
+    window_ms: list[float] = field(default_factory=list)  # ticks since take_window
+    window_overruns: int = 0
+    window_start: float = field(default_factory=time.monotonic)
+    last_window: str = ""
+
+    def record(self, ms: float, overran: bool) -> None:
+        """One tick's duration."""
+        self.tick_ms.append(ms)
+        del self.tick_ms[:-1000]
+        self.window_ms.append(ms)
+        if len(self.window_ms) > 2 * WINDOW_TICKS:
+            del self.window_ms[:-WINDOW_TICKS]
+        self.worst_ms = max(self.worst_ms, ms)
+        if overran:
+            self.overruns += 1
+            self.window_overruns += 1
+
+    def take_window(self, now: float | None = None) -> str:
+        """``"window N s: K ticks, p50 X ms, p99 Y ms, max Z ms, O overruns"`` since the
+        previous call (percentiles over its newest WINDOW_TICKS ticks); starts a new one."""
+        now = time.monotonic() if now is None else now
+        ms = sorted(self.window_ms)
+        count = len(self.window_ms)
+
+        def pct(p: float) -> float:
+            return ms[min(len(ms) - 1, int(p * len(ms)))] if ms else 0.0
+
+        line = (f"window {now - self.window_start:.0f} s: {count} ticks, p50 {pct(0.5):.1f} ms, "
+                f"p99 {pct(0.99):.1f} ms, max {ms[-1] if ms else 0.0:.1f} ms, "
+                f"{self.window_overruns} overruns")
+        self.window_ms, self.window_overruns, self.window_start = [], 0, now
+        self.last_window = line
+        return line
 
 
 class LiveNode:
@@ -94,10 +135,11 @@ class LiveNode:
         self.self_id = self_id
         self.holders = holders
         self.world = World()
-        self.api = LiveSource("api")
+        self.drops = Drops()  # inputs refused at the edge, per topic and field
+        self.api = LiveSource("api", drops=self.drops)
         # entities placed with set_entity_pose are simulated, as toaster_simu publishes them:
         # their pose is sent again every tick until moved or removed
-        self.simu = LiveSource("toaster_simu")
+        self.simu = LiveSource("toaster_simu", drops=self.drops)
         self._simulated: dict[str, dict[str, Any]] = {}
         self.sources: list[Source] = [self.simu] + (list(sources) if sources is not None
                                                     else [self.api])
@@ -162,8 +204,8 @@ class LiveNode:
                 try:
                     self._command(command, now_ns() if t_ns is None else t_ns)
                     control.finish(conn, command.id, "ok")
-                except (ToasterError, KeyError, TypeError, ValueError) as exc:
-                    self.warn(f"command {command.kind} {command.args} refused: {exc}")
+                except (ToasterError, KeyError, TypeError, ValueError, ArithmeticError) as exc:
+                    self.warn(f"command {command.kind} {shown(command.args)} refused: {exc}")
                     control.finish(conn, command.id, error=str(exc))
                 self.stats.commands += 1
         self._version = version  # committed: a failed transaction is read again next tick
@@ -201,28 +243,55 @@ class LiveNode:
 
     def _command(self, command: control.Command, t_ns: int) -> None:
         args, world = command.args, self.world
+        if not isinstance(args, dict):
+            msg = f"arguments {shown(args)} must be a JSON object"
+            raise InvalidInputError(msg)
+        entity_id: Any = args.get("id")
         if command.kind == "set_entity_pose":
-            entity_id = str(args["id"])
-            row = world.index.get(entity_id)
-            kind = world.kind_text[row] if row is not None else str(args.get("kind", "object"))
+            row = world.index.get(entity_id) if isinstance(entity_id, str) else None
+            if args.get("known_only") and not self._present(entity_id):
+                msg = (f"unknown entity {shown(entity_id)}: add it first (add_entity) or "
+                       "publish its pose")
+                raise UnknownEntityError(msg)
+            kind = world.kind_text[row] if row is not None else args.get("kind", "object")
             owner = (world.ids[world.owner[row]] if row is not None and world.owner[row] >= 0
-                     else str(args.get("owner_id", "")))
-            pose = {"position": args["position"], "rpy": args.get("rpy"),
-                    "yaw": float(args.get("yaw", 0.0)), "kind": kind, "owner_id": owner,
-                    "joint": str(args.get("joint", ""))}
-            if not self.simu.push(entity_id, t_ns=t_ns, **pose):
-                raise ValueError(self.simu.take_warnings()[-1])
-            self._simulated[entity_id] = pose
+                     else args.get("owner_id", ""))
+            pose = {"position": args.get("position"), "rpy": args.get("rpy"),
+                    "yaw": args.get("yaw", 0.0), "kind": kind, "owner_id": owner,
+                    "joint": args.get("joint", "")}
+            if not self.simu.push(entity_id, t_ns=t_ns, topic="set_entity_pose", **pose):
+                raise InvalidInputError(self.simu.last_error)
+            self._simulated[str(entity_id)] = pose
         elif command.kind == "add_entity":
-            world.add_entity(str(args["id"]), str(args.get("kind", "object")),
-                             owner_id=str(args.get("owner_id", "")),
-                             name=str(args.get("name", "")))
+            kind, owner = args.get("kind", "object"), args.get("owner_id", "")
+            name = args.get("name", "")
+            check_entity(entity_id, kind, owner, name if kind == "joint" else "")
+            world.add_entity(str(entity_id), str(kind), owner_id=str(owner),
+                             name=str(name) if isinstance(name, str) else "")
         elif command.kind == "remove_entity":
-            self._simulated.pop(str(args["id"]), None)
-            world.remove_entity(str(args["id"]))
-            if self.store is not None:
-                self.store.remove_entity(str(args["id"]))
-            self._registered.discard(str(args["id"]))
+            if not (self._present(entity_id) or entity_id in self._registered):
+                msg = f"unknown entity {shown(entity_id)}: nothing to remove"
+                raise UnknownEntityError(msg)
+            eid = str(entity_id)
+            row = world.row(eid)
+            gone = [eid, *(world.ids[r] for r in range(world.n) if world.owner[r] == row)]
+            world.remove_entity(eid)
+            for removed in gone:  # its joints go with it
+                self._simulated.pop(removed, None)
+                if self.store is not None and removed in self._registered:
+                    self.store.remove_entity(removed)
+                self._registered.discard(removed)
+
+    def _present(self, entity_id: object) -> bool:
+        """Whether the world knows the entity now (not removed, not only read back)."""
+        row = self.world.index.get(entity_id) if isinstance(entity_id, str) else None
+        return row is not None and bool(self.world.active[row])
+
+    def _require(self, *ids: object) -> None:
+        for entity_id in ids:
+            if not self._present(entity_id):
+                msg = f"unknown entity {shown(entity_id)}: it is not in the world now"
+                raise UnknownEntityError(msg)
 
     def answer_queries(self) -> int:
         """Answer pending on-request queries from the world as it is now (looked for only
@@ -234,7 +303,7 @@ class LiveNode:
             for query in queries:
                 try:
                     control.finish(conn, query.id, self.query(query.kind, query.args))
-                except (ToasterError, KeyError, TypeError, ValueError) as exc:
+                except (ToasterError, KeyError, TypeError, ValueError, ArithmeticError) as exc:
                     control.finish(conn, query.id, error=str(exc))
         self._queries_waiting = False  # answered and committed (else: again next tick)
         return len(queries)
@@ -242,6 +311,16 @@ class LiveNode:
     def query(self, kind: str, args: Mapping[str, Any]) -> Any:
         """One on-request query (the original's services) against the current world."""
         world = self.world
+        if not isinstance(args, Mapping):
+            msg = f"arguments {shown(args)} must be a JSON object"
+            raise InvalidInputError(msg)
+        names = {"pointing": ("agent",), "get_relative_position": ("subject", "target"),
+                 "get_multiple_relative_position": ("agent", "object", "target"),
+                 "relative_position_from": ("viewer", "object")}
+        named = [args.get(key) for key in names.get(kind, ())]
+        if kind == "relative_position_from" and args.get("reference") is not None:
+            named.append(args["reference"])
+        self._require(*named)
         if kind == "pointing":
             at = args.get("t_ns")
             config = dict(self.config)  # the request's thresholds, when given
@@ -310,6 +389,8 @@ class LiveNode:
             take = getattr(source, "take_warnings", None)
             for line in take() if take is not None else ():
                 self.warn(f"source {getattr(source, 'name', '?')}: {line}")
+        for line in self.drops.take_lines():
+            self.warn(line)
         # what arrived so far is applied: only poses arriving from now on call for a tick (not
         # those pushed while the sources advanced, e.g. /tf mapped on this thread)
         self.wake.clear()
@@ -365,7 +446,8 @@ class LiveNode:
 
     def run(self, rate_hz: float = 30.0, *, stop: threading.Event | None = None,
             ticks: int | None = None, seconds: float | None = None,
-            maintain_every_s: float | None = MAINTAIN_EVERY_S) -> LiveStats:
+            maintain_every_s: float | None = MAINTAIN_EVERY_S,
+            status_every_s: float = 0.0) -> LiveStats:
         """Tick until ``stop`` is set (or ``ticks`` / ``seconds`` ran out).
 
         Ticks follow the input: a tick starts as soon as a source received a pose, but not
@@ -377,7 +459,8 @@ class LiveNode:
         next attempt waits for the backoff (:mod:`toaster.live.faults`), or for ``stop``.
         Every ``maintain_every_s`` seconds the database is maintained on a thread and
         connection of its own (:mod:`toaster.db.maintenance`), never between two ticks, where
-        it stalled the node.
+        it stalled the node. Every ``status_every_s`` seconds (0: never) a status line is
+        logged and given to the outputs that have a ``status`` method.
         """
         if rate_hz <= 0:
             msg = f"rate {rate_hz} must be a positive number of ticks per second"
@@ -395,15 +478,16 @@ class LiveNode:
         if self.db is not None and maintain_every_s is not None:
             maintainer = Maintainer(self.db, maintain_every_s).start()
         try:
-            self._loop(period, stop, ticks, seconds)
+            self._loop(period, stop, ticks, seconds, status_every_s)
         finally:
             if maintainer is not None:
                 maintainer.stop()
         return self.stats
 
     def _loop(self, period: float, stop: threading.Event, ticks: int | None,
-              seconds: float | None) -> None:
-        begin = time.monotonic()
+              seconds: float | None, status_every_s: float) -> None:
+        begin = last_status = time.monotonic()
+        self.stats.started = self.stats.window_start = begin
         count = 0
         while not stop.is_set():
             if ticks is not None and count >= ticks:
@@ -413,12 +497,39 @@ class LiveNode:
             start = time.monotonic()
             self.tick()
             count += 1
+            now = time.monotonic()
+            if status_every_s > 0 and now - last_status >= status_every_s:
+                self.report_status()
+                last_status = now
             if self.faults.delay:  # a database fault: wait for the backoff, or a stop
                 stop.wait(self.faults.delay)
                 continue
             if not self.faults.failing:
                 self._record(time.monotonic() - start, period)
             self._pace(start, period, stop)
+
+    def status(self, *, window: bool = False) -> str:
+        """One line: uptime, ticks, overruns, drops per topic and field, warnings, and the
+        window since the previous windowed line (``window=True`` starts a new one) or the
+        last one taken."""
+        s = self.stats
+        line = (f"status: up {time.monotonic() - s.started:.0f} s, {s.ticks} ticks, "
+                f"{s.overruns} overruns, drops {self.drops.summary()}, {s.warnings} warnings")
+        last = s.take_window() if window else s.last_window
+        return f"{line}; {last}" if last else line
+
+    def report_status(self) -> str:
+        """Log a windowed status line and hand it to the outputs that publish it."""
+        line = self.status(window=True)
+        status_log.info("%s", line)
+        for output in self.outputs:
+            publish = getattr(output, "status", None)
+            if publish is not None:
+                try:
+                    publish(line)
+                except Exception as exc:  # an output failing must not stop the node
+                    self.warn(f"output {type(output).__name__} status: {exc}")
+        return line
 
     def _woken(self) -> None:
         if not self.wake.is_set():  # cheaper than setting it for every pose of a message
@@ -439,18 +550,17 @@ class LiveNode:
 
     def _record(self, took: float, period: float) -> None:
         ms = took * 1e3
-        self.stats.tick_ms.append(ms)
-        del self.stats.tick_ms[:-1000]
-        self.stats.worst_ms = max(self.stats.worst_ms, ms)
-        if took > period:
-            self.stats.overruns += 1
-            if self.stats.overruns in (1, 10, 100) or self.stats.overruns % 1000 == 0:
-                self.warn(f"tick overran its period: {ms:.1f} ms > {period * 1e3:.1f} ms "
-                          f"({self.stats.overruns} overruns so far)")
+        self.stats.record(ms, took > period)
+        n = self.stats.overruns
+        if took > period and (n in (1, 10, 100) or n % 1000 == 0):
+            self.warn(f"tick overran its period: {ms:.1f} ms > {period * 1e3:.1f} ms "
+                      f"({n} overruns so far)")
 
 
-def serve(node: LiveNode, rate_hz: float = 30.0, *, seconds: float | None = None) -> LiveStats:
-    """Run a node until SIGINT or SIGTERM (or ``seconds``), stopping between two ticks."""
+def serve(node: LiveNode, rate_hz: float = 30.0, *, seconds: float | None = None,
+          status_every_s: float = 0.0) -> LiveStats:
+    """Run a node until SIGINT or SIGTERM (or ``seconds``), stopping between two ticks; a
+    status line every ``status_every_s`` seconds (0: none)."""
     stop = threading.Event()
 
     def ask_stop(signum: int, _frame: object) -> None:
@@ -459,7 +569,7 @@ def serve(node: LiveNode, rate_hz: float = 30.0, *, seconds: float | None = None
 
     previous = {sig: signal.signal(sig, ask_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        return node.run(rate_hz, stop=stop, seconds=seconds)
+        return node.run(rate_hz, stop=stop, seconds=seconds, status_every_s=status_every_s)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)

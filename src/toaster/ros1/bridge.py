@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from toaster.db import catalog
-from toaster.errors import InvalidInputError
+from toaster.errors import InvalidInputError, one_line
 from toaster.model import Fact
 from toaster.ros1 import import_rospy, markers, messages
 from toaster.ros1.dbcalls import AREA_KEY, AREA_SCOPE
@@ -39,6 +39,7 @@ from toaster.ros1.mapping import (
 )
 from toaster.ros1.services import DbPool, Handlers
 from toaster.ros1.watchers import Watchers
+from toaster.world.drops import Drops
 from toaster.world.live import LiveSource
 from toaster.world.state import World
 
@@ -46,6 +47,8 @@ PRODUCERS = ("pdg", "area_manager", "agent_monitor", "move3d_facts")
 #: /tf, markers, area and entity lists go out every VIEW_EVERY ticks (10 Hz at 30 Hz): they
 #: are for eyes and RViz, and at 30 Hz they doubled a tick and the node read its own /tf back
 VIEW_EVERY = 3
+#: the node's status line (std_msgs/String, latched) and the service that answers it now
+STATUS_TOPIC, STATUS_SERVICE = "/toaster/status", "/toaster/get_status"
 MARKER_TOPICS = ("marker_object", "marker_area", "marker_human", "marker_robot",
                  "marker_motion")
 SIMU_LISTS = {"toaster_simu_human": ("/toaster_simu/humanList", "HumanListStamped"),
@@ -58,7 +61,10 @@ PDG_LISTS = {"human": ("/pdg/humanList", "HumanListStamped", "humanList"),
 
 class Warnings:
     """Warning lines from rospy threads, each key at most once per ``every_s``; the node's
-    thread drains them into ``node.warn``."""
+    thread drains them into ``node.warn``. At most ``MAX_KEYS`` keys are remembered (the
+    oldest are forgotten), so keys naming values cannot make it grow."""
+
+    MAX_KEYS = 1000
 
     def __init__(self, every_s: float = 10.0) -> None:
         self.every_s = every_s
@@ -70,8 +76,12 @@ class Warnings:
         now = time.monotonic()
         with self._lock:
             if now - self._last.get(key, -1e18) >= self.every_s:
-                self._last[key] = now
-                self._lines.append(line)
+                self._last.pop(key, None)
+                self._last[key] = now  # newest last: the first keys are the oldest
+                if len(self._last) > self.MAX_KEYS:
+                    for old in list(self._last)[: self.MAX_KEYS // 2]:
+                        del self._last[old]
+                self._lines.append(one_line(line))
 
     def drain(self) -> list[str]:
         with self._lock:
@@ -108,6 +118,7 @@ class Bridge:
                  services: bool = True) -> None:
         self.node, self.rospy, self.registry = node, rospy, registry
         self.warnings = Warnings()
+        self.drops: Drops = node.drops
         self.tree = TfTree(fixed_frame)
         self.frames = read_frame_map(tf_map)
         self.topics = pose_topic_targets(pose_topics)
@@ -134,24 +145,26 @@ class Bridge:
 
     # -- inputs --------------------------------------------------------------------------------
     def source(self, name: str) -> LiveSource:
-        """The LiveSource of an input stream (made and added to the node on first use)."""
+        """The LiveSource of an input stream (made and added to the node on first use); its
+        refusals are counted in the node's ``drops``."""
         if name not in self.sources:
-            self.sources[name] = LiveSource(name)
+            self.sources[name] = LiveSource(name, drops=self.drops)
             self.node.sources.append(self.sources[name])
         return self.sources[name]
 
-    def push(self, source: str, update: PoseUpdate) -> None:
+    def push(self, source: str, update: PoseUpdate, topic: str) -> None:
+        """Queue a pose; a bad one is dropped and counted under ``topic`` (LiveSource.push
+        runs the store's checks)."""
         self.source(source).push(update.entity_id, update.position, quat=update.quat,
                                  t_ns=update.t_ns, kind=update.kind, owner_id=update.owner_id,
-                                 joint=update.joint)
+                                 joint=update.joint, topic=topic)
 
     def _sub(self, topic: str, cls: Any, callback: Any, *args: Any) -> None:
         def guarded(msg: Any) -> None:
             try:
                 callback(msg, *args)
             except Exception as exc:  # a callback never raises into rospy
-                self.warnings.add(f"{topic}:{type(exc).__name__}",
-                                  f"{topic}: message ignored: {_one_line(exc)}")
+                self.drops.drop(topic, "message", f"{type(exc).__name__}: {_one_line(exc)}")
 
         # tcp_nodelay: no Nagle wait on the sender's side for a pose (tens of ms otherwise)
         self.subscribers.append(self.rospy.Subscriber(topic, cls, guarded, queue_size=10,
@@ -171,10 +184,10 @@ class Bridge:
             self._sub(topic, PoseStamped, self._on_pose, topic, target)
         if toaster_simu:
             for name, (topic, type_name) in SIMU_LISTS.items():
-                self._sub(topic, reg.msg(type_name), self._on_list, name)
+                self._sub(topic, reg.msg(type_name), self._on_list, name, topic)
         if pdg_lists:
             for topic, type_name, _ in PDG_LISTS.values():
-                self._sub(topic, reg.msg(type_name), self._on_list, "pdg_lists")
+                self._sub(topic, reg.msg(type_name), self._on_list, "pdg_lists", topic)
         if self.ros4hri:
             ids = reg.msg("hri_msgs/IdsList")
             self._sub("/humans/bodies/tracked", ids, self._on_tracked, "body")
@@ -192,7 +205,7 @@ class Bridge:
             return
         changed, bad = self.tree.update(msg)
         for line in bad:
-            self.warnings.add(line, f"/tf: {line}")
+            self.drops.drop("/tf", "transform", line)
         with self._tf_lock:
             self._tf_changed |= changed
         wake = self.sources["tf"].on_push
@@ -207,12 +220,12 @@ class Bridge:
             return
         updates, lost = tf_updates(self.tree, self.frames, changed)
         for update in updates:
-            self.push("tf", update)
+            self.push("tf", update, "/tf")
         if self.ros4hri:
             hri = {f: t for f in self.tree.frames() if (t := self._hri(f)) is not None}
             found, _ = tf_updates(self.tree, hri, changed)
             for update in found:
-                self.push("ros4hri", update)
+                self.push("ros4hri", update, "/tf")
         for frame in lost:
             self.warnings.add(f"lost:{frame}", f"/tf: frame {frame!r} "
                               f"({self.frames[frame].entity_id}) does not reach "
@@ -234,25 +247,30 @@ class Bridge:
         try:
             update = pose_stamped_update(msg, target.entity_id, target.kind, tree=self.tree)
         except ValueError as exc:
-            reason = " ".join(str(exc).split()[:2])  # one line per topic and kind of problem
-            self.warnings.add(f"pose:{topic}:{reason}", f"{topic}: pose ignored: {exc}")
+            self.drops.drop(topic, "pose", str(exc))
             return
         self.push("pose_topics", update._replace(owner_id=target.owner_id,
-                                                 joint=target.joint))
+                                                 joint=target.joint), topic)
 
-    def _on_list(self, msg: Any, source: str) -> None:
+    def _on_list(self, msg: Any, source: str, topic: str) -> None:
         updates, bad = list_updates(msg)
         for line in bad:
-            self.warnings.add(f"{source}:{line}", f"{source}: {line}")
+            self.drops.drop(topic, "pose", line)
         for update in updates:
-            self.push(source, update)
+            self.push(source, update, topic)
 
     # -- outputs and services ------------------------------------------------------------------
     def _advertise(self) -> None:
+        from std_msgs.msg import String  # type: ignore[import-not-found]
         from tf2_msgs.msg import TFMessage  # type: ignore[import-not-found]
         from visualization_msgs.msg import MarkerArray  # type: ignore[import-not-found]
 
         pub, reg = self.rospy.Publisher, self.registry
+        # latched: a subscriber that comes later gets the last status line at once
+        self.status_pub = pub(STATUS_TOPIC, String, queue_size=1, latch=True)
+        trigger = reg.srv("std_srvs/Trigger")
+        self.services.append(self.rospy.Service(STATUS_SERVICE, trigger, self._guard(
+            STATUS_SERVICE, trigger, self._get_status)))
         self.fact_pubs = {p: pub(f"/{p}/factList", reg.msg("FactList"), queue_size=10)
                           for p in PRODUCERS}
         self.area_pub = pub("/area_manager/areaList", reg.msg("AreaList"), queue_size=10)
@@ -262,6 +280,10 @@ class Bridge:
         self.list_pubs = ({k: pub(topic, reg.msg(type_name), queue_size=10)
                            for k, (topic, type_name, _) in PDG_LISTS.items()}
                           if self.publish_lists else {})
+
+    def _get_status(self, req: Any, resp: Any) -> Any:
+        resp.success, resp.message = True, self.node.status()
+        return resp
 
     def _serve(self) -> None:
         db = self.node.db
@@ -292,7 +314,8 @@ class Bridge:
                 return handler(req, resp)
             except Exception as exc:  # a bad request fails this call only
                 line = f"{name}: {_one_line(exc)}"
-                self.warnings.add(line, line)
+                self.drops.drop(name, getattr(exc, "field", "request"), _one_line(exc),
+                                "refused")
                 for field in ("answer", "boolAnswer"):
                     if hasattr(resp, field):
                         setattr(resp, field, False)
@@ -314,7 +337,7 @@ class Bridge:
             sub.unregister()
         for srv in self.services:
             srv.shutdown("toaster bridge stopped")
-        for pub in [*self.fact_pubs.values(), self.area_pub, self.tf_pub,
+        for pub in [*self.fact_pubs.values(), self.area_pub, self.tf_pub, self.status_pub,
                     *self.marker_pubs.values(), *self.list_pubs.values()]:
             if pub is not None:
                 pub.unregister()
@@ -346,11 +369,17 @@ class _TfFlush:
 
 
 class _Output:
-    """Publishes one tick: fact lists, TF, markers, areas and entity lists."""
+    """Publishes one tick: fact lists, TF, markers, areas and entity lists; and the node's
+    status lines."""
 
     def __init__(self, bridge: Bridge) -> None:
         self.bridge = bridge
         self.ticks = 0
+
+    def status(self, line: str) -> None:
+        from std_msgs.msg import String  # type: ignore[import-not-found]
+
+        self.bridge.status_pub.publish(String(data=line))
 
     def publish(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None:
         b = self.bridge

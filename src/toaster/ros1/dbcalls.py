@@ -30,6 +30,14 @@ def control_state(db: Any) -> control.ControlState:
         return control.read_state(conn)
 
 
+def entity_kind(db: Any, entity_id: str) -> str | None:
+    """The kind of a registered entity (human, robot, object, joint...), None if unknown."""
+    with db.transaction() as conn:
+        kind = conn.execute(text("SELECT kind FROM entities WHERE id = :id"),
+                            {"id": entity_id}).scalar_one_or_none()
+    return None if kind is None else str(kind)
+
+
 def run_command(db: Any, kind: str, args: dict[str, Any], wait_s: float) -> str | None:
     """Queue a node command; wait up to ``wait_s`` for it. The node's error, else None (also
     when no node took it in time: it stays queued for the next node)."""

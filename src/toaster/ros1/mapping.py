@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from toaster.errors import InvalidInputError
-from toaster.model import Fact
+from toaster.model import Fact, check_agent_id, check_id, shown
 
 FIXED_FRAME = "map"
 ENTITY_KINDS = ("human", "robot", "object", "joint")
@@ -181,12 +181,15 @@ def frame_target(frame: str, entry: Any) -> FrameTarget:
         if not owner or not joint:
             msg = f"frame {frame!r}: a joint needs owner (its agent) and joint (or id)"
             raise InvalidInputError(msg)
-        return FrameTarget(f"{owner}/{joint}", "joint", owner, joint)
+        check_agent_id(owner, f"frame {frame!r}: owner")
+        return FrameTarget(check_id(f"{owner}/{joint}", f"frame {frame!r}: joint id"), "joint",
+                           owner, joint)
     entity_id = str(entry.get("id") or "")
     if not entity_id:
         msg = f"frame {frame!r}: missing id"
         raise InvalidInputError(msg)
-    return FrameTarget(entity_id, kind)
+    check = check_agent_id if kind in ("human", "robot") else check_id
+    return FrameTarget(check(entity_id, f"frame {frame!r}: {kind} id"), kind)
 
 
 def hri_target(frame: str) -> FrameTarget | None:
@@ -212,6 +215,8 @@ class TfTree:
     """
 
     MAX_DEPTH = 64
+    #: frames kept at most: a publisher inventing new frame names cannot make it grow further
+    MAX_FRAMES = 10_000
 
     def __init__(self, fixed_frame: str = FIXED_FRAME) -> None:
         self.fixed = strip_frame(fixed_frame)
@@ -227,12 +232,19 @@ class TfTree:
                 child = strip_frame(tr.child_frame_id)
                 parent = strip_frame(tr.header.frame_id)
                 try:
+                    check_id(child, "child frame")
+                    check_id(parent, "parent frame")
                     t, q = vec(tr.transform.translation), quat(tr.transform.rotation)
-                except ValueError as exc:
-                    bad.append(f"transform {parent} -> {child} ignored: {exc}")
+                except ValueError as exc:  # InvalidInputError is one
+                    bad.append(f"transform {shown(parent)} -> {shown(child)} ignored: {exc}")
                     continue
-                if not child or child == parent:
-                    bad.append(f"transform {parent!r} -> {child!r} ignored: not a tree edge")
+                if child == parent:
+                    bad.append(f"transform {shown(parent)} -> {shown(child)} ignored: not a "
+                               "tree edge")
+                    continue
+                if child not in self._edges and len(self._edges) >= self.MAX_FRAMES:
+                    bad.append(f"transform {shown(parent)} -> {shown(child)} ignored: "
+                               f"{self.MAX_FRAMES} frames are known already")
                     continue
                 self._edges[child] = (parent, t, q, stamp_ns(tr.header.stamp))
                 changed.add(child)
@@ -356,7 +368,7 @@ def list_updates(msg: Any) -> tuple[list[PoseUpdate], list[str]]:
                 updates.extend(agent_updates(item, kind, header_ns))
         except ValueError as exc:
             entity = field(item, "meEntity")
-            bad.append(f"{kind} {entity.id!r} ignored: {exc}")
+            bad.append(f"{kind} {shown(entity.id)} ignored: {exc}")
     return updates, bad
 
 

@@ -15,11 +15,17 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
+from toaster.errors import InvalidInputError
 from toaster.live import control
+from toaster.model import MAX_COORD, check_agent_id, check_id, shown
 from toaster.quoting import shell_word, visible
 from toaster.ros1 import dbcalls
 from toaster.ros1.mapping import area_from_msg, quat, vec
 from toaster.ros1.messages import to_msg
+from toaster.timeutil import check_ns
+from toaster.world.drops import Refused
+from toaster.world.live import check_entity, quaternion_to_rpy
+from toaster.world.state import KIND_CODES
 
 #: manage_stream flags (toaster_msgs/AddStream) -> toaster's ROS input streams
 STREAM_FLAGS = {
@@ -69,32 +75,48 @@ class DbPool:
             self._all, self._free = [], []
 
 
-class ServiceError(Exception):
-    """A request refused with a one-line reason."""
+class ServiceError(Refused):
+    """A request refused with a one-line reason; ``field`` names the request field."""
 
 
 def _pose_args(req: Any) -> dict[str, Any]:
-    from toaster.world.live import quaternion_to_rpy
-
     try:
         position, q = vec(req.pose.position), quat(req.pose.orientation)
-    except ValueError as exc:
-        msg = f"pose of {req.id!r} refused: {exc}"
-        raise ServiceError(msg) from None
-    return {"position": list(position), "rpy": list(quaternion_to_rpy(*q))}
+        if any(abs(c) > MAX_COORD for c in position):
+            msg = f"position {shown(list(position))} must lie within ±{MAX_COORD:g} m"
+            raise ValueError(msg)
+        rpy = quaternion_to_rpy(*q)
+    except (ValueError, TypeError, OverflowError) as exc:
+        msg = f"pose of {shown(req.id)} refused: {exc}"
+        raise ServiceError(msg, "pose") from None
+    return {"position": list(position), "rpy": list(rpy)}
 
 
 def _entity_id(req: Any, kind: str) -> str:
-    """Joints are named "<agent>/<joint>" in toaster."""
+    """The entity a request names, checked as the store will check it; joints are named
+    "<agent>/<joint>" in toaster."""
     if not req.id:
         msg = "an entity id is required"
-        raise ServiceError(msg)
-    if kind == "joint":
-        if not req.ownerId:
-            msg = f"joint {req.id!r} needs its agent (ownerId)"
-            raise ServiceError(msg)
-        return f"{req.ownerId}/{req.id}"
-    return str(req.id)
+        raise ServiceError(msg, "id")
+    if kind not in KIND_CODES:
+        msg = f"type {shown(req.type)} is not object, human, robot or joint"
+        raise ServiceError(msg, "type")
+    joint = kind == "joint"
+    entity_id = f"{req.ownerId}/{req.id}" if joint else str(req.id)
+    try:
+        return check_entity(entity_id, kind, req.ownerId if joint else "",
+                            req.id if joint else "")
+    except Refused as exc:
+        raise ServiceError(str(exc), exc.field) from None
+
+
+def _checked_id(value: object, field: str, what: str, *, agent: bool = False) -> str:
+    """``value`` if it is a valid id (an agent's: ``agent``), else a :class:`ServiceError`
+    naming the request field."""
+    try:
+        return (check_agent_id if agent else check_id)(value, what)
+    except InvalidInputError as exc:
+        raise ServiceError(str(exc), field) from None
 
 
 class Handlers:
@@ -117,8 +139,8 @@ class Handlers:
         with self.pool.db() as db:
             error = dbcalls.run_command(db, kind, args, wait_s)
         if error:
-            msg = f"{kind} {args.get('id', '')!r}: {error}"
-            raise ServiceError(msg)
+            msg = f"{kind}: {error}"
+            raise ServiceError(msg, "id")
 
     # -- pdg -----------------------------------------------------------------------------------
     def manage_stream(self, req: Any, resp: Any) -> Any:
@@ -127,21 +149,41 @@ class Handlers:
                 control.set_stream(db, name, any(bool(getattr(req, f)) for f in flags))
         return resp
 
+    def _known(self, db: Any, entity_id: str, field: str, *, agent: bool = False) -> str:
+        """``entity_id`` if the database has it (an agent: a human or robot), else a
+        :class:`ServiceError` naming the request field."""
+        _checked_id(entity_id, field, f"{field} ({'agent' if agent else 'object'} id)",
+                    agent=agent)
+        kind = dbcalls.entity_kind(db, entity_id)
+        if kind is None or (agent and kind not in ("human", "robot")):
+            what = "human or robot" if agent else "entity"
+            msg = f"{field} {shown(entity_id)} is no known {what}"
+            raise ServiceError(msg, field)
+        return entity_id
+
     def put_in_hand(self, req: Any, resp: Any) -> Any:
+        """Refused (a service error: the response is empty) for an unknown object or agent."""
+        _checked_id(req.jointName, "jointName", "joint name")
         with self.pool.db() as db:
+            self._known(db, req.objectId, "objectId")
+            self._known(db, req.agentId, "agentId", agent=True)
             control.put_in_hand(db, req.objectId, req.agentId, req.jointName)
         return resp
 
     def remove_from_hand(self, req: Any, resp: Any) -> Any:
+        _checked_id(req.objectId, "objectId", "object id")
         with self.pool.db() as db:
             if not control.remove_from_hand(db, req.objectId):
-                self.warn(f"remove_from_hand: {req.objectId!r} was in no hand")
+                msg = f"objectId {shown(req.objectId)} is in no hand"
+                raise ServiceError(msg, "objectId")
         return resp
 
     def set_entity_pose(self, req: Any, resp: Any) -> Any:
+        """Moves a known entity only (as the original: its readers held the ids); an unknown
+        one answers false instead of being created."""
         kind = str(req.type).lower() or "object"
         entity_id = _entity_id(req, kind)
-        args = {"id": entity_id, "kind": kind, **_pose_args(req)}
+        args = {"id": entity_id, "kind": kind, "known_only": True, **_pose_args(req)}
         if kind == "joint":
             args |= {"owner_id": req.ownerId, "joint": req.id}
         self._command("set_entity_pose", args)
@@ -151,9 +193,6 @@ class Handlers:
     # -- toaster_simu --------------------------------------------------------------------------
     def add_entity(self, req: Any, resp: Any) -> Any:
         kind = str(req.type).lower()
-        if kind not in ("human", "robot", "object", "joint"):
-            msg = f"add_entity {req.id!r}: type {req.type!r} is not object, human, robot or joint"
-            raise ServiceError(msg)
         entity_id = _entity_id(req, kind)
         name = req.id if kind == "joint" else (req.name or req.id)  # a joint's skeleton name
         self._command("add_entity", {"id": entity_id, "kind": kind, "owner_id": req.ownerId,
@@ -169,13 +208,18 @@ class Handlers:
 
     # -- agent_monitor -------------------------------------------------------------------------
     def add_agent(self, req: Any, resp: Any) -> Any:
+        """A known human or robot only (monitor_all_humans covers those still to come)."""
         with self.pool.db() as db:
-            control.monitor_add(db, req.id)
+            control.monitor_add(db, self._known(db, req.id, "id", agent=True))
         resp.answer = True
         return resp
 
     def remove_agent(self, req: Any, resp: Any) -> Any:
+        """A known agent, or one still named in the monitored list."""
+        _checked_id(req.id, "id", "agent id")
         with self.pool.db() as db:
+            if req.id not in (dbcalls.control_state(db).agents or []):
+                self._known(db, req.id, "id", agent=True)
             control.monitor_remove(db, req.id)
         resp.answer = True
         return resp
@@ -185,22 +229,28 @@ class Handlers:
             state = dbcalls.control_state(db)
             agents = state.agents if state.agents is not None else ["humans"]
             if req.agentId not in agents and not set(agents) & set(control.CLASSES):
-                msg = (f"add_joint_to_agent: {req.agentId!r} is not monitored: "
+                msg = (f"add_joint_to_agent: {shown(req.agentId)} is not monitored: "
                        "call add_agent first")
-                raise ServiceError(msg)
+                raise ServiceError(msg, "agentId")
             control.monitor_add(db, req.agentId, joints=[req.jointName])
         resp.answer = True
         return resp
 
     def remove_joint_to_agent(self, req: Any, resp: Any) -> Any:
+        _checked_id(req.agentId, "agentId", "agent id")
+        _checked_id(req.jointName, "jointName", "joint name")
         with self.pool.db() as db:
             control.monitor_remove(db, req.agentId, joint=req.jointName)
         resp.answer = True
         return resp
 
     def remove_all_joints_to_agent(self, req: Any, resp: Any) -> Any:
+        _checked_id(req.agentId, "agentId", "agent id")
         with self.pool.db() as db:
-            for joint in (dbcalls.control_state(db).joints or {}).get(req.agentId, []):
+            joints = (dbcalls.control_state(db).joints or {}).get(req.agentId)
+            if joints is None:
+                self._known(db, req.agentId, "agentId", agent=True)
+            for joint in joints or []:
                 control.monitor_remove(db, req.agentId, joint=joint)
         resp.answer = True
         return resp
@@ -225,9 +275,8 @@ class Handlers:
         return resp
 
     def pointing(self, req: Any, resp: Any) -> Any:
-        if not req.pointingAgentId:
-            msg = "pointing: pointingAgentId is empty"
-            raise ServiceError(msg)
+        _checked_id(req.pointingAgentId, "pointingAgentId", "pointing agent id", agent=True)
+        _checked_id(req.pointingJoint or "rightHand", "pointingJoint", "joint name")
         args: dict[str, Any] = {"agent": req.pointingAgentId,
                                 "joint": req.pointingJoint or "rightHand"}
         for field, key in (("pointingJointDistThreshold", "joint_distance"),
@@ -236,7 +285,10 @@ class Handlers:
             if math.isfinite(value) and value > 0:
                 args[key] = value
         if getattr(req, "timePointing", 0):
-            args["t_ns"] = int(req.timePointing)
+            try:
+                args["t_ns"] = check_ns(int(req.timePointing), "timePointing")
+            except InvalidInputError as exc:
+                raise ServiceError(str(exc), "timePointing") from None
         found = self._ask("pointing", args)
         resp.pointedId = [str(entity_id) for entity_id, _ in found]
         resp.confidence = [float(conf) for _, conf in found]
@@ -260,7 +312,7 @@ class Handlers:
             name = dbcalls.area_name(db, int(req.id))
             if name is None or not db.store().remove_area(name):
                 msg = f"remove_area: no area with id {req.id}"
-                raise ServiceError(msg)
+                raise ServiceError(msg, "id")
             dbcalls.forget_area(db, name)
         resp.answer = True
         return resp
@@ -277,7 +329,7 @@ class Handlers:
             spec = db.store().areas().get(name) if name is not None else None
         if spec is None:
             msg = f"print_area: no area with id {req.id}"
-            raise ServiceError(msg)
+            raise ServiceError(msg, "id")
         self.log(f"area {req.id} {name!r}: {spec}")
         resp.answer = True
         return resp
@@ -290,12 +342,16 @@ class Handlers:
         return resp
 
     def get_relative_position(self, req: Any, resp: Any) -> Any:
+        _checked_id(req.subjectId, "subjectId", "subject id")
+        _checked_id(req.targetId, "targetId", "target id")
         found = self._ask("get_relative_position", {"subject": req.subjectId,
                                                      "target": req.targetId})
         resp.direction, resp.angleValue, resp.answer = found["direction"], found["angle"], True
         return resp
 
     def get_multiple_relative_position(self, req: Any, resp: Any) -> Any:
+        for field in ("agentSubjectId", "objectSubjectId", "targetId"):
+            _checked_id(getattr(req, field), field, field)
         found = self._ask("get_multiple_relative_position", {
             "agent": req.agentSubjectId, "object": req.objectSubjectId,
             "target": req.targetId})

@@ -3,8 +3,9 @@
 The newest pose per entity wins, as the original's PDG readers (queue size 1): an entity keeps
 at most ``max_pending`` poses not yet applied, so memory never grows with the input rate. A pose
 stamped after the tick waits for a later tick. A bad pose (non-finite numbers, empty id, unknown
-kind) is refused by :meth:`LiveSource.push` with a one-line reason (``False``; counted in
-``rejected`` and kept in ``last_error``), never inside the tick. Time going backwards for an
+kind, an id the store would refuse, a stamp out of range) is refused by :meth:`LiveSource.push`
+with a one-line reason (``False``; counted in ``rejected`` and in ``drops`` per topic and
+field, kept in ``last_error``), never inside the tick. Time going backwards for an
 entity by more than ``rewind_ns`` (a restarted sensor) forgets that entity's history, so that
 its new poses are taken instead of being ignored as older. Stamps more than ``max_skew_ns`` away
 from the tick's clock (simulated time, a looping bag, an unsynchronised machine) are shifted by
@@ -21,7 +22,16 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from toaster.errors import ToasterError
-from toaster.timeutil import NS_PER_S, now_ns
+from toaster.model import (
+    MAX_COORD,
+    check_agent_id,
+    check_id,
+    check_optional_id,
+    check_unit_interval,
+    shown,
+)
+from toaster.timeutil import NS_PER_S, check_ns, now_ns
+from toaster.world.drops import Drops, Refused, refuse_if
 from toaster.world.history import NO_TIME
 from toaster.world.state import KIND_CODES, World
 
@@ -43,11 +53,81 @@ def quaternion_to_rpy(x: float, y: float, z: float, w: float) -> tuple[float, fl
     return roll, pitch, yaw
 
 
+def _numbers(values: object, field: str, what: str, bound: float, most: int = 4
+             ) -> list[float]:
+    """``values`` (at most ``most``) as finite floats within ±``bound``, else
+    :class:`Refused` naming them."""
+    try:
+        out = [float(v) for v in list(values)[: most + 1]]  # type: ignore[call-overload]
+    except (TypeError, ValueError, OverflowError):
+        out = [math.nan]
+    if len(out) > most:
+        out.append(math.nan)
+    if not all(math.isfinite(v) and abs(v) <= bound for v in out):
+        msg = f"{what} {shown(values)} must be finite numbers within ±{bound:g}"
+        raise Refused(msg, field)
+    return out
+
+
+def check_entity(entity_id: object, kind: object, owner_id: object = "",
+                 joint: object = "") -> str:
+    """``entity_id`` if the store will register it as ``kind`` (an agent's id without
+    ``>``, a joint with its agent): the checks of :mod:`toaster.model`; else
+    :class:`Refused` naming the field (kind, id, owner, joint)."""
+    if kind not in KIND_CODES:
+        msg = f"unknown kind {shown(kind)} of {shown(entity_id)} (use {', '.join(KIND_CODES)})"
+        raise Refused(msg, "kind")
+    if kind == "joint":
+        if not owner_id:
+            msg = f"joint {shown(entity_id)} needs its agent (owner id)"
+            raise Refused(msg, "owner")
+        refuse_if(check_agent_id, owner_id, "owner", "owner id")
+        refuse_if(check_optional_id, joint, "joint", "joint name")
+    refuse_if(check_agent_id if kind in ("human", "robot") else check_id, entity_id, "id",
+              f"{kind} id")
+    return str(entity_id)
+
+
+def _checked(entity_id: object, position: Sequence[float], yaw: float,
+             rpy: Sequence[float] | None, quat: Sequence[float] | None, t_ns: int | None,
+             kind: str, confidence: float, owner_id: str, joint: str
+             ) -> tuple[str, float, float, float, list[float], int, float]:
+    """A pose checked as the store will check it (ids, time, confidence) and as the world
+    needs it (finite coordinates within ±MAX_COORD m, an orientation); :class:`Refused`."""
+    check_entity(entity_id, kind, owner_id, joint)
+    xyz = _numbers(position, "position", "position (m)", MAX_COORD, 3)
+    if len(xyz) < 2:
+        msg = f"position {shown(position)} needs x, y[, z] (metres)"
+        raise Refused(msg, "position")
+    x, y, z = [*xyz, 0.0][:3]
+    if quat is not None:
+        q = _numbers(quat, "orientation", "quaternion", 1e150)
+        try:
+            angles = list(quaternion_to_rpy(*q))
+        except (TypeError, ValueError) as exc:
+            raise Refused(str(exc), "orientation") from None
+    elif rpy is not None:
+        angles = _numbers(rpy, "orientation", "roll, pitch, yaw (rad)", MAX_COORD, 3)
+    else:
+        angles = [0.0, 0.0, *_numbers([yaw], "orientation", "yaw (rad)", MAX_COORD, 1)]
+    if len(angles) != 3:
+        msg = f"orientation {shown(angles)} must be roll, pitch, yaw"
+        raise Refused(msg, "orientation")
+    if isinstance(t_ns, np.integer):
+        t_ns = int(t_ns)
+    if t_ns is not None:
+        refuse_if(check_ns, t_ns, "stamp")
+    stamp = now_ns() if t_ns is None else int(t_ns)
+    refuse_if(check_unit_interval, confidence, "confidence")
+    return (str(entity_id), x, y, z, angles, stamp, float(confidence))
+
+
 class LiveSource:
     """Thread-safe buffer of the newest poses per entity; ``advance`` applies them."""
 
     def __init__(self, name: str = "live", *, max_pending: int = 8,
-                 rewind_ns: int = NS_PER_S, max_skew_ns: int = 5 * NS_PER_S) -> None:
+                 rewind_ns: int = NS_PER_S, max_skew_ns: int = 5 * NS_PER_S,
+                 drops: Drops | None = None) -> None:
         self.name = name
         self.start_ns: int | None = None
         self.end_ns: int | None = None
@@ -57,50 +137,36 @@ class LiveSource:
         self.offset_ns = 0  # added to every stamp (see the module's doc)
         self.rejected = 0
         self.last_error = ""
+        self.drops = drops if drops is not None else Drops()
         self.warnings: list[str] = []  # one line per problem met while applying (drained)
         self._lock = threading.Lock()
         self._pending: dict[str, list[_Pose]] = {}
         #: called after each accepted pose (a live node sets it to wake its loop)
         self.on_push: Callable[[], None] | None = None
 
-    def _refuse(self, reason: str) -> bool:
+    def _refuse(self, field: str, reason: str, topic: str | None) -> bool:
         with self._lock:
             self.rejected += 1
             self.last_error = reason
+        self.drops.drop(topic or self.name, field, reason)
         return False
 
     def push(self, entity_id: str, position: Sequence[float], *, yaw: float = 0.0,
              rpy: Sequence[float] | None = None, quat: Sequence[float] | None = None,
              t_ns: int | None = None, kind: str = "human", confidence: float = 1.0,
-             owner_id: str = "", joint: str = "") -> bool:
+             owner_id: str = "", joint: str = "", topic: str | None = None) -> bool:
         """Buffer a pose (x, y[, z] in metres; orientation as yaw, rpy or a quaternion x, y, z,
         w; time defaults to the wall clock). Joints: ``kind="joint"`` with ``owner_id`` and the
-        skeleton name ``joint``, position in world coordinates. False (with ``last_error``) when
-        the pose is refused."""
-        if not isinstance(entity_id, str) or not entity_id.strip():
-            return self._refuse(f"pose refused: empty entity id {entity_id!r}")
-        if kind not in KIND_CODES:
-            return self._refuse(f"pose of {entity_id!r} refused: unknown kind {kind!r} "
-                                f"(use {', '.join(KIND_CODES)})")
-        if kind == "joint" and not owner_id:
-            return self._refuse(f"joint pose {entity_id!r} refused: it needs its agent "
-                                "(owner_id)")
+        skeleton name ``joint``, position in world coordinates. False (with ``last_error``,
+        counted in ``drops`` under ``topic``, default the source's name) when the pose is
+        refused: the store's checks of ids, times and confidences, finite coordinates within
+        ±MAX_COORD."""
         try:
-            x, y, z = [*map(float, position), 0.0, 0.0][:3]
-            if quat is not None:
-                qx, qy, qz, qw = map(float, quat)
-                angles = list(quaternion_to_rpy(qx, qy, qz, qw))
-            elif rpy is not None:
-                angles = [float(a) for a in rpy]
-            else:
-                angles = [0.0, 0.0, float(yaw)]
-            stamp = now_ns() if t_ns is None else int(t_ns)
-            conf = float(confidence)
-        except (TypeError, ValueError) as exc:
-            return self._refuse(f"pose of {entity_id!r} refused: {exc}")
-        if len(angles) != 3 or not all(math.isfinite(v) for v in (x, y, z, *angles, conf)):
-            return self._refuse(f"pose of {entity_id!r} refused: position {[x, y, z]} / angles "
-                                f"{angles} must be finite numbers (metres, radians)")
+            pose = _checked(entity_id, position, yaw, rpy, quat, t_ns, kind, confidence,
+                            owner_id, joint)
+        except Refused as exc:
+            return self._refuse(exc.field, f"pose of {shown(entity_id)} refused: {exc}", topic)
+        entity_id, x, y, z, angles, stamp, conf = pose
         item: _Pose = (entity_id, kind, owner_id, joint, stamp, (x, y, z),
                        (angles[0], angles[1], angles[2]), conf)
         with self._lock:
@@ -179,10 +245,8 @@ class LiveSource:
                              "clock?): shifted to it")
 
     def take_warnings(self) -> list[str]:
-        """The warnings met since the last call (and refused pushes, once each)."""
+        """The warnings met while applying since the last call (refused pushes are reported
+        by ``drops``)."""
         with self._lock:
             out, self.warnings = self.warnings, []
-            if self.last_error:
-                out.append(self.last_error)
-                self.last_error = ""
         return out
