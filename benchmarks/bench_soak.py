@@ -256,6 +256,7 @@ def main() -> None:
         help="1 minute, 10 s windows, 4 humans and 10 objects (tests)",
     )
     args = parser.parse_args()
+    args.pg = args.pg.replace("postgresql+psycopg://", "postgresql://", 1)  # psycopg's own
     if args.quick:
         args.minutes, args.window, args.humans, args.objects, args.cycle = 1.0, 10.0, 4, 10, 2.0
     backends = (
