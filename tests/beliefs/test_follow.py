@@ -274,7 +274,7 @@ def _rooms(where: dict[str, str]) -> list[Fact]:
 
 def _late_story(db: toaster.Database) -> None:
     """R2 reports, 5 s late, a pen that was in the drawer for one second: R1's clock is ahead,
-    so the holders take R2's changes at R1's time. Bob leaves the office in between."""
+    so the holders take R2's changes just after R1's time. Bob leaves the office in between."""
     st = _two_robots(db)
     kitchen = {**ROBOT_ROOMS, "BOB": "KITCHEN"}
     st.sync_many("R1", 100 * S, [("rooms", _rooms(ROBOT_ROOMS))])
@@ -288,7 +288,8 @@ def _late_story(db: toaster.Database) -> None:
 
 def test_a_late_robot_changes_beliefs_at_the_clock(db: toaster.Database, tmp_path: object) -> None:
     """A robot whose snapshots lag another's by more than LIVE_CLOCK_SKEW_NS keeps its own
-    times; the holders take its changes when the rules run (the clock's time), even a fact
+    times; the holders take its changes when the rules run (1 ns after the clock's time: each
+    run is an instant of its own, revision 0014), even a fact
     that ended in the robot's past before they began to follow it: who sees the pen go ends
     the belief then, who left keeps it (a false belief), with one event per interval boundary
     and the same timelines as with copied rows."""
@@ -297,9 +298,10 @@ def test_a_late_robot_changes_beliefs_at_the_clock(db: toaster.Database, tmp_pat
            for r in q.history(db, "R2", subject="PEN", property="IsIn")]
     assert pen == [(95 * S, 96 * S)]
     assert [(r.valid_from_ns, r.valid_to_ns)
-            for r in q.history(db, "ANNE", subject="PEN", property="IsIn")] == [(100 * S, 102 * S)]
+            for r in q.history(db, "ANNE", subject="PEN", property="IsIn")] == [
+        (100 * S + 2, 102 * S + 1)]  # R2's runs after R1's at 100 s (then 100 s + 1) and 102 s
     assert [(e.kind, e.stamp_ns) for e in q.events(db, "ANNE")
-            if e.subject_id == "PEN"] == [("appeared", 100 * S), ("ended", 102 * S)]
+            if e.subject_id == "PEN"] == [("appeared", 100 * S + 2), ("ended", 102 * S + 1)]
     assert [r.target_id for r in q.current_facts(db, "BOB") if r.subject_id == "PEN"] == [
         "DRAWER"]
     with db.transaction() as conn:
@@ -377,3 +379,36 @@ def test_shared_rows_read_exactly_like_copied_rows(db: toaster.Database, tmp_pat
         assert shared[holder][0] == rows, holder
         assert shared[holder][1] == events, holder
     assert _check_timelines(db, times) > 50
+
+
+def test_robots_writing_through_sql_at_one_instant_keep_every_invariant(
+        db: toaster.Database) -> None:
+    """Two robots' SQL clients (fact_inbox, no store) that disagree at one instant: R1 sees the
+    pen in the drawer and then not, R2 the same, all at 5 s. Each belief run is an instant of
+    its own (revision 0014): Anne, in the office, takes each change 1 ns after the run before
+    (two intervals, one event at each boundary). Before, the four runs shared the instant and
+    left her two empty intervals at 5 s whose events `toaster db check` could not match."""
+    store = _two_robots(db)
+    for robot in ("R1", "R2"):
+        store.sync_many(robot, 1 * S, [("rooms", _rooms(ROBOT_ROOMS))])
+    engine = make_engine(db.url)
+    try:
+        for robot in ("R1", "R2"):
+            for action in ("assert", "retract"):
+                with engine.begin() as conn:
+                    conn.execute(text(
+                        "INSERT INTO fact_inbox (action, agent_id, subject_id, property, "
+                        "target_id, t_ns) VALUES (:a, :r, 'PEN', 'IsIn', 'DRAWER', :t)"),
+                        {"a": action, "r": robot, "t": 5 * S})
+    finally:
+        engine.dispose()
+    with db.transaction() as conn:
+        assert violations(conn) == []
+    assert [(r.valid_from_ns, r.valid_to_ns)
+            for r in q.history(db, "ANNE", subject="PEN", property="IsIn")] == [
+        (5 * S, 5 * S + 1), (5 * S + 2, 5 * S + 3)]
+    assert [(e.kind, e.stamp_ns) for e in q.events(db, "ANNE") if e.subject_id == "PEN"] == [
+        ("appeared", 5 * S), ("ended", 5 * S + 1), ("appeared", 5 * S + 2),
+        ("ended", 5 * S + 3)]
+    assert not [f for f in q.current_facts(db, "ANNE") if f.subject_id == "PEN"]
+

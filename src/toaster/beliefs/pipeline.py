@@ -62,7 +62,7 @@ RUNS = ("{{setting(enabled)}} = 'true' "
 #: agents' own facts at the clock's time: Store._writes). The run then takes the clock's
 #: time (:data:`CLOCK_NS`). On PostgreSQL the update's row lock also serializes the runs of
 #: concurrent writers: each sees the rows of the runs committed before it.
-CLOCK = ("UPDATE store_state SET beliefs_ns = {{hi}}(COALESCE(beliefs_ns, NEW.t_ns), NEW.t_ns) "
+CLOCK = ("UPDATE store_state SET beliefs_ns = {{hi}}(COALESCE(beliefs_ns + 1, NEW.t_ns), NEW.t_ns) "
          "WHERE id = 1")
 CLOCK_NS = "(SELECT beliefs_ns FROM store_state WHERE id = 1)"
 #: The agents (or the depth) changed since the nested holders were last registered, and

@@ -16,10 +16,13 @@ written AS MATERIALIZED (
                     ORDER BY f.valid_from_ns DESC, f.id DESC LIMIT 1) AS at_ns
   FROM belief_changed b WHERE NOT b.refreshed
 ),
--- the interval the late write closed: it ends where the write happened
+-- the interval the late write closed: it ends where the write happened (an empty one too: a
+-- fact asserted and retracted at one time by two writes, whose followers began following it
+-- at that time)
 late AS MATERIALIZED (
   SELECT x.key_id, x.at_ns,
-         (SELECT f.id FROM facts f WHERE f.key_id = x.key_id AND f.valid_from_ns < x.at_ns
+         (SELECT f.id FROM facts f WHERE f.key_id = x.key_id AND f.valid_from_ns <= x.at_ns
+            AND f.valid_to_ns = x.at_ns
           ORDER BY f.valid_from_ns DESC, f.id DESC LIMIT 1) AS fact_id
   FROM written x WHERE x.at_ns < :t
 ),
