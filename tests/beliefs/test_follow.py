@@ -412,3 +412,20 @@ def test_robots_writing_through_sql_at_one_instant_keep_every_invariant(
         ("ended", 5 * S + 3)]
     assert not [f for f in q.current_facts(db, "ANNE") if f.subject_id == "PEN"]
 
+
+def test_the_sources_of_one_tick_are_written_at_one_stamp(db: toaster.Database) -> None:
+    """R2's rooms were moved onto the rules' clock (its snapshot lagged R1's by 0.5 s); then R1
+    runs 10 s ahead. R2's next tick (rooms and things) is written at one stamp, just after the
+    clock, and its rules run there: before, its things (no earlier move, lagging past the
+    skew) kept their own time, 10 s before its rooms of the same tick."""
+    store = _two_robots(db)
+    store.sync_many("R1", 20 * S, [("rooms", _rooms(ROBOT_ROOMS))])
+    store.sync_many("R2", 19 * S + S // 2, [("rooms", _rooms(ROBOT_ROOMS))])
+    store.sync_many("R1", 30 * S, [("rooms", _rooms({**ROBOT_ROOMS, "CARL": "HALL"}))])
+    store.sync_many("R2", 19 * S + 6 * S // 10, [
+        ("things", [Fact("PEN", "IsIn", "DRAWER")]),
+        ("rooms", _rooms({**ROBOT_ROOMS, "BOB": "KITCHEN"}))])
+    starts = {(r.subject_id, r.target_id): r.valid_from_ns for r in q.current_facts(db, "R2")}
+    assert starts[("PEN", "DRAWER")] == starts[("BOB", "KITCHEN")] == 30 * S + 1
+    with db.transaction() as conn:
+        assert violations(conn) == []

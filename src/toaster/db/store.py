@@ -81,6 +81,11 @@ class ChangeSet(NamedTuple):
         """The agent who made the change of ``key_id`` (None: unknown)."""
         return self.actors.get(key_id, self.actor)
 
+    def key_ids(self) -> set[int]:
+        """The keys this write changed."""
+        return {item[0] for part in (self.appeared, self.changed, self.refreshed, self.ended)
+                for item in part}
+
 
 class Rule(Protocol):
     """A rule run in the transaction of every fact write (the belief rule is one).
@@ -140,6 +145,8 @@ class Store:
         self._rules: list[Rule] = []
         self._tolerances: dict[str, Tolerance] | None = None
         self._pending: list[ChangeSet] | None = None  # changes whose rules wait (sync_many)
+        self._tick_ns: int | None = None  # sync_many: the stamp of its sources, once known
+        self._tick_sources: tuple[str, ...] = ()  # sync_many: its sources
         self._actor: str | None = None  # who makes the changes being written (acting())
         self._actor_of: Callable[[Fact], str | None] | None = None  # per fact (acting())
         self._in_tx = False
@@ -632,27 +639,36 @@ class Store:
         """The rows of one write of ``agent_id`` at ``t_ns``.
 
         The belief runs follow the rules' clock (``store_state.beliefs_ns``, the last run's
-        time), never going back. A ``snapshot`` that lags the clock by at most
+        time): each run happens after the one before, at its time or 1 ns after the clock
+        (revision 0014). A ``snapshot`` at the clock's time or lagging it by at most
         :data:`LIVE_CLOCK_SKEW_NS` (a live robot or producer whose clock is a little behind
-        another's) is written 1 ns after it, so that the self rows and the holders' rows that
-        follow them share one timeline and a late write never shares the instant of the run
-        before it. A source's later snapshots are never written before one so moved: a live
-        robot whose lag grows past the skew stays on the clock's timeline instead of failing
-        with a time-order error. Older snapshots (one source imported after another) and
-        single writes (assert, retract, tell) keep their time: their runs happen at the
-        clock's. On PostgreSQL reading the clock locks it: such writes run one at a time
-        (their belief runs would anyway)."""
-        if snapshot and self._clocked(agent_id):
+        another's, or ticks at the same instant) is written 1 ns after it, so that the self
+        rows and the holders' rows that follow them share one timeline and a write never
+        shares the instant of the run before it. A source's later snapshots are never
+        written before one so moved: a live robot whose lag grows past the skew stays on the
+        clock's timeline instead of failing with a time-order error. The sources of one
+        :meth:`sync_many` (a tick) are written at one stamp, the latest any of them needs.
+        Older snapshots (one source imported after another) and single writes (assert,
+        retract, tell) keep their time: their runs happen just after the clock's. On
+        PostgreSQL reading the clock locks it: such writes run one at a time (their belief
+        runs would anyway)."""
+        given = t_ns
+        if snapshot and self._pending is not None and self._tick_ns is not None:
+            t_ns = self._tick_ns  # a later source of the tick: the first one's stamp
+        elif snapshot and self._clocked(agent_id):
             last = conn.execute(text(
                 "UPDATE store_state SET beliefs_ns = beliefs_ns WHERE id = 1 "
                 "RETURNING beliefs_ns")).scalar()
-            moved = self._moved_to.get((agent_id, source))
-            if last is not None and t_ns < last <= t_ns + LIVE_CLOCK_SKEW_NS:
-                t_ns = last + 1
-                self._moved_to[(agent_id, source)] = t_ns
-            elif moved is not None and t_ns < moved:
+            moved = max(self._moved_to.get((agent_id, s), t_ns)
+                        for s in (*self._tick_sources, source))
+            if last is not None and t_ns <= last <= t_ns + LIVE_CLOCK_SKEW_NS:
+                t_ns = max(last + 1, moved)
+            elif t_ns < moved:
                 t_ns = moved if last is None else max(moved, last + 1)
-                self._moved_to[(agent_id, source)] = t_ns
+        if snapshot and self._pending is not None:
+            self._tick_ns = t_ns
+        if snapshot and t_ns != given:
+            self._moved_to[(agent_id, source)] = t_ns
         return _Writes(agent_id, source, t_ns, self._actor, self._actor_of)
 
     def _run_rules(self, conn: Connection, changes: ChangeSet) -> None:
@@ -669,14 +685,15 @@ class Store:
         given = list(snapshots)
 
         def write(conn: Connection) -> list[SyncResult]:
-            self._pending = []
+            self._pending, self._tick_ns = [], None
+            self._tick_sources = tuple(source for source, _ in given)
             try:
                 results = [self.sync_snapshot(source, agent_id, t_ns, facts)
                            for source, facts in given]
                 for changes in _merged(self._pending):
                     self._run_rules(conn, changes)
             finally:
-                self._pending = None
+                self._pending, self._tick_ns, self._tick_sources = None, None, ()
             return results
 
         with self.acting(actor, actors):
@@ -909,8 +926,7 @@ def _merged(pending: list[ChangeSet]) -> list[ChangeSet]:
     seen: set[int] = set()
     first = pending[0]
     for changes in pending:
-        keys = {item[0] for part in (changes.appeared, changes.changed, changes.refreshed,
-                                     changes.ended) for item in part}
+        keys = changes.key_ids()
         if (keys & seen or changes.agent_id != first.agent_id
                 or changes.actor != first.actor):
             return pending
