@@ -1,14 +1,17 @@
 """One writer (or reader) process of the many-writers test and benchmark.
 
-``python -m tests.db.writers URL ROLE SECONDS SEED OUT.json`` from the project root (ROLE:
-``ROBOT:rooms``, ``ROBOT:things``, ``reader`` or
+``python -m tests.db.writers URL ROLE TICKS SEED OUT.json [PROGRESS]`` from the project root
+(ROLE: ``ROBOT:rooms``, ``ROBOT:things``, ``reader`` or
 ``run:ROBOT:SCENARIO:RATE:TICKS[:HOLDERS[:live]]``).
 A writer
 is one producer of one robot: it registers the robot (a self agent), the people and the
 things (the same ids in every process, so registrations race), then writes a snapshot of its
-source every tick for SECONDS, stamped with the wall clock as a live node stamps its ticks:
+source TICKS times, stamped with the wall clock as a live node stamps its ticks:
 people walk between rooms (source ``rooms``), things move between containers (source
-``things``). A reader asks what readers ask (current beliefs, diff, as of).
+``things``). A reader asks what readers ask (current beliefs, diff, as of) TICKS times.
+Work is counted, never timed: a process stops after TICKS ticks (or, failing that, after
+:data:`TIMEOUT_S`, and the test names it as short). PROGRESS, if given, is a file holding
+the number of ticks done so far (rewritten after each tick), for a test that waits for it.
 The JSON out: ticks, failures (one line each), tick latencies (s), last snapshot.
 """
 
@@ -34,6 +37,8 @@ THINGS = ("MARBLE", "KEY", "CUP", "PEN")
 #: fair queue for its write lock, and writers that never pause can starve one another past
 #: TOASTER_LOCK_TIMEOUT.
 PAUSE_S = 0.01
+#: A process that has not done its ticks after this long stops and reports how many it did.
+TIMEOUT_S = 120.0
 
 
 def register(db: toaster.Database, robot: str) -> None:
@@ -56,8 +61,14 @@ def snapshot(source: str, state: dict[str, str]) -> list[Fact]:
     return facts
 
 
-def write(url: str, role: str, seconds: float, seed: int) -> dict[str, Any]:
-    """``role`` is ``ROBOT:source``: tick until ``seconds`` have passed."""
+def _progress(path: str | None, ticks: int) -> None:
+    if path:
+        Path(path).write_text(str(ticks), encoding="utf-8")
+
+
+def write(url: str, role: str, ticks: int, seed: int,
+          progress: str | None = None) -> dict[str, Any]:
+    """``role`` is ``ROBOT:source``: ``ticks`` ticks (or what :data:`TIMEOUT_S` allows)."""
     robot, source = role.split(":")
     rng = random.Random(seed)
     failures: list[str] = []
@@ -77,8 +88,8 @@ def write(url: str, role: str, seconds: float, seed: int) -> dict[str, Any]:
             state = {x: rng.choice(list(CONTAINERS)) for x in THINGS}
             choices = tuple(CONTAINERS)
         store = db.store()
-        deadline = time.monotonic() + seconds
-        while time.monotonic() < deadline:
+        deadline = time.monotonic() + TIMEOUT_S
+        while len(latencies) < ticks and time.monotonic() < deadline:
             t = time.time_ns()  # the robot's clock, as `toaster serve` stamps its ticks
             who = rng.choice(sorted(state))
             state[who] = rng.choice(choices)
@@ -90,22 +101,23 @@ def write(url: str, role: str, seconds: float, seed: int) -> dict[str, Any]:
             except Exception as exc:
                 failures.append(f"tick {t}: {type(exc).__name__}: {exc}"[:300])
             latencies.append(time.perf_counter() - start)
+            _progress(progress, len(latencies))
             time.sleep(PAUSE_S)
     return {"role": role, "ticks": len(latencies), "failures": failures,
             "latencies": latencies, "last": [list(f) for f in last]}
 
 
-def read(url: str, seconds: float, seed: int) -> dict[str, Any]:
-    """Ask what readers ask until ``seconds`` have passed."""
+def read(url: str, ticks: int, seed: int) -> dict[str, Any]:
+    """Ask what readers ask ``ticks`` times (or what :data:`TIMEOUT_S` allows)."""
     from toaster import queries
     from toaster.beliefs import api
 
     rng = random.Random(seed)
     failures: list[str] = []
     latencies: list[float] = []
-    deadline = time.monotonic() + seconds
+    deadline = time.monotonic() + TIMEOUT_S
     with toaster.connect(url) as db:
-        while time.monotonic() < deadline:
+        while len(latencies) < ticks and time.monotonic() < deadline:
             start = time.perf_counter()
             try:
                 person = rng.choice(PEOPLE)
@@ -164,14 +176,14 @@ def run(url: str, robot: str, path: str, rate: float, ticks: int,
 
 
 def main(argv: list[str]) -> None:
-    url, role, seconds, seed, out = argv
+    url, role, ticks, seed, out, *progress = argv
     if role == "reader":
-        result = read(url, float(seconds), int(seed))
+        result = read(url, int(ticks), int(seed))
     elif role.startswith("run:"):  # run:ROBOT:PATH:RATE:TICKS[:HOLDERS[:live]]
-        _, robot, path, rate, ticks, *holders = role.split(":")
-        result = run(url, robot, path, float(rate), int(ticks), *holders)
+        _, robot, path, rate, run_ticks, *holders = role.split(":")
+        result = run(url, robot, path, float(rate), int(run_ticks), *holders)
     else:
-        result = write(url, role, float(seconds), int(seed))
+        result = write(url, role, int(ticks), int(seed), *progress)
     with open(out, "w", encoding="utf-8") as handle:
         json.dump(result, handle)
 
