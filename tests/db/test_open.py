@@ -10,6 +10,8 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -231,22 +233,28 @@ def test_bad_lock_timeout_setting(tmp_path: Path) -> None:
     assert "TOASTER_LOCK_TIMEOUT='soon' is not a number of seconds" in line
 
 
-def _hold_sqlite_lock(path: Path, seconds: float) -> threading.Event:
-    """Another connection holds the write lock of ``path`` for ``seconds``; returns the
-    event set once it holds it."""
-    held = threading.Event()
+@contextmanager
+def _sqlite_lock_held(path: Path) -> Iterator[None]:
+    """Another connection holds the write lock of ``path`` until the block ends (released and
+    closed then): a writer inside the block meets it however slow the machine is."""
+    held, release = threading.Event(), threading.Event()
 
     def hold() -> None:
         conn = sqlite3.connect(path, isolation_level=None)
         conn.execute("BEGIN IMMEDIATE")
         held.set()
-        time.sleep(seconds)
+        release.wait(120)
         conn.execute("ROLLBACK")
         conn.close()
 
-    threading.Thread(target=hold, daemon=True).start()
-    assert held.wait(10)
-    return held
+    thread = threading.Thread(target=hold, daemon=True)
+    thread.start()
+    assert held.wait(60), "the lock holder did not take the lock in 60 s"
+    try:
+        yield
+    finally:
+        release.set()
+        thread.join(60)
 
 
 def test_locked_sqlite_fails_in_one_line_and_writes_nothing(
@@ -258,25 +266,21 @@ def test_locked_sqlite_fails_in_one_line_and_writes_nothing(
     url = f"sqlite:///{path}"
     monkeypatch.setenv("TOASTER_LOCK_TIMEOUT", "0.5")
     with toaster.connect(url) as db:
-        _hold_sqlite_lock(path, 2.0)
-        started = time.monotonic()
-        with pytest.raises(DatabaseLockedError) as caught:
-            db.store().add_entity("BOB", "human", t_ns=0)
-        assert time.monotonic() - started < 2.0
-        message = str(caught.value)
-        assert "\n" not in message
-        assert message.startswith(f"database '{path}' is locked by another process "
-                                  "(waited 0.5 s)")
-        assert "TOASTER_LOCK_TIMEOUT=" in message
-        with db.transaction() as conn:
-            assert conn.execute(sa.text("SELECT COUNT(*) FROM entities")).scalar_one() == 0
-        time.sleep(2.0)
+        with _sqlite_lock_held(path):
+            with pytest.raises(DatabaseLockedError) as caught:
+                db.store().add_entity("BOB", "human", t_ns=0)
+            message = str(caught.value)
+            assert "\n" not in message
+            assert message.startswith(f"database '{path}' is locked by another process "
+                                      "(waited 0.5 s)")
+            assert "TOASTER_LOCK_TIMEOUT=" in message
+            with db.transaction() as conn:
+                assert conn.execute(sa.text("SELECT COUNT(*) FROM entities")).scalar_one() == 0
         db.store().add_entity("BOB", "human", t_ns=0)  # the handle still works
-    _hold_sqlite_lock(path, 2.0)
-    line = one_line_error(["--db", url, "set-info", "ENTITY", "--id", "ANNE", "--type",
-                           "human"], env={"TOASTER_LOCK_TIMEOUT": "0.5"})
+    with _sqlite_lock_held(path):
+        line = one_line_error(["--db", url, "set-info", "ENTITY", "--id", "ANNE", "--type",
+                               "human"], env={"TOASTER_LOCK_TIMEOUT": "0.5"})
     assert "is locked by another process (waited 0.5 s)" in line
-    time.sleep(2.0)
     conn = sqlite3.connect(path)
     assert conn.execute("SELECT id FROM entities").fetchall() == [("BOB",)]
     assert conn.execute("PRAGMA quick_check").fetchone() == ("ok",)
@@ -299,7 +303,7 @@ def test_locked_postgresql_fails_in_one_line(pg_schema_url: str,
         with pytest.raises(DatabaseLockedError, match=r"locked by another session \(waited "
                                                       r"0.5 s\)"):
             db.store().add_entity("BOB", "human", t_ns=0)
-        assert time.monotonic() - started < 5
+        assert time.monotonic() - started < 60  # ended by lock_timeout, not by the holder
         other.rollback()
         with db.transaction() as conn:
             assert conn.execute(sa.text("SELECT COUNT(*) FROM entities")).scalar_one() == 0
