@@ -146,7 +146,23 @@ def _drive(
         if node.poll() is not None:
             raise RuntimeError(log.read_text()[-2000:])
         time.sleep(0.05)
-    client = subprocess.Popen(
+    # the client's output goes to files, not pipes: an hour of its JSON is ~1 MB, and a full
+    # pipe blocks the client while nobody reads it
+    out_path, err_path = log.with_suffix(".client.out"), log.with_suffix(".client.err")
+    with out_path.open("w") as out_file, err_path.open("w") as err_file:
+        client = _start_client(out_file, err_file, env, args, result)
+        _watch(client, node, log, database, result, report)
+    out, err = out_path.read_text(), err_path.read_text()
+    if client.returncode != 0 or not out.strip():
+        raise RuntimeError("live_client.py failed: " + err[-2000:])
+    seen = json.loads(out.strip().splitlines()[-1])
+    result.latency_ms = latencies(seen["toggles"], seen["seen"])
+
+
+def _start_client(
+    out_file: Any, err_file: Any, env: dict[str, str], args: argparse.Namespace, result: Soak
+) -> subprocess.Popen[Any]:
+    return subprocess.Popen(
         [
             "/usr/bin/python3",
             str(HERE / "live_client.py"),
@@ -156,10 +172,21 @@ def _drive(
             str(args.cycle),
         ],
         env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
+        stdout=out_file,
+        stderr=err_file,
     )
+
+
+def _watch(
+    client: subprocess.Popen[Any],
+    node: subprocess.Popen[Any],
+    log: Path,
+    database: Database,
+    result: Soak,
+    report: Any,
+) -> None:
+    """Rows as the node's status lines come, samples every ``SAMPLE_S``, until the client
+    ends."""
     start = time.monotonic()
     seen_windows = 0
     next_sample = 0.0
@@ -191,11 +218,6 @@ def _drive(
             result.db_mb.append((now, database.size()[0] / 1e6))
             next_sample = now + SAMPLE_S
         time.sleep(0.5)
-    out, err = client.communicate()
-    if client.returncode != 0:
-        raise RuntimeError("live_client.py failed: " + err[-2000:])
-    seen = json.loads(out.strip().splitlines()[-1])
-    result.latency_ms = latencies(seen["toggles"], seen["seen"])
 
 
 def settled(samples: list[tuple[float, float]], seconds: float) -> list[tuple[float, float]]:
