@@ -128,3 +128,17 @@ def test_the_window_line_has_the_format_benchmarks_parse():
         "window 1 s: 0 ticks, p50 0.0 ms, p99 0.0 ms, max 0.0 ms, 0 overruns"
     )
     assert stats.overruns == 1 and stats.ticks == 0
+
+
+def test_a_window_longer_than_it_keeps_counts_every_tick(monkeypatch):
+    """A status window keeps only the newest durations (memory stays bounded with the status
+    line off), but counts every tick and keeps the longest, however long ago it came."""
+    monkeypatch.setattr("toaster.live.node.WINDOW_TICKS", 10)
+    stats = LiveStats()
+    stats.window_start = 0.0
+    for ms in [900.0] + [2.0] * 99:
+        stats.record(ms, overran=ms > 33.3)
+    assert len(stats.window_ms) <= 20
+    assert stats.take_window(now=10.0) == (
+        "window 10 s: 100 ticks, p50 2.0 ms, p99 2.0 ms, max 900.0 ms, 1 overruns"
+    )
