@@ -47,6 +47,8 @@ WINDOW = re.compile(
     r"max ([\d.]+) ms, (\d+) overruns"
 )
 TARGET_RSS_MB_H, TARGET_GROWTH_MB_H, TARGET_TICK_MS = 5.0, 100.0, 500.0
+#: The tables an hour of input fills (the rows of the summary: the first three).
+TABLES = ("facts", "fact_samples", "events", "fact_keys")
 
 
 def rss_mb(pid: int) -> float:
@@ -78,6 +80,7 @@ class Soak:
     client_rss: list[tuple[float, float]] = field(default_factory=list)
     db_mb: list[tuple[float, float]] = field(default_factory=list)
     rows: dict[str, int] = field(default_factory=dict)
+    table_bytes: dict[str, int] = field(default_factory=dict)
     summary: str = ""
     latency_ms: list[float] = field(default_factory=list)
 
@@ -86,7 +89,7 @@ def count_rows(url: str) -> dict[str, int]:
     with toaster.connect(url) as db, db.transaction() as conn:
         return {
             table: int(conn.exec_driver_sql(f"SELECT count(*) FROM {table}").scalar_one())
-            for table in ("facts", "fact_samples", "events")
+            for table in TABLES
         }
 
 
@@ -128,6 +131,7 @@ def soak(backend: str, pg: str, args: argparse.Namespace, tmp: str, report: Any)
                         node.wait(60)
             result.summary = log.read_text()
         result.rows = count_rows(database.url)
+        result.table_bytes = database.tables()
     finally:
         database.close()
     return result
@@ -225,7 +229,27 @@ def settled(samples: list[tuple[float, float]], seconds: float) -> list[tuple[fl
     return [(t, v) for t, v in samples if t >= seconds / 6]
 
 
+def print_tables(runs: list[Soak]) -> None:
+    """Where the bytes go: each table with its indexes, per hour of input and per row."""
+    print()
+    print(f"  {'backend':<11} {'table':<13} {'rows/h':>9} {'MB/h':>7} {'bytes/row':>9}")
+    for run in runs:
+        rest = dict(run.table_bytes)
+        for table in TABLES:
+            size, count = rest.pop(table, 0), run.rows.get(table, 0)
+            print(
+                f"  {run.backend:<11} {table:<13} {count * 3600 / run.seconds:>9.0f} "
+                f"{size * 3.6e-3 / run.seconds:>7.1f} {size / max(1, count):>9.0f}"
+            )
+        other = sum(rest.values())
+        print(
+            f"  {run.backend:<11} {'(the rest)':<13} {'':>9} {other * 3.6e-3 / run.seconds:>7.1f}"
+        )
+    print("  (MB/h: the table's bytes at the end, with its indexes, over the run's length)")
+
+
 def print_summary(runs: list[Soak], args: argparse.Namespace) -> None:
+    print_tables(runs)
     print()
     print(
         f"{'backend':<11} {'RSS MB/h':>9} {'(first 1/6)':>11} {'client MB/h':>11} "
@@ -237,9 +261,10 @@ def print_summary(runs: list[Soak], args: argparse.Namespace) -> None:
         early = slope_per_hour([s for s in run.node_rss if s[0] < run.seconds / 6])
         client = slope_per_hour(settled(run.client_rss, run.seconds))
         growth = slope_per_hour(settled(run.db_mb, run.seconds))
-        rows = sum(run.rows.values()) * 3600 / run.seconds
+        counted = sum(run.rows[table] for table in TABLES[:3])
+        rows = counted * 3600 / run.seconds
         size = run.db_mb[-1][1] * 1e6 if run.db_mb else float("nan")
-        per_row = size / max(1, sum(run.rows.values()))
+        per_row = size / max(1, counted)
         worst = max((w["max"] for w in run.windows), default=float("nan"))
         overruns = sum(w["overruns"] for w in run.windows)
         met = [
