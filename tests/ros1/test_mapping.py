@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import io
 import math
+import sys
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -72,6 +74,44 @@ def test_tf_chain_is_composed_up_to_map(reg: Any) -> None:
     assert lost == ["lost"]
     _, bad = tree.update(tf_msg(("map", "x", (math.nan, 0.0, 0.0), 0.0, 0)))
     assert bad and "finite" in bad[0]
+
+
+def test_poses_of_one_call_come_from_the_same_messages(reg: Any) -> None:
+    """rospy's thread stores /tf messages while the tick composes poses: every pose of one
+    tf_updates call comes from the same message (each moves a human's body and its head
+    together), never one from each."""
+    tree = TfTree()
+    frames = mapping.read_frame_map({f"h{i}": {"id": f"h{i}", "kind": "human"} for i in range(40)}
+                                    | {f"h{i}_head": {"kind": "joint", "owner": f"h{i}",
+                                                      "joint": "head"} for i in range(40)})
+
+    def message(x: float) -> Any:
+        return tf_msg(*[edge for i in range(40) for edge in (
+            ("map", f"h{i}", (x, float(i), 0.0), 0.0, 1), ("map", f"h{i}_head", (x, float(i),
+                                                                                1.7), 0.0, 1))])
+
+    moves = [message(0.0), message(1.6)]
+    tree.update(moves[0])
+    stop = threading.Event()
+
+    def publish() -> None:
+        n = 0
+        while not stop.is_set():
+            n += 1
+            tree.update(moves[n % 2])
+
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)  # switch threads as often as the interpreter can
+    publisher = threading.Thread(target=publish)
+    publisher.start()
+    try:
+        seen = [{u.position[0] for u in mapping.tf_updates(tree, frames, frames)[0]}
+                for _ in range(300)]
+    finally:
+        stop.set()
+        publisher.join()
+        sys.setswitchinterval(interval)
+    assert all(len(xs) == 1 for xs in seen), [sorted(xs) for xs in seen if len(xs) > 1][:3]
 
 
 def test_the_same_functions_read_ros2_messages() -> None:

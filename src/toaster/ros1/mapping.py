@@ -288,11 +288,23 @@ class TfTree:
         with self._lock:
             return list(self._edges)
 
+    def frozen(self) -> TfTree:
+        """A copy that later messages do not change: poses composed from it all come from
+        the same messages."""
+        copy = TfTree()
+        copy.fixed = self.fixed
+        with self._lock:
+            copy._edges = dict(self._edges)
+        return copy
+
 
 def tf_updates(tree: TfTree, targets: Mapping[str, FrameTarget], changed: Iterable[str]
                ) -> tuple[list[PoseUpdate], list[str]]:
     """Poses of the mapped frames whose chain contains a changed frame, and the mapped frames
-    that do not reach the fixed frame."""
+    that do not reach the fixed frame, all composed from the tree as it was when called (a
+    message arriving meanwhile on rospy's thread is not half seen: one human's body from it
+    and its head from the one before, for one tick)."""
+    tree = tree.frozen()
     changed = set(changed)
     updates: list[PoseUpdate] = []
     lost: list[str] = []
