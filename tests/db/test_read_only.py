@@ -669,6 +669,27 @@ def test_a_long_function_call_stops_at_the_deadline(read_db: toaster.Database) -
     assert q.execute(read_db, "SELECT 1").rows == [(1,)]
 
 
+def test_the_deadline_starts_when_the_worker_is_ready(read_url: str,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """The deadline bounds the statement, not the start of its process (seconds on a loaded
+    machine): a worker that takes 3 s to start runs a statement under a 2 s deadline. One
+    that does not start in time, or ends as it starts, is a one-line error."""
+    if not read_url.startswith("sqlite"):
+        pytest.skip("SQLite's worker process")
+    slow = "import time; time.sleep(3); " + readonly_sqlite._CHILD
+    monkeypatch.setattr(readonly_sqlite, "_CHILD", slow)
+    with closing(toaster.connect(read_url)) as db:  # a worker of its own
+        assert q.execute(db, "SELECT 1", timeout_s=2.0).rows == [(1,)]
+    monkeypatch.setattr(readonly_sqlite, "START_TIMEOUT_S", 0.5)
+    for child, message in ((slow, "did not start within 0.5 s"),
+                           ("raise SystemExit(3)", "ended as it started .exit status 3")):
+        monkeypatch.setattr(readonly_sqlite, "_CHILD", child)
+        with closing(toaster.connect(read_url)) as db, \
+                pytest.raises(ToasterError, match=message) as error:
+            q.execute(db, "SELECT 1")
+        assert "\n" not in str(error.value)
+
+
 def test_in_memory_sqlite_is_refused_in_one_line() -> None:
     """The statement's process cannot open an in-memory database: one line, not a guess."""
     with open_database("sqlite://", allow_memory=True) as db, \
