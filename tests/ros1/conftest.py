@@ -13,18 +13,32 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 
+import toaster
 from toaster.ros1 import RosUnavailableError
 from toaster.ros1.core import RosCore, stop_group
 
 HERE = Path(__file__).resolve().parent
 ROSCORE = "/usr/bin/roscore"
 SYSTEM_PYTHON = "/usr/bin/python3"
+TIMEOUT = 60.0  # generous: conditions are waited for, never a wall-clock window
+
+
+def wait_for(what: Callable[[], Any], message: str = "", timeout: float = TIMEOUT) -> Any:
+    """``what()`` once it is true, asked every 50 ms; fails the test after ``timeout``."""
+    deadline = time.monotonic() + timeout
+    while True:
+        value = what()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            pytest.fail(f"timed out after {timeout:g} s waiting for {message or what}")
+        time.sleep(0.05)
 
 
 def ros_unavailable() -> str | None:
@@ -107,6 +121,34 @@ class NodeProcess:
         if self.proc.stdout:
             self.proc.stdout.close()
         return self.log.read_text()
+
+
+@pytest.fixture(scope="module")
+def node_args() -> list[str]:
+    """The options of the module's node after ``serve --ros1`` (a module overrides it)."""
+    return []
+
+
+@pytest.fixture(scope="module")
+def node(ros_env: dict[str, str], node_args: list[str],
+         tmp_path_factory: pytest.TempPathFactory) -> Iterator[NodeProcess]:
+    """The module's ``toaster serve --ros1`` on a SQLite file in a folder of its own (its log
+    there too), stopped at the end; it must have stopped cleanly, with no traceback."""
+    tmp = tmp_path_factory.mktemp("ros1_node")
+    proc = NodeProcess(ros_env, f"sqlite:///{tmp / 'toaster.db'}", node_args,
+                       tmp / "node.log")
+    yield proc
+    out = proc.close()
+    assert "stopped after" in out, out[-2000:]
+    assert "Traceback" not in out, out[-3000:]
+
+
+@pytest.fixture(scope="module")
+def db(node: NodeProcess) -> Iterator[toaster.Database]:
+    """The module's node's database, read by the tests."""
+    database = toaster.connect(node.url)
+    yield database
+    database.close()
 
 
 class RosClient:

@@ -6,14 +6,13 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 
 import toaster
-from tests.ros1.conftest import NodeProcess, RosClient
+from tests.ros1.conftest import NodeProcess, RosClient, wait_for
 from toaster import queries as q
 
 SELF = "toaster"
@@ -41,17 +40,6 @@ def transform(parent: str, child: str, x: float, y: float, z: float) -> dict[str
                           "rotation": {"x": 0, "y": 0, "z": 0, "w": 1}}}
 
 
-def wait_for(what: Callable[[], Any], timeout: float = 8.0, message: str = "") -> Any:
-    deadline = time.monotonic() + timeout
-    while True:
-        value = what()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            pytest.fail(f"timed out waiting for {message or what}")
-        time.sleep(0.05)
-
-
 def holds(db: toaster.Database, prop: str, subject: str, target: str | None = None) -> bool:
     filters: dict[str, Any] = {"property": prop, "subject": subject}
     if target is not None:
@@ -60,25 +48,11 @@ def holds(db: toaster.Database, prop: str, subject: str, target: str | None = No
 
 
 @pytest.fixture(scope="module")
-def node(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory
-         ) -> Iterator[NodeProcess]:
-    tmp = tmp_path_factory.mktemp("ros1_node")
-    (tmp / "frames.yaml").write_text(TF_MAP)
-    proc = NodeProcess(ros_env, f"sqlite:///{tmp / 'toaster.db'}",
-                       ["--tf-map", str(tmp / "frames.yaml"),
-                        "--pose-topic", "/mocap/bob=bob:human",
-                        "--pose-topic", "/mocap/box=box:object"], tmp / "node.log")
-    yield proc
-    out = proc.close()
-    assert "stopped after" in out, out[-2000:]
-    assert "Traceback" not in out
-
-
-@pytest.fixture(scope="module")
-def db(node: NodeProcess) -> Iterator[toaster.Database]:
-    database = toaster.connect(node.url)
-    yield database
-    database.close()
+def node_args(tmp_path_factory: pytest.TempPathFactory) -> list[str]:
+    frames = tmp_path_factory.mktemp("ros1_frames") / "frames.yaml"
+    frames.write_text(TF_MAP)
+    return ["--tf-map", str(frames), "--pose-topic", "/mocap/bob=bob:human",
+            "--pose-topic", "/mocap/box=box:object"]
 
 
 @pytest.fixture(scope="module")

@@ -8,17 +8,13 @@ from __future__ import annotations
 import math
 import re
 import time
-from collections.abc import Callable, Iterator
 from typing import Any
 
-import pytest
-
 import toaster
-from tests.ros1.conftest import NodeProcess, RosClient
+from tests.ros1.conftest import TIMEOUT, NodeProcess, RosClient, wait_for
 from toaster import queries as q
 
 SELF = "toaster"
-TIMEOUT = 60.0  # generous: conditions are waited for, never a wall-clock window
 LONG = "x" * 300
 NUL = "cup\x00evil"
 HUGE = "h" * 1_000_000
@@ -32,17 +28,6 @@ ROOM = {
         "points": [{"x": -1, "y": -1}, {"x": 5, "y": -1}, {"x": 5, "y": 3}, {"x": -1, "y": 3}]
     },
 }
-
-
-def wait_for(what: Callable[[], Any], message: str, timeout: float = TIMEOUT) -> Any:
-    deadline = time.monotonic() + timeout
-    while True:
-        value = what()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            pytest.fail(f"timed out after {timeout:g} s waiting for {message}")
-        time.sleep(0.05)
 
 
 def entity(
@@ -64,6 +49,16 @@ def pose(x: float, y: float = 0.0) -> dict[str, Any]:
     return {"position": {"x": x, "y": y, "z": 0.0}, "orientation": IDENTITY}
 
 
+def relative_position(client: RosClient, subject: str, target: str) -> Any:
+    """The answer of /area_manager/get_relative_position."""
+    return client.call(
+        "/area_manager/get_relative_position",
+        "GetRelativePosition",
+        subjectId=subject,
+        targetId=target,
+    )["answer"]
+
+
 def status(client: RosClient) -> str:
     answer = client.call("/toaster/get_status", "std_srvs/Trigger")
     assert answer["success"], answer
@@ -74,24 +69,6 @@ def dropped(client: RosClient, key: str) -> int:
     """The count of ``key`` ("topic field") in the status line's drops, 0 when absent."""
     found = re.search(re.escape(key) + r" (\d+)", status(client))
     return int(found.group(1)) if found else 0
-
-
-@pytest.fixture(scope="module")
-def node(
-    ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory
-) -> Iterator[NodeProcess]:
-    tmp = tmp_path_factory.mktemp("ros1_hostile")
-    proc = NodeProcess(ros_env, f"sqlite:///{tmp / 'toaster.db'}", [], tmp / "node.log")
-    yield proc
-    out = proc.close()
-    assert "Traceback" not in out, out[-3000:]
-
-
-@pytest.fixture(scope="module")
-def db(node: NodeProcess) -> Iterator[toaster.Database]:
-    database = toaster.connect(node.url)
-    yield database
-    database.close()
 
 
 def known(db: toaster.Database, entity_id: str) -> bool:
@@ -240,15 +217,7 @@ def test_services_answer_false_for_unknown_ids(
     assert not refused["ok"] and "nobody" in refused["error"]
     refused = client.call_raw("/pdg/remove_from_hand", "RemoveFromHand", objectId="cup")
     assert not refused["ok"] and "in no hand" in refused["error"]
-    assert (
-        client.call(
-            "/area_manager/get_relative_position",
-            "GetRelativePosition",
-            subjectId="cup",
-            targetId="ghost",
-        )["answer"]
-        is False
-    )
+    assert relative_position(client, "cup", "ghost") is False
     assert (
         client.call("/agent_monitor/pointing", "Pointing", pointingAgentId="nobody")["answer"]
         is False
@@ -273,36 +242,12 @@ def test_a_removed_entity_is_found_by_no_query(
     )["answer"]
     wait_for(lambda: known(db, "stool"), "stool registered")
     wait_for(lambda: q.current_facts(db, SELF, subject="stool"), "facts about the stool")
-    assert (
-        client.call(
-            "/area_manager/get_relative_position",
-            "GetRelativePosition",
-            subjectId="cup",
-            targetId="stool",
-        )["answer"]
-        is True
-    )
+    assert relative_position(client, "cup", "stool") is True
     assert client.call("/toaster_simu/remove_entity", "RemoveEntity", id="stool", type="object")[
         "answer"
     ]
-    assert (
-        client.call(
-            "/area_manager/get_relative_position",
-            "GetRelativePosition",
-            subjectId="cup",
-            targetId="stool",
-        )["answer"]
-        is False
-    )
-    assert (
-        client.call(
-            "/area_manager/get_relative_position",
-            "GetRelativePosition",
-            subjectId="stool",
-            targetId="cup",
-        )["answer"]
-        is False
-    )
+    assert relative_position(client, "cup", "stool") is False
+    assert relative_position(client, "stool", "cup") is False
     ids = client.call("/database_manager/get_info", "GetInfoDB", type="ID", subType="ALL")
     assert "stool" not in {i["id"] for i in ids["resId"]}
     wait_for(lambda: not q.current_facts(db, SELF, subject="stool"), "the stool's facts ended")

@@ -6,13 +6,11 @@ from __future__ import annotations
 
 import re
 import time
-from collections.abc import Iterator
 
 import pytest
 
-from tests.ros1.conftest import NodeProcess, RosClient
+from tests.ros1.conftest import TIMEOUT, NodeProcess, RosClient
 
-TIMEOUT = 60.0
 WINDOW = re.compile(
     r"window (\d+) s: (\d+) ticks, p50 ([\d.]+) ms, p99 ([\d.]+) ms, "
     r"max ([\d.]+) ms, (\d+) overruns"
@@ -24,15 +22,8 @@ STATUS = re.compile(
 
 
 @pytest.fixture(scope="module")
-def node(
-    ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory
-) -> Iterator[NodeProcess]:
-    tmp = tmp_path_factory.mktemp("ros1_status")
-    proc = NodeProcess(
-        ros_env, f"sqlite:///{tmp / 'toaster.db'}", ["--status-every", "1"], tmp / "node.log"
-    )
-    yield proc
-    proc.close()
+def node_args() -> list[str]:
+    return ["--status-every", "1"]
 
 
 def wait_log(node: NodeProcess, pattern: re.Pattern[str], count: int = 1) -> list[str]:

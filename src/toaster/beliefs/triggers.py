@@ -222,5 +222,12 @@ def run_frozen(conn: Connection, name: str, which: str) -> None:
         cursor.execute(statement)
 
 
+def swap_frozen(conn: Connection, old: str, new: str) -> None:
+    """Drop the frozen triggers ``old`` and create the frozen ``new`` (see
+    :func:`run_frozen`): a revision's upgrade, and with the two swapped its downgrade."""
+    run_frozen(conn, old, "drop")
+    run_frozen(conn, new, "create")
+
+
 if __name__ == "__main__":  # python -m toaster.beliefs.triggers FILE.json
     freeze(sys.argv[1])

@@ -4,12 +4,13 @@ SQLite checks for interrupts (and calls progress handlers) only between steps of
 virtual machine, never inside one function call: ``instr()`` of a 4 MiB text in a 2 MiB
 one ran 254 s under a 5 s deadline (its cost is the product of the lengths). So each open
 database's read-only statements run in a worker process (:func:`serve`, kept between
-statements) that the caller kills at the deadline. The worker opens the file read-only
-(``mode=ro``) and runs each statement under ``PRAGMA query_only``, an authorizer, SQLite's
-length limit (the byte bound: no value larger is ever made) and its heap limit (the
-worker's own), in a transaction it rolls back; it holds the rows (serialized, within the
-byte bound) until the statement is done and checked, then sends them, and the caller reads
-them a batch at a time.
+statements) that the caller kills at the deadline (counted from when the worker says it
+is ready: its start-up, seconds on a loaded machine, has a bound of its own). It opens the
+file read-only (``mode=ro``) and runs each statement under ``PRAGMA query_only``, an
+authorizer, SQLite's length limit (the byte bound: no value larger is ever made) and its
+heap limit (the worker's own), in a transaction it rolls back; it holds the rows
+(serialized, within the byte bound) until the statement is done and checked, then sends
+them, and the caller reads them a batch at a time.
 """
 
 from __future__ import annotations
@@ -42,6 +43,9 @@ from toaster.errors import ReadOnlyError, ToasterError
 SQLITE_HEAP_LIMIT = 2**30
 #: The highest length limit setlimit() takes (SQLite lowers it to its own ceiling).
 _MAX_LENGTH = 2**31 - 1
+#: How long a new worker may take to start (its imports), apart from any statement's
+#: deadline: seconds on a loaded machine, ~40 ms on an idle one.
+START_TIMEOUT_S = 60.0
 #: A batch of rows sent at once: at most this many rows, or one row past this many bytes.
 _BATCH_ROWS = 1000
 _BATCH_BYTES = 2**20
@@ -85,9 +89,33 @@ class _Worker:
         self.heap = heap
         self.pid = os.getpid()  # a forked copy of this process must not share it
         self.lock = threading.Lock()
+        self.ready = False
 
     def usable(self, heap: int) -> bool:
         return self.pid == os.getpid() and self.heap == heap and self.process.poll() is None
+
+    def wait_ready(self) -> None:
+        """Wait for the new process to say it is ready (its start-up is no statement's: a
+        statement's deadline starts after it), within :data:`START_TIMEOUT_S`."""
+        if self.ready:
+            return
+        assert self.process.stdout is not None  # a pipe
+        clock = _Deadline(self.process, START_TIMEOUT_S)
+        try:
+            message = _receive(self.process.stdout)
+        finally:
+            killed = clock.stop()
+        if message == ("ready",) and not killed:
+            self.ready = True
+            return
+        self.stop()
+        if killed:
+            msg = (f"SQL error: the read-only statement's process did not start within "
+                   f"{START_TIMEOUT_S:g} s (is the machine overloaded?): run it again")
+        else:
+            msg = (f"SQL error: the read-only statement's process ended as it started (exit "
+                   f"status {self.process.returncode}): run it again")
+        raise ToasterError(msg)
 
     def stop(self) -> None:
         """Kill the process (it may be mid-statement) and release its pipes."""
@@ -120,7 +148,34 @@ def _worker(db: Any) -> Iterator[_Worker]:
             worker = _WORKERS[db] = _Worker(heap)
             weakref.finalize(db, worker.stop)
     with worker.lock:
+        worker.wait_ready()
         yield worker
+
+
+class _Deadline:
+    """Kills ``process`` after ``seconds`` unless stopped before (once stopped, never)."""
+
+    def __init__(self, process: Any, seconds: float) -> None:
+        self._process = process
+        self._lock = threading.Lock()
+        self._stopped = False
+        self.killed = False
+        self._timer = threading.Timer(seconds, self._kill)
+        self._timer.daemon = True
+        self._timer.start()
+
+    def _kill(self) -> None:
+        with self._lock:
+            if not self._stopped:
+                self.killed = True
+                self._process.kill()
+
+    def stop(self) -> bool:
+        """Stop the clock; whether the process was killed."""
+        self._timer.cancel()
+        with self._lock:
+            self._stopped = True
+        return self.killed
 
 
 @contextmanager
@@ -142,18 +197,11 @@ def read_sqlite(db: Any, sql: str, params: Any, bounds: Limits) -> Iterator[Read
     except ValueError:
         msg = "SQL error: parameters must be text, numbers, bytes or None"
         raise ToasterError(msg) from None
-    with _worker(db) as worker:
+    with _worker(db) as worker:  # started and ready: the deadline is the statement's
         process = worker.process
         assert process.stdin is not None  # both are pipes
         assert process.stdout is not None
-        killed = threading.Event()
-
-        def kill() -> None:
-            killed.set()
-            process.kill()
-
-        deadline = threading.Timer(bounds.timeout_s, kill)
-        deadline.start()
+        deadline = _Deadline(process, bounds.timeout_s)
         read = [False]  # every batch read: the worker is ready for the next statement
         try:
             try:
@@ -162,8 +210,7 @@ def read_sqlite(db: Any, sql: str, params: Any, bounds: Limits) -> Iterator[Read
             except OSError:
                 pass  # it ended: its answer (or its absence) says why
             head = _receive(process.stdout)
-            deadline.cancel()
-            if killed.is_set():
+            if deadline.stop():
                 raise timeout_error(bounds)
             if head is None:
                 raise _ended(process)
@@ -172,8 +219,7 @@ def read_sqlite(db: Any, sql: str, params: Any, bounds: Limits) -> Iterator[Read
                 raise _ERRORS.get(head[1], ToasterError)(head[2])
             yield ReadRows(head[1], _rows(process, head[2], read), bounds.max_rows)
         finally:
-            deadline.cancel()
-            if not read[0]:  # killed, ended, or rows left unread in its pipe
+            if deadline.stop() or not read[0]:  # killed, ended, or rows left unread
                 worker.stop()
 
 
@@ -221,9 +267,12 @@ def _receive(stream: IO[bytes]) -> Any:
 
 # ---------------------------------------------------------------------------- the worker
 def serve() -> None:
-    """The worker: for each request on stdin (until it closes), on stdout ``("error",
-    class, message)``, or ``("rows", columns, batches)`` then that many batches of rows."""
+    """The worker: ``("ready",)`` on stdout, then for each request on stdin (until it
+    closes) ``("error", class, message)``, or ``("rows", columns, batches)`` then that many
+    batches of rows."""
     out = sys.stdout.buffer
+    _send(out, ("ready",))  # imported: what follows is the statements'
+    out.flush()
     reader: _Reader | None = None
     while (request := _receive(sys.stdin.buffer)) is not None:
         path, sql, params, bounds, heap, lock_timeout_s = request

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from alembic import op
 
-from toaster.beliefs.triggers import run_frozen
+from toaster.beliefs.triggers import swap_frozen
 
 revision = "0010"
 down_revision = "0009"
@@ -27,10 +27,8 @@ depends_on = None
 
 
 def upgrade() -> None:
-    run_frozen(op.get_bind(), "0009_triggers", "drop")
-    run_frozen(op.get_bind(), "0010_triggers", "create")
+    swap_frozen(op.get_bind(), "0009_triggers", "0010_triggers")
 
 
 def downgrade() -> None:
-    run_frozen(op.get_bind(), "0010_triggers", "drop")
-    run_frozen(op.get_bind(), "0009_triggers", "create")
+    swap_frozen(op.get_bind(), "0010_triggers", "0009_triggers")

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from alembic import op
 
-from toaster.beliefs.triggers import run_frozen
+from toaster.beliefs.triggers import swap_frozen
 
 revision = "0013"
 down_revision = "0012"
@@ -23,10 +23,8 @@ depends_on = None
 
 
 def upgrade() -> None:
-    run_frozen(op.get_bind(), "0012_triggers", "drop")
-    run_frozen(op.get_bind(), "0013_triggers", "create")
+    swap_frozen(op.get_bind(), "0012_triggers", "0013_triggers")
 
 
 def downgrade() -> None:
-    run_frozen(op.get_bind(), "0013_triggers", "drop")
-    run_frozen(op.get_bind(), "0012_triggers", "create")
+    swap_frozen(op.get_bind(), "0013_triggers", "0012_triggers")

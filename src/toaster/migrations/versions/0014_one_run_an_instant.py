@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from alembic import op
 
-from toaster.beliefs.triggers import run_frozen
+from toaster.beliefs.triggers import swap_frozen
 
 revision = "0014"
 down_revision = "0013"
@@ -25,10 +25,8 @@ depends_on = None
 
 
 def upgrade() -> None:
-    run_frozen(op.get_bind(), "0013_triggers", "drop")
-    run_frozen(op.get_bind(), "0014_triggers", "create")
+    swap_frozen(op.get_bind(), "0013_triggers", "0014_triggers")
 
 
 def downgrade() -> None:
-    run_frozen(op.get_bind(), "0014_triggers", "drop")
-    run_frozen(op.get_bind(), "0013_triggers", "create")
+    swap_frozen(op.get_bind(), "0014_triggers", "0013_triggers")
