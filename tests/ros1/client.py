@@ -21,6 +21,8 @@ from pathlib import Path
 import rospy
 
 HERE = Path(__file__).resolve().parent
+#: How long to wait for a connection or a message: generous, a loaded machine is slow.
+CONNECT_S = 60.0
 _spec = importlib.util.spec_from_file_location(
     "toaster_ros1_messages", HERE.parents[1] / "src" / "toaster" / "ros1" / "messages.py")
 messages = importlib.util.module_from_spec(_spec)
@@ -75,7 +77,7 @@ class Client:
         cls = msg_class(cmd["type"])
         rate = float(cmd.get("rate", 0))
         if rate <= 0:
-            deadline = time.monotonic() + 5
+            deadline = time.monotonic() + CONNECT_S
             while pub.get_num_connections() == 0 and time.monotonic() < deadline:
                 time.sleep(0.02)
             pub.publish(messages.to_msg(cls, stamped(cmd["msg"]), REGISTRY))
@@ -112,12 +114,19 @@ class Client:
                 self.received[topic + "#"] = self.received.get(topic + "#", 0) + 1
                 self.cond.notify_all()
 
-        self.subs.append(rospy.Subscriber(topic, msg_class(cmd["type"]), got, queue_size=10))
+        sub = rospy.Subscriber(topic, msg_class(cmd["type"]), got, queue_size=10)
+        self.subs.append(sub)
+        if cmd.get("connected"):  # wait for the publisher: what it sends next is received
+            deadline = time.monotonic() + float(cmd["connected"])
+            while sub.get_num_connections() == 0:
+                if time.monotonic() > deadline:
+                    return {"ok": False, "error": f"no publisher of {topic} connected"}
+                time.sleep(0.02)
         return {"ok": True}
 
     def latest(self, cmd):
         topic, after = cmd["topic"], int(cmd.get("after", 0))
-        deadline = time.monotonic() + float(cmd.get("timeout", 5))
+        deadline = time.monotonic() + float(cmd.get("timeout", CONNECT_S))
         with self.cond:
             while self.received.get(topic + "#", 0) <= after:
                 left = deadline - time.monotonic()

@@ -194,11 +194,16 @@ class RosClient:
     def stop(self, key: str) -> None:
         self.send("stop", key=key)
 
-    def subscribe(self, topic: str, msg_type: str) -> None:
-        assert self.send("subscribe", topic=topic, type=msg_type)["ok"]
+    def subscribe(self, topic: str, msg_type: str, *, connected: bool = False) -> None:
+        """Subscribe; ``connected``: return once a publisher is connected (what it sends
+        next is received)."""
+        answer = self.send("subscribe", topic=topic, type=msg_type,
+                           connected=TIMEOUT if connected else 0)
+        assert answer["ok"], answer
 
-    def latest(self, topic: str, *, after: int = 0, timeout: float = 5.0) -> dict[str, Any]:
-        answer = self.send("latest", topic=topic, after=after, timeout=timeout)
+    def latest(self, topic: str, *, after: int = 0) -> dict[str, Any]:
+        """The newest message on ``topic`` once more than ``after`` came (waits TIMEOUT)."""
+        answer = self.send("latest", topic=topic, after=after, timeout=TIMEOUT)
         assert answer["ok"], answer
         return answer
 

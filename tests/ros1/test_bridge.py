@@ -167,15 +167,14 @@ def test_watch_service_pushes_matching_events_on_its_topic(world: RosClient) -> 
                         property="IsInHand", targetId="*")
     assert answer["answer"]
     topic = answer["topic"]
-    world.subscribe(topic, "toaster_msgs/BeliefEvent")
-    time.sleep(0.5)  # the subscriber connects
+    world.subscribe(topic, "toaster_msgs/BeliefEvent", connected=True)
     world.call("/pdg/put_in_hand", "PutInHand", objectId="cup", agentId="bob",
                jointName="rightHand")
-    got = world.latest(topic, timeout=10.0)["msg"]
+    got = world.latest(topic)["msg"]
     assert (got["kind"], got["fact"]["subjectId"], got["fact"]["property"],
             got["fact"]["targetId"]) == ("appeared", "cup", "IsInHand", "bob")
     world.call("/pdg/remove_from_hand", "RemoveFromHand", objectId="cup")
-    got = world.latest(topic, after=1, timeout=10.0)["msg"]
+    got = world.latest(topic, after=1)["msg"]
     assert got["kind"] == "ended"
 
 

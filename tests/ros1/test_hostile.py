@@ -11,7 +11,7 @@ import time
 from typing import Any
 
 import toaster
-from tests.ros1.conftest import TIMEOUT, NodeProcess, RosClient, wait_for
+from tests.ros1.conftest import NodeProcess, RosClient, wait_for
 from toaster import queries as q
 
 SELF = "toaster"
@@ -252,8 +252,8 @@ def test_a_removed_entity_is_found_by_no_query(
     assert "stool" not in {i["id"] for i in ids["resId"]}
     wait_for(lambda: not q.current_facts(db, SELF, subject="stool"), "the stool's facts ended")
     client.subscribe("/area_manager/factList", "FactList")
-    after = client.latest("/area_manager/factList", timeout=TIMEOUT)["count"]
-    facts = client.latest("/area_manager/factList", after=after, timeout=TIMEOUT)["msg"]
+    after = client.latest("/area_manager/factList")["count"]
+    facts = client.latest("/area_manager/factList", after=after)["msg"]
     assert "stool" not in {f["subjectId"] for f in facts["factList"]}
     assert (
         client.call(
