@@ -60,6 +60,26 @@ def test_ids_the_store_refuses_never_reach_the_tick(db):
     assert counts["api confidence"] == 1
 
 
+def test_a_publisher_inventing_ids_cannot_grow_the_world_without_end(db):
+    """Every new id became an entity, in the world and the database, for as long as the node
+    ran: past ``max_entities`` the poses of new ids are refused and counted; known ids move."""
+    node, clock = LiveNode(db), Clock()
+    walk(node, clock, 1)
+    known = len(node.world.ids)
+    node.api.max_entities = known + 2
+    for i in range(5):
+        assert node.api.push(f"invented{i}", (1.0, float(i)), kind="object", t_ns=clock.t)
+    walk(node, clock, 2)
+    assert len(node.world.ids) == known + 2
+    assert {"invented0", "invented1"} <= set(node.world.ids)
+    assert node.drops.counts()["api id"] == 3
+    assert node.api.push("invented0", (2.0, 0.0), kind="object", t_ns=clock.t)
+    walk(node, clock, 1)
+    assert node.world.pos[node.world.index["invented0"]][0] == 2.0
+    assert {e.id for e in q.entities(db)} >= {"invented0", "invented1"}
+    assert "invented4" not in {e.id for e in q.entities(db)}
+
+
 def test_commands_are_checked_and_removal_is_complete(db, other):
     node, clock = LiveNode(db), Clock()
     walk(node, clock, 2)

@@ -35,6 +35,9 @@ from toaster.world.drops import Drops, Refused, refuse_if
 from toaster.world.history import NO_TIME
 from toaster.world.state import KIND_CODES, World
 
+#: Entities a live world holds at most: a publisher inventing new ids cannot make the world
+#: (and the database's entities) grow without end; poses of further new ids are refused.
+MAX_LIVE_ENTITIES = 100_000
 #: (entity id, kind, owner id, joint name, t_ns, position, rpy, confidence)
 _Pose = tuple[str, str, str, str, int, tuple[float, float, float], tuple[float, float, float],
               float]
@@ -127,8 +130,9 @@ class LiveSource:
 
     def __init__(self, name: str = "live", *, max_pending: int = 8,
                  rewind_ns: int = NS_PER_S, max_skew_ns: int = 5 * NS_PER_S,
-                 drops: Drops | None = None) -> None:
+                 drops: Drops | None = None, max_entities: int = MAX_LIVE_ENTITIES) -> None:
         self.name = name
+        self.max_entities = int(max_entities)
         self.start_ns: int | None = None
         self.end_ns: int | None = None
         self.max_pending = max(1, int(max_pending))
@@ -206,6 +210,11 @@ class LiveSource:
         for pose in ready:
             eid, kind, owner, joint = pose[:4]
             if eid not in world.index:
+                if len(world.ids) >= self.max_entities:
+                    self._refuse("id", f"pose of {shown(eid)} refused: the world holds "
+                                 f"{self.max_entities} entities already, removed ones "
+                                 "included (MAX_LIVE_ENTITIES)", None)
+                    continue
                 if kind == "joint" and owner not in world.index:
                     self.warnings.append(f"joint {eid!r} ignored: its agent {owner!r} is not "
                                          "known yet")
