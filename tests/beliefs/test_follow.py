@@ -434,6 +434,22 @@ def test_the_sources_of_one_tick_are_written_at_one_stamp(db: toaster.Database) 
         assert violations(conn) == []
 
 
+def test_a_snapshot_at_its_own_robots_run_keeps_its_time(db: toaster.Database) -> None:
+    """R1 writes its rooms, then its things, both at 10 s: its second snapshot is written at
+    10 s, as its run was (one robot's runs at one time share the instant, revision 0015). R2's
+    snapshot at 10 s comes after another robot's run: it is written 1 ns later. Before, R1's
+    things went to 10 s + 1 ns as well."""
+    st = _two_robots(db)
+    st.sync_many("R1", 10 * S, [("rooms", _rooms(ROBOT_ROOMS))])
+    st.sync_many("R1", 10 * S, [("things", [Fact("PEN", "IsIn", "DRAWER")])])
+    st.sync_many("R2", 10 * S, [("rooms", _rooms({**ROBOT_ROOMS, "BOB": "KITCHEN"}))])
+    assert [r.valid_from_ns for r in q.history(db, "R1", subject="PEN")] == [10 * S]
+    assert [r.valid_from_ns for r in q.history(db, "ANNE", subject="PEN")] == [10 * S]
+    assert [r.valid_from_ns for r in q.history(db, "R2", subject="BOB")] == [10 * S + 1]
+    with db.transaction() as conn:
+        assert violations(conn) == []
+
+
 def test_a_late_robots_runs_never_share_an_instant(db: toaster.Database) -> None:
     """R2, 5 s behind R1 (past LIVE_CLOCK_SKEW_NS: its rows keep its times), sees the pen in
     the drawer at 5 s, not at 5.1 s, again at 5.2 s. Its runs are behind the clock (R1's at
