@@ -59,11 +59,18 @@ RUNS = ("{{setting(enabled)}} = 'true' "
 #: A run that applies first moves the rules' clock (``store_state.beliefs_ns``) to its time
 #: unless it is behind: a robot or producer whose clock lags another's (or a late SQL writer)
 #: never writes a holder's row before one already written (the store also writes the self
-#: agents' own facts at the clock's time: Store._writes). The run then takes the clock's
-#: time (:data:`CLOCK_NS`). On PostgreSQL the update's row lock also serializes the runs of
-#: concurrent writers: each sees the rows of the runs committed before it.
-CLOCK = ("UPDATE store_state SET beliefs_ns = {{hi}}(COALESCE(beliefs_ns + 1, NEW.t_ns), NEW.t_ns) "
-         "WHERE id = 1")
+#: agents' own facts at the clock's time: Store._writes). A run at the clock's time whose
+#: self agent set it (``beliefs_self``) shares its instant: one robot's writes at one time
+#: reach the holders at that time. Any other run at or behind the clock takes the instant
+#: after it: two robots' runs, or a late robot's runs of different times, never share an
+#: instant (they could take a holder's key in and out at one time; revision 0015). The run
+#: then takes the clock's time (:data:`CLOCK_NS`). On PostgreSQL the update's row lock also
+#: serializes the runs of concurrent writers: each sees the rows of the runs committed
+#: before it.
+CLOCK = ("UPDATE store_state SET beliefs_ns = CASE "
+         "WHEN beliefs_ns IS NULL OR NEW.t_ns > beliefs_ns THEN NEW.t_ns "
+         "WHEN NEW.t_ns = beliefs_ns AND beliefs_self = NEW.self_id THEN beliefs_ns "
+         "ELSE beliefs_ns + 1 END, beliefs_self = NEW.self_id WHERE id = 1")
 CLOCK_NS = "(SELECT beliefs_ns FROM store_state WHERE id = 1)"
 #: The agents (or the depth) changed since the nested holders were last registered, and
 #: somebody perceives something (a database where nobody does keeps only its real agents).

@@ -262,6 +262,9 @@ store_state = Table(
     # The time of the last belief run: runs never go back in time, whatever the clocks of the
     # producers that start them; PostgreSQL: its row lock serializes the runs (0012).
     Column("beliefs_ns", BigInteger, nullable=True),
+    # The self agent whose run set ``beliefs_ns``: its next write at that time shares the
+    # instant, any other run at or before it comes 1 ns later (0015).
+    Column("beliefs_self", Text, nullable=True),
     # Bumped by any write to ``agents`` (trigger): stores re-read their agents (0012).
     Column("agents_version", BigInteger, nullable=False, server_default=text("0")),
     CheckConstraint("id = 1", name="single_row"),

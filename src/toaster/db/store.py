@@ -639,29 +639,33 @@ class Store:
         """The rows of one write of ``agent_id`` at ``t_ns``.
 
         The belief runs follow the rules' clock (``store_state.beliefs_ns``, the last run's
-        time): each run happens after the one before, at its time or 1 ns after the clock
-        (revision 0014). A ``snapshot`` at the clock's time or lagging it by at most
-        :data:`LIVE_CLOCK_SKEW_NS` (a live robot or producer whose clock is a little behind
-        another's, or ticks at the same instant) is written 1 ns after it, so that the self
-        rows and the holders' rows that follow them share one timeline and a write never
-        shares the instant of the run before it. A source's later snapshots are never
-        written before one so moved: a live robot whose lag grows past the skew stays on the
-        clock's timeline instead of failing with a time-order error. The sources of one
-        :meth:`sync_many` (a tick) are written at one stamp, the latest any of them needs.
-        Older snapshots (one source imported after another) and single writes (assert,
-        retract, tell) keep their time: their runs happen just after the clock's. On
-        PostgreSQL reading the clock locks it: such writes run one at a time (their belief
-        runs would anyway)."""
+        time, and ``beliefs_self``, its self agent): a write at the time of its own robot's
+        last run shares that instant, any other run at or before the clock comes 1 ns after it
+        (revision 0015: one robot's writes at one time reach the holders at that time, two
+        robots' runs never share an instant). A ``snapshot`` behind the clock (before it, or
+        at another robot's run) by at most :data:`LIVE_CLOCK_SKEW_NS` (a live robot or
+        producer whose clock is a little behind another's, or ticks at the same instant) is
+        written 1 ns after it, so that the self rows and the holders' rows that follow them
+        share one timeline. A source's later
+        snapshots are never written before one so moved: a live robot whose lag grows past
+        the skew stays on the clock's timeline instead of failing with a time-order error.
+        The sources of one :meth:`sync_many` (a tick) are written at one stamp, the latest any
+        of them needs. Older snapshots (one source imported after another) and single writes
+        (assert, retract, tell) keep their time: their runs happen at the clock's (or just
+        after). On PostgreSQL reading the clock locks it: such writes run one at a time
+        (their belief runs would anyway)."""
         given = t_ns
         if snapshot and self._pending is not None and self._tick_ns is not None:
             t_ns = self._tick_ns  # a later source of the tick: the first one's stamp
         elif snapshot and self._clocked(agent_id):
-            last = conn.execute(text(
+            last, last_self = conn.execute(text(
                 "UPDATE store_state SET beliefs_ns = beliefs_ns WHERE id = 1 "
-                "RETURNING beliefs_ns")).scalar()
+                "RETURNING beliefs_ns, beliefs_self")).one()
             moved = max(self._moved_to.get((agent_id, s), t_ns)
                         for s in (*self._tick_sources, source))
-            if last is not None and t_ns <= last <= t_ns + LIVE_CLOCK_SKEW_NS:
+            behind = last is not None and (
+                t_ns < last or (t_ns == last and last_self != agent_id))
+            if behind and last <= t_ns + LIVE_CLOCK_SKEW_NS:
                 t_ns = max(last + 1, moved)
             elif t_ns < moved:
                 t_ns = moved if last is None else max(moved, last + 1)

@@ -6,7 +6,9 @@
 -- holders take the run's changes): the holder's own row continues it with the robot's value,
 -- so a holder that perceives the change takes it (the plan ends the row at :t) and one that
 -- does not keeps it (a false belief), as for any own row. A run's changes are written at one
--- time (a key's latest boundary): only keys written before :t are looked at.
+-- time (a key's latest boundary): only keys written at or before :t are looked at (at :t: one
+-- robot's writes at one time share its instant, and the holders may have begun following at
+-- :t, in an earlier run of that instant, a fact a later write ends there; revision 0015).
 INSERT INTO belief_freeze (follow_id, hkey, from_ns, cut_ns, value_text, value_num, confidence,
                            observability)
 WITH
@@ -24,7 +26,7 @@ late AS MATERIALIZED (
          (SELECT f.id FROM facts f WHERE f.key_id = x.key_id AND f.valid_from_ns <= x.at_ns
             AND f.valid_to_ns = x.at_ns
           ORDER BY f.valid_from_ns DESC, f.id DESC LIMIT 1) AS fact_id
-  FROM written x WHERE x.at_ns < :t
+  FROM written x WHERE x.at_ns <= :t
 ),
 closed AS MATERIALIZED (
   SELECT l.key_id, l.value_text, l.value_num, l.confidence, l.observability, l.valid_to_ns
