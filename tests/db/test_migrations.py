@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 import sqlite3
 from pathlib import Path
@@ -195,3 +196,28 @@ def test_a_database_at_the_previous_head_upgrades(empty_url: str, tmp_path: Path
         assert _timelines(db) == expected
         beliefs_story.second_half(db)
         assert _timelines(db) == expected_after  # the same as SQLite's, written now
+
+
+#: The sha256 of every released frozen trigger file. A database migrated through a revision
+#: holds exactly its file's triggers, so a released file never changes: a rule change is a new
+#: revision with a file of its own, pinned here when it is released.
+RELEASED_FROZEN = {
+    "0007_triggers.json": "e63fc43ff4c21f67058f8094f57a937e444b715e3dabccffe3b4c67e28cff5b0",
+    "0008_triggers.json": "3aa9ba3afc530fd351615c3d1424f28b43edb3dadef5c6d79eb601a3388932dd",
+    "0009_triggers.json": "2ea049aa6b38310dcadc010e6ddfdec9fb4427a8a54f17b35f9f777a8d4fc503",
+    "0010_triggers.json": "4d521db3badf27fbf94e2431a8ee17524c4fbb02929e3eac9e2539ad47aa2e61",
+    "0011_triggers.json": "1e3b6c26f967f398e3f99bd450c0ff1bbb789477dcd0b4020671cea002aadf64",
+    "0012_triggers.json": "22e6d469450a7363c40017a8f784cde45bda3050518c5213b7c9900952640885",
+    "0013_triggers.json": "547f86302e3d674714215160c0860f974d44e24dbe1bd2ded68a79856a4007b5",
+    "0014_triggers.json": "a7a9a5db02fb811c6b6286df5d1a33268b2de2a0e495f5e2033620ed543a825c",
+    "0015_triggers.json": "4c713be8ba342c5d22b2af7c9948e6d9e5287ddf053170e60cf8d17bad2cf436",
+}
+
+
+def test_released_frozen_triggers_never_change() -> None:
+    frozen = Path(toaster.__file__).parent / "migrations" / "frozen"
+    found = {path.name: hashlib.sha256(path.read_bytes()).hexdigest()
+             for path in frozen.glob("*.json")}
+    changed = sorted(name for name in RELEASED_FROZEN if found.get(name) != RELEASED_FROZEN[name])
+    assert not changed, f"released frozen triggers changed: {changed} (write a new revision)"
+    assert sorted(found) == sorted(RELEASED_FROZEN), "pin a new revision's frozen file here"
