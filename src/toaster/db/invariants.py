@@ -40,63 +40,61 @@ HAVING COUNT(*) > 1
 """
 
 #: The events the intervals call for: (key, kind, stamp), once per boundary.
-_EXPECTED = f"""
+_EXPECTED = """
 SELECT key_id, CASE WHEN prev_to = valid_from_ns THEN 'changed' ELSE 'appeared' END AS kind,
        valid_from_ns AS stamp_ns
-FROM ({_ORDERED}) o
+FROM ordered o
 WHERE NOT (prev_to IS NOT NULL AND prev_to = valid_from_ns AND prev_value = value_text)
 UNION ALL
-SELECT key_id, 'ended', valid_to_ns FROM ({_ORDERED}) o
+SELECT key_id, 'ended', valid_to_ns FROM ordered o
 WHERE valid_to_ns IS NOT NULL AND (next_from IS NULL OR next_from <> valid_to_ns)
 """
 
-#: Where one interval continues another of the same value: either no event (a holder's own
-#: interval handed over to a followed one) or an ``ended`` and an ``appeared`` (a fact
-#: retracted and asserted again at one time), counted per key and stamp.
-_MERGES = f"""
-SELECT key_id, valid_from_ns AS stamp_ns, COUNT(*) AS merges FROM ({_ORDERED}) o
-WHERE prev_to IS NOT NULL AND prev_to = valid_from_ns AND prev_value = value_text
-GROUP BY key_id, valid_from_ns
+#: Boundaries (``expected``) and events (``actual``) counted per (key, kind, stamp), each
+#: computed once. Where one interval continues another of the same value (a merge) there is
+#: either no event (a holder's own interval handed over to a followed one) or an ``ended``
+#: and an ``appeared`` (a fact retracted and asserted again at one time): as many such pairs
+#: as there are both events beyond the boundaries' own, at most one per merge, are left out
+#: of ``actual``. (Leaving out every ended and appeared at a merge's stamp also hid the
+#: events of an empty interval there: asserted, retracted and asserted again at one time.)
+_COUNTED = f"""
+WITH ordered AS MATERIALIZED ({_ORDERED}),
+expected AS MATERIALIZED (
+  SELECT key_id, kind, stamp_ns, COUNT(*) AS n FROM ({_EXPECTED}) b
+  GROUP BY key_id, kind, stamp_ns),
+logged AS MATERIALIZED (
+  SELECT key_id, kind, stamp_ns, COUNT(*) AS n FROM event_log WHERE kind <> 'event'
+  GROUP BY key_id, kind, stamp_ns),
+merges AS (
+  SELECT key_id, valid_from_ns AS stamp_ns, COUNT(*) AS n FROM ordered
+  WHERE prev_to IS NOT NULL AND prev_to = valid_from_ns AND prev_value = value_text
+  GROUP BY key_id, valid_from_ns),
+extra AS (
+  SELECT key_id, stamp_ns, SUM(CASE kind WHEN 'ended' THEN n ELSE 0 END) AS ended,
+         SUM(CASE kind WHEN 'appeared' THEN n ELSE 0 END) AS appeared
+  FROM (SELECT key_id, kind, stamp_ns, n FROM logged
+        UNION ALL SELECT key_id, kind, stamp_ns, -n FROM expected) u
+  GROUP BY key_id, stamp_ns),
+pairs AS (
+  SELECT m.key_id, m.stamp_ns,
+         CASE WHEN x.ended < 0 OR x.appeared < 0 THEN 0
+              WHEN x.ended <= x.appeared AND x.ended <= m.n THEN x.ended
+              WHEN x.appeared <= m.n THEN x.appeared ELSE m.n END AS n
+  FROM merges m JOIN extra x ON x.key_id = m.key_id AND x.stamp_ns = m.stamp_ns),
+actual AS (
+  SELECT e.key_id, e.kind, e.stamp_ns,
+         e.n - CASE WHEN e.kind IN ('ended', 'appeared') THEN COALESCE(p.n, 0) ELSE 0 END AS n
+  FROM logged e LEFT JOIN pairs p ON p.key_id = e.key_id AND p.stamp_ns = e.stamp_ns)
 """
 
-#: Boundaries and events counted per (key, kind, stamp).
-_COUNTED = ("SELECT key_id, kind, stamp_ns, COUNT(*) AS n FROM ({rows}) r "
-            "GROUP BY key_id, kind, stamp_ns")
-_EVENTS = "SELECT key_id, kind, stamp_ns FROM event_log WHERE kind <> 'event'"
 
-#: The ended-and-appeared pairs of the merges at a key and stamp: as many as there are both
-#: events beyond the boundaries' own, at most one per merge. (Leaving out every ended and
-#: appeared at a merge's stamp also hid the events of an empty interval there: assert,
-#: retract and assert again at one time.)
-_PAIRS = f"""
-SELECT m.key_id, m.stamp_ns,
-       CASE WHEN x.extra < 0 THEN 0 WHEN x.extra < m.merges THEN x.extra ELSE m.merges END
-         AS pairs
-FROM ({_MERGES}) m
-JOIN (SELECT key_id, stamp_ns,
-             CASE WHEN SUM(CASE kind WHEN 'ended' THEN n ELSE 0 END)
-                       < SUM(CASE kind WHEN 'appeared' THEN n ELSE 0 END)
-                  THEN SUM(CASE kind WHEN 'ended' THEN n ELSE 0 END)
-                  ELSE SUM(CASE kind WHEN 'appeared' THEN n ELSE 0 END) END AS extra
-      FROM (SELECT key_id, kind, stamp_ns, n FROM ({_COUNTED.format(rows=_EVENTS)}) a
-            UNION ALL
-            SELECT key_id, kind, stamp_ns, -n FROM ({_COUNTED.format(rows=_EXPECTED)}) b) u
-      GROUP BY key_id, stamp_ns) x ON x.key_id = m.key_id AND x.stamp_ns = m.stamp_ns
-"""
-
-#: The events counted per (key, kind, stamp), the merges' pairs left out.
-_ACTUAL = f"""
-SELECT a.key_id, a.kind, a.stamp_ns,
-       a.n - CASE WHEN a.kind IN ('ended', 'appeared') THEN COALESCE(p.pairs, 0) ELSE 0 END
-         AS n
-FROM ({_COUNTED.format(rows=_EVENTS)}) a
-LEFT JOIN ({_PAIRS}) p ON p.key_id = a.key_id AND p.stamp_ns = a.stamp_ns
-"""
-_DIFFERENCE = ("SELECT k.agent_id, k.subject_id, k.property, k.target_id, d.kind, d.stamp_ns, "
-               "d.n FROM (SELECT * FROM ({left}) a WHERE a.n > 0 "
-               "EXCEPT SELECT * FROM ({right}) b WHERE b.n > 0) d "
-               "JOIN fact_keys k ON k.id = d.key_id "
-               "ORDER BY k.agent_id, k.id, d.stamp_ns LIMIT :limit")
+def _difference(left: str, right: str) -> str:
+    """The counts of ``left`` (``expected`` or ``actual``) that ``right`` lacks, by key."""
+    return (f"{_COUNTED} SELECT k.agent_id, k.subject_id, k.property, k.target_id, d.kind, "
+            f"d.stamp_ns, d.n FROM (SELECT * FROM {left} WHERE n > 0 "
+            f"EXCEPT SELECT * FROM {right} WHERE n > 0) d "
+            "JOIN fact_keys k ON k.id = d.key_id "
+            "ORDER BY k.agent_id, k.id, d.stamp_ns LIMIT :limit")
 
 
 def _key(row: tuple[object, ...]) -> str:
@@ -113,11 +111,10 @@ def violations(conn: Connection, *, limit: int = 20) -> list[str]:
         found.append(f"overlap: {_key(row)}: [{row[4]}, {end}) and one from {row[6]}")
     for row in conn.execute(text(_OPEN_TWICE + " LIMIT :limit"), params):
         found.append(f"open twice: {_key(row)}: {row[4]} open intervals")
-    expected, actual = _COUNTED.format(rows=_EXPECTED), _ACTUAL
-    for row in conn.execute(text(_DIFFERENCE.format(left=expected, right=actual)), params):
+    for row in conn.execute(text(_difference("expected", "actual")), params):
         found.append(f"missing event: {_key(row)}: {row[6]} {row[4]} boundary(ies) at "
                      f"{row[5]}, not as many events")
-    for row in conn.execute(text(_DIFFERENCE.format(left=actual, right=expected)), params):
+    for row in conn.execute(text(_difference("actual", "expected")), params):
         found.append(f"event without boundary: {_key(row)}: {row[6]} {row[4]} event(s) at "
                      f"{row[5]}, not as many boundaries")
     return found
