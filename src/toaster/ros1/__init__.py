@@ -11,34 +11,11 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from toaster.errors import ToasterError
+from toaster.ros1.available import INSTALL_HINT, RosUnavailableError, import_rospy
 from toaster.ros1.messages import DEBIAN_DIST, ros_path
 
 if TYPE_CHECKING:
     from toaster.ros1.bridge import Bridge
-
-INSTALL_HINT = ("ROS 1 is not installed: apt-get install --no-install-recommends ros-core "
-                "python3-rospy python3-rosbag python3-geometry-msgs python3-visualization-msgs "
-                "python3-tf2-msgs python3-sensor-msgs python3-std-msgs")
-
-
-class RosUnavailableError(ToasterError):
-    """rospy (Debian's ROS 1 packages) cannot be imported."""
-
-
-def import_rospy() -> Any:
-    """``rospy``, or :class:`RosUnavailableError` with the apt-get line to install it."""
-    ros_path()
-    try:
-        import genpy  # type: ignore[import-not-found]  # noqa: F401
-        import rospy  # type: ignore[import-not-found]
-        from geometry_msgs.msg import PoseStamped  # type: ignore[import-not-found]  # noqa: F401
-        from tf2_msgs.msg import TFMessage  # type: ignore[import-not-found]  # noqa: F401
-        from visualization_msgs.msg import MarkerArray  # type: ignore[import-not-found]  # noqa: F401
-    except ImportError as exc:
-        msg = f"{INSTALL_HINT} ({exc})"
-        raise RosUnavailableError(msg) from None
-    return rospy
 
 
 def start_bridge(node: Any, **kwargs: Any) -> Bridge:

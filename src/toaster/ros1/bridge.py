@@ -20,7 +20,8 @@ from typing import Any
 from toaster.db import catalog
 from toaster.errors import InvalidInputError, one_line
 from toaster.model import Fact
-from toaster.ros1 import import_rospy, markers, messages
+from toaster.ros1 import markers, messages
+from toaster.ros1.available import import_rospy
 from toaster.ros1.dbcalls import AREA_KEY, AREA_SCOPE
 from toaster.ros1.mapping import (
     FIXED_FRAME,

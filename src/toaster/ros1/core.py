@@ -11,7 +11,7 @@ import xmlrpc.client
 from pathlib import Path
 from typing import Any
 
-from toaster.ros1 import INSTALL_HINT, RosUnavailableError
+from toaster.ros1.available import INSTALL_HINT, RosUnavailableError
 
 ROSCORE = "/usr/bin/roscore"
 
