@@ -52,8 +52,8 @@ def run(app: Any, path: Path, rate: float | None, until: str | None, realtime: b
     Areas stored in the database are added to the file's; the file's areas are stored.
     Same input into a fresh database gives the same facts and events.
     """
-    from toaster.producers.config import read_config_file
     from toaster.runs import check_run, run_file
+    from toaster.world.config import read_config_file
 
     rate = check_run(path, record_dir=record_dir, rate_hz=rate)  # before the database opens
     until_ns = None if until is None else parse_duration_option(until, "--until")

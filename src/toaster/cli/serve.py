@@ -56,7 +56,7 @@ def serve(app: Any, rate: float, config_file: Path | None, self_id: str, holders
     if (tf_map is not None or pose_topics) and not ros1:
         msg = "--tf-map and --pose-topic are ROS 1 inputs: add --ros1"
         raise InvalidInputError(msg)
-    from toaster.producers.config import read_config_file
+    from toaster.world.config import read_config_file
 
     config = read_config_file(config_file) if config_file is not None else None
     topics = parse_pose_topics(pose_topics)

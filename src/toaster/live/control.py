@@ -36,8 +36,8 @@ from sqlalchemy import Connection, text
 
 from toaster.db import catalog
 from toaster.errors import InvalidInputError, ToasterError
-from toaster.producers.config import DEFAULTS
 from toaster.timeutil import now_ns
+from toaster.world.config import DEFAULTS
 
 MONITOR, STREAMS, IN_HAND = "monitor", "streams", "in_hand"
 CLASSES = ("humans", "robots", "agents")

@@ -31,7 +31,6 @@ from toaster.live.faults import GAP_SOURCE, RECONNECT_KINDS, Faults
 from toaster.model import Fact, shown
 from toaster.producers.areas import AreaManager, multiple_relative_position, relative_position
 from toaster.producers.batch import FactBatch
-from toaster.producers.config import make_config
 from toaster.producers.monitor import AgentMonitor, pointing
 from toaster.producers.perception import PerceptionFacts
 from toaster.producers.runner import (
@@ -43,6 +42,7 @@ from toaster.producers.runner import (
 )
 from toaster.producers.spatial import SpatialFacts, relative_position_from
 from toaster.timeutil import now_ns
+from toaster.world.config import make_config
 from toaster.world.drops import Drops
 from toaster.world.live import LiveSource, check_entity
 from toaster.world.state import World

@@ -7,11 +7,11 @@ from toaster.producers.areas import (
     normalize_area,
     relative_position,
 )
-from toaster.producers.config import DEFAULTS, make_config
 from toaster.producers.diff import SnapshotDiff
 from toaster.producers.monitor import AgentMonitor, pointing
 from toaster.producers.perception import HandActors, PerceptionFacts
 from toaster.producers.runner import Runner, Session, Stats, load_session
+from toaster.world.config import DEFAULTS, make_config
 
 __all__ = ["DEFAULTS", "AgentMonitor", "AreaManager", "HandActors", "PerceptionFacts", "Runner",
            "Session", "SnapshotDiff", "Stats", "area_from_original", "load_session", "make_config",

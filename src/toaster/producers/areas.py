@@ -30,8 +30,8 @@ from shapely.geometry.base import BaseGeometry
 from toaster.errors import InvalidInputError
 from toaster.model import Fact
 from toaster.producers.batch import FactBatch
-from toaster.producers.config import make_config, ns
 from toaster.producers.debounce import Debouncer
+from toaster.world.config import make_config, ns
 from toaster.world.geometry import bearing, to_local_xy, wrap_angle
 from toaster.world.state import HUMAN, JOINT, OBJECT, ROBOT, World
 

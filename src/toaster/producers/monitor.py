@@ -27,10 +27,10 @@ import numpy as np
 from toaster.errors import InvalidInputError
 from toaster.model import Fact
 from toaster.producers.batch import FactBatch
-from toaster.producers.config import make_config, ns
 from toaster.producers.debounce import Debouncer, PairDebouncer
 from toaster.producers.relevance import PlanarIndex, pair_distance, pairs_within
 from toaster.timeutil import NS_PER_S
+from toaster.world.config import make_config, ns
 from toaster.world.geometry import bearing, gaze_axis, wrap_angle
 from toaster.world.history import NO_TIME
 from toaster.world.state import HUMAN, JOINT, ROBOT, World

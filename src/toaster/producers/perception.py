@@ -9,7 +9,7 @@ import numpy as np
 
 from toaster.model import Fact
 from toaster.producers.batch import FactBatch
-from toaster.producers.config import DEFAULTS, make_config, ns
+from toaster.world.config import DEFAULTS, make_config, ns
 from toaster.world.state import JOINT, OBJECT, ROBOT, World
 
 

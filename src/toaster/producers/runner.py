@@ -12,13 +12,13 @@ from toaster.errors import FileFormatError, InvalidInputError
 from toaster.model import Fact
 from toaster.producers.areas import AreaManager
 from toaster.producers.batch import FactBatch
-from toaster.producers.config import make_config, overlay_config
 from toaster.producers.diff import SnapshotDiff
 from toaster.producers.monitor import AgentMonitor
 from toaster.producers.perception import HandActors, PerceptionFacts
 from toaster.producers.spatial import SpatialFacts
 from toaster.timeutil import NS_PER_S, check_rate
 from toaster.world.bags import is_bag, read_bag
+from toaster.world.config import make_config, overlay_config
 from toaster.world.scenario import ScenarioSource, load_scenario
 from toaster.world.state import World
 from toaster.world.tracks import read_obsmat, read_tracks
@@ -190,8 +190,8 @@ class Session:
         hand, perception time), and every area's spec ``(id, spec)`` when asked."""
         import numpy as np
 
-        from toaster.producers.config import ns
         from toaster.recording import EntityPose
+        from toaster.world.config import ns
 
         world, ids = self.world, self.world.ids
         timeout = ns(make_config(self.config), "presence_timeout")
@@ -292,7 +292,7 @@ def load_session(path: str | Path, areas: dict[str, dict[str, Any]] | None = Non
     store) are added to the file's own areas.
     ``holders`` ("none", "humans" or ids) overrides the file's ``belief_holders`` (config of a
     scenario); by default the humans of a scenario hold beliefs, those of a recording do not.
-    ``config`` (producer thresholds, see :mod:`toaster.producers.config`) is laid over the
+    ``config`` (producer thresholds, see :mod:`toaster.world.config`) is laid over the
     file's own config; it is validated here, before anything is stored. ROS bags (``.bag``,
     ``.mcap``, ``.db3``, a rosbag2 folder) are read whole first (:mod:`toaster.world.bags`,
     with ``tf_map`` and ``pose_topics`` as ``toaster serve --ros1``) and tick at the rate

@@ -24,7 +24,7 @@ import numpy as np
 
 from toaster.model import Fact
 from toaster.producers.batch import FactBatch
-from toaster.producers.config import make_config, ns
+from toaster.world.config import make_config, ns
 from toaster.world.geometry import gaze_axis
 from toaster.world.state import OBJECT, ROBOT, World
 

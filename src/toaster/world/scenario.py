@@ -178,7 +178,7 @@ def parse_scenario(data: Any, origin: str = "scenario") -> Scenario:
         raise FileFormatError(msg)
     if "monitor" in data:
         config = {**config, "monitored_agents": data["monitor"]}
-    from toaster.producers.config import make_config
+    from toaster.world.config import make_config
 
     try:
         make_config(config)
