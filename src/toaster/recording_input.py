@@ -90,7 +90,7 @@ def _size(value: Any) -> tuple[float, float, float] | None:
 
 def area_spec(item: Any) -> AreaSpec:
     """An area from ``(id, spec)`` (checked as ``toaster area add``) or ``(id, polygon)``."""
-    from toaster.producers.areas import normalize_area
+    from toaster.world.areaspec import normalize_area
 
     try:
         area_id, shape = str(item[0]), item[1]

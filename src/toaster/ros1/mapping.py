@@ -413,7 +413,7 @@ def fact_from_msg(msg: Any) -> Fact:
 def area_from_msg(msg: Any) -> tuple[str, dict[str, Any]]:
     """(name, spec) of a toaster_msgs/Area, as the original read it: zmin = zmax = 0 and a
     circle's height 0 mean no vertical band; factType interaction / density."""
-    from toaster.producers.areas import area_from_original, normalize_area
+    from toaster.world.areaspec import area_from_original, normalize_area
 
     f = field
     record = {"name": str(msg.name), "myOwner": str(f(msg, "myOwner")),

@@ -255,9 +255,9 @@ def _entity(ent: Any, where: str) -> dict[str, Any]:
 
 
 def check_area(area_id: Any, spec: Any, where: str) -> dict[str, Any]:
-    """An area spec checked (:func:`toaster.producers.areas.normalize_area`, after a check of
+    """An area spec checked (:func:`toaster.world.areaspec.normalize_area`, after a check of
     its values' types), as a one-line :class:`FileFormatError` naming ``where``."""
-    from toaster.producers.areas import normalize_area
+    from toaster.world.areaspec import normalize_area
 
     name = _id(area_id, where, "area id")
     where = f"{where} {name}"
