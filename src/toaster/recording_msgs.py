@@ -15,40 +15,20 @@ import functools
 import heapq
 import re
 from collections.abc import Iterable, Iterator, Mapping, Sequence
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
 from toaster.model import FactRow
 from toaster.ros1 import markers
 from toaster.ros1.mapping import strip_frame
-from toaster.world.state import World
+from toaster.world.state import EntityPose, World
 
 TIME = "builtin_interfaces/msg/Time"
 #: The original's fact producers, each on ``/<name>/factList``.
 PRODUCERS = ("pdg", "area_manager", "agent_monitor", "move3d_facts")
 _NP = {"bool": np.bool_, "float32": np.float32, "float64": np.float64, "byte": np.uint8,
        "char": np.uint8, "octet": np.uint8}
-
-
-class EntityPose(NamedTuple):
-    """One entity in a frame: position (m), yaw / roll / pitch (rad), box size (m, None: the
-    kind's default), a joint's agent (``owner``) and skeleton name (``name``; else the display
-    name), the hand joint holding an object, its perception time (None: the frame's)."""
-
-    id: str
-    kind: str
-    x: float
-    y: float
-    z: float
-    yaw: float
-    roll: float = 0.0
-    pitch: float = 0.0
-    size: tuple[float, float, float] | None = None
-    owner: str = ""
-    name: str = ""
-    held_by: str = ""
-    t_ns: int | None = None
 
 
 # -- dicts to messages --------------------------------------------------------------------------

@@ -20,7 +20,7 @@ from toaster.timeutil import NS_PER_S, check_rate
 from toaster.world.bags import is_bag, read_bag
 from toaster.world.config import make_config, overlay_config
 from toaster.world.scenario import ScenarioSource, load_scenario
-from toaster.world.state import World
+from toaster.world.state import EntityPose, World
 from toaster.world.tracks import read_obsmat, read_tracks
 
 DEFAULT_SELF = "toaster"
@@ -190,7 +190,6 @@ class Session:
         hand, perception time), and every area's spec ``(id, spec)`` when asked."""
         import numpy as np
 
-        from toaster.recording import EntityPose
         from toaster.world.config import ns
 
         world, ids = self.world, self.world.ids

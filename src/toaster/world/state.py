@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -35,6 +36,26 @@ class Observation:
     position: Sequence[float]
     rpy: Sequence[float] = (0.0, 0.0, 0.0)
     confidence: float = 1.0
+
+
+class EntityPose(NamedTuple):
+    """One entity in a recording frame: position (m), yaw / roll / pitch (rad), box size (m,
+    None: the kind's default), a joint's agent (``owner``) and skeleton name (``name``; else the
+    display name), the hand joint holding an object, its perception time (None: the frame's)."""
+
+    id: str
+    kind: str
+    x: float
+    y: float
+    z: float
+    yaw: float
+    roll: float = 0.0
+    pitch: float = 0.0
+    size: tuple[float, float, float] | None = None
+    owner: str = ""
+    name: str = ""
+    held_by: str = ""
+    t_ns: int | None = None
 
 
 class World:
