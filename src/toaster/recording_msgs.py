@@ -20,13 +20,12 @@ from typing import Any
 import numpy as np
 
 from toaster.model import FactRow
+from toaster.producers.registry import NAMES as PRODUCERS
 from toaster.ros1 import markers
 from toaster.ros1.mapping import strip_frame
 from toaster.world.state import EntityPose, World
 
 TIME = "builtin_interfaces/msg/Time"
-#: The original's fact producers, each on ``/<name>/factList``.
-PRODUCERS = ("pdg", "area_manager", "agent_monitor", "move3d_facts")
 _NP = {"bool": np.bool_, "float32": np.float32, "float64": np.float64, "byte": np.uint8,
        "char": np.uint8, "octet": np.uint8}
 

@@ -32,7 +32,7 @@ from toaster.model import Fact, shown
 from toaster.producers.areas import AreaManager, multiple_relative_position, relative_position
 from toaster.producers.batch import FactBatch
 from toaster.producers.monitor import AgentMonitor, pointing
-from toaster.producers.perception import PerceptionFacts
+from toaster.producers.registry import builtin_producers
 from toaster.producers.runner import (
     DEFAULT_SELF,
     MAINTAIN_EVERY_S,
@@ -40,7 +40,7 @@ from toaster.producers.runner import (
     Source,
     register_row,
 )
-from toaster.producers.spatial import SpatialFacts, relative_position_from
+from toaster.producers.spatial import relative_position_from
 from toaster.timeutil import now_ns
 from toaster.world.config import make_config
 from toaster.world.drops import Drops
@@ -148,11 +148,11 @@ class LiveNode:
         self.sources: list[Source] = [self.simu] + (list(sources) if sources is not None
                                                     else [self.api])
         self.outputs = list(outputs)
-        self.monitor = AgentMonitor(self.config)
-        self.areas = AreaManager({}, self.config)
-        self.producers: list[Any] = [PerceptionFacts(self.config), self.areas, self.monitor]
-        if self.config.get("spatial"):
-            self.producers.append(SpatialFacts(self.config))
+        self.producers: list[Any] = builtin_producers(self.config, {},
+                                                      spatial=bool(self.config.get("spatial")))
+        # the control plane changes these two: areas, and which agents are monitored
+        self.areas = next(p for p in self.producers if isinstance(p, AreaManager))
+        self.monitor = next(p for p in self.producers if isinstance(p, AgentMonitor))
         self.runner = Runner(self.world, [], self.producers, store=self.store, agent_id=self_id,
                              config=self.config)
         self.stats = LiveStats()

@@ -10,12 +10,10 @@ from typing import Any, Protocol
 
 from toaster.errors import FileFormatError, InvalidInputError
 from toaster.model import Fact
-from toaster.producers.areas import AreaManager
 from toaster.producers.batch import FactBatch
 from toaster.producers.diff import SnapshotDiff
-from toaster.producers.monitor import AgentMonitor
-from toaster.producers.perception import HandActors, PerceptionFacts
-from toaster.producers.spatial import SpatialFacts
+from toaster.producers.perception import HandActors
+from toaster.producers.registry import Producer, builtin_producers
 from toaster.timeutil import NS_PER_S, check_rate
 from toaster.world.bags import is_bag, read_bag
 from toaster.world.config import make_config, overlay_config
@@ -37,14 +35,6 @@ class Source(Protocol):
     def setup(self, world: World) -> None: ...
 
     def advance(self, world: World, t_ns: int) -> None: ...
-
-
-class Producer(Protocol):
-    """What the runner needs from a producer."""
-
-    name: str
-
-    def compute(self, world: World, t_ns: int) -> list[Fact]: ...
 
 
 @dataclass
@@ -348,10 +338,8 @@ def load_session(path: str | Path, areas: dict[str, dict[str, Any]] | None = Non
     choice = holders if holders is not None else config.get("belief_holders")
     belief_holders = _belief_holders(default_holders if choice is None else choice, kinds,
                                      path.name)
-    producers: list[Producer] = [PerceptionFacts(config), AreaManager(all_areas, config),
-                                 AgentMonitor(config)]
     entities = source.scenario.entities if isinstance(source, ScenarioSource) else []
-    if config.get("spatial") or any(e.get("role") for e in entities):
-        producers.append(SpatialFacts(config))
+    spatial = bool(config.get("spatial") or any(e.get("role") for e in entities))
+    producers = builtin_producers(config, all_areas, spatial=spatial)
     return Session(world, [source], producers, all_areas, self_id or DEFAULT_SELF, start, end,
                    rate, config, belief_holders, agent_views=isinstance(source, ScenarioSource))

@@ -20,6 +20,7 @@ from typing import Any
 from toaster.db import catalog
 from toaster.errors import InvalidInputError, one_line
 from toaster.model import Fact
+from toaster.producers.registry import NAMES as PRODUCERS
 from toaster.ros1 import markers, messages
 from toaster.ros1.available import import_rospy
 from toaster.ros1.dbcalls import AREA_KEY, AREA_SCOPE
@@ -44,7 +45,6 @@ from toaster.world.drops import Drops
 from toaster.world.live import LiveSource
 from toaster.world.state import World
 
-PRODUCERS = ("pdg", "area_manager", "agent_monitor", "move3d_facts")
 #: /tf, markers, area and entity lists go out every VIEW_EVERY ticks (10 Hz at 30 Hz): they
 #: are for eyes and RViz, and at 30 Hz they doubled a tick and the node read its own /tf back
 VIEW_EVERY = 3
