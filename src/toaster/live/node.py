@@ -20,7 +20,6 @@ import signal
 import threading
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from toaster.db import catalog
@@ -28,6 +27,7 @@ from toaster.db.maintenance import Maintainer
 from toaster.errors import InvalidInputError, ToasterError, UnknownEntityError
 from toaster.live import control
 from toaster.live.faults import GAP_SOURCE, RECONNECT_KINDS, Faults
+from toaster.live.stats import LiveStats
 from toaster.model import Fact, shown
 from toaster.producers.areas import AreaManager, multiple_relative_position, relative_position
 from toaster.producers.batch import FactBatch
@@ -68,60 +68,6 @@ class Output(Protocol):
     """Something that publishes each tick's facts (ROS topics, a test's list, ...)."""
 
     def publish(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None: ...
-
-
-#: a status window keeps at most this many tick durations (the newest)
-WINDOW_TICKS = 100_000
-
-
-@dataclass
-class LiveStats:
-    """Counters of a live run, and the ticks of the current status window."""
-
-    ticks: int = 0
-    overruns: int = 0
-    worst_ms: float = 0.0
-    warnings: int = 0
-    commands: int = 0
-    tick_ms: list[float] = field(default_factory=list)  # the last 1,000 tick durations
-    started: float = field(default_factory=time.monotonic)
-    window_ms: list[float] = field(default_factory=list)  # the newest ticks since take_window
-    window_ticks: int = 0  # every tick since take_window, and the longest
-    window_max_ms: float = 0.0
-    window_overruns: int = 0
-    window_start: float = field(default_factory=time.monotonic)
-    last_window: str = ""
-
-    def record(self, ms: float, overran: bool) -> None:
-        """One tick's duration."""
-        self.tick_ms.append(ms)
-        del self.tick_ms[:-1000]
-        self.window_ms.append(ms)
-        self.window_ticks += 1
-        self.window_max_ms = max(self.window_max_ms, ms)
-        if len(self.window_ms) > 2 * WINDOW_TICKS:
-            del self.window_ms[:-WINDOW_TICKS]
-        self.worst_ms = max(self.worst_ms, ms)
-        if overran:
-            self.overruns += 1
-            self.window_overruns += 1
-
-    def take_window(self, now: float | None = None) -> str:
-        """``"window N s: K ticks, p50 X ms, p99 Y ms, max Z ms, O overruns"`` since the
-        previous call (percentiles over its newest WINDOW_TICKS ticks); starts a new one."""
-        now = time.monotonic() if now is None else now
-        ms = sorted(self.window_ms)
-
-        def pct(p: float) -> float:
-            return ms[min(len(ms) - 1, int(p * len(ms)))] if ms else 0.0
-
-        line = (f"window {now - self.window_start:.0f} s: {self.window_ticks} ticks, "
-                f"p50 {pct(0.5):.1f} ms, p99 {pct(0.99):.1f} ms, max {self.window_max_ms:.1f} ms, "
-                f"{self.window_overruns} overruns")
-        self.window_ms, self.window_overruns, self.window_start = [], 0, now
-        self.window_ticks, self.window_max_ms = 0, 0.0
-        self.last_window = line
-        return line
 
 
 class LiveNode:
