@@ -16,7 +16,7 @@ import pytest
 import toaster
 
 ROOT = Path(__file__).resolve().parents[1]
-LAZY_PACKAGES = ["toaster", "toaster.beliefs", "toaster.db"]
+LAZY_PACKAGES = ["toaster", "toaster.beliefs", "toaster.db", "toaster.producers"]
 #: what `import toaster` and `toaster --help` must not load (seconds of import time)
 HEAVY = ("sqlalchemy", "alembic", "psycopg", "numpy", "scipy", "shapely", "matplotlib",
          "pandas", "pyarrow", "rosbags")
@@ -103,7 +103,7 @@ def test_mypy_gives_the_front_door_real_types(tmp_path: Path) -> None:
     mypy_api = pytest.importorskip("mypy.api")
     names = [f"{p}.{n}" for p in LAZY_PACKAGES for n in importlib.import_module(p).__all__]
     probe = tmp_path / "probe.py"
-    probe.write_text("import toaster\nimport toaster.beliefs\nimport toaster.db\n"
+    probe.write_text("".join(f"import {p}\n" for p in LAZY_PACKAGES)
                      + "".join(f"reveal_type({n})\n" for n in names)
                      + "toaster.conect\ntoaster.beliefs.belief\n", encoding="utf-8")
     with pytest.MonkeyPatch.context() as mp:
