@@ -414,6 +414,13 @@ def note_data_start(conn: Connection, t_ns: int) -> None:
         where=cast(table.c.value_json, BigInteger) > int(t_ns)))
 
 
+def entity_exists(conn: Connection, entity_id: str) -> bool:
+    """Whether ``entity_id`` is a registered entity (in the caller's transaction)."""
+    table = s.entities
+    query = select(table.c.id).where(table.c.id == check_text(entity_id, "entity id filter"))
+    return conn.execute(query).first() is not None
+
+
 # -- reads (toaster.queries re-exports them) --------------------------------------------------
 _MAX_DEPTH = 64
 
