@@ -26,7 +26,6 @@ import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from pathlib import Path
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, TypeAlias, TypeVar
 
@@ -48,7 +47,6 @@ from toaster.timeutil import check_ns, format_ns, now_ns
 
 if TYPE_CHECKING:
     from toaster.db.database import Database
-    from toaster.db.seed import BatchReport
 
 _KEY = key_of
 _T = TypeVar("_T")
@@ -778,13 +776,6 @@ class Store:
             self._detach(conn, agent_id, keep=False)
             catalog.empty_facts(conn, agent_id)
             self.bump_epoch(conn)
-
-    def load_file(self, path: str | Path) -> BatchReport:
-        """Import an XML seed, JSON or YAML batch file in one transaction (see
-        :mod:`toaster.db.seed`); returns counts of rows written per kind."""
-        from toaster.db.seed import load_file
-
-        return load_file(self, path)
 
     # ------------------------------------------------------------------ catalog pass-throughs
     def add_ontology(self, entity_class: str, individual: str,
