@@ -46,7 +46,7 @@ from toaster.model import Fact, check_fact, check_id, fact_key, listed
 from toaster.timeutil import check_ns, format_ns, now_ns
 
 if TYPE_CHECKING:
-    from toaster.db.database import Database
+    from toaster.db.handle import Handle
 
 _KEY = key_of
 _T = TypeVar("_T")
@@ -129,9 +129,10 @@ class _StaleCache(Exception):
 
 
 class Store:
-    """Writes facts, entities and everything else into a :class:`~toaster.db.Database`."""
+    """Writes facts, entities and everything else into a :class:`~toaster.db.Database`
+    (typed as the :class:`~toaster.db.handle.Handle` it uses)."""
 
-    def __init__(self, db: Database) -> None:
+    def __init__(self, db: Handle) -> None:
         self.db = db
         self.backend = db.backend
         self._sources: dict[tuple[str, str], _SourceState] = {}
