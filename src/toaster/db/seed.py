@@ -40,7 +40,7 @@ from toaster.model import MAX_ID_BYTES, Fact, check_fact, check_id, check_text, 
 from toaster.timeutil import parse_time, start_from_first
 
 if TYPE_CHECKING:
-    from toaster.db.store import Store
+    from toaster.db.writer.store import Store
 
 _FACT_FIELDS = {"subject": "subject_id", "subject_id": "subject_id", "property": "property",
                 "predicate": "property", "target": "target_id", "target_id": "target_id",

@@ -33,9 +33,9 @@ from sqlalchemy import Connection, text
 from sqlalchemy.exc import IntegrityError
 
 from toaster.db import catalog, tolerance
-from toaster.db.batchdiff import BatchState, FactArrays, Snapshot, key_of
 from toaster.db.dialects import Key
 from toaster.db.tolerance import Tolerance
+from toaster.db.writer.diff import BatchState, FactArrays, Snapshot, key_of
 from toaster.errors import (
     ConcurrentWriteError,
     InvalidInputError,
@@ -523,7 +523,7 @@ class Store:
 
     def _sync_batch(self, conn: Connection, source: str, agent_id: str, t_ns: int,
                     batch: FactArrays) -> SyncResult:
-        """:meth:`sync_snapshot` of a fact batch, diffed as arrays (:mod:`toaster.db.batchdiff`)."""
+        """:meth:`sync_snapshot` of a fact batch, diffed as arrays (:mod:`.diff`)."""
         state = self._begin(conn, source, agent_id, t_ns)
         arrays = state.arrays
         if arrays is None or arrays.world is not batch.world:
