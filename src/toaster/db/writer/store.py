@@ -21,327 +21,43 @@ world state re-asserts itself as in the original's EMPTY. Belief rules registere
 
 from __future__ import annotations
 
-import random
-import time
-from collections.abc import Callable, Iterable, Iterator, Mapping
-from contextlib import contextmanager
-from dataclasses import dataclass, field
-from types import MappingProxyType
-from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, TypeAlias, TypeVar
+from collections.abc import Callable, Iterable
 
 from sqlalchemy import Connection, text
-from sqlalchemy.exc import IntegrityError
 
 from toaster.db import catalog, tolerance
 from toaster.db.dialects import Key
 from toaster.db.tolerance import Tolerance
-from toaster.db.writer.diff import BatchState, FactArrays, Snapshot, key_of
-from toaster.errors import (
-    ConcurrentWriteError,
-    InvalidInputError,
-    TimeOrderError,
-    UnknownAgentError,
+from toaster.db.writer.base import WriterBase
+from toaster.db.writer.changes import Actors, ChangeSet, Rule, SyncResult, Writes, merged
+from toaster.db.writer.diff import (
+    BatchState,
+    FactArrays,
+    Snapshot,
+    SourceState,
+    key_of,
+    within,
 )
-from toaster.model import Fact, check_fact, check_id, fact_key, listed
+from toaster.db.writer.retry import StaleCache, is_integrity_error
+from toaster.errors import TimeOrderError
+from toaster.model import Fact, check_fact, check_id, fact_key
 from toaster.timeutil import check_ns, format_ns, now_ns
 
-if TYPE_CHECKING:
-    from toaster.db.handle import Handle
-
 _KEY = key_of
-_T = TypeVar("_T")
-_NO_ACTORS: Mapping[int, str] = MappingProxyType({})
-
-#: Who made each change of a write, per fact: a function of the fact (None: the write's
-#: ``actor``), or a mapping fact key (:func:`toaster.model.fact_key`) -> agent id.
-Actors: TypeAlias = Callable[[Fact], str | None] | Mapping[Key, str]
 
 
-class ChangeSet(NamedTuple):
-    """What one write changed for one agent, handed to belief rules (same transaction)."""
-
-    agent_id: str
-    source: str
-    t_ns: int
-    appeared: list[tuple[int, Fact]]
-    changed: list[tuple[int, Fact, str]]
-    refreshed: list[tuple[int, Fact, Fact]]  # (key, new fact, the fact it held before)
-    ended: list[tuple[int, Fact]]
-    actor: str | None = None  # the agent who made the changes, when the writer knows it
-    actors: Mapping[int, str] = _NO_ACTORS  # key id -> who made that change (over ``actor``)
-
-    @property
-    def empty(self) -> bool:
-        """True when nothing was written."""
-        return not (self.appeared or self.changed or self.refreshed or self.ended)
-
-    def actor_of(self, key_id: int) -> str | None:
-        """The agent who made the change of ``key_id`` (None: unknown)."""
-        return self.actors.get(key_id, self.actor)
-
-    def key_ids(self) -> set[int]:
-        """The keys this write changed."""
-        return {item[0] for part in (self.appeared, self.changed, self.refreshed, self.ended)
-                for item in part}
-
-
-class Rule(Protocol):
-    """A rule run in the transaction of every fact write (the belief rule is one).
-
-    A rule may also have a ``committed()`` method: the store calls it after each of its write
-    transactions committed (outside it), for housekeeping that must not lengthen the
-    transaction, which may hold the rules' clock."""
-
-    def __call__(self, conn: Connection, changes: ChangeSet) -> None:
-        """Apply the rule to what one write changed."""
-
-    def detach(self, conn: Connection, agent_id: str | None, *, keep: bool) -> None:
-        """Before a write that bypasses the rule (a direct write to a holder, emptying an
-        agent, changing who is self): turn rows shared with ``agent_id`` into its own rows
-        (``keep``), or drop them (its rows are about to be deleted; None: every agent)."""
-
+#: How far behind the rules' clock a snapshot may be and still be taken for a live writer's
+#: lag (written just after the clock, see Store._writes): beyond, it keeps its own time.
+LIVE_CLOCK_SKEW_NS = 1_000_000_000
 
 #: Makes a rule for one store (a :class:`~toaster.db.Database` calls each of its factories
 #: once, when it makes its store).
 RuleFactory = Callable[["Store"], Rule]
 
 
-class SyncResult(NamedTuple):
-    """Counts of what a snapshot changed."""
-
-    appeared: int
-    changed: int
-    refreshed: int
-    ended: int
-    unchanged: int
-
-
-@dataclass
-class _SourceState:
-    facts: dict[Key, Fact] = field(default_factory=dict)  # as stored (within tolerance)
-    last_list: list[Fact] | None = None  # the last snapshot as given: equal lists skip the diff
-    last_t: int = -(2**63)
-    arrays: BatchState | None = None  # the same facts as arrays, for fact-batch sources
-
-
-class _StaleCache(Exception):
-    """Another writer opened an interval concurrently: forget what is remembered and retry."""
-
-
-class Store:
+class Store(WriterBase):
     """Writes facts, entities and everything else into a :class:`~toaster.db.Database`
     (typed as the :class:`~toaster.db.handle.Handle` it uses)."""
-
-    def __init__(self, db: Handle) -> None:
-        self.db = db
-        self.backend = db.backend
-        self._sources: dict[tuple[str, str], _SourceState] = {}
-        self._key_ids: dict[tuple[str, Key], int] = {}
-        self._agents: dict[str, bool] | None = None
-        self._entities: set[str] = set()
-        self._epoch: int | None = None
-        self._agents_version: int | None = None
-        self._rules: list[Rule] = []
-        self._tolerances: dict[str, Tolerance] | None = None
-        self._pending: list[ChangeSet] | None = None  # changes whose rules wait (sync_many)
-        self._tick_ns: int | None = None  # sync_many: the stamp of its sources, once known
-        self._tick_sources: tuple[str, ...] = ()  # sync_many: its sources
-        self._actor: str | None = None  # who makes the changes being written (acting())
-        self._actor_of: Callable[[Fact], str | None] | None = None  # per fact (acting())
-        self._in_tx = False
-        # (agent, source) -> where its last snapshot moved to the clock was written (_writes)
-        self._moved_to: dict[tuple[str, str], int] = {}
-
-    # ------------------------------------------------------------------ transactions, caches
-    @contextmanager
-    def transaction(self) -> Iterator[Connection]:
-        """One write transaction; store calls made inside it join it (all or nothing)."""
-        if self._in_tx:
-            yield self.db.connection
-            return
-        self._in_tx = True
-        try:
-            with self.db.transaction(write=True) as conn:
-                cur = self.db.cursor()
-                self._check_epoch(self.backend.begin_writes(cur))
-                yield conn
-                self.backend.end_writes(cur)
-        except BaseException:
-            self.forget()
-            raise
-        finally:
-            self._in_tx = False
-        for rule in self._rules:
-            committed = getattr(rule, "committed", None)
-            if committed is not None:
-                committed()
-
-    def forget(self) -> None:
-        """Drop everything remembered about the database (it is re-read on demand)."""
-        self._sources.clear()
-        self._key_ids.clear()
-        self._agents = None
-        self._entities.clear()
-        self._epoch = None
-        self._tolerances = None
-
-    def _check_epoch(self, versions: tuple[int, int]) -> None:
-        """Forget what another writer may have changed: everything when the cache epoch
-        moved, the agents when ``agents`` was written (registrations, self marks)."""
-        epoch, agents = versions
-        if epoch != self._epoch:
-            self.forget()
-            self._epoch = epoch
-        if agents != self._agents_version:
-            self._agents = None
-            self._agents_version = agents
-
-    def bump_epoch(self, conn: Connection) -> None:
-        """Tell every store (this one included) to re-read what its sources hold."""
-        conn.execute(text("UPDATE store_state SET cache_epoch = cache_epoch + 1 WHERE id = 1"))
-        self.forget()
-        self._epoch = conn.execute(
-            text("SELECT cache_epoch FROM store_state WHERE id = 1")).scalar_one()
-
-    @contextmanager
-    def acting(self, actor: str | None, actors: Actors | None = None) -> Iterator[None]:
-        """Writes inside are changes made by ``actor`` (an agent): the belief rules let it
-        perceive them wherever it is. None: unknown (perception alone decides).
-
-        ``actors`` names who made each change, per fact (a function of the fact, or a mapping
-        fact key -> agent id); a fact it gives no actor (None, or absent) has ``actor``. A
-        producer tick knows, for instance, that the facts about where a held object is were
-        made by the agent holding it.
-        """
-        if actor is None and actors is None:
-            yield
-            return
-        if actor is not None:
-            self._check_actor(actor)
-        actor_of: Callable[[Fact], str | None] | None
-        if actors is None or callable(actors):
-            actor_of = actors
-        else:
-            for who in set(actors.values()):
-                self._check_actor(who)
-            actor_of = _by_key(actors)
-        previous = self._actor, self._actor_of
-        self._actor = actor if actor is not None else previous[0]
-        self._actor_of = actor_of if actor_of is not None else previous[1]
-        try:
-            yield
-        finally:
-            self._actor, self._actor_of = previous
-
-    def _check_actor(self, actor: str) -> None:
-        """Raise :class:`UnknownAgentError` unless ``actor`` is a registered agent."""
-        check_id(actor, "actor")
-        try:
-            known = ">" not in self.check_agent(actor)  # a nested holder acts on nothing
-        except UnknownAgentError:
-            known = False
-        if not known:
-            msg = (f"unknown actor {actor!r}: the actor is the agent who made the change; "
-                   f"register it with `toaster set-info ENTITY --id {actor} --type human`")
-            raise UnknownAgentError(msg)
-
-    def add_rule(self, rule: Rule) -> None:
-        """Run ``rule(conn, changes)`` after every fact write, in the same transaction."""
-        self._rules.append(rule)
-
-    def _detach(self, conn: Connection, agent_id: str | None, *, keep: bool) -> None:
-        """Let rules turn rows they share with ``agent_id`` into its own rows (``keep``) or
-        drop them (the agent's facts are being deleted) before a write that bypasses them."""
-        for rule in self._rules:
-            rule.detach(conn, agent_id, keep=keep)
-
-    # ------------------------------------------------------------------ agents and entities
-    def agents(self) -> dict[str, bool]:
-        """Known agents and nested belief holders (``A>B``): id -> is_self."""
-        if self._agents is None:
-            with self.db.transaction() as conn:
-                rows = conn.execute(text(
-                    "SELECT h.id, COALESCE(a.is_self, false) FROM holders h "
-                    "LEFT JOIN agents a ON a.id = h.agent_id")).all()
-            self._agents = {row[0]: bool(row[1]) for row in rows}
-        return self._agents
-
-    def check_agent(self, agent_id: str) -> str:
-        """Return ``agent_id`` if registered, else raise :class:`UnknownAgentError`."""
-        check_id(agent_id, "agent id")
-        if agent_id not in self.agents():
-            self._agents = None
-            if agent_id not in self.agents():
-                known = listed(sorted(self.agents()), none="none yet")
-                msg = (f"unknown agent {agent_id!r} (known: {known}): register it with "
-                       f"`toaster set-info ENTITY --id {agent_id} --type human` (or robot)")
-                raise UnknownAgentError(msg)
-        return agent_id
-
-    def self_agent(self, fix: str = "name the agent (--agent ID, or 'agent: ID' in a file)"
-                   ) -> str:
-        """The one self agent, which facts default to; an error says ``fix`` when there is
-        none or several."""
-        selves = [agent for agent, is_self in self.agents().items() if is_self]
-        if len(selves) != 1:
-            msg = (f"no agent given and there is not exactly one self agent "
-                   f"({listed(sorted(selves))}): {fix}")
-            raise InvalidInputError(msg)
-        return selves[0]
-
-    def add_entity(self, entity_id: str, kind: str = "object", name: str = "", owner_id: str = "",
-                   *, is_self: bool | None = None, agent: bool | None = None,
-                   t_ns: int | None = None, views: bool = True) -> None:
-        """Add or update an entity; humans and robots (or ``agent=True``) become agents.
-
-        ``is_self=True`` marks a robot whose perception is the world state. ``views=False``
-        registers an agent without its per-agent views (``fact_table_ID``...), as recordings
-        of crowds do (``toaster db views`` makes them later).
-        """
-        with self.transaction() as conn:
-            catalog.upsert_entity(conn, entity_id, kind, name, owner_id,
-                                  is_self=is_self, agent=agent, t_ns=t_ns, views=views)
-            self._agents = None
-            self._entities.add(entity_id)
-
-    def add_entities(self, rows: Iterable[tuple[str, str, str, str, bool | None]], *,
-                     t_ns: int | None = None, views: bool = True) -> None:
-        """:meth:`add_entity` of many ``(id, kind, name, owner_id, agent)`` rows (none of them
-        self) in a few statements (a recording's people)."""
-        with self.transaction() as conn:
-            catalog.upsert_entities(conn, list(rows), t_ns=now_ns() if t_ns is None else t_ns,
-                                    views=views)
-            self._agents = None
-
-    def remove_entity(self, entity_id: str) -> None:
-        """Remove an entity (an agent loses its beliefs, views and events too)."""
-        check_id(entity_id, "entity id")
-        with self.transaction() as conn:
-            if entity_id in self.agents():
-                for holder in (entity_id, *catalog.nested_holders_of(conn, entity_id)):
-                    self._detach(conn, holder, keep=False)
-            catalog.remove_entity(conn, entity_id)
-            self.bump_epoch(conn)
-
-    def set_self(self, agent_id: str, is_self: bool = True) -> None:
-        """Mark (or unmark) an agent as a *self* agent whose perception is the world state."""
-        with self.transaction() as conn:
-            self.check_agent(agent_id)
-            self._detach(conn, agent_id, keep=True)
-            conn.execute(text("UPDATE agents SET is_self = :s WHERE id = :a"),
-                         {"s": is_self, "a": agent_id})
-            self._agents = None
-
-    def _ensure_entities(self, facts: Iterable[Fact]) -> None:
-        rows, stamp = [], now_ns()
-        for fact in facts:
-            for entity_id, owner in ((fact.subject_id, fact.subject_owner_id),
-                                     (fact.target_id, fact.target_owner_id)):
-                if entity_id and entity_id not in self._entities:
-                    self._entities.add(entity_id)
-                    rows.append((entity_id, owner, stamp))
-        if rows:
-            self.backend.insert_entities(self.db.cursor(), rows)
 
     # ------------------------------------------------------------------ snapshot sync
     def sync_snapshot(self, source: str, agent_id: str, t_ns: int,
@@ -378,43 +94,10 @@ class Store:
 
         return self._retrying(write)
 
-    def retried(self, write: Callable[[Connection], _T]) -> _T:
-        """``write(conn)`` (store calls, for instance registrations) in one transaction,
-        written again from the start when it conflicts with a concurrent writer."""
-        return self._retrying(write)
-
-    def _retrying(self, write: Callable[[Connection], _T]) -> _T:
-        """``write(conn)`` in one transaction. Outermost, a conflict with a concurrent writer
-        (a stale cache, a deadlock, a serialization failure, a unique key taken meanwhile)
-        rolls it back and runs it again with fresh caches, a few times; inside a caller's
-        transaction a stale cache is re-read once (the caller's retry covers the rest)."""
-        if self._in_tx:
-            try:
-                return write(self.db.connection)
-            except _StaleCache as exc:
-                if exc.__cause__ is not None:  # a failed statement (PostgreSQL: the
-                    raise  # transaction is aborted): the caller's retry starts it again
-                self.forget()  # inside a caller's transaction nothing else forgets
-                return write(self.db.connection)
-        for attempt in range(1, _ATTEMPTS + 1):
-            try:
-                with self.transaction() as conn:
-                    return write(conn)
-            except Exception as exc:
-                if not _is_conflict(exc):
-                    raise
-                if attempt == _ATTEMPTS:
-                    msg = (f"write abandoned after {_ATTEMPTS} conflicts with concurrent "
-                           f"writers ({_one_line(exc)}): retry it")
-                    raise ConcurrentWriteError(msg) from exc
-                time.sleep(random.uniform(0, min(0.2, 0.005 * 2 ** attempt)))
-        msg = "unreachable"
-        raise AssertionError(msg)
-
-    def _state(self, conn: Connection, source: str, agent_id: str) -> _SourceState:
+    def _state(self, conn: Connection, source: str, agent_id: str) -> SourceState:
         state = self._sources.get((source, agent_id))
         if state is None:
-            state = _SourceState()
+            state = SourceState()
             rows = conn.execute(text(
                 "SELECT k.id, k.subject_id, k.property, k.target_id, f.value_text, f.value_num, "
                 "f.confidence, f.observability, k.property_type, k.sub_property, "
@@ -433,7 +116,7 @@ class Store:
             self._sources[(source, agent_id)] = state
         return state
 
-    def _begin(self, conn: Connection, source: str, agent_id: str, t_ns: int) -> _SourceState:
+    def _begin(self, conn: Connection, source: str, agent_id: str, t_ns: int) -> SourceState:
         """The source's state, after checking the agent and the time order."""
         self.check_agent(agent_id)
         state = self._state(conn, source, agent_id)
@@ -473,14 +156,14 @@ class Store:
         held_get = old.get
         table = self.tolerances(conn)
         touched = [(key, check_fact(fact)) for key, fact in new.items()
-                   if (held := held_get(key)) != fact and not _within(table, fact, held)]
+                   if (held := held_get(key)) != fact and not within(table, fact, held)]
         gone = [key for key in old if key not in new]
         result = self._write_diff(conn, state, agent_id, source, t_ns, touched,
                                   [(key, old[key]) for key in gone], len(new))
         state.last_list = given
         return result
 
-    def _write_diff(self, conn: Connection, state: _SourceState, agent_id: str, source: str,
+    def _write_diff(self, conn: Connection, state: SourceState, agent_id: str, source: str,
                     t_ns: int, touched: list[tuple[Key, Fact]], gone: list[tuple[Key, Fact]],
                     size: int, *, trust_cache: bool = False) -> SyncResult:
         """Write a snapshot's differences (stated facts, ended facts); remember them.
@@ -564,7 +247,7 @@ class Store:
         return set(created)
 
     def _resolve(self, conn: Connection, agent_id: str, items: list[tuple[Key, Fact]],
-                 writes: _Writes) -> None:
+                 writes: Writes) -> None:
         """Compare stated facts with what is stored now (the open interval, whoever wrote it):
         a missing interval appears, another symbolic value changes, the rest refreshes."""
         if not self.agents().get(agent_id):
@@ -593,14 +276,14 @@ class Store:
                             fact.subject_owner_id, fact.target_owner_id)
                 writes.update(key_id, fact, held)
 
-    def _apply(self, conn: Connection, writes: _Writes) -> None:
+    def _apply(self, conn: Connection, writes: Writes) -> None:
         cur = self.db.cursor()
         backend = self.backend
         if writes.refreshed:  # first: a stale cache is found before anything is written
             rows = [(f.value_num, f.confidence, f.observability, k)
                     for k, f, _ in writes.refreshed]
             if backend.refresh_intervals(cur, writes.t_ns, rows) != len(rows):
-                raise _StaleCache
+                raise StaleCache
         if writes.closing:
             # A fact this source held may have been ended by another writer: no event then.
             closed = backend.close_intervals(cur, writes.t_ns, writes.closing)
@@ -610,8 +293,8 @@ class Store:
             if writes.opening:
                 backend.insert_intervals(cur, writes.opening)
         except Exception as exc:
-            if _is_integrity_error(exc):
-                raise _StaleCache from exc
+            if is_integrity_error(exc):
+                raise StaleCache from exc
             raise
         if writes.events:
             backend.insert_events(cur, writes.events)
@@ -634,7 +317,7 @@ class Store:
         return bool(self._rules) and agent_id in agents and not all(agents.values())
 
     def _writes(self, conn: Connection, agent_id: str, source: str, t_ns: int, *,
-                snapshot: bool = False) -> _Writes:
+                snapshot: bool = False) -> Writes:
         """The rows of one write of ``agent_id`` at ``t_ns``.
 
         The belief runs follow the rules' clock (``store_state.beliefs_ns``, the last run's
@@ -672,7 +355,7 @@ class Store:
             self._tick_ns = t_ns
         if snapshot and t_ns != given:
             self._moved_to[(agent_id, source)] = t_ns
-        return _Writes(agent_id, source, t_ns, self._actor, self._actor_of)
+        return Writes(agent_id, source, t_ns, self._actor, self._actor_of)
 
     def _run_rules(self, conn: Connection, changes: ChangeSet) -> None:
         for rule in self._rules:
@@ -693,7 +376,7 @@ class Store:
             try:
                 results = [self.sync_snapshot(source, agent_id, t_ns, facts)
                            for source, facts in given]
-                for changes in _merged(self._pending):
+                for changes in merged(self._pending):
                     self._run_rules(conn, changes)
             finally:
                 self._pending, self._tick_ns, self._tick_sources = None, None, ()
@@ -777,195 +460,3 @@ class Store:
             self._detach(conn, agent_id, keep=False)
             catalog.empty_facts(conn, agent_id)
             self.bump_epoch(conn)
-
-    # ------------------------------------------------------------------ catalog pass-throughs
-    def add_ontology(self, entity_class: str, individual: str,
-                     instantiated: bool | str = False) -> None:
-        """Add (or update) the class-tree edge ``entity_class`` -> ``individual``."""
-        with self.transaction() as conn:
-            catalog.upsert_ontology(conn, entity_class, individual, instantiated)
-
-    def remove_ontology(self, entity_class: str, individual: str | None = None) -> int:
-        """Remove one edge, or every edge below ``entity_class``; return the count."""
-        with self.transaction() as conn:
-            return catalog.delete_ontology(conn, entity_class, individual)
-
-    def set_property(self, entity_id: str, key: str, value: object) -> None:
-        """Set a static property of a registered entity (values are stored as text)."""
-        with self.transaction() as conn:
-            catalog.upsert_property(conn, entity_id, key, value)
-
-    def remove_property(self, entity_id: str, key: str | None = None) -> int:
-        """Remove one property of an entity, or all of them; return the count."""
-        with self.transaction() as conn:
-            return catalog.delete_property(conn, entity_id, key)
-
-    def put_area(self, area_id: str, spec: dict[str, Any], owner_id: str = "") -> None:
-        """Store an area definition (a JSON-able dict) so that it survives restarts."""
-        with self.transaction() as conn:
-            catalog.put_area(conn, area_id, spec, owner_id)
-
-    def remove_area(self, area_id: str) -> bool:
-        """Remove an area; False when there was none with that id."""
-        with self.transaction() as conn:
-            return catalog.remove_area(conn, area_id)
-
-    def remove_all_areas(self) -> int:
-        """Remove every area; return how many there were."""
-        with self.transaction() as conn:
-            return catalog.remove_all_areas(conn)
-
-    def areas(self) -> dict[str, dict[str, Any]]:
-        """Every stored area: id -> spec."""
-        with self.db.transaction() as conn:
-            return catalog.areas(conn)
-
-    def put_setting(self, scope: str, key: str, value: object) -> None:
-        """Store a JSON-able setting (thresholds, rule configuration)."""
-        if scope == tolerance.SCOPE:
-            tolerance.validate(key, value)
-        with self.transaction() as conn:
-            catalog.put_setting(conn, scope, key, value)
-            if scope == tolerance.SCOPE:  # every store re-reads its tolerances
-                self.bump_epoch(conn)
-
-    def get_setting(self, scope: str, key: str, default: object = None) -> Any:
-        """A stored setting, or ``default``."""
-        with self.db.transaction() as conn:
-            return catalog.get_setting(conn, scope, key, default)
-
-
-class _Writes:
-    """The rows one write produces, collected before they go to the database in bulk."""
-
-    def __init__(self, agent_id: str, source: str, t_ns: int, actor: str | None = None,
-                 actor_of: Callable[[Fact], str | None] | None = None) -> None:
-        self.actor, self.actor_of = actor, actor_of
-        self.agent_id, self.source, self.t_ns = agent_id, source, t_ns
-        self.recorded_ns = now_ns()
-        self.closing: list[int] = []
-        self.opening: list[tuple[Any, ...]] = []
-        self.events: list[tuple[Any, ...]] = []
-        self.appeared: list[tuple[int, Fact]] = []
-        self.changed: list[tuple[int, Fact, str]] = []
-        self.refreshed: list[tuple[int, Fact, Fact]] = []
-        self.ended: list[tuple[int, Fact]] = []
-        self.retyped: list[tuple[int, str]] = []
-
-    def _open(self, key_id: int, fact: Fact, kind: str, previous: str | None) -> None:
-        self.opening.append((key_id, fact.value_text, fact.value_num, fact.confidence,
-                             fact.observability, self.t_ns, self.recorded_ns, self.source))
-        self.events.append(self.event(key_id, fact, kind, previous))
-
-    def event(self, key_id: int, fact: Fact, kind: str, previous: str | None) -> tuple[Any, ...]:
-        """The events row for one change."""
-        return (key_id, self.agent_id, kind, self.t_ns, fact.value_text, fact.value_num,
-                fact.confidence, fact.observability, previous, self.source, self.recorded_ns)
-
-    def appear(self, key_id: int, fact: Fact) -> None:
-        self._open(key_id, fact, "appeared", None)
-        self.appeared.append((key_id, fact))
-
-    def update(self, key_id: int, fact: Fact, held: Fact) -> None:
-        """``fact`` replaces ``held`` (the open interval's content) for the same key."""
-        if fact.property_type != held.property_type:
-            self.retyped.append((key_id, fact.property_type))
-        if fact.value_text != held.value_text:
-            self.closing.append(key_id)
-            self._open(key_id, fact, "changed", held.value_text)
-            self.changed.append((key_id, fact, held.value_text))
-        elif (fact.value_num, fact.confidence, fact.observability) != (
-                held.value_num, held.confidence, held.observability):
-            self.refreshed.append((key_id, fact, held))
-
-    def end(self, key_id: int, fact: Fact) -> None:
-        """Close the key's open interval (its event is written once the close is known)."""
-        self.closing.append(key_id)
-        self.ended.append((key_id, fact))
-
-    def change_set(self) -> ChangeSet:
-        actors: Mapping[int, str] = _NO_ACTORS
-        if self.actor_of is not None:  # asked of the changed facts only
-            actor_of = self.actor_of
-            actors = {item[0]: who for part in (self.appeared, self.changed, self.refreshed,
-                                                self.ended)
-                      for item in part if (who := actor_of(item[1])) is not None}
-        return ChangeSet(self.agent_id, self.source, self.t_ns, self.appeared, self.changed,
-                         self.refreshed, self.ended, self.actor, actors)
-
-    @property
-    def empty(self) -> bool:
-        """True when the write changes no fact."""
-        return not (self.appeared or self.changed or self.refreshed or self.ended)
-
-    def outcome(self) -> str:
-        """What the write did to its (single) fact."""
-        if self.appeared:
-            return "appeared"
-        if self.changed:
-            return "changed"
-        return "refreshed" if self.refreshed else "unchanged"
-
-
-def _within(table: dict[str, Tolerance], new: Fact, held: Fact | None) -> bool:
-    """``new`` only moved ``held``'s numbers within their tolerance (nothing to write)."""
-    if held is None or new[:4] != held[:4] or new[7:] != held[7:]:
-        return False
-    return not tolerance.beyond(table.get(new[1]) or table["*"], new[4:7], held[4:7])
-
-
-def _merged(pending: list[ChangeSet]) -> list[ChangeSet]:
-    """Change sets of several sources as one per agent (the same time), unless two of them
-    touch the same key (then each stays alone, in order)."""
-    if len(pending) < 2:
-        return pending
-    seen: set[int] = set()
-    first = pending[0]
-    for changes in pending:
-        keys = changes.key_ids()
-        if (keys & seen or changes.agent_id != first.agent_id
-                or changes.actor != first.actor):
-            return pending
-        seen |= keys
-    return [ChangeSet(first.agent_id, "+".join(c.source for c in pending), first.t_ns,
-                      [item for c in pending for item in c.appeared],
-                      [item for c in pending for item in c.changed],
-                      [item for c in pending for item in c.refreshed],
-                      [item for c in pending for item in c.ended], first.actor,
-                      {k: v for c in pending for k, v in c.actors.items()})]
-
-
-def _by_key(actors: Mapping[Key, str]) -> Callable[[Fact], str | None]:
-    """The per-fact actor function of a mapping fact key -> actor."""
-    get = actors.get
-    return lambda fact: get(_KEY(fact))
-
-
-#: How far behind the rules' clock a snapshot may be and still be taken for a live writer's
-#: lag (written just after the clock, see Store._writes): beyond, it keeps its own time.
-LIVE_CLOCK_SKEW_NS = 1_000_000_000
-#: Attempts of a write that conflicts with concurrent writers (see Store._retrying).
-_ATTEMPTS = 8
-#: SQLSTATEs of conflicts that a new attempt resolves: serialization failure, deadlock,
-#: unique violation (a key another writer inserted meanwhile).
-_CONFLICTS = {"40001", "40P01", "23505"}
-
-
-def _is_conflict(exc: BaseException) -> bool:
-    if isinstance(exc, _StaleCache):
-        return True
-    orig = getattr(exc, "orig", exc)
-    return getattr(orig, "sqlstate", None) in _CONFLICTS
-
-
-def _one_line(exc: BaseException) -> str:
-    inner = getattr(exc, "orig", None) or exc
-    lines = str(inner).strip().splitlines()
-    return lines[0] if lines else type(inner).__name__
-
-
-def _is_integrity_error(exc: Exception) -> bool:
-    if isinstance(exc, IntegrityError):
-        return True
-    name = type(exc).__name__
-    return name in {"IntegrityError", "UniqueViolation"}
