@@ -101,7 +101,8 @@ class WriterBase:
         conn.execute(text("UPDATE store_state SET cache_epoch = cache_epoch + 1 WHERE id = 1"))
         self.forget()
         self._epoch = conn.execute(
-            text("SELECT cache_epoch FROM store_state WHERE id = 1")).scalar_one()
+            text("SELECT cache_epoch FROM store_state WHERE id = 1")
+        ).scalar_one()
 
     @contextmanager
     def acting(self, actor: str | None, actors: Actors | None = None) -> Iterator[None]:
@@ -141,8 +142,10 @@ class WriterBase:
         except UnknownAgentError:
             known = False
         if not known:
-            msg = (f"unknown actor {actor!r}: the actor is the agent who made the change; "
-                   f"register it with `toaster set-info ENTITY --id {actor} --type human`")
+            msg = (
+                f"unknown actor {actor!r}: the actor is the agent who made the change; "
+                f"register it with `toaster set-info ENTITY --id {actor} --type human`"
+            )
             raise UnknownAgentError(msg)
 
     def add_rule(self, rule: Rule) -> None:
@@ -160,9 +163,12 @@ class WriterBase:
         """Known agents and nested belief holders (``A>B``): id -> is_self."""
         if self._agents is None:
             with self.db.transaction() as conn:
-                rows = conn.execute(text(
-                    "SELECT h.id, COALESCE(a.is_self, false) FROM holders h "
-                    "LEFT JOIN agents a ON a.id = h.agent_id")).all()
+                rows = conn.execute(
+                    text(
+                        "SELECT h.id, COALESCE(a.is_self, false) FROM holders h "
+                        "LEFT JOIN agents a ON a.id = h.agent_id"
+                    )
+                ).all()
             self._agents = {row[0]: bool(row[1]) for row in rows}
         return self._agents
 
@@ -173,25 +179,37 @@ class WriterBase:
             self._agents = None
             if agent_id not in self.agents():
                 known = listed(sorted(self.agents()), none="none yet")
-                msg = (f"unknown agent {agent_id!r} (known: {known}): register it with "
-                       f"`toaster set-info ENTITY --id {agent_id} --type human` (or robot)")
+                msg = (
+                    f"unknown agent {agent_id!r} (known: {known}): register it with "
+                    f"`toaster set-info ENTITY --id {agent_id} --type human` (or robot)"
+                )
                 raise UnknownAgentError(msg)
         return agent_id
 
-    def self_agent(self, fix: str = "name the agent (--agent ID, or 'agent: ID' in a file)"
-                   ) -> str:
+    def self_agent(self, fix: str = "name the agent (--agent ID, or 'agent: ID' in a file)") -> str:
         """The one self agent, which facts default to; an error says ``fix`` when there is
         none or several."""
         selves = [agent for agent, is_self in self.agents().items() if is_self]
         if len(selves) != 1:
-            msg = (f"no agent given and there is not exactly one self agent "
-                   f"({listed(sorted(selves))}): {fix}")
+            msg = (
+                f"no agent given and there is not exactly one self agent "
+                f"({listed(sorted(selves))}): {fix}"
+            )
             raise InvalidInputError(msg)
         return selves[0]
 
-    def add_entity(self, entity_id: str, kind: str = "object", name: str = "", owner_id: str = "",
-                   *, is_self: bool | None = None, agent: bool | None = None,
-                   t_ns: int | None = None, views: bool = True) -> None:
+    def add_entity(
+        self,
+        entity_id: str,
+        kind: str = "object",
+        name: str = "",
+        owner_id: str = "",
+        *,
+        is_self: bool | None = None,
+        agent: bool | None = None,
+        t_ns: int | None = None,
+        views: bool = True,
+    ) -> None:
         """Add or update an entity; humans and robots (or ``agent=True``) become agents.
 
         ``is_self=True`` marks a robot whose perception is the world state. ``views=False``
@@ -199,18 +217,33 @@ class WriterBase:
         of crowds do (``toaster db views`` makes them later).
         """
         with self.transaction() as conn:
-            catalog.upsert_entity(conn, entity_id, kind, name, owner_id,
-                                  is_self=is_self, agent=agent, t_ns=t_ns, views=views)
+            catalog.upsert_entity(
+                conn,
+                entity_id,
+                kind,
+                name,
+                owner_id,
+                is_self=is_self,
+                agent=agent,
+                t_ns=t_ns,
+                views=views,
+            )
             self._agents = None
             self._entities.add(entity_id)
 
-    def add_entities(self, rows: Iterable[tuple[str, str, str, str, bool | None]], *,
-                     t_ns: int | None = None, views: bool = True) -> None:
+    def add_entities(
+        self,
+        rows: Iterable[tuple[str, str, str, str, bool | None]],
+        *,
+        t_ns: int | None = None,
+        views: bool = True,
+    ) -> None:
         """:meth:`add_entity` of many ``(id, kind, name, owner_id, agent)`` rows (none of them
         self) in a few statements (a recording's people)."""
         with self.transaction() as conn:
-            catalog.upsert_entities(conn, list(rows), t_ns=now_ns() if t_ns is None else t_ns,
-                                    views=views)
+            catalog.upsert_entities(
+                conn, list(rows), t_ns=now_ns() if t_ns is None else t_ns, views=views
+            )
             self._agents = None
 
     def remove_entity(self, entity_id: str) -> None:
@@ -228,15 +261,18 @@ class WriterBase:
         with self.transaction() as conn:
             self.check_agent(agent_id)
             self._detach(conn, agent_id, keep=True)
-            conn.execute(text("UPDATE agents SET is_self = :s WHERE id = :a"),
-                         {"s": is_self, "a": agent_id})
+            conn.execute(
+                text("UPDATE agents SET is_self = :s WHERE id = :a"), {"s": is_self, "a": agent_id}
+            )
             self._agents = None
 
     def _ensure_entities(self, facts: Iterable[Fact]) -> None:
         rows, stamp = [], now_ns()
         for fact in facts:
-            for entity_id, owner in ((fact.subject_id, fact.subject_owner_id),
-                                     (fact.target_id, fact.target_owner_id)):
+            for entity_id, owner in (
+                (fact.subject_id, fact.subject_owner_id),
+                (fact.target_id, fact.target_owner_id),
+            ):
                 if entity_id and entity_id not in self._entities:
                     self._entities.add(entity_id)
                     rows.append((entity_id, owner, stamp))
@@ -269,16 +305,19 @@ class WriterBase:
                 if not is_conflict(exc):
                     raise
                 if attempt == ATTEMPTS:
-                    msg = (f"write abandoned after {ATTEMPTS} conflicts with concurrent "
-                           f"writers ({one_line(exc)}): retry it")
+                    msg = (
+                        f"write abandoned after {ATTEMPTS} conflicts with concurrent "
+                        f"writers ({one_line(exc)}): retry it"
+                    )
                     raise ConcurrentWriteError(msg) from exc
-                time.sleep(random.uniform(0, min(0.2, 0.005 * 2 ** attempt)))
+                time.sleep(random.uniform(0, min(0.2, 0.005 * 2**attempt)))
         msg = "unreachable"
         raise AssertionError(msg)
 
     # ------------------------------------------------------------------ catalog pass-throughs
-    def add_ontology(self, entity_class: str, individual: str,
-                     instantiated: bool | str = False) -> None:
+    def add_ontology(
+        self, entity_class: str, individual: str, instantiated: bool | str = False
+    ) -> None:
         """Add (or update) the class-tree edge ``entity_class`` -> ``individual``."""
         with self.transaction() as conn:
             catalog.upsert_ontology(conn, entity_class, individual, instantiated)

@@ -47,8 +47,11 @@ class ChangeSet(NamedTuple):
 
     def key_ids(self) -> set[int]:
         """The keys this write changed."""
-        return {item[0] for part in (self.appeared, self.changed, self.refreshed, self.ended)
-                for item in part}
+        return {
+            item[0]
+            for part in (self.appeared, self.changed, self.refreshed, self.ended)
+            for item in part
+        }
 
 
 class Rule(Protocol):
@@ -80,8 +83,14 @@ class SyncResult(NamedTuple):
 class Writes:
     """The rows one write produces, collected before they go to the database in bulk."""
 
-    def __init__(self, agent_id: str, source: str, t_ns: int, actor: str | None = None,
-                 actor_of: Callable[[Fact], str | None] | None = None) -> None:
+    def __init__(
+        self,
+        agent_id: str,
+        source: str,
+        t_ns: int,
+        actor: str | None = None,
+        actor_of: Callable[[Fact], str | None] | None = None,
+    ) -> None:
         self.actor, self.actor_of = actor, actor_of
         self.agent_id, self.source, self.t_ns = agent_id, source, t_ns
         self.recorded_ns = now_ns()
@@ -95,14 +104,35 @@ class Writes:
         self.retyped: list[tuple[int, str]] = []
 
     def _open(self, key_id: int, fact: Fact, kind: str, previous: str | None) -> None:
-        self.opening.append((key_id, fact.value_text, fact.value_num, fact.confidence,
-                             fact.observability, self.t_ns, self.recorded_ns, self.source))
+        self.opening.append(
+            (
+                key_id,
+                fact.value_text,
+                fact.value_num,
+                fact.confidence,
+                fact.observability,
+                self.t_ns,
+                self.recorded_ns,
+                self.source,
+            )
+        )
         self.events.append(self.event(key_id, fact, kind, previous))
 
     def event(self, key_id: int, fact: Fact, kind: str, previous: str | None) -> tuple[Any, ...]:
         """The events row for one change."""
-        return (key_id, self.agent_id, kind, self.t_ns, fact.value_text, fact.value_num,
-                fact.confidence, fact.observability, previous, self.source, self.recorded_ns)
+        return (
+            key_id,
+            self.agent_id,
+            kind,
+            self.t_ns,
+            fact.value_text,
+            fact.value_num,
+            fact.confidence,
+            fact.observability,
+            previous,
+            self.source,
+            self.recorded_ns,
+        )
 
     def appear(self, key_id: int, fact: Fact) -> None:
         self._open(key_id, fact, "appeared", None)
@@ -117,7 +147,10 @@ class Writes:
             self._open(key_id, fact, "changed", held.value_text)
             self.changed.append((key_id, fact, held.value_text))
         elif (fact.value_num, fact.confidence, fact.observability) != (
-                held.value_num, held.confidence, held.observability):
+            held.value_num,
+            held.confidence,
+            held.observability,
+        ):
             self.refreshed.append((key_id, fact, held))
 
     def end(self, key_id: int, fact: Fact) -> None:
@@ -129,11 +162,23 @@ class Writes:
         actors: Mapping[int, str] = _NO_ACTORS
         if self.actor_of is not None:  # asked of the changed facts only
             actor_of = self.actor_of
-            actors = {item[0]: who for part in (self.appeared, self.changed, self.refreshed,
-                                                self.ended)
-                      for item in part if (who := actor_of(item[1])) is not None}
-        return ChangeSet(self.agent_id, self.source, self.t_ns, self.appeared, self.changed,
-                         self.refreshed, self.ended, self.actor, actors)
+            actors = {
+                item[0]: who
+                for part in (self.appeared, self.changed, self.refreshed, self.ended)
+                for item in part
+                if (who := actor_of(item[1])) is not None
+            }
+        return ChangeSet(
+            self.agent_id,
+            self.source,
+            self.t_ns,
+            self.appeared,
+            self.changed,
+            self.refreshed,
+            self.ended,
+            self.actor,
+            actors,
+        )
 
     @property
     def empty(self) -> bool:
@@ -158,13 +203,19 @@ def merged(pending: list[ChangeSet]) -> list[ChangeSet]:
     first = pending[0]
     for changes in pending:
         keys = changes.key_ids()
-        if (keys & seen or changes.agent_id != first.agent_id
-                or changes.actor != first.actor):
+        if keys & seen or changes.agent_id != first.agent_id or changes.actor != first.actor:
             return pending
         seen |= keys
-    return [ChangeSet(first.agent_id, "+".join(c.source for c in pending), first.t_ns,
-                      [item for c in pending for item in c.appeared],
-                      [item for c in pending for item in c.changed],
-                      [item for c in pending for item in c.refreshed],
-                      [item for c in pending for item in c.ended], first.actor,
-                      {k: v for c in pending for k, v in c.actors.items()})]
+    return [
+        ChangeSet(
+            first.agent_id,
+            "+".join(c.source for c in pending),
+            first.t_ns,
+            [item for c in pending for item in c.appeared],
+            [item for c in pending for item in c.changed],
+            [item for c in pending for item in c.refreshed],
+            [item for c in pending for item in c.ended],
+            first.actor,
+            {k: v for c in pending for k, v in c.actors.items()},
+        )
+    ]
