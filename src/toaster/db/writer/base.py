@@ -279,6 +279,15 @@ class WriterBase:
         if rows:
             self.backend.insert_entities(self.db.cursor(), rows)
 
+    def register_start(self, t_ns: int) -> None:
+        """Begin a registration of an input starting at ``t_ns``: take the lock under which
+        agents are numbered (first, before the writes whose triggers lock ``store_state``) and
+        record ``t_ns`` as when the data starts (the earliest is kept). Call it first in the
+        :meth:`retried` write that registers the input's areas and entities."""
+        with self.transaction() as conn:
+            catalog.lock_registrations(conn)
+            catalog.note_data_start(conn, t_ns)
+
     def retried(self, write: Callable[[Connection], _T]) -> _T:
         """``write(conn)`` (store calls, for instance registrations) in one transaction,
         written again from the start when it conflicts with a concurrent writer."""
