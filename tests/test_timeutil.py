@@ -15,6 +15,7 @@ import pytest
 import toaster
 from toaster import Fact
 from toaster.db.catalog import data_start_ns, note_data_start
+from toaster.db.seed import load_file
 from toaster.errors import InvalidInputError
 from toaster.timeutil import (
     NS_PER_S,
@@ -185,18 +186,18 @@ def test_batches_record_their_start(store: toaster.Store, tmp_path: Path) -> Non
                      "  - {subject: MUG, property: IsOn, target: TABLE, at: 2026-11-22T12:05:00Z}\n"
                      "  - {subject: MUG, property: IsIn, target: BOX, at: 2026-11-22T12:01:00Z}\n",
                      encoding="utf-8")
-    store.load_file(dated)
+    load_file(store, dated)
     assert db.time_frame().start_ns == REAL + 60 * S  # its earliest row
     based = tmp_path / "based.yaml"
     based.write_text("base_time: 2026-11-22T12:00:00Z\n"
                      "facts: [{subject: MUG, property: IsNear, target: BOB, at: 90s}]\n",
                      encoding="utf-8")
-    store.load_file(based)
+    load_file(store, based)
     assert db.time_frame().start_ns == REAL  # what its durations count from
     simulated = tmp_path / "simulated.yaml"
     simulated.write_text("facts: [{subject: BOB, property: IsIn, target: ROOM, at: 3s}]\n",
                          encoding="utf-8")
-    store.load_file(simulated)
+    load_file(store, simulated)
     assert db.time_frame().start_ns == 0  # durations from the epoch
 
 
@@ -226,7 +227,7 @@ def test_plot_axis_counts_from_the_data_start(db: toaster.Database, tmp_path: Pa
                      "    facts: [{subject: MUG, property: IsIn, target: HALL},\n"
                      "            {subject: MUG, property: Distance, target: BOB, num: 3.0}]\n",
                      encoding="utf-8")
-    db.store().load_file(batch)
+    load_file(db.store(), batch)
     out = plot_facts(db, tmp_path / "move.csv", subject="MUG", agents=["PR2"])
     with out.path.open(encoding="utf-8") as handle:
         rows = list(csv.DictReader(handle))

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 from toaster.db.database import Database, open_database
 
 if TYPE_CHECKING:
-    from toaster.db.store import Rule, RuleFactory, Store
+    from toaster.db.writer.store import Rule, RuleFactory, Store
 
 
 def belief_rule(store: Store) -> Rule:

@@ -12,7 +12,7 @@ from sqlalchemy import Connection
 
 import toaster
 from toaster.beliefs import api
-from toaster.db.store import ChangeSet
+from toaster.db.writer.store import ChangeSet
 from toaster.errors import UnknownAgentError
 from toaster.model import fact_key
 

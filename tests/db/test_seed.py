@@ -9,6 +9,7 @@ import pytest
 import toaster
 from tests.conftest import shared_data
 from toaster import queries as q
+from toaster.db.seed import load_file
 from toaster.errors import FileFormatError, InvalidInputError
 
 
@@ -17,7 +18,7 @@ def test_original_xml_seeds(db: toaster.Database) -> None:
     folder = shared_data("toaster-laas", "database_manager", "database")
     store = db.store()
     for name in ("id_list.xml", "ontology.xml", "static_property.xml"):
-        store.load_file(folder / name)
+        load_file(store, folder / name)
     agents = {a.id: a.is_self for a in q.agents(db)}
     assert agents == {"PR2_ROBOT": True, "HERAKLES_HUMAN1": False, "HERAKLES_HUMAN2": False}
     cube = q.entities(db, "RED_CUBE")[0]
@@ -45,7 +46,7 @@ timeline:
   - at: 2.5s
     retract: [{subject: CUP, property: IsOn, target: NULL}]
 """)
-    report = db.store().load_file(path)
+    report = load_file(db.store(), path)
     assert report == {"entities": 3, "properties": 1, "facts": 1, "retracted": 1}
     (row,) = q.history(db, "R")
     base = toaster.timeutil.parse_time("2026-01-01T00:00:00Z")
@@ -68,6 +69,6 @@ def test_bad_files_write_nothing(db: toaster.Database, tmp_path: Path, content: 
     path = tmp_path / "bad.yaml"
     path.write_text(content)
     with pytest.raises((FileFormatError, InvalidInputError), match=message) as info:
-        db.store().load_file(path)
+        load_file(db.store(), path)
     assert "\n" not in str(info.value)
     assert q.entities(db) == []

@@ -30,7 +30,7 @@ from toaster.model import HOLDER_SEPARATOR
 from toaster.timeutil import now_ns
 
 if TYPE_CHECKING:
-    from toaster.db.store import ChangeSet, Store
+    from toaster.db.writer.store import ChangeSet, Store
 
 SOURCE = "beliefs"
 SEPARATOR = HOLDER_SEPARATOR

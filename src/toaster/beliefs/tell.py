@@ -29,7 +29,7 @@ from toaster.timeutil import check_ns, now_ns
 
 if TYPE_CHECKING:
     from toaster.db.database import Database
-    from toaster.db.store import Store
+    from toaster.db.writer.store import Store
 
 #: The property of the self agent's point events recording a telling (one per listener).
 TELLS = "Tells"

@@ -233,9 +233,11 @@ def set_info(app: Any, info_type: str | None, files: tuple[str, ...], add: bool,
     PROPERTY --id X --key K --value V; --remove (without --key: all of X)
     --file F batch files (JSON / YAML / the original's XML seeds)
     """
+    from toaster.db.seed import load_file
+
     store = app.db.store()
     for path in files:
-        report = store.load_file(path)
+        report = load_file(store, path)
         say(f"{path}: {', '.join(f'{n} {kind}' for kind, n in report.items()) or 'nothing'}")
     if not info_type:
         if files:

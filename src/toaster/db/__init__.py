@@ -13,12 +13,13 @@ from toaster._lazy import exports as _exports
 
 if TYPE_CHECKING:
     from toaster.db.database import Database, open_database
-    from toaster.db.store import ChangeSet, Rule, RuleFactory, Store, SyncResult
+    from toaster.db.writer.changes import ChangeSet, Rule, SyncResult
+    from toaster.db.writer.store import RuleFactory, Store
 
 _HOMES = {"Database": "toaster.db.database", "open_database": "toaster.db.database",
-          "ChangeSet": "toaster.db.store", "Rule": "toaster.db.store",
-          "RuleFactory": "toaster.db.store", "Store": "toaster.db.store",
-          "SyncResult": "toaster.db.store"}
+          "ChangeSet": "toaster.db.writer.changes", "Rule": "toaster.db.writer.changes",
+          "RuleFactory": "toaster.db.writer.store", "Store": "toaster.db.writer.store",
+          "SyncResult": "toaster.db.writer.changes"}
 
 __all__ = ["ChangeSet", "Database", "Rule", "RuleFactory", "Store", "SyncResult",
            "open_database"]

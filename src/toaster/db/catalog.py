@@ -1,18 +1,16 @@
 """Entities, agents, ontology, properties, areas and settings: the small tables around facts,
-read and written here only.
+written here (and read here by the store).
 
-Writes (and the settings and areas reads) take a connection inside the caller's transaction;
-:class:`toaster.db.Store` wraps them in one transaction per call. The public reads
-(:func:`entities`, :func:`agents`, :func:`ontology`, :func:`descendants`, :func:`properties`,
-re-exported by :mod:`toaster.queries`) take a :class:`~toaster.db.Database` and join its open
-transaction or open a read one.
+Every function takes a connection inside the caller's transaction; :class:`toaster.db.Store`
+wraps the writes in one transaction per call. The public reads (entities, agents, ontology,
+descendants, properties) are :mod:`toaster.queries.catalog`'s.
 """
 
 from __future__ import annotations
 
 import json
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from sqlalchemy import (
     BigInteger,
@@ -23,7 +21,6 @@ from sqlalchemy import (
     func,
     insert,
     select,
-    text,
     update,
 )
 
@@ -33,11 +30,7 @@ from toaster.db.views import agent_view_names, create_agent_views, drop_agent_vi
 from toaster.errors import InvalidInputError, UnknownEntityError
 from toaster.model import (
     AGENT_KINDS,
-    Agent,
-    Entity,
     Fact,
-    OntologyRow,
-    PropertyRow,
     check_agent_id,
     check_id,
     check_optional_id,
@@ -45,9 +38,6 @@ from toaster.model import (
     shown,
 )
 from toaster.timeutil import check_ns, now_ns
-
-if TYPE_CHECKING:
-    from toaster.db.database import Database
 
 _PLURALS = {"humans": "human", "robots": "robot", "objects": "object", "joints": "joint",
             "areas": "area", "agents": "agent"}
@@ -414,74 +404,11 @@ def note_data_start(conn: Connection, t_ns: int) -> None:
         where=cast(table.c.value_json, BigInteger) > int(t_ns)))
 
 
-# -- reads (toaster.queries re-exports them) --------------------------------------------------
-_MAX_DEPTH = 64
-
-
-def entities(db: Database, entity_id: str | None = None, *, kind: str | None = None,
-             name: str | None = None) -> list[Entity]:
-    """Registered entities, optionally one id, one kind or one name."""
+def entity_exists(conn: Connection, entity_id: str) -> bool:
+    """Whether ``entity_id`` is a registered entity (in the caller's transaction)."""
     table = s.entities
-    query = select(table.c.id, table.c.name, table.c.kind, table.c.owner_id).order_by(table.c.id)
-    for column, value in ((table.c.id, entity_id), (table.c.kind, kind), (table.c.name, name)):
-        if value is not None:
-            query = query.where(column == check_text(value, f"entity {column.name} filter"))
-    with db.transaction() as conn:
-        return [Entity(*row) for row in conn.execute(query)]
-
-
-def agents(db: Database, *, only_self: bool = False) -> list[Agent]:
-    """Belief-holding agents with the names of their per-agent views."""
-    query = select(s.agents.c.id, s.agents.c.is_self).order_by(s.agents.c.num)
-    if only_self:
-        query = query.where(s.agents.c.is_self.is_(True))
-    with db.transaction() as conn:
-        rows = conn.execute(query).all()
-    return [Agent(row[0], bool(row[1]), *agent_view_names(row[0])) for row in rows]
-
-
-def ontology(db: Database, entity_class: str | None = None) -> list[OntologyRow]:
-    """Class-tree edges, all or those directly below ``entity_class``."""
-    table = s.ontology
-    query = select(table.c.entity_class, table.c.individual, table.c.instantiated)
-    if entity_class is not None:
-        query = query.where(table.c.entity_class == check_text(entity_class, "ontology class"))
-    query = query.order_by(table.c.entity_class, table.c.individual)
-    with db.transaction() as conn:
-        return [OntologyRow(row[0], row[1], bool(row[2])) for row in conn.execute(query)]
-
-
-def descendants(db: Database, entity_class: str, *,
-                instantiated_only: bool = True) -> list[OntologyRow]:
-    """Every edge below ``entity_class``, recursively (the original's LEAVE). With
-    ``instantiated_only`` (the original's behaviour) only instantiated individuals are kept;
-    their ``instantiated`` flag is the stored one (the original always answered true)."""
-    sql = (
-        "WITH RECURSIVE tree(entity_class, individual, instantiated, depth) AS ("
-        "SELECT entity_class, individual, instantiated, 1 FROM ontology WHERE entity_class = :c "
-        "UNION ALL SELECT o.entity_class, o.individual, o.instantiated, t.depth + 1 "
-        "FROM ontology o JOIN tree t ON o.entity_class = t.individual WHERE t.depth < :depth) "
-        "SELECT DISTINCT entity_class, individual, instantiated FROM tree"
-    )
-    check_text(entity_class, "ontology class")
-    with db.transaction() as conn:
-        rows = conn.execute(text(sql), {"c": entity_class, "depth": _MAX_DEPTH}).all()
-    found = sorted(OntologyRow(r[0], r[1], bool(r[2])) for r in rows)
-    return [row for row in found if row.instantiated or not instantiated_only]
-
-
-def properties(db: Database, entity_id: str | None = None,
-               key: str | None = None) -> list[PropertyRow]:
-    """Static properties, all or of one entity, optionally one key."""
-    table = s.properties
-    query = select(table.c.entity_id, table.c.key, table.c.value).order_by(
-        table.c.entity_id, table.c.key)
-    if entity_id is not None:
-        query = query.where(table.c.entity_id == check_text(entity_id, "entity id"))
-    if key is not None:
-        query = query.where(table.c.key == check_text(key, "property key"))
-    with db.transaction() as conn:
-        return [PropertyRow(*row) for row in conn.execute(query)]
+    query = select(table.c.id).where(table.c.id == check_text(entity_id, "entity id filter"))
+    return conn.execute(query).first() is not None
 
 
 # -- control plane (revision 0005; see toaster.live.control) ---------------------------------

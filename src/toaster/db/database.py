@@ -24,7 +24,7 @@ from toaster.db.engine import (
 from toaster.errors import DatabaseOpenError
 
 if TYPE_CHECKING:
-    from toaster.db.store import RuleFactory, Store
+    from toaster.db.writer.store import RuleFactory, Store
     from toaster.timeutil import TimeFrame
 
 
@@ -139,7 +139,7 @@ class Database:
         """The write API (one per database handle, it remembers what each source wrote), with
         this handle's rules installed (the belief rule, for :func:`toaster.connect`)."""
         if self._store is None:
-            from toaster.db.store import Store
+            from toaster.db.writer.store import Store
 
             store = Store(self)
             # Every store applies the rules, so that several writer processes all keep the

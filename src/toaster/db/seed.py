@@ -33,14 +33,14 @@ from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
-from toaster.db.catalog import entities, note_data_start
+from toaster.db.catalog import entity_exists, note_data_start
 from toaster.documents import read_document
 from toaster.errors import FileFormatError, InvalidInputError
 from toaster.model import MAX_ID_BYTES, Fact, check_fact, check_id, check_text, shown, utf8_size
 from toaster.timeutil import parse_time, start_from_first
 
 if TYPE_CHECKING:
-    from toaster.db.store import Store
+    from toaster.db.writer.store import Store
 
 _FACT_FIELDS = {"subject": "subject_id", "subject_id": "subject_id", "property": "property",
                 "predicate": "property", "target": "target_id", "target_id": "target_id",
@@ -382,7 +382,9 @@ def plan_xml(path: Path) -> Plan:
             entity_id = _checked(origin, where, partial(_req, row, "id"))
 
             def declare(store: Store, entity_id: str = entity_id) -> None:
-                if not entities(store.db, entity_id):  # properties of undeclared entities
+                with store.db.transaction() as conn:
+                    known = entity_exists(conn, entity_id)
+                if not known:  # properties of undeclared entities
                     store.add_entity(entity_id, "", entity_id)
 
             plan.writes.append((where, "", declare))

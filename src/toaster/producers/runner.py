@@ -202,21 +202,18 @@ class Session:
     def register(self, store: Any) -> None:
         """Put the areas and entities in the store before the first tick (the self agent as a
         self robot, joints with their owner), and record the input's start as the data's
-        start (:func:`toaster.db.catalog.note_data_start`), in one transaction, as ``toaster
+        start (:meth:`toaster.db.Store.register_start`), in one transaction, as ``toaster
         run`` does.
 
         Humans become agents (belief holders) only as ``belief_holders`` says; the others are
         plain entities. Other robots stay agents, as the store makes them by default.
         """
-        from toaster.db.catalog import lock_registrations, note_data_start
-
         world, start, holders = self.world, self.start_ns, self.belief_holders
         rows = sorted(entity_row(world, row, holders) for row, entity_id in enumerate(world.ids)
                       if entity_id != self.self_id)  # (one order for every process)
 
         def register(conn: Any) -> None:
-            lock_registrations(conn)  # before the writes whose triggers lock store_state
-            note_data_start(conn, start)
+            store.register_start(start)  # first: before the writes that lock store_state
             for area_id, spec in sorted(self.areas.items()):
                 store.put_area(area_id, spec, spec.get("owner", ""))
             store.add_entity(self.self_id, "robot", is_self=True, t_ns=start)

@@ -7,117 +7,16 @@ PostgreSQL (round trips dominate there). Everything else uses SQLAlchemy Core an
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+from toaster.db.dialects.base import (
+    GUARD_MESSAGE,
+    GUARDED_TABLES,
+    Backend,
+    Key,
+    insert_with_conflicts,
+)
 
-#: Natural key of a fact without the agent: subject, subject owner, property, sub-property,
-#: target, target owner.
-Key = tuple[str, str, str, str, str, str]
-
-
-#: Tables only toaster's store and rules write (the guard triggers of migration 0006 refuse
-#: any other write), and the one-line error a direct write gets.
-GUARDED_TABLES = ("fact_keys", "facts", "events", "fact_samples", "belief_follow",
-                  "belief_chain", "belief_groups")
-GUARD_MESSAGE = ("{table} is kept by toaster's store and belief rules and cannot be written "
-                 "directly: write facts by inserting rows into fact_inbox (or with toaster "
-                 "set-info); see docs/beliefs.md, Writing facts from SQL")
-
-
-class Backend(Protocol):
-    """What the store needs from a backend; ``cur`` is a raw DBAPI cursor in a transaction."""
-
-    name: str
-    #: FROM-clause fragment joining the key ``{key}`` (a format field: ``k.id``,
-    #: ``w.self_key``) to its interval ``f`` starting last at or before ``:t`` (the per-key
-    #: seek behind every as-of query).
-    as_of_join: str
-    #: FROM-clause fragment joining ``s``, the first sample of the interval ``{fact}`` after
-    #: ``:t`` (its numbers then), or NULLs when there is none (the interval's own hold).
-    sample_join: str
-    #: The two-argument scalar minimum and maximum (``MIN``/``MAX`` or ``LEAST``/``GREATEST``).
-    least: str
-    greatest: str
-
-    def named(self, sql: str) -> str:
-        """``sql`` with ``:name`` placeholders rewritten to the driver's named style."""
-
-    def lookup_keys(self, cur: Any, agent_id: str, keys: list[Key]) -> dict[Key, int]:
-        """Ids of the given keys of ``agent_id`` that exist."""
-
-    def insert_keys(
-        self, cur: Any, agent_id: str, rows: list[tuple[Key, str]]
-    ) -> dict[Key, int]:
-        """Insert ``(key, property_type)`` rows (skipping existing ones); return their ids."""
-
-    def open_rows(self, cur: Any, key_ids: list[int]) -> dict[int, tuple[Any, ...]]:
-        """Open intervals of these keys: key_id -> (value_text, value_num, confidence,
-        observability, source, valid_from_ns)."""
-
-    def last_ends(self, cur: Any, key_ids: list[int]) -> dict[int, int]:
-        """key_id -> the end of its last interval, for the keys whose last one is closed."""
-
-    def close_intervals(self, cur: Any, t_ns: int, key_ids: list[int]) -> set[int]:
-        """Close the open interval of each key at ``t_ns`` (one that started after ``t_ns``
-        stays open: a later write opened it); return the keys closed."""
-
-    def refresh_intervals(self, cur: Any, t_ns: int, rows: list[tuple[Any, ...]]) -> int:
-        """``(value_num, confidence, observability, key_id)``: refresh open intervals in
-        place, keeping the numbers they held as a ``fact_samples`` row until ``t_ns`` (a second
-        refresh at the same time keeps the first sample); return how many were refreshed."""
-
-    def insert_intervals(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
-        """``(key_id, value_text, value_num, confidence, observability, valid_from_ns,
-        recorded_ns, source)``: open new intervals."""
-
-    def insert_events(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
-        """``(key_id, agent_id, kind, stamp_ns, value_text, value_num, confidence,
-        observability, previous_text, source, recorded_ns)``: append events."""
-
-    def insert_entities(self, cur: Any, rows: list[tuple[str, str, int]]) -> None:
-        """``(id, owner_id, created_ns)``: register entities (kind '') unless they exist."""
-
-    def maintain(self, raw: Any, *, beside_writer: bool = False) -> None:
-        """Housekeeping of long runs on an idle DBAPI connection ``raw`` (no transaction);
-        ``beside_writer``: on a connection of its own while a writer goes on, so nothing
-        that would make the writer wait (:mod:`toaster.db.maintenance`)."""
-
-    def set_page_cache(self, raw: Any, kib: int) -> None:
-        """Bound the page cache of the DBAPI connection ``raw`` to ``kib`` KiB (a no-op
-        where the server holds the cache)."""
-
-    def vacuum_scratch(self, raw: Any) -> None:
-        """Reclaim the dead rows of the session's scratch tables of the belief rule on an idle
-        DBAPI connection ``raw`` (a no-op where they are emptied otherwise)."""
-
-    def set_read_only(self, cur: Any) -> None:
-        """Make the current transaction read-only, enforced by the database."""
-
-    def begin_writes(self, cur: Any) -> tuple[int, int]:
-        """Open a store write: take the rules' writer role (the guard triggers of the
-        internal tables let this transaction through) and return ``store_state``'s
-        ``(cache_epoch, agents_version)``."""
-
-    def end_writes(self, cur: Any) -> None:
-        """Give the writer role back before the commit (see :data:`GUARD_MESSAGE`)."""
-
-    def clear_read_only(self, cur: Any) -> None:
-        """Undo :meth:`set_read_only` for a pooled connection."""
-
-    def lock_registrations(self, conn: Any) -> None:
-        """Hold, until the transaction ends, the lock under which agents are numbered (a
-        no-op where writers already take turns)."""
-
-
-def insert_with_conflicts(dialect_name: str) -> Any:
-    """SQLAlchemy's ``insert`` of the dialect, with ``on_conflict_do_update`` /
-    ``on_conflict_do_nothing`` (both backends spell the clause alike)."""
-    if dialect_name == "postgresql":
-        from sqlalchemy.dialects.postgresql import insert as postgresql_insert
-
-        return postgresql_insert
-    from sqlalchemy.dialects.sqlite import insert as sqlite_insert
-
-    return sqlite_insert
+__all__ = ["GUARDED_TABLES", "GUARD_MESSAGE", "Backend", "Key", "backend_for",
+           "insert_with_conflicts"]
 
 
 def backend_for(dialect_name: str) -> Backend:

@@ -11,7 +11,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
-from toaster.db.dialects import Key
+from toaster.db.dialects.base import Key
 
 
 @contextmanager

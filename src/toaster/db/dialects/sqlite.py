@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Any
 
-from toaster.db.dialects import Key
+from toaster.db.dialects.base import Key
 
 # SQLite >= 3.32 accepts 32766 bound variables per statement; stay well below.
 _MAX_VARS = 30000

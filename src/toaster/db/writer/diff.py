@@ -5,16 +5,21 @@ A producer's :class:`~toaster.producers.batch.FactBatch` names each fact by an i
 sorted by that key with the stored numbers beside it, a whole snapshot is compared with what
 is stored in a few numpy operations: only facts that appeared, changed their text or moved a
 number beyond its tolerance become Python tuples, and only they reach the database.
+
+:class:`SourceState` is what the store remembers of every source (the facts it wrote last, and
+these arrays for batch sources); :func:`within` is the tolerance test of one fact.
 """
 
 from __future__ import annotations
 
 import operator
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from typing import Any, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
+from toaster.db import tolerance
 from toaster.db.dialects import Key
 from toaster.db.tolerance import Tolerance
 from toaster.model import Fact
@@ -146,3 +151,20 @@ def _objects(items: list[Any]) -> np.ndarray:
     for i, item in enumerate(items):
         out[i] = item
     return out
+
+
+@dataclass
+class SourceState:
+    """What the store remembers of one source for one agent: the facts it wrote last."""
+
+    facts: dict[Key, Fact] = field(default_factory=dict)  # as stored (within tolerance)
+    last_list: list[Fact] | None = None  # the last snapshot as given: equal lists skip the diff
+    last_t: int = -(2**63)
+    arrays: BatchState | None = None  # the same facts as arrays, for fact-batch sources
+
+
+def within(table: dict[str, Tolerance], new: Fact, held: Fact | None) -> bool:
+    """``new`` only moved ``held``'s numbers within their tolerance (nothing to write)."""
+    if held is None or new[:4] != held[:4] or new[7:] != held[7:]:
+        return False
+    return not tolerance.beyond(table.get(new[1]) or table["*"], new[4:7], held[4:7])

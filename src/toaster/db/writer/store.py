@@ -1,0 +1,462 @@
+"""The write path: snapshots from sources become validity intervals and events.
+
+A *source* (a producer, a rule, a user) hands :meth:`Store.sync_snapshot` the complete set of
+facts it holds true for one agent at time ``t``. The store compares it with what that source
+wrote last (kept in memory, so unchanged facts cost nothing), then in one transaction:
+
+* appeared facts open an interval and write an ``appeared`` event;
+* a changed symbolic value (``value_text``) closes the interval at ``t``, opens the next one and
+  writes a ``changed`` event (with the previous value);
+* a numeric value, confidence or observability that moved beyond the property's tolerance
+  (:mod:`toaster.db.tolerance`) refreshes the open interval in place and keeps the numbers it
+  held until then in ``fact_samples`` (as-of queries read them); a change within the
+  tolerance is not written;
+* facts missing from the snapshot close their interval at ``t`` and write an ``ended`` event.
+
+Writes that bypass snapshots (user assertions, retractions, EMPTY) bump ``store_state``'s
+``cache_epoch``; every store re-reads what its sources hold on its next transaction, so that the
+world state re-asserts itself as in the original's EMPTY. Belief rules registered with
+:meth:`Store.add_rule` run in the same transaction as the write that triggers them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+
+from sqlalchemy import Connection, text
+
+from toaster.db import catalog, tolerance
+from toaster.db.dialects import Key
+from toaster.db.tolerance import Tolerance
+from toaster.db.writer.base import WriterBase
+from toaster.db.writer.changes import Actors, ChangeSet, Rule, SyncResult, Writes, merged
+from toaster.db.writer.diff import (
+    BatchState,
+    FactArrays,
+    Snapshot,
+    SourceState,
+    key_of,
+    within,
+)
+from toaster.db.writer.retry import StaleCache, is_integrity_error
+from toaster.errors import TimeOrderError
+from toaster.model import Fact, check_fact, check_id, fact_key
+from toaster.timeutil import check_ns, format_ns, now_ns
+
+_KEY = key_of
+
+
+#: How far behind the rules' clock a snapshot may be and still be taken for a live writer's
+#: lag (written just after the clock, see Store._writes): beyond, it keeps its own time.
+LIVE_CLOCK_SKEW_NS = 1_000_000_000
+
+#: Makes a rule for one store (a :class:`~toaster.db.Database` calls each of its factories
+#: once, when it makes its store).
+RuleFactory = Callable[["Store"], Rule]
+
+
+class Store(WriterBase):
+    """Writes facts, entities and everything else into a :class:`~toaster.db.Database`
+    (typed as the :class:`~toaster.db.handle.Handle` it uses)."""
+
+    # ------------------------------------------------------------------ snapshot sync
+    def sync_snapshot(self, source: str, agent_id: str, t_ns: int,
+                      facts: Iterable[Fact] | FactArrays, *,
+                      actor: str | None = None, actors: Actors | None = None) -> SyncResult:
+        """Make ``source``'s facts for ``agent_id`` at ``t_ns`` exactly ``facts`` (a list of
+        facts, or a producer's :class:`~toaster.producers.batch.FactBatch`).
+
+        Only differences with what the source wrote last reach the database, in one
+        transaction; numbers that moved less than their tolerance are not differences.
+        Facts about entities nobody registered register them (kind ''). A batch is diffed
+        as arrays: only its changed facts become tuples. ``actor``: the agent who made the
+        changes, if known; ``actors``: who made each change, per fact, over ``actor`` (a
+        function of the fact, called for changed and ended facts only, or a mapping fact key
+        -> agent id; see :meth:`acting`).
+        """
+        if actor is not None or actors is not None:
+            with self.acting(actor, actors):
+                return self.sync_snapshot(source, agent_id, t_ns, facts)
+        check_id(source, "source")
+        check_ns(t_ns)
+        batch: FactArrays | None = None
+        given: list[Fact] = []
+        if isinstance(facts, list):  # the common case first: a protocol check costs ~10 µs
+            given = facts
+        elif isinstance(facts, FactArrays):
+            batch = facts
+        else:
+            given = list(facts)
+        def write(conn: Connection) -> SyncResult:
+            if batch is not None:
+                return self._sync_batch(conn, source, agent_id, t_ns, batch)
+            return self._sync(conn, source, agent_id, t_ns, given)
+
+        return self._retrying(write)
+
+    def _state(self, conn: Connection, source: str, agent_id: str) -> SourceState:
+        state = self._sources.get((source, agent_id))
+        if state is None:
+            state = SourceState()
+            rows = conn.execute(text(
+                "SELECT k.id, k.subject_id, k.property, k.target_id, f.value_text, f.value_num, "
+                "f.confidence, f.observability, k.property_type, k.sub_property, "
+                "k.subject_owner_id, k.target_owner_id, f.valid_from_ns "
+                "FROM fact_keys k JOIN facts f ON f.key_id = k.id "
+                "WHERE k.agent_id = :a AND f.source = :s AND f.valid_to_ns IS NULL"),
+                {"a": agent_id, "s": source}).all()
+            for row in rows:
+                fact = Fact(*row[1:12])
+                key = fact_key(fact)
+                state.facts[key] = fact
+                self._key_ids[(agent_id, key)] = row[0]
+                state.last_t = max(state.last_t, row[12])
+            if self._clocked(agent_id):  # stored times may be the clock's, ahead of the source's
+                state.last_t = -(2**63)
+            self._sources[(source, agent_id)] = state
+        return state
+
+    def _begin(self, conn: Connection, source: str, agent_id: str, t_ns: int) -> SourceState:
+        """The source's state, after checking the agent and the time order."""
+        self.check_agent(agent_id)
+        state = self._state(conn, source, agent_id)
+        if t_ns < state.last_t:
+            msg = (f"snapshot of {source!r} for {agent_id!r} at {format_ns(t_ns)} is older than "
+                   f"its previous one ({format_ns(state.last_t)}): send snapshots in time order")
+            raise TimeOrderError(msg)
+        return state
+
+    def tolerances(self, conn: Connection | None = None) -> dict[str, Tolerance]:
+        """Tolerance per property (``*``: the rest), read once per cache epoch."""
+        if self._tolerances is None:
+            if conn is None:
+                with self.db.transaction() as read_conn:
+                    self._tolerances = tolerance.read(read_conn)
+            else:
+                self._tolerances = tolerance.read(conn)
+        return self._tolerances
+
+    def _sync(self, conn: Connection, source: str, agent_id: str, t_ns: int,
+              given: list[Fact]) -> SyncResult:
+        state = self._begin(conn, source, agent_id, t_ns)
+        state.arrays = None
+        old = state.facts
+        if given == state.last_list:  # the same facts in the same order: nothing to do
+            state.last_t = t_ns
+            return SyncResult(0, 0, 0, 0, len(old))
+        try:
+            new = dict(zip(map(_KEY, given), given, strict=True))
+        except (TypeError, IndexError):  # not facts, or a key field that is no text: say which
+            for fact in given:
+                check_fact(fact)
+            raise
+        if new == old:
+            state.last_list, state.last_t = given, t_ns
+            return SyncResult(0, 0, 0, 0, len(new))
+        held_get = old.get
+        table = self.tolerances(conn)
+        touched = [(key, check_fact(fact)) for key, fact in new.items()
+                   if (held := held_get(key)) != fact and not within(table, fact, held)]
+        gone = [key for key in old if key not in new]
+        result = self._write_diff(conn, state, agent_id, source, t_ns, touched,
+                                  [(key, old[key]) for key in gone], len(new))
+        state.last_list = given
+        return result
+
+    def _write_diff(self, conn: Connection, state: SourceState, agent_id: str, source: str,
+                    t_ns: int, touched: list[tuple[Key, Fact]], gone: list[tuple[Key, Fact]],
+                    size: int, *, trust_cache: bool = False) -> SyncResult:
+        """Write a snapshot's differences (stated facts, ended facts); remember them.
+
+        Stated facts are compared with the open interval, whoever wrote it; with
+        ``trust_cache`` (producers' batches), a fact whose numbers alone moved refreshes what
+        this source wrote without reading it back first."""
+        if not touched and not gone:
+            state.last_t = t_ns
+            return SyncResult(0, 0, 0, 0, size)
+        key_ids = self._key_ids
+        old = state.facts
+        # Events in order: ended, changed, appeared.
+        writes = self._writes(conn, agent_id, source, t_ns, snapshot=True)
+        for key, fact in gone:
+            writes.end(key_ids[(agent_id, key)], fact)
+        if touched and trust_cache and self.agents().get(agent_id):
+            # Only numbers moved: refresh what this source wrote without reading it back (a
+            # refresh that finds no open interval means another writer ended it: retry).
+            resolve = []
+            for key, fact in touched:
+                held = old.get(key)
+                if held is not None and held[3] == fact[3] and held[7] == fact[7]:
+                    writes.refreshed.append((key_ids[(agent_id, key)], fact, held))
+                else:
+                    resolve.append((key, fact))
+            touched_db = resolve
+        else:
+            touched_db = touched
+        if touched_db:
+            self._resolve(conn, agent_id, touched_db, writes)
+        self._apply(conn, writes)
+        for key, fact in touched:
+            old[key] = fact
+        for key, _ in gone:
+            del old[key]
+        state.last_t = t_ns
+        return SyncResult(len(writes.appeared), len(writes.changed), len(writes.refreshed),
+                          len(writes.ended), size - len(touched))
+
+    def _sync_batch(self, conn: Connection, source: str, agent_id: str, t_ns: int,
+                    batch: FactArrays) -> SyncResult:
+        """:meth:`sync_snapshot` of a fact batch, diffed as arrays (:mod:`.diff`)."""
+        state = self._begin(conn, source, agent_id, t_ns)
+        arrays = state.arrays
+        if arrays is None or arrays.world is not batch.world:
+            result = self._sync(conn, source, agent_id, t_ns, batch.facts())
+            state.last_list = None
+            state.arrays = BatchState.of(batch, state.facts)
+            return result
+        new = Snapshot.of(batch, self.tolerances(conn))
+        touched, keep, old_pos, gone = arrays.diff(new)
+        facts = [check_fact(f) for f in batch.facts_at(new.order[touched])]
+        keys = list(map(_KEY, facts))
+        gone_items = list(zip(arrays.tkey[gone].tolist(), arrays.fact[gone].tolist(),
+                              strict=True))
+        result = self._write_diff(conn, state, agent_id, source, t_ns,
+                                  list(zip(keys, facts, strict=True)), gone_items, len(new.keys),
+                                  trust_cache=True)
+        state.last_list = None
+        state.arrays = arrays.updated(new, touched, keep, old_pos, keys, facts)
+        return result
+
+    def _key_id_map(self, conn: Connection, agent_id: str,
+                    facts: list[tuple[Key, Fact]]) -> set[Key]:
+        """Fill the key-id cache for ``facts``; return the keys that were just created."""
+        missing = [(key, fact) for key, fact in facts if (agent_id, key) not in self._key_ids]
+        if not missing:
+            return set()
+        # Keys this process never saw are usually new: insert first, look up the rest.
+        cur = self.db.cursor()
+        self._ensure_entities([fact for _, fact in missing])
+        created = self.backend.insert_keys(
+            cur, agent_id, [(key, fact.property_type) for key, fact in missing])
+        found: dict[Key, int] = {}
+        if len(created) != len(missing):
+            found = self.backend.lookup_keys(
+                cur, agent_id, [key for key, _ in missing if key not in created])
+        for key, key_id in (*found.items(), *created.items()):
+            self._key_ids[(agent_id, key)] = key_id
+        return set(created)
+
+    def _resolve(self, conn: Connection, agent_id: str, items: list[tuple[Key, Fact]],
+                 writes: Writes) -> None:
+        """Compare stated facts with what is stored now (the open interval, whoever wrote it):
+        a missing interval appears, another symbolic value changes, the rest refreshes."""
+        if not self.agents().get(agent_id):
+            self._detach(conn, agent_id, keep=True)
+        created = self._key_id_map(conn, agent_id, items)
+        known = [self._key_ids[(agent_id, key)] for key, _ in items if key not in created]
+        cur = self.db.cursor()
+        open_rows = self.backend.open_rows(cur, known) if known else {}
+        reopened = [k for k in known if k not in open_rows]
+        ends = self.backend.last_ends(cur, reopened) if reopened else {}
+        t_ns = writes.t_ns
+        for key, fact in items:
+            key_id = self._key_ids[(agent_id, key)]
+            row = open_rows.get(key_id)
+            last = row[5] if row is not None else ends.get(key_id)
+            if last is not None and last > t_ns:
+                msg = (f"{fact.subject_id} {fact.property} {fact.target_id}".rstrip()
+                       + f" for {agent_id!r} at {format_ns(t_ns)} is older than its last "
+                       f"change ({format_ns(last)}): write each fact in time order")
+                raise TimeOrderError(msg)
+            if row is None:
+                writes.appear(key_id, fact)
+            else:
+                held = Fact(fact.subject_id, fact.property, fact.target_id, row[0], row[1],
+                            row[2], row[3], fact.property_type, fact.sub_property,
+                            fact.subject_owner_id, fact.target_owner_id)
+                writes.update(key_id, fact, held)
+
+    def _apply(self, conn: Connection, writes: Writes) -> None:
+        cur = self.db.cursor()
+        backend = self.backend
+        if writes.refreshed:  # first: a stale cache is found before anything is written
+            rows = [(f.value_num, f.confidence, f.observability, k)
+                    for k, f, _ in writes.refreshed]
+            if backend.refresh_intervals(cur, writes.t_ns, rows) != len(rows):
+                raise StaleCache
+        if writes.closing:
+            # A fact this source held may have been ended by another writer: no event then.
+            closed = backend.close_intervals(cur, writes.t_ns, writes.closing)
+            writes.ended = [(k, f) for k, f in writes.ended if k in closed]
+        writes.events[:0] = [writes.event(k, f, "ended", None) for k, f in writes.ended]
+        try:
+            if writes.opening:
+                backend.insert_intervals(cur, writes.opening)
+        except Exception as exc:
+            if is_integrity_error(exc):
+                raise StaleCache from exc
+            raise
+        if writes.events:
+            backend.insert_events(cur, writes.events)
+        if writes.retyped:
+            conn.execute(text("UPDATE fact_keys SET property_type = :p WHERE id = :k"),
+                         [{"p": p, "k": k} for k, p in writes.retyped])
+        if self._rules and not writes.empty:
+            changes = writes.change_set()
+            for actor in set(changes.actors.values()):
+                self._check_actor(actor)
+            if self._pending is not None:  # sync_many: the rules run once, at its end
+                self._pending.append(changes)
+            else:
+                self._run_rules(conn, changes)
+
+    def _clocked(self, agent_id: str) -> bool:
+        """Snapshots of ``agent_id`` follow the rules' clock (see :meth:`_writes`): rules run,
+        ``agent_id`` is registered and somebody holds beliefs."""
+        agents = self.agents()
+        return bool(self._rules) and agent_id in agents and not all(agents.values())
+
+    def _writes(self, conn: Connection, agent_id: str, source: str, t_ns: int, *,
+                snapshot: bool = False) -> Writes:
+        """The rows of one write of ``agent_id`` at ``t_ns``.
+
+        The belief runs follow the rules' clock (``store_state.beliefs_ns``, the last run's
+        time, and ``beliefs_self``, its self agent): a write at the time of its own robot's
+        last run shares that instant, any other run at or before the clock comes 1 ns after it
+        (revision 0015: one robot's writes at one time reach the holders at that time, two
+        robots' runs never share an instant). A ``snapshot`` behind the clock (before it, or
+        at another robot's run) by at most :data:`LIVE_CLOCK_SKEW_NS` (a live robot or
+        producer whose clock is a little behind another's, or ticks at the same instant) is
+        written 1 ns after it, so that the self rows and the holders' rows that follow them
+        share one timeline. A source's later
+        snapshots are never written before one so moved: a live robot whose lag grows past
+        the skew stays on the clock's timeline instead of failing with a time-order error.
+        The sources of one :meth:`sync_many` (a tick) are written at one stamp, the latest any
+        of them needs. Older snapshots (one source imported after another) and single writes
+        (assert, retract, tell) keep their time: their runs happen at the clock's (or just
+        after). On PostgreSQL reading the clock locks it: such writes run one at a time
+        (their belief runs would anyway)."""
+        given = t_ns
+        if snapshot and self._pending is not None and self._tick_ns is not None:
+            t_ns = self._tick_ns  # a later source of the tick: the first one's stamp
+        elif snapshot and self._clocked(agent_id):
+            last, last_self = conn.execute(text(
+                "UPDATE store_state SET beliefs_ns = beliefs_ns WHERE id = 1 "
+                "RETURNING beliefs_ns, beliefs_self")).one()
+            moved = max(self._moved_to.get((agent_id, s), t_ns)
+                        for s in (*self._tick_sources, source))
+            behind = last is not None and (
+                t_ns < last or (t_ns == last and last_self != agent_id))
+            if behind and last <= t_ns + LIVE_CLOCK_SKEW_NS:
+                t_ns = max(last + 1, moved)
+            elif t_ns < moved:
+                t_ns = moved if last is None else max(moved, last + 1)
+        if snapshot and self._pending is not None:
+            self._tick_ns = t_ns
+        if snapshot and t_ns != given:
+            self._moved_to[(agent_id, source)] = t_ns
+        return Writes(agent_id, source, t_ns, self._actor, self._actor_of)
+
+    def _run_rules(self, conn: Connection, changes: ChangeSet) -> None:
+        for rule in self._rules:
+            rule(conn, changes)
+
+    def sync_many(self, agent_id: str, t_ns: int,
+                  snapshots: Iterable[tuple[str, Iterable[Fact] | FactArrays]], *,
+                  actor: str | None = None, actors: Actors | None = None) -> list[SyncResult]:
+        """:meth:`sync_snapshot` of several sources for one agent at one time, in one
+        transaction, the rules running once over all their changes (a producer tick).
+        ``actor`` and ``actors`` (per fact) name who made the changes, as for
+        :meth:`sync_snapshot`."""
+        given = list(snapshots)
+
+        def write(conn: Connection) -> list[SyncResult]:
+            self._pending, self._tick_ns = [], None
+            self._tick_sources = tuple(source for source, _ in given)
+            try:
+                results = [self.sync_snapshot(source, agent_id, t_ns, facts)
+                           for source, facts in given]
+                for changes in merged(self._pending):
+                    self._run_rules(conn, changes)
+            finally:
+                self._pending, self._tick_ns, self._tick_sources = None, None, ()
+            return results
+
+        with self.acting(actor, actors):
+            return self._retrying(write)
+
+    # ------------------------------------------------------------------ single writes
+    def assert_fact(self, agent_id: str, fact: Fact, *, t_ns: int | None = None,
+                    source: str = "user", strict: bool = True,
+                    actor: str | None = None) -> str:
+        """State one fact for an agent at ``t_ns`` (default now); return what happened
+        (``appeared``, ``changed``, ``refreshed`` or ``unchanged``).
+
+        With ``strict`` the subject and target must be registered entities. ``actor``: the
+        agent who made the change, if known.
+        """
+        fact = check_fact(fact)
+        t_ns = now_ns() if t_ns is None else check_ns(t_ns)
+        with self.acting(actor), self.transaction() as conn:
+            self.check_agent(agent_id)
+            if strict:
+                catalog.check_entities(conn, [fact.subject_id, fact.target_id])
+            key = fact_key(fact)
+            writes = self._writes(conn, agent_id, source, t_ns)
+            self._resolve(conn, agent_id, [(key, fact)], writes)
+            self._apply(conn, writes)
+            self.bump_epoch(conn)
+        return writes.outcome()
+
+    def retract_facts(self, agent_id: str, property: str, subject_id: str | None = None,
+                      target_id: str | None = None, *, sub_property: str | None = None,
+                      subject_owner_id: str | None = None, target_owner_id: str | None = None,
+                      t_ns: int | None = None, source: str = "user",
+                      actor: str | None = None) -> int:
+        """End the matching current facts of an agent at ``t_ns`` (default now).
+
+        ``None`` or ``"NULL"`` for subject or target match any (the original's wildcard).
+        Returns the number of facts ended. ``actor``: the agent who ended them, if known.
+        """
+        check_id(property, "property")
+        t_ns = now_ns() if t_ns is None else check_ns(t_ns)
+        filters = {"subject_id": subject_id, "target_id": target_id,
+                   "sub_property": sub_property, "subject_owner_id": subject_owner_id,
+                   "target_owner_id": target_owner_id}
+        with self.acting(actor), self.transaction() as conn:
+            self.check_agent(agent_id)
+            if not self.agents().get(agent_id):
+                self._detach(conn, agent_id, keep=True)
+            rows = catalog.open_facts_matching(conn, agent_id, property, filters)
+            writes = self._writes(conn, agent_id, source, t_ns)
+            for key_id, fact, valid_from in rows:
+                if valid_from > t_ns:
+                    msg = (f"cannot end {fact.subject_id} {fact.property} {fact.target_id} at "
+                           f"{format_ns(t_ns)}: it started later, at {format_ns(valid_from)}")
+                    raise TimeOrderError(msg)
+                writes.end(key_id, fact)
+            self._apply(conn, writes)
+            self.bump_epoch(conn)
+        return len(rows)
+
+    def record_event(self, agent_id: str, fact: Fact, *, t_ns: int | None = None,
+                     source: str = "user") -> None:
+        """Record a user event (the original's set_info EVENT) for an agent."""
+        fact = check_fact(fact)
+        t_ns = now_ns() if t_ns is None else check_ns(t_ns)
+        with self.transaction() as conn:
+            self.check_agent(agent_id)
+            key = fact_key(fact)
+            self._key_id_map(conn, agent_id, [(key, fact)])
+            self.backend.insert_events(self.db.cursor(), [(
+                self._key_ids[(agent_id, key)], agent_id, "event", t_ns, fact.value_text,
+                fact.value_num, fact.confidence, fact.observability, None, source, now_ns())])
+
+    def empty(self, agent_id: str | None = None) -> None:
+        """Delete the facts, memory and events of one agent, or of every agent (EMPTY)."""
+        with self.transaction() as conn:
+            if agent_id is not None:
+                self.check_agent(agent_id)
+            self._detach(conn, agent_id, keep=False)
+            catalog.empty_facts(conn, agent_id)
+            self.bump_epoch(conn)
