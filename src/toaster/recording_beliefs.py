@@ -45,7 +45,7 @@ def beliefs_types() -> dict[str, Any]:
 
 def chain(holder: str) -> list[str]:
     """A holder as its chain of agents: ``ANNE>SALLY`` → ``[ANNE, SALLY]``."""
-    from toaster.beliefs.rules import SEPARATOR
+    from toaster.rules.hook import SEPARATOR
 
     return holder.split(SEPARATOR)
 

@@ -18,7 +18,7 @@ if TYPE_CHECKING:
 
 def belief_rule(store: Store) -> Rule:
     """The belief rule for ``store`` (imported on first use: ``toaster --help`` stays fast)."""
-    from toaster.beliefs.rules import BeliefRule
+    from toaster.rules.hook import BeliefRule
 
     return BeliefRule(store)
 

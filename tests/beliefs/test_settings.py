@@ -12,8 +12,8 @@ import sqlalchemy as sa
 
 import toaster
 from toaster.beliefs import api, scenario
-from toaster.beliefs import config as cfg
 from toaster.errors import InvalidInputError
+from toaster.rules import settings as cfg
 
 revision = importlib.import_module("toaster.migrations.versions.0011_holder_groups")
 

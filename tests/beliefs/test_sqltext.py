@@ -11,7 +11,8 @@ import pytest
 from sqlalchemy import text
 
 import toaster
-from toaster.beliefs import pipeline, rules, sqltext, triggers
+from toaster.rules import hook as rules
+from toaster.rules import pipeline, sqltext, triggers
 
 BACKENDS = ("sqlite", "postgresql")
 #: What the other backend writes and this one must not see.
@@ -29,7 +30,7 @@ def _normal(sql: str) -> str:
 
 
 def test_every_step_has_one_template() -> None:
-    folder = resources.files("toaster.beliefs") / "sql"
+    folder = resources.files("toaster.rules") / "sql"
     names = {p.name for p in folder.iterdir()}
     assert {f"{step}.sql" for step in sqltext.STEPS} <= names
     assert not [n for n in names if n.startswith(("sqlite-", "postgresql-"))]
@@ -138,7 +139,7 @@ def test_the_views_of_a_database_at_head_are_the_rendered_ones(db: toaster.Datab
 
 def test_the_newest_frozen_triggers_are_the_rendered_ones() -> None:
     """Revisions install frozen DDL: a change of a template or of the pipeline must come with
-    a new revision and its frozen copy (python -m toaster.beliefs.triggers FILE.json)."""
+    a new revision and its frozen copy (python -m toaster.rules.triggers FILE.json)."""
     folder = resources.files("toaster.migrations") / "frozen"
     newest = max(p.name for p in folder.iterdir() if p.name.endswith("_triggers.json"))
     assert json.loads((folder / newest).read_text(encoding="utf-8")) == triggers.frozen()

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import toaster
 from toaster import session
-from toaster.beliefs.rules import BeliefRule
 from toaster.db import open_database
+from toaster.rules.hook import BeliefRule
 
 
 def test_connect_installs_the_belief_rule_and_the_bare_opener_none(db_url: str) -> None:

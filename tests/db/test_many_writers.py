@@ -263,7 +263,7 @@ def test_a_store_session_keeps_its_scratch_tables_small(pg_schema_url: str) -> N
     each commit (it cost as much as the run, under the lock that serializes robots' runs),
     and the session vacuums them every VACUUM_SCRATCH_EVERY runs: a long run does not grow
     them."""
-    from toaster.beliefs.rules import VACUUM_SCRATCH_EVERY
+    from toaster.rules.hook import VACUUM_SCRATCH_EVERY
 
     sizes = ("SELECT c.relname, pg_relation_size(c.oid), c.relpersistence FROM pg_class c "
              "WHERE c.relnamespace = pg_my_temp_schema() AND c.relkind = 'r' "

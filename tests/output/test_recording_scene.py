@@ -254,8 +254,8 @@ def test_ros1_bag_reads_with_debian_rosbag(tmp_path: Path) -> None:
 def test_holder_topics_are_ros_names(tmp_path: Path) -> None:
     """Holder ids that are not ROS names get a valid, distinct topic by one rule (whatever the
     order they come in); the message keeps the exact id and its chain."""
-    from toaster.beliefs.rules import SEPARATOR
     from toaster.quoting import ros_id
+    from toaster.rules.hook import SEPARATOR
 
     holders = ["alice", "alice-1", "alice_1", "3po", f"anne{SEPARATOR}sally", "anne/sally"]
     path = tmp_path / "odd"

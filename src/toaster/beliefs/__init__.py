@@ -1,7 +1,7 @@
 """Perspective taking: every non-self agent's beliefs, maintained by rules in the database.
 
 The user-facing names (docs/beliefs.md, "API") load on first use, so that the query layer can
-import the rule's SQL (:mod:`toaster.beliefs.sqltext`) without loading this API, which reads
+import the rule's SQL (:mod:`toaster.rules.sqltext`) without loading this API, which reads
 through it. ``toaster.beliefs.tell`` is the module; its function is :func:`toaster.tell`.
 """
 

@@ -9,11 +9,11 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 from sqlalchemy import text
 
 from toaster import queries as q
-from toaster.beliefs import config as cfg
-from toaster.beliefs.rules import holder_id
 from toaster.db import catalog
 from toaster.errors import InvalidInputError
 from toaster.model import FactRow, check_id, check_list
+from toaster.rules import settings as cfg
+from toaster.rules.hook import holder_id
 
 if TYPE_CHECKING:
     from toaster.db.database import Database

@@ -6,7 +6,7 @@ A scenario file (YAML or JSON)::
     self: ROBOT                     # the self agent (a robot), registered for you
     agents: [SALLY, ANNE]           # humans
     objects: [MARBLE, BASKET, BOX, ROOM]
-    settings: {depth: 2}            # optional belief settings (see toaster.beliefs.config)
+    settings: {depth: 2}            # optional belief settings (see toaster.rules.settings)
     steps:
       - t: 1                        # seconds (or t_ns: integer nanoseconds)
         rooms: {SALLY: ROOM, BASKET: ROOM}   # IsInRoom; null = leaves every room
@@ -35,7 +35,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from toaster.beliefs import api
-from toaster.beliefs import config as cfg
 from toaster.beliefs.tell import tell
 from toaster.db.catalog import note_data_start
 from toaster.documents import located, read_document
@@ -49,6 +48,7 @@ from toaster.model import (
     fact_key,
     shown,
 )
+from toaster.rules import settings as cfg
 from toaster.timeutil import MAX_NS, check_ns
 
 if TYPE_CHECKING:

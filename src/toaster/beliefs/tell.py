@@ -21,10 +21,10 @@ from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import Connection, text
 
-from toaster.beliefs import config as cfg
-from toaster.beliefs.rules import holder_id
 from toaster.errors import InvalidInputError
 from toaster.model import Fact, check_fact, check_id, check_list
+from toaster.rules import settings as cfg
+from toaster.rules.hook import holder_id
 from toaster.timeutil import check_ns, now_ns
 
 if TYPE_CHECKING:

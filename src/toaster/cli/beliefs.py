@@ -117,7 +117,7 @@ def holders(app: Any, fmt: str | None, limit: int | None) -> None:
 def config(app: Any, key: str | None, value: str | None, reset: bool) -> None:
     """Show the rule settings, or set KEY to VALUE (JSON: depth 1, enabled false...)."""
     from toaster.beliefs import api
-    from toaster.beliefs import config as cfg
+    from toaster.rules import settings as cfg
 
     if reset:
         if value is not None:

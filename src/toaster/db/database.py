@@ -128,7 +128,7 @@ class Database:
 
     def vacuum_scratch(self) -> bool:
         """Vacuum this session's scratch tables of the belief rule (PostgreSQL; see
-        :mod:`toaster.beliefs.rules`), outside any transaction; False, doing nothing, inside
+        :mod:`toaster.rules.hook`), outside any transaction; False, doing nothing, inside
         one."""
         if self.connection.in_transaction():
             return False

@@ -47,7 +47,7 @@ Tables
                 by a trigger as the store applies it, then the belief rule (revision 0007).
 ``belief_runs`` inserting a row runs the belief rule over ``belief_changed``; ``belief_steps``
                 (SQLite) the blocks of a run; ``belief_changed`` ... ``belief_new_chain`` the
-                rule's scratch tables, empty between runs (:mod:`toaster.beliefs.pipeline`).
+                rule's scratch tables, empty between runs (:mod:`toaster.rules.pipeline`).
 
 No foreign keys on ``facts`` and ``events``: they are the hot tables (thousands of rows per
 second) and a per-row foreign-key check there cost more than the insert itself (PostgreSQL runs
@@ -278,7 +278,7 @@ rule_writer = Table(  # SQLite's writer role (see toaster.db.dialects.GUARDED_TA
     CheckConstraint("id = 1", name="single_row"),
 )
 
-# -- The write surface and the rule's triggers (revision 0007, toaster.beliefs.triggers) ------
+# -- The write surface and the rule's triggers (revision 0007, toaster.rules.triggers) ------
 fact_inbox = Table(  # one inserted row = one write; the trigger applies it, the row is not kept
     "fact_inbox",
     metadata,

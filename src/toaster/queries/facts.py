@@ -9,9 +9,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, NamedTuple
 
-from toaster.beliefs import sqltext
 from toaster.errors import InvalidInputError
 from toaster.model import FactRow, check_id, check_text, shown
+from toaster.rules import sqltext
 from toaster.timeutil import check_count, check_ns, check_optional_ns
 
 if TYPE_CHECKING:
@@ -126,7 +126,7 @@ def _numbers_at(conf: str | None = None) -> str:
 def _followed_numbers(backend: str) -> str:
     """The numbers of a followed interval at ``:t``: its sample's when there is one, the
     confidence as the holder sees it (the followed-period definition of
-    :mod:`toaster.beliefs.sqltext`)."""
+    :mod:`toaster.rules.sqltext`)."""
     conf = "{{followed_conf(COALESCE(s.confidence, f.confidence))}}"
     return _numbers_at(sqltext.expand(conf, backend))
 

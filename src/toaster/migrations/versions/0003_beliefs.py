@@ -10,7 +10,7 @@ clipped to each period (confidence x ``pconf``) and its events stamped in
 perceives writes no holder row.
 
 The rule statements are not stored: every store renders them from the package's templates
-(:mod:`toaster.beliefs.sqltext`); their settings' defaults are the view ``belief_settings``
+(:mod:`toaster.rules.sqltext`); their settings' defaults are the view ``belief_settings``
 (0006). This revision squashes the unreleased 0002 (which also stored the statements in a
 table ``belief_rules`` and the defaults as ``settings`` rows) and 0003: a database stamped
 0003 or later by them upgrades unchanged (0006 drops ``belief_rules``).
@@ -35,7 +35,7 @@ branch_labels = None
 depends_on = None
 
 # The readable views of this revision, frozen (a revision never imports live view text; the
-# followed period is defined in toaster.beliefs.sqltext, and tests/beliefs/test_sqltext.py
+# followed period is defined in toaster.rules.sqltext, and tests/beliefs/test_sqltext.py
 # checks that the views of a database at head are the ones it renders).
 _KEY = ("k.agent_id, k.subject_id, k.subject_owner_id, k.property, k.property_type, "
         "k.sub_property, k.target_id, k.target_owner_id")

@@ -3,7 +3,7 @@ internal tables guarded against direct writes.
 
 ``belief_settings`` (view): one row per belief-rule setting, the stored value or else the
 default. It is the one declaration of the defaults: the rule statements and Python
-(:mod:`toaster.beliefs.config`) both read it, so a missing ``settings`` row means the
+(:mod:`toaster.rules.settings`) both read it, so a missing ``settings`` row means the
 default everywhere. A later revision that changes a default replaces the view.
 
 ``belief_rules`` is dropped: the statements are rendered from the package's templates.

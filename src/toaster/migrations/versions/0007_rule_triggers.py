@@ -7,7 +7,7 @@ a ``psql`` / ``sqlite3`` script gets the same intervals, events and beliefs as t
 its own transaction. ``belief_steps`` and the ``belief_*`` scratch tables serve the triggers;
 ``store_state.holders_basis`` remembers which agents the nested holders were registered for;
 nested holders keep no per-agent views (those are for real agents).
-The triggers are those :mod:`toaster.beliefs.triggers` rendered when this revision was written,
+The triggers are those :mod:`toaster.rules.triggers` rendered when this revision was written,
 frozen in ``migrations/frozen/0007_triggers.json``; a revision that changes them drops these and
 installs its own frozen copy.
 
@@ -21,8 +21,8 @@ from __future__ import annotations
 import sqlalchemy as sa
 from alembic import op
 
-from toaster.beliefs.triggers import run_frozen
 from toaster.db.views import drop_agent_views
+from toaster.rules.triggers import run_frozen
 
 revision = "0007"
 down_revision = "0006"

@@ -1,4 +1,4 @@
-"""The belief rule's SQL: one template per step (``beliefs/sql/NN_step.sql``), rendered per backend.
+"""The belief rule's SQL: one template per step (``rules/sql/NN_step.sql``), rendered per backend.
 
 A template is the step's SQL with *macros* where the backends differ: ``{{name}}`` or
 ``{{name(argument)}}``, replaced by plain text substitution (no SQL contains ``{{``; ``$`` in
@@ -25,7 +25,7 @@ import functools
 import re
 from importlib import resources
 
-#: The steps of the rule, in order (see :class:`toaster.beliefs.rules.BeliefRule` for when each
+#: The steps of the rule, in order (see :class:`toaster.rules.hook.BeliefRule` for when each
 #: one runs).
 STEPS = ("00_temp", "10_focus", "12_moves", "13_late", "15_ungroup", "20_perceive", "30_changes",
          "32_expand", "35_freeze", "40_refresh", "42_keep_max", "45_resolve", "50_keys",
@@ -233,7 +233,7 @@ def expand(sql: str, backend: str) -> str:
 
 
 #: Templates the triggers use besides the steps: registering nested holders, and the write
-#: surface (see :mod:`toaster.beliefs.pipeline`).
+#: surface (see :mod:`toaster.rules.pipeline`).
 TRIGGER_TEMPLATES = ("holders", "reperceive", "holders_seen", "inbox")
 
 
@@ -242,7 +242,7 @@ def template(step: str) -> str:
     if step not in STEPS and step not in TRIGGER_TEMPLATES:
         msg = f"unknown belief rule step {step!r}"
         raise ValueError(msg)
-    text = (resources.files("toaster.beliefs") / "sql" / f"{step}.sql").read_text(
+    text = (resources.files("toaster.rules") / "sql" / f"{step}.sql").read_text(
         encoding="utf-8")
     return text.replace("{{materialize}}", template("95_materialize")) if (
         "{{materialize}}" in text) else text

@@ -1,5 +1,5 @@
 """The belief rule, as the library starts it: the database runs it (triggers on
-``belief_runs``, declared once in :mod:`toaster.beliefs.pipeline`) in the transaction of every
+``belief_runs``, declared once in :mod:`toaster.rules.pipeline`) in the transaction of every
 self write, whoever the writer is.
 
 Per write (a *tick*) the store puts the changed self keys into ``belief_changed`` and inserts
@@ -23,10 +23,10 @@ from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import Connection, text
 
-from toaster.beliefs import sqltext
-from toaster.beliefs.pipeline import statements as split
-from toaster.beliefs.sqltext import UNGROUP
 from toaster.model import HOLDER_SEPARATOR
+from toaster.rules import sqltext
+from toaster.rules.pipeline import statements as split
+from toaster.rules.sqltext import UNGROUP
 from toaster.timeutil import now_ns
 
 if TYPE_CHECKING:

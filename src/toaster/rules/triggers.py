@@ -1,8 +1,8 @@
 """The triggers that make the database keep beliefs itself: DDL rendered per backend from
-:data:`toaster.beliefs.pipeline.PIPELINE` and the ``inbox`` template.
+:data:`toaster.rules.pipeline.PIPELINE` and the ``inbox`` template.
 
 - ``belief_runs``: inserting ``(self_id, t_ns, recorded_ns)`` runs the belief rule over
-  ``belief_changed`` (the store does it; see :mod:`toaster.beliefs.pipeline`).
+  ``belief_changed`` (the store does it; see :mod:`toaster.rules.pipeline`).
 - ``fact_inbox``: inserting a row writes one fact as the store would, then runs the rule
   (the write surface of plain SQL clients; docs/beliefs.md).
 
@@ -21,8 +21,9 @@ from importlib import resources
 
 from sqlalchemy import Connection
 
-from toaster.beliefs import sqltext
-from toaster.beliefs.pipeline import (
+from toaster.db.dialects import GUARD_MESSAGE
+from toaster.rules import sqltext
+from toaster.rules.pipeline import (
     CLOCK,
     CLOCK_NS,
     PIPELINE,
@@ -33,8 +34,7 @@ from toaster.beliefs.pipeline import (
     blocks,
     statements,
 )
-from toaster.beliefs.sqltext import AGENTS_CHANGED, UNGROUP
-from toaster.db.dialects import GUARD_MESSAGE
+from toaster.rules.sqltext import AGENTS_CHANGED, UNGROUP
 
 #: Functions tuned as the rule's statements expect: the written join order, each statement
 #: planned with the run's values (SQLite's plans are pinned by CROSS JOIN / INDEXED BY), and no
@@ -229,5 +229,5 @@ def swap_frozen(conn: Connection, old: str, new: str) -> None:
     run_frozen(conn, new, "create")
 
 
-if __name__ == "__main__":  # python -m toaster.beliefs.triggers FILE.json
+if __name__ == "__main__":  # python -m toaster.rules.triggers FILE.json
     freeze(sys.argv[1])

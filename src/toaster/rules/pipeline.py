@@ -1,6 +1,6 @@
 """The belief rule as one pipeline of the database's own triggers, for every writer.
 
-:data:`PIPELINE` declares, once, which steps (templates of ``beliefs/sql``) run and under
+:data:`PIPELINE` declares, once, which steps (templates of ``rules/sql``) run and under
 which conditions. It is rendered per backend into triggers on ``belief_runs``:
 
 - PostgreSQL: a row trigger running the plpgsql function ``toaster_belief_run()``, one ``IF``
@@ -10,7 +10,7 @@ which conditions. It is rendered per backend into triggers on ``belief_runs``:
 
 A writer starts a run by filling ``belief_changed`` with the self keys it changed, then
 inserting ``(self_id, t_ns, recorded_ns)`` into ``belief_runs`` (the row is never kept): the
-store does so for the library (:class:`toaster.beliefs.rules.BeliefRule`) and the trigger of
+store does so for the library (:class:`toaster.rules.hook.BeliefRule`) and the trigger of
 ``fact_inbox`` for plain SQL clients, so both get the same intervals, events and beliefs in
 their own transaction. Inside the triggers the steps' parameters are the run's columns
 (``:self`` is ``NEW.self_id``, ``:t`` ``NEW.t_ns``, ``:recorded`` ``NEW.recorded_ns``).
@@ -29,7 +29,7 @@ AROUND = {"phase": "'around'", "everything": "0"}
 
 @dataclass(frozen=True)
 class Step:
-    """One template of ``beliefs/sql`` with constant parameters (20_perceive's phase)."""
+    """One template of ``rules/sql`` with constant parameters (20_perceive's phase)."""
 
     name: str
     constants: tuple[tuple[str, str], ...] = ()
