@@ -212,7 +212,7 @@ def test_a_belief_replay_starts_at_zero(db: toaster.Database) -> None:
 def test_plot_axis_counts_from_the_data_start(db: toaster.Database, tmp_path: Path) -> None:
     """A scenario starting at 0 whose first fact is at 1 s: the move at 6.4 s is at 6.4 on
     the axis (CSV time_s, the picture's step line), not at 5.4."""
-    from toaster.plotting import plot_facts
+    from toaster.outputs.plotting import plot_facts
 
     batch = tmp_path / "move.yaml"
     batch.write_text("entities: [{id: PR2, kind: robot, self: true}, {id: BOB, kind: human},"
@@ -235,7 +235,7 @@ def test_plot_axis_counts_from_the_data_start(db: toaster.Database, tmp_path: Pa
     assert [float(r["time_s"]) for r in moved] == [6.4]
     assert min(float(r["time_s"]) for r in rows) == 1.0
     pytest.importorskip("matplotlib")
-    from toaster.plotting.render import number_gid
+    from toaster.outputs.plotting.render import number_gid
 
     picture = plot_facts(db, tmp_path / "move.png", subject="MUG", property="Distance",
                          agents=["PR2"])

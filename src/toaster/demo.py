@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from toaster.beliefs.api import BeliefDiff
     from toaster.db.database import Database
     from toaster.model import EventRow
-    from toaster.plotting import Divergence
+    from toaster.outputs.plotting import Divergence
     from toaster.producers import Stats
     from toaster.queries.sql import SQLResult
     from toaster.timeutil import TimeFrame
@@ -97,7 +97,7 @@ def scenario_file() -> Iterator[Path]:
 def check_picture(picture: str | Path) -> Path:
     """``picture`` as a path the demo can write (a known suffix, an existing folder), or a
     one-line error naming it and the fix."""
-    from toaster.plotting import output_format
+    from toaster.outputs.plotting import output_format
 
     path = Path(picture)
     output_format(path)
@@ -154,7 +154,7 @@ def _moment(db: Database, t_ns: int, what: str) -> Moment:
 def _picture(db: Database, picture: Path) -> tuple[Path, Path | None, Any, str]:
     """The marble's timeline for the robot, Sally and Anne; gnuplot data when matplotlib is
     missing (with the note saying how to get the picture)."""
-    from toaster.plotting import plot_facts
+    from toaster.outputs.plotting import plot_facts
 
     def plot(path: Path) -> Any:
         return plot_facts(db, path, subject=MARBLE, property=list(PLACES),

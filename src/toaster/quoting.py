@@ -146,7 +146,7 @@ def gnuplot_comment(text: str) -> str:
 def mpl_text(text: str) -> str:
     """matplotlib text showing :func:`label_text` ``text`` as it is: every ``$`` escaped (no
     mathtext), a leading ``_`` after a space (a legend leaves out labels starting with ``_``).
-    Draw it with ``text.usetex`` off (:mod:`toaster.plotting.render` does)."""
+    Draw it with ``text.usetex`` off (:mod:`toaster.outputs.plotting.render` does)."""
     shown = label_text(text).replace("$", "\\$")
     return " " + shown if shown.startswith("_") else shown
 

@@ -28,7 +28,8 @@ Progress = Callable[[int, int], None]
 @dataclass(frozen=True)
 class RunReport:
     """What a run did: its ticks and facts (``stats``), the input time it covered, the wall
-    time it took, and the recording it wrote (``toaster.recording.RecordingResult``) if any."""
+    time it took, and the recording it wrote (``toaster.outputs.recording.RecordingResult``) if
+    any."""
 
     name: str
     stats: Stats
@@ -81,7 +82,7 @@ def run_file(path: str | Path, db: Database | None = None, *, rate_hz: float | N
         realtime: pace the ticks to the wall clock.
         fps, holders, config, tf_map, pose_topics: as :func:`toaster.producers.load_session`.
         record_dir: also write the run as a rosbag2/MCAP recording in this new folder, or as
-            a ROS 1 bag for a ``.bag`` name (:mod:`toaster.recording`; needs
+            a ROS 1 bag for a ``.bag`` name (:mod:`toaster.outputs.recording`; needs
             ``toaster[rosbag]``).
         progress: called after each tick with (ticks done, ticks in all).
 
@@ -120,7 +121,7 @@ def run_file(path: str | Path, db: Database | None = None, *, rate_hz: float | N
     wall_s = time.perf_counter() - wall
     recording = None
     if record_dir is not None:
-        from toaster.recording import record
+        from toaster.outputs.recording import record
 
         recording = record(record_dir, frames, db=db)
     return RunReport(path.name, runner.stats, (end - session.start_ns) / 1e9, wall_s, recording)

@@ -27,8 +27,8 @@ import toaster
 from tests.cli.test_fuzz import dump
 from toaster import Fact, ToasterError
 from toaster import queries as q
-from toaster.export import export
-from toaster.plotting import plot_facts
+from toaster.outputs.export import export
+from toaster.outputs.plotting import plot_facts
 
 EXAMPLES_N = int(os.environ.get("TOASTER_FUZZ_EXAMPLES", "150"))
 FUZZ = settings(max_examples=EXAMPLES_N, deadline=None, database=None,

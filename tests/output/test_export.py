@@ -10,7 +10,7 @@ import toaster
 from tests.output.conftest import T0, S
 from toaster import Fact, FactRow
 from toaster.errors import InvalidInputError, UnknownAgentError
-from toaster.export import export, read_frame, read_rows, select_rows
+from toaster.outputs.export import export, read_frame, read_rows, select_rows
 from toaster.queries import history, to_dataframe
 
 

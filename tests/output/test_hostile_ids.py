@@ -39,8 +39,8 @@ from tests.output.conftest import (
 from toaster import Fact
 from toaster.cli import cli
 from toaster.db.views import quote_identifier
-from toaster.export import export, read_frame, read_rows, select_rows
-from toaster.plotting import plot_facts
+from toaster.outputs.export import export, read_frame, read_rows, select_rows
+from toaster.outputs.plotting import plot_facts
 from toaster.quoting import (
     CSV_MARK,
     FORMULA_START,
@@ -283,7 +283,7 @@ def test_matplotlib_draws_ids_as_text(hostile_sqlite: toaster.Database, tmp_path
         assert " _legend" in legend
     ids = {el.get("id") for el in ET.parse(tmp_path / "p.svg").iter()}
     lane = next(lane for lane in result.timeline.lanes if lane.key.property == "Distance")
-    from toaster.plotting.render import number_gid
+    from toaster.outputs.plotting.render import number_gid
 
     assert {number_gid(lane, name) for name in HOSTILE} <= ids
     assert (tmp_path / "p.png").stat().st_size > 10_000
@@ -549,7 +549,7 @@ def test_recordings_open_in_ros_tools(hostile_sqlite: toaster.Database, tmp_path
     import yaml  # type: ignore[import-untyped]
     from rosbags.highlevel import AnyReader
 
-    from toaster.recording import record
+    from toaster.outputs.recording import record
 
     for path in (tmp_path / "rec", tmp_path / "rec.bag"):
         result = record(path, _frames(), db=hostile_sqlite)

@@ -11,7 +11,7 @@ import pytest
 import toaster
 from tests.output.conftest import T0, S, require_gnuplot, run_scenario
 from toaster.errors import InvalidInputError, MissingDependencyError, UnknownAgentError
-from toaster.plotting import FALSE_BELIEF, UNAWARE, Timeline, build_timeline, plot_facts
+from toaster.outputs.plotting import FALSE_BELIEF, UNAWARE, Timeline, build_timeline, plot_facts
 from toaster.queries import history
 
 MAGIC = {"png": b"\x89PNG", "pdf": b"%PDF", "svg": b"<?xml"}
@@ -168,7 +168,7 @@ def test_numbers_of_the_run_get_their_own_panel(run_db: toaster.Database,
                                                 tmp_path: Path) -> None:
     """alice's Distance to the mug (3.0, 1.0, 0.4 m over three intervals) is drawn as one
     unbroken step line under its bars, and ends where the fact ends (14 s)."""
-    from toaster.plotting.render import number_gid
+    from toaster.outputs.plotting.render import number_gid
 
     out = plot_facts(run_db, tmp_path / "run.svg", subject="alice", since=T0, until=T0 + 20 * S)
     lane = next(lane for lane in out.timeline.lanes if lane.label == "alice Distance mug")
@@ -228,7 +228,7 @@ def test_unfiltered_plot_of_a_large_replay_is_capped(db_url: str, tmp_path: Path
 
     from tests.conftest import shared_data
     from toaster.cli.plot import plot_facts as command
-    from toaster.plotting import MAX_FACTS
+    from toaster.outputs.plotting import MAX_FACTS
     from toaster.runs import run_file
 
     obsmat = shared_data("eth-ucy-opentraj", "ETH", "seq_hotel", "obsmat.txt")

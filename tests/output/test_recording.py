@@ -15,7 +15,7 @@ import toaster
 from tests.output.conftest import T0, S, run_scenario
 from toaster import Fact
 from toaster.errors import InvalidInputError
-from toaster.recording import (
+from toaster.outputs.recording import (
     CUBE,
     CYLINDER,
     ENTITIES_TOPIC,
@@ -26,7 +26,7 @@ from toaster.recording import (
     EntityPose,
     record,
 )
-from toaster.ros1.mapping import field, rpy_to_quat
+from toaster.world.rosmsg import field, rpy_to_quat
 
 pytest.importorskip("rosbags")
 mcap_reader = pytest.importorskip("mcap.reader")
@@ -114,7 +114,7 @@ def test_recording_replays_frames_and_facts(run_db: toaster.Database, tmp_path: 
     assert names[0] == {"pr2", "alice", "mug", "bob"}
     assert names[5] == {"pr2", "alice", "mug"}  # bob left: DELETEALL first, no bob marker
     assert frames[5].markers[0].action == 3
-    # bodies are drawn by toaster.ros1.markers: namespace = entity id, id 0 = the body
+    # bodies are drawn by toaster.outputs.markers: namespace = entity id, id 0 = the body
     alice = next(m for m in frames[5].markers if m.ns == "alice" and m.id == 0)
     assert alice.type == CYLINDER and alice.pose.position.x == pytest.approx(7.0)
     outline = [m for _, a in _on(messages, "/toaster/areas") for m in a.markers

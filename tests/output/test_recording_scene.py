@@ -21,8 +21,8 @@ from click.testing import CliRunner
 import toaster
 from tests.output.conftest import SYSTEM_PYTHON, require_system_rosbag
 from toaster.cli import cli
-from toaster.recording import CUBE, CYLINDER, LINE_STRIP, Recorder, record
-from toaster.ros1.mapping import rpy_to_quat
+from toaster.outputs.recording import CUBE, CYLINDER, LINE_STRIP, Recorder, record
+from toaster.world.rosmsg import rpy_to_quat
 
 pytest.importorskip("rosbags")
 

@@ -24,8 +24,8 @@ from tests.output.conftest import T0, S, open_built, require_gnuplot
 from toaster import Fact
 from toaster.cli.plot import plot_facts as plot_command
 from toaster.errors import InvalidInputError
-from toaster.plotting import build_timeline, plot_facts
-from toaster.plotting.render import number_gid
+from toaster.outputs.plotting import build_timeline, plot_facts
+from toaster.outputs.plotting.render import number_gid
 
 NAN = float("nan")
 SINCE, UNTIL = T0, T0 + 10 * S  # the plotted window

@@ -14,8 +14,9 @@ import pytest
 
 from toaster.errors import InvalidInputError
 from toaster.model import Fact
-from toaster.ros1 import mapping, markers
-from toaster.ros1.mapping import TfTree
+from toaster.outputs import markers
+from toaster.world import rosmsg as mapping
+from toaster.world.rosmsg import TfTree
 from toaster.world.state import World
 
 
@@ -269,9 +270,10 @@ def test_world_as_frames_lists_and_markers() -> None:
 def test_rviz_config_shows_the_published_marker_topics() -> None:
     import yaml
 
+    from toaster import ros1
     from toaster.ros1.bridge import MARKER_TOPICS
 
-    config = yaml.safe_load((Path(mapping.__file__).parent / "toaster.rviz").read_text())
+    config = yaml.safe_load((Path(ros1.__file__).parent / "toaster.rviz").read_text())
     displays = config["Visualization Manager"]["Displays"]
     topics = {d["Marker Topic"] for d in displays if d["Class"] == "rviz/MarkerArray"}
     assert topics == {f"/toaster_visualizer/{t}" for t in MARKER_TOPICS}

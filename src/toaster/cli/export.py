@@ -28,9 +28,10 @@ def export(app: Any, kind: str, output: str, agent: tuple[str, ...], subject: tu
 
     One row per interval or event, every field, times in integer ns. Parquet keeps the types
     (each X_ns time also as a UTC timestamp column X; missing values null) and needs pyarrow
-    (pip install 'toaster[export]'); toaster.export.read_frame reads any of them into pandas.
+    (pip install 'toaster[export]'); toaster.outputs.export.read_frame reads any of them into
+    pandas.
     """
-    from toaster.export import export as write
+    from toaster.outputs.export import export as write
 
     db = app.db
     lo, hi = parse_window(since, until)
@@ -69,8 +70,8 @@ def record(app: Any, frames: str, output: str, agent: tuple[str, ...], since: st
     Needs rosbags (pip install 'toaster[rosbag]'); see docs/recordings.md.
     """
     from toaster.errors import FileFormatError
-    from toaster.recording import read_frames
-    from toaster.recording import record as write
+    from toaster.outputs.recording import read_frames
+    from toaster.outputs.recording import record as write
 
     try:  # read_frames lets undecodable bytes and deep nesting through (issue 14)
         poses = read_frames(frames)

@@ -11,14 +11,14 @@ Need = tuple[str, str]
 
 
 def _plot_facts(kw: dict[str, Any]) -> list[Need]:
-    from toaster.plotting import IMAGE_FORMATS, output_format
+    from toaster.outputs.plotting import IMAGE_FORMATS, output_format
 
     fmt = output_format(kw["output"], kw["fmt"])
     return [("plot", f"plot-facts to {fmt}")] if fmt in IMAGE_FORMATS else []
 
 
 def _export(kw: dict[str, Any]) -> list[Need]:
-    from toaster.export import export_format
+    from toaster.outputs.export import export_format
 
     return ([("export", "export to parquet")]
             if export_format(kw["output"], kw["fmt"]) == "parquet" else [])

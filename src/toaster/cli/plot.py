@@ -8,7 +8,7 @@ from typing import Any
 
 import click
 
-from toaster.plotting.select import MAX_FACTS
+from toaster.outputs.plotting.select import MAX_FACTS
 
 
 def window_options(func: Callable[..., Any]) -> Callable[..., Any]:
@@ -67,7 +67,7 @@ def plot_facts(app: Any, output: str, subject: tuple[str, ...], prop: tuple[str,
     from functools import partial
 
     from toaster.cli.checks import command_frame
-    from toaster.plotting import plot_facts as plot
+    from toaster.outputs.plotting import plot_facts as plot
     from toaster.quoting import shell_word, visible
 
     db = app.db

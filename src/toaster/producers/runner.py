@@ -174,7 +174,7 @@ class Session:
     agent_views: bool = True
 
     def frame(self, t_ns: int, *, with_areas: bool = False) -> tuple[Any, ...]:
-        """A recording frame of the world now (:mod:`toaster.recording`): every entity the
+        """A recording frame of the world now (:mod:`toaster.outputs.recording`): every entity the
         producers see (perceived; agents within ``presence_timeout``, as pdg publishes them) as
         an ``EntityPose`` (full pose, size, joints with their agent, held objects with their
         hand, perception time), and every area's spec ``(id, spec)`` when asked."""

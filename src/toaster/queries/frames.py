@@ -1,6 +1,6 @@
 """``to_dataframe``: rows from any query as a pandas DataFrame (pandas is an optional extra).
 
-Column types follow the rows' fields, as in a Parquet export (:mod:`toaster.export`): text
+Column types follow the rows' fields, as in a Parquet export (:mod:`toaster.outputs.export`): text
 stays text (an empty owner is ``""``, never NaN), integers stay exact integers (``*_ns``
 times in nanoseconds; a field that may be None, such as ``valid_to_ns`` of an open interval,
 is pandas' nullable ``Int64`` with ``<NA>``, never a float), floats are floats. With

@@ -4,7 +4,7 @@ rospy comes from Debian's packages (``ros-core python3-rospy ...``), which serve
 Python 3.11. It is pure Python, so the venv's interpreter of the same minor version can use it:
 :func:`ros_path` appends Debian's ``dist-packages`` to ``sys.path`` (at the end, so the venv's
 own packages win) the first time the bridge needs rospy. Nothing in toaster outside this
-package imports rospy. :mod:`toaster.ros1.mapping` has no rospy import at all.
+package imports rospy. :mod:`toaster.world.rosmsg` has no rospy import at all.
 """
 
 from __future__ import annotations

@@ -20,11 +20,16 @@ from typing import Any
 from toaster.db import catalog
 from toaster.errors import InvalidInputError, one_line
 from toaster.model import Fact
+from toaster.outputs import markers
 from toaster.producers.registry import NAMES as PRODUCERS
-from toaster.ros1 import markers, messages
+from toaster.ros1 import messages
 from toaster.ros1.available import import_rospy
 from toaster.ros1.dbcalls import AREA_KEY, AREA_SCOPE
-from toaster.ros1.mapping import (
+from toaster.ros1.services import DbPool, Handlers
+from toaster.ros1.watchers import Watchers
+from toaster.world.drops import Drops
+from toaster.world.live import LiveSource
+from toaster.world.rosmsg import (
     FIXED_FRAME,
     FrameTarget,
     PoseUpdate,
@@ -39,10 +44,6 @@ from toaster.ros1.mapping import (
     tf_updates,
     tracked_ids,
 )
-from toaster.ros1.services import DbPool, Handlers
-from toaster.ros1.watchers import Watchers
-from toaster.world.drops import Drops
-from toaster.world.live import LiveSource
 from toaster.world.state import World
 
 #: /tf, markers, area and entity lists go out every VIEW_EVERY ticks (10 Hz at 30 Hz): they

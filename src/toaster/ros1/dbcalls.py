@@ -19,7 +19,7 @@ from toaster.db import catalog
 from toaster.errors import InvalidInputError
 from toaster.live import control
 from toaster.model import Entity, EventRow, Fact, FactRow
-from toaster.ros1.mapping import fact_fields, fact_from_msg
+from toaster.world.rosmsg import fact_fields, fact_from_msg
 
 AREA_SCOPE, AREA_KEY = "ros1", "area_ids"  # {area name: the original's numeric id}
 
@@ -292,7 +292,7 @@ def plot_facts(db: Any, req: Any, directory: str | Path = PLOT_DIR) -> Path:
     Fixes the original's defects: the directory is created, no matching fact is a clear error
     (not a crash), and the level plotted after each change is the fact's, not its inverse.
     """
-    from toaster.plotting import plot_facts as plot
+    from toaster.outputs.plotting import plot_facts as plot
 
     fact = str(req.reqFact).lstrip("!")
     if not fact or "/" in fact or fact.startswith("."):

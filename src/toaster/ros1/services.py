@@ -20,11 +20,11 @@ from toaster.live import control
 from toaster.model import MAX_COORD, check_agent_id, check_id, shown
 from toaster.quoting import shell_word, visible
 from toaster.ros1 import dbcalls
-from toaster.ros1.mapping import area_from_msg, quat, vec
 from toaster.ros1.messages import to_msg
 from toaster.timeutil import check_ns
 from toaster.world.drops import Refused
 from toaster.world.live import check_entity, quaternion_to_rpy
+from toaster.world.rosmsg import area_from_msg, quat, vec
 from toaster.world.state import KIND_CODES
 
 #: manage_stream flags (toaster_msgs/AddStream) -> toaster's ROS input streams

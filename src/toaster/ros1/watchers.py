@@ -8,8 +8,8 @@ import threading
 from typing import Any
 
 from toaster.model import EventRow, Fact
-from toaster.ros1.mapping import fact_fields
 from toaster.ros1.messages import Registry
+from toaster.world.rosmsg import fact_fields
 
 TOPIC_PREFIX = "/database_manager/watch/"
 

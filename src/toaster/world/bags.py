@@ -2,7 +2,7 @@
 
 ``read_bag(path)`` reads a ROS 1 ``.bag``, a ROS 2 bag directory (``metadata.yaml`` with
 ``.db3`` or ``.mcap`` files), or one ``.mcap`` / ``.db3`` file, through the same message mapping
-as the live ROS bridge (:mod:`toaster.ros1.mapping`):
+as the live ROS bridge (:mod:`toaster.world.rosmsg`):
 
 * ``/tf`` and ``/tf_static`` (``tf2_msgs/TFMessage``): the frames of the frame map (``tf_map``,
   as ``toaster serve --tf-map``), and ROS4HRI ``body_<id>`` / ``face_<id>`` frames, composed up
@@ -151,7 +151,7 @@ def read_bag(path: str | Path, *, tf_map: str | Path | Mapping[str, Any] | None 
     require("rosbag", "reading bags")
     from rosbags.highlevel import AnyReader
 
-    from toaster.ros1 import mapping
+    from toaster.world import rosmsg as mapping
 
     path = Path(path)
     targets = mapping.read_frame_map(tf_map)

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from toaster.errors import InvalidInputError
-from toaster.recording_msgs import EntityPose
+from toaster.outputs.recording.msgs import EntityPose
 
 KINDS = ("human", "robot", "object", "joint")
 

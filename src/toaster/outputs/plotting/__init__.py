@@ -1,7 +1,7 @@
 """plot_facts: the timeline of facts per agent, as a picture (PNG, SVG, PDF) or data (.dat, CSV).
 
 >>> import toaster
->>> from toaster.plotting import plot_facts                            # doctest: +SKIP
+>>> from toaster.outputs.plotting import plot_facts                            # doctest: +SKIP
 >>> db = toaster.connect("sqlite:///run.db")                           # doctest: +SKIP
 >>> plot_facts(db, "mug.png", subject="mug", property="IsOn")         # doctest: +SKIP
 >>> plot_facts(db, "dist.svg", property="Distance", numbers="only")    # doctest: +SKIP
@@ -10,7 +10,7 @@ Facts that carry numbers (``value_num``: Distance, IsMoving speeds, angles) are 
 step lines of their number over time, refreshes included (``numbers``: ``both``, ``only``,
 ``off``). Pictures need the ``plot`` extra (matplotlib); data files need nothing beyond toaster.
 At most :data:`MAX_FACTS` facts are drawn, the most relevant (``max_facts``;
-:mod:`toaster.plotting.select`), so that a plot stays readable at any database size.
+:mod:`toaster.outputs.plotting.select`), so that a plot stays readable at any database size.
 """
 
 from __future__ import annotations
@@ -20,9 +20,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 from toaster.errors import InvalidInputError
-from toaster.plotting.datafiles import CSV_COLUMNS, gnuplot_script, write_csv, write_dat
-from toaster.plotting.select import MAX_FACTS, Selection, check_max_facts, ranked, select_facts
-from toaster.plotting.timeline import (
+from toaster.outputs.plotting.datafiles import CSV_COLUMNS, gnuplot_script, write_csv, write_dat
+from toaster.outputs.plotting.select import (
+    MAX_FACTS,
+    Selection,
+    check_max_facts,
+    ranked,
+    select_facts,
+)
+from toaster.outputs.plotting.timeline import (
     FALSE_BELIEF,
     NUMBERS,
     UNAWARE,
@@ -103,7 +109,7 @@ def plot_facts(db: Any, output: str | Path, *, subject: str | Sequence[str] | No
         frame: the time axis (default ``db.time_frame()``: seconds since the data's start,
             dates for real data; ``db.time_frame("elapsed")`` or ``"date"`` to choose).
         max_facts: draw (or write) at most this many facts, the most relevant ones
-            (:mod:`toaster.plotting.select`); ``PlotResult.left_out`` says how many matched
+            (:mod:`toaster.outputs.plotting.select`); ``PlotResult.left_out`` says how many matched
             beyond; 0 or None: every matching fact.
         progress: called as ``progress(step, done, total)`` while it works (steps: reading,
             drawing with one call per panel, saving).
@@ -113,7 +119,7 @@ def plot_facts(db: Any, output: str | Path, *, subject: str | Sequence[str] | No
     check_numbers(numbers)
     check_max_facts(max_facts)
     if fmt in IMAGE_FORMATS:
-        from toaster.plotting.render import _matplotlib
+        from toaster.outputs.plotting.render import _matplotlib
 
         _matplotlib()  # fail on a missing extra before reading the database
     report("reading facts", 0, None)
@@ -130,7 +136,7 @@ def plot_facts(db: Any, output: str | Path, *, subject: str | Sequence[str] | No
     if fmt == "csv":
         report("writing", 0, None)
         return PlotResult(write_csv(timeline, path, numbers), None, timeline, None, left_out)
-    from toaster.plotting.render import render, text_settings
+    from toaster.outputs.plotting.render import render, text_settings
 
     figure = render(timeline, title=title, numbers=numbers,
                     on_panel=lambda done, total: report("drawing", done, total))

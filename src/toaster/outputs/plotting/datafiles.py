@@ -4,7 +4,8 @@ Both hold one line per change of a series (plus, in the ``.dat``, one closing li
 end so that gnuplot's ``with steps`` draws the last value to the end). Levels: 0 = the agent
 does not hold the fact, k = it holds the lane's k-th value (listed in the header).
 
-Facts that carry numbers add their number points (:class:`~toaster.plotting.timeline.Signal`):
+Facts that carry numbers add their number points
+(:class:`~toaster.outputs.plotting.timeline.Signal`):
 in the ``.dat`` one block per (fact, agent) with one line per point (``time_s t_ns value_num
 confidence``), each held stretch closed by a line at its end and a blank line (a gap for
 gnuplot); in the CSV one row per point, ``kind`` = ``number``.
@@ -16,7 +17,7 @@ import csv
 from pathlib import Path
 from typing import Any
 
-from toaster.plotting.timeline import Signal, Timeline, check_numbers, holder_note, panels
+from toaster.outputs.plotting.timeline import Signal, Timeline, check_numbers, holder_note, panels
 from toaster.quoting import (
     csv_text,
     gnuplot_comment,
@@ -69,7 +70,7 @@ def write_dat(timeline: Timeline, path: str | Path, numbers: str = "both") -> Pa
     Columns: seconds since the data's start, time in ns, level, confidence, value. Facts that
     carry numbers add, after their own blocks, one block per agent with its numbers (header
     ``# numbers:``; columns: seconds, time in ns, value_num, confidence). ``numbers`` as in
-    :func:`~toaster.plotting.render.render`.
+    :func:`~toaster.outputs.plotting.render.render`.
     """
     path = Path(path)
     lines = [f"# toaster fact timeline from {format_ns(timeline.since_ns)} "
@@ -187,7 +188,7 @@ def write_csv(timeline: Timeline, path: str | Path, numbers: str = "both") -> Pa
     (``kind`` = ``state``) and, for facts that carry numbers, one row per number point
     (``kind`` = ``number``: value_num and confidence from then on, empty where the fact does
     not hold; value_text, level and diverges are the state's at that time). ``numbers`` as in
-    :func:`~toaster.plotting.render.render`. Text cells (fact, agent, value_text) that a
+    :func:`~toaster.outputs.plotting.render.render`. Text cells (fact, agent, value_text) that a
     spreadsheet would read as a formula start with ``'`` (:func:`toaster.quoting.csv_text`)."""
     path = Path(path)
     check_numbers(numbers)

@@ -1,4 +1,5 @@
-"""Belief channels of a recording (helpers of :mod:`toaster.recording`): what each belief holder
+"""Belief channels of a recording (helpers of :mod:`toaster.outputs.recording`): what each belief
+holder
 holds, as typed messages on a topic of its own, so that a viewer shows Sally's world beside
 the robot's.
 
@@ -17,8 +18,8 @@ from typing import Any
 
 from toaster.errors import InvalidInputError
 from toaster.model import FactRow
+from toaster.outputs.recording.msgs import FactTimeline
 from toaster.quoting import ros_name
-from toaster.recording_msgs import FactTimeline
 
 BELIEFS_TOPIC = "/toaster/beliefs"
 BELIEFS_TYPE = "toaster_recording/msg/Beliefs"

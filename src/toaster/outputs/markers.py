@@ -18,8 +18,8 @@ import numpy as np
 
 from toaster.model import Fact
 from toaster.quoting import ros_name
-from toaster.ros1.mapping import Quat, rotate, rpy_to_quat
 from toaster.world.history import NO_TIME
+from toaster.world.rosmsg import Quat, rotate, rpy_to_quat
 from toaster.world.state import HUMAN, JOINT, OBJECT, ROBOT, World
 
 FRAME = "map"

@@ -1,4 +1,4 @@
-"""The container of a recording, chosen by ROS distro (helpers of :mod:`toaster.recording`).
+"""The container of a recording, chosen by ROS distro (helpers of :mod:`toaster.outputs.recording`).
 
 * ROS 2 distros (humble, iron, jazzy, kilted): a rosbag2 directory holding one MCAP file and a
   ``metadata.yaml`` of the version that distro's ``ros2 bag`` writes (and the newest it reads),

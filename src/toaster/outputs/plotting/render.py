@@ -1,4 +1,5 @@
-"""Drawing a :class:`~toaster.plotting.timeline.Timeline` with matplotlib (the ``plot`` extra).
+"""Drawing a :class:`~toaster.outputs.plotting.timeline.Timeline` with matplotlib (the ``plot``
+extra).
 
 One panel per fact, one row per agent. A bar is a held value (its colour is the value, its
 opacity and the thin black line inside it the confidence); red hatching marks a false belief
@@ -15,7 +16,7 @@ from collections.abc import Callable
 from typing import Any
 
 from toaster.extras import require
-from toaster.plotting.timeline import FALSE_BELIEF, Lane, Timeline, legend_notes, panels
+from toaster.outputs.plotting.timeline import FALSE_BELIEF, Lane, Timeline, legend_notes, panels
 from toaster.quoting import mpl_text, visible
 from toaster.timeutil import NS_PER_S
 
@@ -54,7 +55,7 @@ def render(timeline: Timeline, *, title: str | None = None, numbers: str = "both
     start (:attr:`Timeline.axis`) and the numbers (NaN: the fact does not hold).
     ``on_panel(done, total)`` is called after each panel is drawn. The legend says what the
     hatching and dots mean and what each nested holder ``A>B`` plotted is
-    (:func:`~toaster.plotting.timeline.legend_notes`). Ids and values show as they are
+    (:func:`~toaster.outputs.plotting.timeline.legend_notes`). Ids and values show as they are
     (:func:`~toaster.quoting.mpl_text`); ``title`` is matplotlib text (``$...$`` is math).
     """
     figure_cls = _matplotlib()

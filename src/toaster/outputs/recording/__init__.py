@@ -11,16 +11,16 @@ Foxglove and Lichtblick open the ``.mcap`` (or the ``.bag``) directly; ``ros2 ba
 * ``/pdg/humanList``, ``/pdg/robotList``, ``/pdg/objectList`` (``toaster_msgs``): the entities
   as pdg publishes them, joints as skeleton joints;
 * ``/toaster/entities`` and ``/toaster/areas`` (``visualization_msgs/MarkerArray``): shapes
-  drawn by :mod:`toaster.ros1.markers` (real sizes, circles, owner-relative areas);
+  drawn by :mod:`toaster.outputs.markers` (real sizes, circles, owner-relative areas);
 * ``/area_manager/areaList`` (``toaster_msgs/AreaList``): the areas and who is inside;
 * ``/<producer>/factList`` (``toaster_msgs/FactList``): the self agent's facts of pdg,
   area_manager, agent_monitor and move3d_facts whenever they changed (from the store);
 * ``/toaster/beliefs/<holder>`` (``toaster_recording/Beliefs``): everything each agent (and
-  nested holder) believes, whenever it changed (:mod:`toaster.recording_beliefs`);
+  nested holder) believes, whenever it changed (:mod:`toaster.outputs.recording.beliefs`);
 * ``/toaster/facts`` (``Log``): one line per belief change (an event).
 
 Poses are not in the fact store: callers hand :func:`record` (or :class:`Recorder`) frames
-``(t_ns, entities, areas)`` (:mod:`toaster.recording_input`).
+``(t_ns, entities, areas)`` (:mod:`toaster.outputs.recording.input`).
 """
 
 from __future__ import annotations
@@ -32,26 +32,7 @@ from typing import Any, NamedTuple
 
 from toaster.errors import InvalidInputError
 from toaster.model import EventRow, Fact, FactRow
-from toaster.quoting import ros_name
-from toaster.recording_beliefs import (
-    BELIEFS_TYPE,
-    BeliefTimeline,
-    beliefs_types,
-    chain,
-    holder_topic,
-)
-from toaster.recording_formats import BagWriter, bag_format, toaster_spelling
-from toaster.recording_input import (  # noqa: F401  (the input types, re-exported)
-    AreaOutline,
-    AreaSpec,
-    Frame,
-    area_spec,
-    check_frames,
-    entity_poses,
-    read_frames,
-)
-from toaster.recording_msgs import EntityPose, FactTimeline, Messages, Scene, toaster_types
-from toaster.ros1.markers import (  # noqa: F401  (re-exported marker constants)
+from toaster.outputs.markers import (  # noqa: F401  (re-exported marker constants)
     ADD,
     ARROW,
     CUBE,
@@ -62,6 +43,25 @@ from toaster.ros1.markers import (  # noqa: F401  (re-exported marker constants)
     SPHERE_LIST,
     TEXT,
 )
+from toaster.outputs.recording.beliefs import (
+    BELIEFS_TYPE,
+    BeliefTimeline,
+    beliefs_types,
+    chain,
+    holder_topic,
+)
+from toaster.outputs.recording.formats import BagWriter, bag_format, toaster_spelling
+from toaster.outputs.recording.input import (  # noqa: F401  (the input types, re-exported)
+    AreaOutline,
+    AreaSpec,
+    Frame,
+    area_spec,
+    check_frames,
+    entity_poses,
+    read_frames,
+)
+from toaster.outputs.recording.msgs import EntityPose, FactTimeline, Messages, Scene, toaster_types
+from toaster.quoting import ros_name
 
 __all__ = ["EntityPose", "Frame", "Recorder", "RecordingResult", "event_line", "read_frames",
            "record"]
@@ -98,8 +98,8 @@ class Recorder:
 
     ``distro`` (humble, iron, jazzy, kilted; noetic for a ROS 1 ``.bag``; default noetic when
     ``path`` ends in ``.bag``, else humble) names the message definitions and the container
-    (:mod:`toaster.recording_formats`: a rosbag2 folder with the metadata version that distro
-    writes). ``toaster_names`` spells toaster_msgs' fields as ROS 2 requires (``ros2``, the
+    (:mod:`toaster.outputs.recording.formats`: a rosbag2 folder with the metadata version that
+    distro writes). ``toaster_names`` spells toaster_msgs' fields as ROS 2 requires (``ros2``, the
     default of ROS 2 bags: decoded by Foxglove and rosidl tools) or as the original (``ros1``,
     the only spelling of ROS 1 bags); ``toaster run`` reads both.
     """
@@ -162,7 +162,7 @@ class Recorder:
     def _write_areas(self, t_ns: int) -> None:
         """The markers; the area list too when areas or occupants changed (it holds
         owner-relative areas in their owner's frame)."""
-        from toaster.ros1.mapping import area_fields
+        from toaster.world.rosmsg import area_fields
 
         occupied = {area for area, inside in self._inside.items() if inside}
         drawn = self.scene.area_markers(self.areas, occupied, t_ns)
@@ -227,7 +227,7 @@ def _fact_items(facts: Iterable[Fact | FactRow], t_ns: int
                 ) -> tuple[list[Fact], list[dict[str, Any]]]:
     """The facts and their toaster_msgs/Fact fields at ``t_ns`` (a FactRow's start as
     ``timeStart``)."""
-    from toaster.ros1.mapping import fact_fields
+    from toaster.world.rosmsg import fact_fields
 
     rows = list(facts)
     held = [row if isinstance(row, Fact) else row.to_fact() for row in rows]
@@ -268,7 +268,7 @@ def record(path: str | Path, frames: Iterable[Frame | Sequence[Any]], *, db: Any
     lo = since if since is not None else (frame_list[0].t_ns if frame_list else None)
     hi = until if until is not None else (frame_list[-1].t_ns if frame_list else None)
     if db is not None:
-        from toaster.export import select_rows
+        from toaster.outputs.export import select_rows
 
         events = select_rows(db, "events", agent=agent, since=lo, until=hi)  # type: ignore[assignment]
         timeline = FactTimeline.from_db(db, lo, hi)

@@ -18,7 +18,7 @@ from dataclasses import replace
 from typing import NamedTuple
 
 from toaster.errors import InvalidInputError
-from toaster.plotting.timeline import FALSE_BELIEF, Lane, Timeline
+from toaster.outputs.plotting.timeline import FALSE_BELIEF, Lane, Timeline
 
 #: Facts a plot shows by default (``max_facts``; None or 0: all).
 MAX_FACTS = 20

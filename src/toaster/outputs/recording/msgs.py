@@ -1,7 +1,7 @@
-"""What a recording holds, as rosbags messages (helpers of :mod:`toaster.recording`).
+"""What a recording holds, as rosbags messages (helpers of :mod:`toaster.outputs.recording`).
 
-* :class:`Messages` turns the plain field dicts of :mod:`toaster.ros1.markers` and
-  :mod:`toaster.ros1.mapping` into messages of a rosbags typestore (missing fields at zero);
+* :class:`Messages` turns the plain field dicts of :mod:`toaster.outputs.markers` and
+  :mod:`toaster.world.rosmsg` into messages of a rosbags typestore (missing fields at zero);
 * :class:`Scene` keeps the recorded entities in a :class:`~toaster.world.state.World` (poses
   set, never simulated), so that the live bridge's code draws them: one definition of frame
   names, shapes, sizes and colours;
@@ -20,9 +20,9 @@ from typing import Any
 import numpy as np
 
 from toaster.model import FactRow
+from toaster.outputs import markers
 from toaster.producers.registry import NAMES as PRODUCERS
-from toaster.ros1 import markers
-from toaster.ros1.mapping import strip_frame
+from toaster.world.rosmsg import strip_frame
 from toaster.world.state import EntityPose, World
 
 TIME = "builtin_interfaces/msg/Time"
@@ -35,7 +35,7 @@ def toaster_types(names: str = "ros1") -> dict[str, Any]:
     """toaster_msgs as rosbags types: the original's field names (``ros1``: ``humanList``, what
     ``toaster run`` reads back) or ROS 2 ones (``ros2``: ``human_list``, as rosidl and Foxglove
     require of ROS 2 interfaces; same CDR layout; checked by
-    :func:`toaster.recording_formats.toaster_spelling`)."""
+    :func:`toaster.outputs.recording.formats.toaster_spelling`)."""
     from toaster.world.bags import toaster_types as shipped
 
     types = shipped()
@@ -128,7 +128,7 @@ class Scene:
 
     def update(self, t_ns: int, poses: Sequence[EntityPose]) -> None:
         """Make the world hold exactly ``poses`` (agents before joints; owners are checked by
-        :func:`toaster.recording.entity_poses`)."""
+        :func:`toaster.outputs.recording.entity_poses`)."""
         world = self.world
         world.active[: world.n] = False
         world.held_by[: world.n] = -1
