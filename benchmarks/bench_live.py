@@ -33,7 +33,7 @@ import numpy as np
 import toaster
 from bench_run import Database
 from live_scene import human_pose, joint_offsets, object_pose, zone
-from toaster.live import LiveNode
+from toaster.node import LiveNode
 from toaster.queries import watch
 from toaster.ros1.core import RosCore
 

@@ -14,6 +14,7 @@ if TYPE_CHECKING:  # what the lazy names below are, for type checkers
     from toaster import beliefs as beliefs
     from toaster import errors as errors
     from toaster import queries as queries
+    from toaster.app.session import connect as connect
     from toaster.beliefs.api import BeliefDiff as BeliefDiff
     from toaster.beliefs.api import belief_history as belief_history
     from toaster.beliefs.api import belief_value as belief_value
@@ -29,12 +30,11 @@ if TYPE_CHECKING:  # what the lazy names below are, for type checkers
     from toaster.model import FactRow as FactRow
     from toaster.model import OntologyRow as OntologyRow
     from toaster.model import PropertyRow as PropertyRow
-    from toaster.session import connect as connect
 
 __version__ = "0.1.0"
 
 _HOMES = {
-    "connect": "toaster.session", "Database": "toaster.db", "Store": "toaster.db",
+    "connect": "toaster.app.session", "Database": "toaster.db", "Store": "toaster.db",
     "Fact": "toaster.model", "FactRow": "toaster.model", "EventRow": "toaster.model",
     "Entity": "toaster.model", "Agent": "toaster.model", "OntologyRow": "toaster.model",
     "PropertyRow": "toaster.model", "ToasterError": "toaster.errors",

@@ -5,8 +5,8 @@ A package declares its names twice, and ``tests/test_front_door.py`` checks both
 in a mapping name -> defining module given to :func:`exports` (what runs)::
 
     if TYPE_CHECKING:
-        from toaster.session import connect as connect
-    _HOMES = {"connect": "toaster.session"}
+        from toaster.app.session import connect as connect
+    _HOMES = {"connect": "toaster.app.session"}
     __all__ = sorted(_HOMES)
     if not TYPE_CHECKING:  # hidden from type checkers: a misspelt name stays an error
         __getattr__, __dir__ = exports(__name__, _HOMES)

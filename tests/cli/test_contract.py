@@ -94,7 +94,7 @@ def seed(url: str) -> None:
     """Sally-Anne replayed (agents, holders, beliefs, memory, events), two facts that differ
     only by sub-property, ontology, properties, areas and streams."""
     from toaster.beliefs.scenario import replay_and_check
-    from toaster.live import control
+    from toaster.node import control
 
     db = toaster.connect(url)
     try:

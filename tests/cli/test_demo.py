@@ -13,8 +13,8 @@ from click.testing import CliRunner
 import toaster
 from tests.conftest import count
 from toaster import Fact
+from toaster.app.demo import SALLY, run_demo
 from toaster.cli import cli
-from toaster.demo import SALLY, run_demo
 
 S = 1_000_000_000
 #: From the scenario's timeline: Anne moves the marble into the box at 6.4 s, out of Sally's

@@ -4,7 +4,7 @@ database layer imports nothing from the layers above it (tests/test_architecture
 from __future__ import annotations
 
 import toaster
-from toaster import session
+from toaster.app import session
 from toaster.db import open_database
 from toaster.rules.hook import BeliefRule
 

@@ -14,8 +14,8 @@ import toaster
 from tests.live.test_node import Clock, walk
 from toaster import queries as q
 from toaster.errors import UnknownEntityError
-from toaster.live import LiveNode, control
-from toaster.live.stats import LiveStats
+from toaster.node import LiveNode, control
+from toaster.node.stats import LiveStats
 from toaster.world.drops import MAX_KEYS, Drops
 
 
@@ -153,7 +153,7 @@ def test_the_window_line_has_the_format_benchmarks_parse():
 def test_a_window_longer_than_it_keeps_counts_every_tick(monkeypatch):
     """A status window keeps only the newest durations (memory stays bounded with the status
     line off), but counts every tick and keeps the longest, however long ago it came."""
-    monkeypatch.setattr("toaster.live.stats.WINDOW_TICKS", 10)
+    monkeypatch.setattr("toaster.node.stats.WINDOW_TICKS", 10)
     stats = LiveStats()
     stats.window_start = 0.0
     for ms in [900.0] + [2.0] * 99:

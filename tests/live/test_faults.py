@@ -26,9 +26,9 @@ import toaster
 from tests.conftest import PG_URL, count, pg_schema
 from tests.live.test_node import ROOM, TICK, Clock, stored, walk
 from toaster.db.engine import make_engine
-from toaster.live import LiveNode
-from toaster.live.faults import GAP_PROPERTY, Backoff, classify
 from toaster.model import Fact
+from toaster.node import LiveNode
+from toaster.node.faults import GAP_PROPERTY, Backoff, classify
 from toaster.queries import events
 
 WAIT_S = 60.0
@@ -245,7 +245,7 @@ def test_a_producer_that_raises_every_tick_leaves_its_facts_and_the_others_go_on
     walk(node, clock, 5)
     assert stored(db, "IsFlaky") == {("cup", "")}
     flaky.broken = True
-    with caplog.at_level(logging.WARNING, logger="toaster.live"):
+    with caplog.at_level(logging.WARNING, logger="toaster.node"):
         facts = walk(node, clock, 20, x0=0.2)
     assert node.stats.ticks == 25  # every tick stored, without the broken producer
     assert "flaky" not in facts and ("bob", "IsMoving", "") in {
@@ -262,7 +262,7 @@ def test_a_producer_that_raises_every_tick_leaves_its_facts_and_the_others_go_on
     assert "Traceback" not in caplog.text
     flaky.broken = False
     caplog.clear()
-    with caplog.at_level(logging.WARNING, logger="toaster.live"):
+    with caplog.at_level(logging.WARNING, logger="toaster.node"):
         walk(node, clock, 1, x0=0.9)
     assert "producer flaky works again after 20 failures" in caplog.text
     assert node.faults.gaps == 0 and gaps(db) == []

@@ -12,8 +12,8 @@ import sqlalchemy as sa
 import toaster
 from toaster.db.database import Database
 from toaster.db.maintenance import Maintainer
-from toaster.live import LiveNode
-from toaster.live.node import LIVE_PAGE_CACHE_KIB
+from toaster.node import LiveNode
+from toaster.node.live_node import LIVE_PAGE_CACHE_KIB
 
 WAIT_S = 120.0
 

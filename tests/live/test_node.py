@@ -11,7 +11,7 @@ import pytest
 import toaster
 from tests.conftest import count
 from toaster.errors import InvalidInputError
-from toaster.live import LiveNode, control
+from toaster.node import LiveNode, control
 from toaster.queries import current_facts
 
 TICK = 33_333_333

@@ -227,9 +227,9 @@ def test_unfiltered_plot_of_a_large_replay_is_capped(db_url: str, tmp_path: Path
     from click.testing import CliRunner
 
     from tests.conftest import shared_data
+    from toaster.app.runs import run_file
     from toaster.cli.plot import plot_facts as command
     from toaster.outputs.plotting import MAX_FACTS
-    from toaster.runs import run_file
 
     obsmat = shared_data("eth-ucy-opentraj", "ETH", "seq_hotel", "obsmat.txt")
     db = toaster.connect(db_url)

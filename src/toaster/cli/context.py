@@ -60,7 +60,7 @@ class AppContext:
     def db(self) -> Database:
         """The database, created and migrated on first use when it is new."""
         if self._db is None:
-            from toaster.session import connect
+            from toaster.app.session import connect
 
             self._db = connect(self.url)
         return self._db

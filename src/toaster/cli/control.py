@@ -1,5 +1,5 @@
 """Control a running node (or the next one) through the database: monitored agents, streams,
-held objects, entities, and on-request queries (:mod:`toaster.live.control`)."""
+held objects, entities, and on-request queries (:mod:`toaster.node.control`)."""
 
 from __future__ import annotations
 
@@ -37,7 +37,7 @@ def monitor() -> None:
 @click.pass_obj
 def monitor_add(app: Any, agent: str, joints: tuple[str, ...]) -> None:
     """Monitor AGENT (add_agent; --joint: add_joint_to_agent)."""
-    from toaster.live import control
+    from toaster.node import control
 
     _show_monitor(control.monitor_add(app.db, agent, joints))
 
@@ -48,7 +48,7 @@ def monitor_add(app: Any, agent: str, joints: tuple[str, ...]) -> None:
 @click.pass_obj
 def monitor_remove(app: Any, agent: str, joint: str | None) -> None:
     """Stop monitoring AGENT (remove_agent) or one of its joints (remove_joint_to_agent)."""
-    from toaster.live import control
+    from toaster.node import control
 
     _show_monitor(control.monitor_remove(app.db, agent, joint))
 
@@ -59,7 +59,7 @@ def monitor_remove(app: Any, agent: str, joint: str | None) -> None:
 @click.pass_obj
 def monitor_all(app: Any, which: str, off: bool) -> None:
     """Monitor every human / robot / agent, also those that appear later (monitor_all_*)."""
-    from toaster.live import control
+    from toaster.node import control
 
     _show_monitor(control.monitor_all(app.db, which, on=not off))
 
@@ -70,7 +70,7 @@ def monitor_all(app: Any, which: str, off: bool) -> None:
 @click.pass_obj
 def monitor_clear(app: Any, joints_only: bool) -> None:
     """Monitor nobody (remove_all_agents)."""
-    from toaster.live import control
+    from toaster.node import control
 
     _show_monitor(control.monitor_clear(app.db, joints_only))
 
@@ -79,7 +79,7 @@ def monitor_clear(app: Any, joints_only: bool) -> None:
 @click.pass_obj
 def monitor_list(app: Any) -> None:
     """Show what is monitored."""
-    from toaster.live import control
+    from toaster.node import control
 
     with app.db.transaction() as conn:
         _show_monitor(control.read_state(conn))
@@ -93,7 +93,7 @@ def monitor_list(app: Any) -> None:
 def stream(app: Any, name: str | None, state: str | None, fmt: str | None,
            limit: int | None) -> None:
     """Switch input stream NAME on or off (manage_stream); no arguments: list them."""
-    from toaster.live import control
+    from toaster.node import control
 
     if name is None or state is None:
         if name is not None:
@@ -120,7 +120,7 @@ def hand() -> None:
 @click.pass_obj
 def hand_put(app: Any, object_id: str, agent: str, joint: str) -> None:
     """OBJECT follows AGENT's hand joint until removed."""
-    from toaster.live import control
+    from toaster.node import control
 
     control.put_in_hand(app.db, object_id, agent, joint)
     click.echo(f"{object_id} in {agent}'s {joint}")
@@ -131,7 +131,7 @@ def hand_put(app: Any, object_id: str, agent: str, joint: str) -> None:
 @click.pass_obj
 def hand_remove(app: Any, object_id: str) -> None:
     """Release OBJECT; it stays where it last was."""
-    from toaster.live import control
+    from toaster.node import control
 
     with app.db.transaction() as conn:  # checked first: a failed command writes nothing
         held = object_id in control.read_state(conn).in_hand
@@ -158,8 +158,8 @@ def entity() -> None:
 def entity_pose(app: Any, entity_id: str, position: tuple[float, ...], yaw: float,
                 quat: tuple[float, float, float, float] | None, kind: str) -> None:
     """Set ID's pose to X Y [Z] (set_entity_pose); applied by the running node or the next."""
-    from toaster.live import control
     from toaster.model import MAX_COORD
+    from toaster.node import control
     from toaster.world.live import quaternion_to_rpy
 
     if len(position) not in (2, 3):
@@ -187,7 +187,7 @@ def entity_pose(app: Any, entity_id: str, position: tuple[float, ...], yaw: floa
 @click.pass_obj
 def entity_add(app: Any, entity_id: str, kind: str, owner: str) -> None:
     """Add entity ID to the running node (add_entity)."""
-    from toaster.live import control
+    from toaster.node import control
 
     control.submit(app.db, "add_entity", {"id": entity_id, "kind": kind, "owner_id": owner})
     click.echo(f"entity {entity_id} sent")
@@ -198,7 +198,7 @@ def entity_add(app: Any, entity_id: str, kind: str, owner: str) -> None:
 @click.pass_obj
 def entity_remove(app: Any, entity_id: str) -> None:
     """Remove entity ID (remove_entity)."""
-    from toaster.live import control
+    from toaster.node import control
 
     control.submit(app.db, "remove_entity", {"id": entity_id})
     click.echo(f"removal of {entity_id} sent")
@@ -214,7 +214,7 @@ def entity_remove(app: Any, entity_id: str) -> None:
 def pointing_cmd(app: Any, agent: str, joint: str, ago: str | None, timeout: float) -> None:
     """What AGENT points at, best first (asks the running node)."""
     from toaster.cli.checks import parse_duration_option
-    from toaster.live import control
+    from toaster.node import control
     from toaster.timeutil import check_ns, now_ns
 
     args: dict[str, Any] = {"agent": agent, "joint": joint}
@@ -239,7 +239,7 @@ def pointing_cmd(app: Any, agent: str, joint: str, ago: str | None, timeout: flo
 def relative_position(app: Any, subject: str, target: str, viewer: str | None,
                       timeout: float) -> None:
     """Where TARGET is for SUBJECT: front, left, back, right (asks the running node)."""
-    from toaster.live import control
+    from toaster.node import control
 
     if viewer is None:
         answer = control.ask(app.db, "get_relative_position",

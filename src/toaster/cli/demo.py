@@ -1,4 +1,4 @@
-"""``toaster demo``: the whole job on the spatial Sally-Anne scenario (:mod:`toaster.demo`)."""
+"""``toaster demo``: the whole job on the spatial Sally-Anne scenario (:mod:`toaster.app.demo`)."""
 
 from __future__ import annotations
 
@@ -25,8 +25,8 @@ def demo(app: Any, picture: Path) -> None:
     toaster.db; recreated on every run) or into --db, which must hold no facts, and tells
     what happened.
     """
-    from toaster.demo import check_picture, run_demo
-    from toaster.session import connect
+    from toaster.app.demo import check_picture, run_demo
+    from toaster.app.session import connect
 
     check_picture(picture)
     if app.url is None:

@@ -25,7 +25,7 @@ def _export(kw: dict[str, Any]) -> list[Need]:
 
 
 def _run(kw: dict[str, Any]) -> list[Need]:
-    from toaster.runs import needed_extras
+    from toaster.app.runs import needed_extras
 
     return needed_extras(kw["path"], kw["record_dir"])
 

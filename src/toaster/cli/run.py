@@ -1,4 +1,4 @@
-"""``toaster run`` (an input file into the store: :func:`toaster.runs.run_file`), ``toaster
+"""``toaster run`` (an input file into the store: :func:`toaster.app.runs.run_file`), ``toaster
 area`` (areas kept in the database) and ``toaster relpos``."""
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ def run(app: Any, path: Path, rate: float | None, until: str | None, realtime: b
     Areas stored in the database are added to the file's; the file's areas are stored.
     Same input into a fresh database gives the same facts and events.
     """
-    from toaster.runs import check_run, run_file
+    from toaster.app.runs import check_run, run_file
     from toaster.world.config import read_config_file
 
     rate = check_run(path, record_dir=record_dir, rate_hz=rate)  # before the database opens

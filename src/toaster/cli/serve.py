@@ -1,4 +1,4 @@
-"""``toaster serve``: a live node beside a robot (the loop lives in :mod:`toaster.live`)."""
+"""``toaster serve``: a live node beside a robot (the loop lives in :mod:`toaster.node`)."""
 
 from __future__ import annotations
 
@@ -44,8 +44,8 @@ def serve(app: Any, rate: float, config_file: Path | None, self_id: str, holders
     `toaster relative-position`. Stops cleanly on Ctrl-C or SIGTERM (the last tick is stored
     whole or not at all); started again on the same database, it carries on.
     """
-    from toaster.live import LiveNode
-    from toaster.live import serve as serve_node
+    from toaster.node import LiveNode
+    from toaster.node import serve as serve_node
     from toaster.timeutil import check_rate, check_seconds
 
     rate = check_rate(rate, "--rate")
@@ -66,7 +66,7 @@ def serve(app: Any, rate: float, config_file: Path | None, self_id: str, holders
     logging.basicConfig(stream=sys.stderr, level=logging.WARNING,
                         format="toaster serve: %(message)s")
     # status lines at INFO on a handler of their own (rospy's set-up raises the root's level)
-    status = logging.getLogger("toaster.live.status")
+    status = logging.getLogger("toaster.node.status")
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter("toaster serve: %(message)s"))
     status.addHandler(handler)

@@ -1,7 +1,7 @@
 """The temporal fact store: schema, migrations and the write path.
 
 It imports nothing from the layers above it (beliefs, queries, the command line, the live
-node, the world): :func:`toaster.connect` (:mod:`toaster.session`) gives its store the rules.
+node, the world): :func:`toaster.connect` (:mod:`toaster.app.session`) gives its store the rules.
 Its names load on first use (SQLAlchemy and Alembic are not imported by ``toaster --help``).
 """
 

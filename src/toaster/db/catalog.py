@@ -411,7 +411,7 @@ def entity_exists(conn: Connection, entity_id: str) -> bool:
     return conn.execute(query).first() is not None
 
 
-# -- control plane (revision 0005; see toaster.live.control) ---------------------------------
+# -- control plane (revision 0005; see toaster.node.control) ---------------------------------
 CONTROL_CHANNEL = "toaster_control"
 
 

@@ -36,7 +36,7 @@ class Database:
 
     ``rules`` make the rules its :meth:`store` runs on every fact write, each called once with
     that store; the database layer knows none of them (:func:`toaster.connect`, the
-    composition root in :mod:`toaster.session`, hands it the belief rule).
+    composition root in :mod:`toaster.app.session`, hands it the belief rule).
     """
 
     def __init__(self, engine: Engine, url: str, *, rules: Sequence[RuleFactory] = ()) -> None:

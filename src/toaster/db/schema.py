@@ -39,7 +39,7 @@ Tables
                 (areas, monitored agents, streams, held objects, commands; revision 0005).
 ``control_commands`` one-shot requests to a running node (set an entity's pose, pointing,
                 relative positions) with their answers; pending ones wait for the next node
-                (revision 0005, see :mod:`toaster.live.control`).
+                (revision 0005, see :mod:`toaster.node.control`).
 ``rule_writer`` SQLite: the store's writer role for one transaction; the guard triggers of
                 the tables above that only the store and the rule write refuse anyone else
                 (revision 0006, :data:`toaster.db.dialects.GUARDED_TABLES`).

@@ -453,7 +453,7 @@ class _Output:
 def start_bridge(node: Any, *, node_name: str = "toaster", tf_map: str | Path | Mapping[
         str, Any] | None = None, pose_topics: Mapping[str, Any] | None = None,
                  publish_tf: bool = True, markers: bool = True, **options: Any) -> Bridge:
-    """Connect a :class:`~toaster.live.LiveNode` to ROS 1 (a roscore must be running).
+    """Connect a :class:`~toaster.node.LiveNode` to ROS 1 (a roscore must be running).
 
     ``tf_map``: frame -> {id, kind, owner?, joint?} (a YAML/JSON file or a mapping) for
     ``/tf``; ``pose_topics``: PoseStamped topic -> "id[:kind]". Other options:

@@ -17,8 +17,8 @@ from sqlalchemy import text
 from toaster import queries as q
 from toaster.db import catalog
 from toaster.errors import InvalidInputError
-from toaster.live import control
 from toaster.model import Entity, EventRow, Fact, FactRow
+from toaster.node import control
 from toaster.world.rosmsg import fact_fields, fact_from_msg
 
 AREA_SCOPE, AREA_KEY = "ros1", "area_ids"  # {area name: the original's numeric id}

@@ -2,7 +2,7 @@
 
 Handlers run on rospy's threads, so they never touch the node's world or its database
 handle: each call borrows a connection of its own (:class:`DbPool`); queries about the world
-go through :func:`toaster.live.control.ask`, which the node answers between two ticks. A bad
+go through :func:`toaster.node.control.ask`, which the node answers between two ticks. A bad
 request gives one warning line and a failed answer (``answer``/``boolAnswer`` false, or a
 service error for the services whose response is empty), never an exception in the node.
 """
@@ -16,8 +16,8 @@ from contextlib import contextmanager
 from typing import Any
 
 from toaster.errors import InvalidInputError
-from toaster.live import control
 from toaster.model import MAX_COORD, check_agent_id, check_id, shown
+from toaster.node import control
 from toaster.quoting import shell_word, visible
 from toaster.ros1 import dbcalls
 from toaster.ros1.messages import to_msg
@@ -53,7 +53,7 @@ class DbPool:
     @contextmanager
     def db(self) -> Iterator[Any]:
         """Borrow a connection."""
-        from toaster.session import connect
+        from toaster.app.session import connect
 
         with self._lock:
             db = self._free.pop() if self._free else None

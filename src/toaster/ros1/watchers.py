@@ -36,9 +36,9 @@ class Watchers:
 
     def open(self, agent: str, subject: str, prop: str, target: str) -> str:
         """Start publishing the events that match; return the topic."""
+        from toaster.app.session import connect
         from toaster.queries import watch
         from toaster.ros1.messages import to_msg
-        from toaster.session import connect
 
         topic = f"{TOPIC_PREFIX}{len(self.publishers)}"
         cls = self.registry.msg("BeliefEvent")

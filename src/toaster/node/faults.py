@@ -1,4 +1,4 @@
-"""What a live node does when part of a tick fails (used by :mod:`toaster.live.node`).
+"""What a live node does when part of a tick fails (used by :mod:`toaster.node.live_node`).
 
 Every error inside a tick is contained: the tick's transaction is rolled back, the error is
 classified (:func:`classify`), logged once (:class:`Faults`: one line, again at most once a
@@ -56,7 +56,7 @@ RECONNECT_KINDS = frozenset({CONNECTION, DATABASE})
 #: The property of the gap events (one per outage, of the self agent, about itself).
 GAP_PROPERTY = "RecordingGap"
 #: The source of the gap events.
-GAP_SOURCE = "toaster.live"
+GAP_SOURCE = "toaster.node"
 #: Seconds between two log lines about one lasting fault.
 REPEAT_LOG_S = 60.0
 

@@ -5,7 +5,7 @@ rules give Sally her own beliefs, false once Anne moves the marble out of her si
 query on the belief tables shows it; a timeline picture draws it.
 
 >>> import toaster
->>> from toaster.demo import run_demo                                  # doctest: +SKIP
+>>> from toaster.app.demo import run_demo                                  # doctest: +SKIP
 >>> with toaster.connect("sqlite:///sally.db") as db:                  # doctest: +SKIP
 ...     print(run_demo(db, "sally.png").story())
 """
@@ -118,7 +118,7 @@ def run_demo(db: Database, picture: str | Path, *, time_style: str = "auto",
     from sqlalchemy.engine import make_url
 
     from toaster import queries as q
-    from toaster.runs import run_file
+    from toaster.app.runs import run_file
 
     where = make_url(db.url).render_as_string(hide_password=True)
     picture = check_picture(picture)

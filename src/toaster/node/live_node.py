@@ -9,7 +9,7 @@ never queues input (sources keep the newest pose per entity), counts ticks that 
 period, and stops between two ticks when asked (SIGINT/SIGTERM in :func:`serve`): the last
 tick is committed whole or not at all. A restart on the same database carries on: entities,
 areas and control state are read back, and the store's open intervals continue. No error
-inside a tick stops the node: :mod:`toaster.live.faults` says what happens instead.
+inside a tick stops the node: :mod:`toaster.node.faults` says what happens instead.
 """
 
 from __future__ import annotations
@@ -25,10 +25,10 @@ from typing import Any, Protocol
 from toaster.db import catalog
 from toaster.db.maintenance import Maintainer
 from toaster.errors import InvalidInputError, ToasterError, UnknownEntityError
-from toaster.live import control
-from toaster.live.faults import GAP_SOURCE, RECONNECT_KINDS, Faults
-from toaster.live.stats import LiveStats
 from toaster.model import Fact, shown
+from toaster.node import control
+from toaster.node.faults import GAP_SOURCE, RECONNECT_KINDS, Faults
+from toaster.node.stats import LiveStats
 from toaster.producers.areas import AreaManager, multiple_relative_position, relative_position
 from toaster.producers.batch import FactBatch
 from toaster.producers.monitor import AgentMonitor, pointing
@@ -47,9 +47,9 @@ from toaster.world.drops import Drops
 from toaster.world.live import LiveSource, check_entity
 from toaster.world.state import World
 
-log = logging.getLogger("toaster.live")
+log = logging.getLogger("toaster.node")
 #: the periodic status lines (``toaster serve`` shows them at INFO)
-status_log = logging.getLogger("toaster.live.status")
+status_log = logging.getLogger("toaster.node.status")
 
 
 #: the page cache of the node's SQLite connections, KiB: a scene of tens of entities ticks as
@@ -316,13 +316,13 @@ class LiveNode:
     def tick(self, t_ns: int | None = None) -> dict[str, list[Fact]]:
         """One tick at ``t_ns`` (default: now); returns the facts per producer, none when
         the tick was not stored. It never raises: a failed tick is rolled back and handled
-        as :mod:`toaster.live.faults` says (logged once, a new connection after a database
+        as :mod:`toaster.node.faults` says (logged once, a new connection after a database
         fault, the gap recorded once a tick is stored again)."""
         t = max(now_ns() if t_ns is None else t_ns, self._last_t + 1)  # time only moves on
         self._last_t = t
         try:
             return self._tick(t)
-        except Exception as exc:  # contained: see toaster.live.faults
+        except Exception as exc:  # contained: see toaster.node.faults
             if self.faults.tick_failed(exc, t) in RECONNECT_KINDS:
                 self._reconnect()
             return {}
@@ -406,7 +406,7 @@ class LiveNode:
         becomes a fact in one tick's computation time instead of waiting up to a period.
         A tick that takes longer than the period counts as an overrun; the next one may start
         at once (no burst of catch-up ticks). After a tick that failed on a database fault the
-        next attempt waits for the backoff (:mod:`toaster.live.faults`), or for ``stop``.
+        next attempt waits for the backoff (:mod:`toaster.node.faults`), or for ``stop``.
         Every ``maintain_every_s`` seconds the database is maintained on a thread and
         connection of its own (:mod:`toaster.db.maintenance`), never between two ticks, where
         it stalled the node. Every ``status_every_s`` seconds (0: never) a status line is
