@@ -373,7 +373,7 @@ def test_serve_heals_when_the_server_comes_back_and_sigterm_during_an_outage_sto
                 time.sleep(0.5)  # a few refused attempts (not a measure: any number will do)
                 proxy.up()
                 wait_for(lambda: len(gaps(db)) == 1, "the gap event")
-                assert err.count("ticks stored again") == 1
+                wait_for(lambda: err.count("ticks stored again") == 1, "the healed line")
                 proxy.down()
                 wait_for(lambda: err.count("tick not stored") == 2, "the second outage")
             node.send_signal(signal.SIGTERM)
