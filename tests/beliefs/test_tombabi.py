@@ -1,12 +1,12 @@
 """ToM-bAbI stories replayed through the public API on both backends (a sample per file;
-`python -m toaster.beliefs.tombabi` runs all of them)."""
+`python -m tools.tombabi` runs all of them)."""
 
 from __future__ import annotations
 
 import pytest
+from tools import tombabi
 
 from tests.conftest import shared_data
-from toaster.beliefs import tombabi
 
 
 @pytest.mark.shared_data

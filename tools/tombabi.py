@@ -5,7 +5,7 @@ Each story becomes scenario steps (``X entered the R`` -> IsInRoom, ``The O is i
 answered with :mod:`toaster.beliefs.api`: first order from the agent's beliefs, second order from
 the nested holder ``A>B``, reality from the self agent, memory from the self agent's history.
 The perceivers the rules infer (agents with a belief event at the line's time) are compared
-with the observer ids of each line. Run: ``python -m toaster.beliefs.tombabi [ZIP] [--limit N]``.
+with the observer ids of each line. Run: ``python -m tools.tombabi [ZIP] [--limit N]``.
 """
 
 from __future__ import annotations
@@ -171,7 +171,7 @@ def evaluate(zip_path: Path, url: str, *, limit: int | None = None,
 def main(argv: list[str]) -> int:
     """Print the accuracy table per set and question type."""
     if "--help" in argv or "-h" in argv:
-        print("usage: python -m toaster.beliefs.tombabi [ZIP] [--limit N] [--db URL]")
+        print("usage: python -m tools.tombabi [ZIP] [--limit N] [--db URL]")
         return 0
     zip_path = Path(argv[0]) if argv and not argv[0].startswith("--") else Path(
         "../shared/data/tom-babi/tom_easy.zip")

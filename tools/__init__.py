@@ -1,0 +1,1 @@
+"""Programs that are not the library: they use toaster as its users do."""
