@@ -282,7 +282,7 @@ def views(backend: str) -> list[tuple[str, str]]:
     """The readable views (name, body): own rows, then followed periods as the holders' rows.
 
     Migrations freeze these bodies (a revision never imports live view text);
-    ``tests/beliefs/test_sqltext.py`` checks that the database's views are these."""
+    ``tests/rules/test_sqltext.py`` checks that the database's views are these."""
     followed = expand(_FOLLOWED_FACTS, backend)
     return [
         ("fact_history", f"{_OWN} UNION ALL {followed}"),

@@ -35,7 +35,7 @@ branch_labels = None
 depends_on = None
 
 # The readable views of this revision, frozen (a revision never imports live view text; the
-# followed period is defined in toaster.rules.sqltext, and tests/beliefs/test_sqltext.py
+# followed period is defined in toaster.rules.sqltext, and tests/rules/test_sqltext.py
 # checks that the views of a database at head are the ones it renders).
 _KEY = ("k.agent_id, k.subject_id, k.subject_owner_id, k.property, k.property_type, "
         "k.sub_property, k.target_id, k.target_owner_id")

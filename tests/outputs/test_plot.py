@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 import toaster
-from tests.output.conftest import T0, S, require_gnuplot, run_scenario
+from tests.outputs.conftest import T0, S, require_gnuplot, run_scenario
 from toaster.errors import InvalidInputError, MissingDependencyError, UnknownAgentError
 from toaster.outputs.plotting import FALSE_BELIEF, UNAWARE, Timeline, build_timeline, plot_facts
 from toaster.queries import history
@@ -317,7 +317,7 @@ def sally_anne_db(db_url: str) -> Iterator[toaster.Database]:
     basket (ANNE>SALLY, a nested holder) after Anne moved it to the box."""
     from importlib.resources import files
 
-    from tests.output.conftest import open_built
+    from tests.outputs.conftest import open_built
     from toaster.beliefs.scenario import replay
 
     def build(db: toaster.Database) -> None:

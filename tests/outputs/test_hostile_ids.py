@@ -30,7 +30,7 @@ import sqlalchemy as sa
 from click.testing import CliRunner
 
 import toaster
-from tests.output.conftest import (
+from tests.outputs.conftest import (
     SYSTEM_PYTHON,
     open_built,
     require_gnuplot,

@@ -19,7 +19,7 @@ import yaml  # type: ignore[import-untyped]
 from click.testing import CliRunner
 
 import toaster
-from tests.output.conftest import SYSTEM_PYTHON, require_system_rosbag
+from tests.outputs.conftest import SYSTEM_PYTHON, require_system_rosbag
 from toaster.cli import cli
 from toaster.outputs.recording import CUBE, CYLINDER, LINE_STRIP, Recorder, record
 from toaster.world.rosmsg import rpy_to_quat

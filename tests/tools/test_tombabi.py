@@ -4,9 +4,9 @@
 from __future__ import annotations
 
 import pytest
-from tools import tombabi
 
 from tests.conftest import shared_data
+from tools import tombabi
 
 
 @pytest.mark.shared_data

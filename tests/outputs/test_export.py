@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 import toaster
-from tests.output.conftest import T0, S
+from tests.outputs.conftest import T0, S
 from toaster import Fact, FactRow
 from toaster.errors import InvalidInputError, UnknownAgentError
 from toaster.outputs.export import export, read_frame, read_rows, select_rows

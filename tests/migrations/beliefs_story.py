@@ -6,7 +6,7 @@ revision 0005 as 0.1.0's development left it (commit 510c628, before the belief 
 squashed), made with::
 
     git archive 510c628 | tar -x -C /tmp/old
-    PYTHONPATH=/tmp/old/src:. python -m tests.db.beliefs_story /tmp/old.db tests/db/data/beliefs_0005.sql
+    PYTHONPATH=/tmp/old/src:. python -m tests.migrations.beliefs_story /tmp/old.db tests/migrations/data/beliefs_0005.sql
 
 (the rows of its ``belief_rules`` table, the rule text of that time, are left out).
 """

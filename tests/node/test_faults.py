@@ -24,7 +24,7 @@ import pytest
 
 import toaster
 from tests.conftest import PG_URL, count, pg_schema
-from tests.live.test_node import ROOM, TICK, Clock, stored, walk
+from tests.node.test_node import ROOM, TICK, Clock, stored, walk
 from toaster.db.engine import make_engine
 from toaster.model import Fact
 from toaster.node import LiveNode

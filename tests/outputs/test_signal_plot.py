@@ -20,7 +20,7 @@ import pytest
 from click.testing import CliRunner
 
 import toaster
-from tests.output.conftest import T0, S, open_built, require_gnuplot
+from tests.outputs.conftest import T0, S, open_built, require_gnuplot
 from toaster import Fact
 from toaster.cli.plot import plot_facts as plot_command
 from toaster.errors import InvalidInputError

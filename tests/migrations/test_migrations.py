@@ -15,7 +15,7 @@ from sqlalchemy import inspect
 
 import toaster
 import toaster.queries as q
-from tests.db import beliefs_story
+from tests.migrations import beliefs_story
 from toaster.db import migrate
 from toaster.db.engine import make_engine
 from toaster.db.schema import metadata

@@ -7,7 +7,7 @@ from pathlib import Path
 from click.testing import CliRunner
 
 import toaster
-from tests.output.conftest import T0, S
+from tests.outputs.conftest import T0, S
 from toaster.cli.export import export
 from toaster.cli.plot import plot_facts
 

@@ -12,7 +12,7 @@ from typing import Any
 import pytest
 
 import toaster
-from tests.output.conftest import T0, S, run_scenario
+from tests.outputs.conftest import T0, S, run_scenario
 from toaster import Fact
 from toaster.errors import InvalidInputError
 from toaster.outputs.recording import (

@@ -11,7 +11,7 @@ from collections.abc import Iterator
 import pytest
 
 import toaster
-from tests.live.test_node import Clock, walk
+from tests.node.test_node import Clock, walk
 from toaster import queries as q
 from toaster.errors import UnknownEntityError
 from toaster.node import LiveNode, control
