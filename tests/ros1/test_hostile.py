@@ -10,6 +10,8 @@ import re
 import time
 from typing import Any
 
+import pytest
+
 import toaster
 from tests.ros1.conftest import NodeProcess, RosClient, wait_for
 from toaster import queries as q
@@ -183,11 +185,23 @@ def test_a_one_megabyte_id_and_nan_poses_through_services_are_refused(
     assert len(node.stderr()) < 200_000  # no 1 MB id copied into the log
 
 
+@pytest.fixture
+def cup_and_bob(client: RosClient, db: toaster.Database) -> None:
+    """A cup and bob on the node's lists, whichever tests of this module ran before."""
+    header = {"stamp": "now", "frame_id": "map"}
+    client.publish("/toaster_simu/objectList", "ObjectListStamped",
+                   {"header": header, "objectList": [entity("cup", 1.0)]}, rate=10, key="cup")
+    client.publish("/toaster_simu/humanList", "HumanListStamped",
+                   {"header": header, "humanList": [{"meAgent": entity("bob", 0.0)}]},
+                   rate=10, key="bob")
+    wait_for(lambda: known(db, "cup") and known(db, "bob"), "cup and bob registered")
+
+
+@pytest.mark.usefixtures("cup_and_bob")
 def test_services_answer_false_for_unknown_ids(
     node: NodeProcess, client: RosClient, db: toaster.Database
 ) -> None:
     """They answered true (set_entity_pose even created the entity)."""
-    wait_for(lambda: known(db, "cup"), "cup registered")
     assert (
         client.call(
             "/toaster_simu/set_entity_pose",
@@ -228,6 +242,7 @@ def test_services_answer_false_for_unknown_ids(
     assert not known(db, "ghost") and node.alive()
 
 
+@pytest.mark.usefixtures("cup_and_bob")
 def test_a_removed_entity_is_found_by_no_query(
     node: NodeProcess, client: RosClient, db: toaster.Database
 ) -> None:
