@@ -98,6 +98,7 @@ def test_type_checkers_see_every_lazy_name(package: str) -> None:
     assert hidden, f"{package}.__getattr__ must be defined under `if not TYPE_CHECKING:`"
 
 
+@pytest.mark.slow
 def test_mypy_gives_the_front_door_real_types(tmp_path: Path) -> None:
     """Through mypy (the project's config and cache): no export is Any, a typo is an error."""
     mypy_api = pytest.importorskip("mypy.api")
@@ -116,6 +117,7 @@ def test_mypy_gives_the_front_door_real_types(tmp_path: Path) -> None:
     assert len(re.findall(r'has no attribute "(conect|belief)"', out)) == 2, out
 
 
+@pytest.mark.slow
 def test_architecture_example_runs(db_url: str, capsys: pytest.CaptureFixture[str],
                                    monkeypatch: pytest.MonkeyPatch) -> None:
     """The Python example of docs/architecture.md prints what it says, on each backend."""
@@ -144,6 +146,7 @@ def test_architecture_example_runs(db_url: str, capsys: pytest.CaptureFixture[st
         db.close()
 
 
+@pytest.mark.slow
 def test_tell_is_the_function_whichever_import_runs_first() -> None:
     code = ("import toaster.beliefs.tell, toaster\n"
             "assert callable(toaster.tell) and toaster.tell.__module__ == 'toaster.beliefs.tell'")

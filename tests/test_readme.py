@@ -96,6 +96,7 @@ def test_readme_leads_with_the_two_commands() -> None:
     assert [c.text for c in first] == LEAD
 
 
+@pytest.mark.slow
 def test_readme_commands_run(tmp_path: Path) -> None:
     """Every README command succeeds, in the order shown, in a fresh directory."""
     for name in COPIED:

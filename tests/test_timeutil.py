@@ -112,6 +112,7 @@ def test_axis_values_count_from_the_start() -> None:
 
 
 # -- the data's start -----------------------------------------------------------------------
+@pytest.mark.slow
 def test_the_earliest_start_is_kept(db: toaster.Database) -> None:
     with db.transaction(write=True) as conn:
         assert data_start_ns(conn) is None
@@ -126,6 +127,7 @@ def test_the_earliest_start_is_kept(db: toaster.Database) -> None:
     assert db.time_frame().start_ns is None
 
 
+@pytest.mark.slow
 def test_without_a_recorded_start_the_first_event_decides(store: toaster.Store) -> None:
     db = store.db
     assert db.time_frame().start_ns is None
@@ -169,6 +171,7 @@ def run_scenario(db: toaster.Database, path: Path) -> None:
     runner.run(session.start_ns, session.end_ns, session.rate_hz, maintain_every_s=None)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("start", [None, "2026-11-22T12:00:00Z"])
 def test_a_run_records_its_start(db: toaster.Database, tmp_path: Path,
                                  start: str | None) -> None:
@@ -178,6 +181,7 @@ def test_a_run_records_its_start(db: toaster.Database, tmp_path: Path,
     assert db.time_frame().elapsed == (start is None)
 
 
+@pytest.mark.slow
 def test_batches_record_their_start(store: toaster.Store, tmp_path: Path) -> None:
     db = store.db
     dated = tmp_path / "dated.yaml"
@@ -201,6 +205,7 @@ def test_batches_record_their_start(store: toaster.Store, tmp_path: Path) -> Non
     assert db.time_frame().start_ns == 0  # durations from the epoch
 
 
+@pytest.mark.slow
 def test_a_belief_replay_starts_at_zero(db: toaster.Database) -> None:
     from toaster.beliefs import scenario as belief_scenario
 
@@ -209,6 +214,7 @@ def test_a_belief_replay_starts_at_zero(db: toaster.Database) -> None:
     assert db.time_frame().start_ns == 0
 
 
+@pytest.mark.slow
 def test_plot_axis_counts_from_the_data_start(db: toaster.Database, tmp_path: Path) -> None:
     """A scenario starting at 0 whose first fact is at 1 s: the move at 6.4 s is at 6.4 on
     the axis (CSV time_s, the picture's step line), not at 5.4."""

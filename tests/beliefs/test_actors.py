@@ -16,6 +16,8 @@ from toaster.db.writer.store import ChangeSet
 from toaster.errors import UnknownAgentError
 from toaster.model import fact_key
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 F = toaster.Fact
 S = 1_000_000_000
 PEOPLE = ("ANNE", "BOB", "SALLY")

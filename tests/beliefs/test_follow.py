@@ -22,6 +22,8 @@ from toaster.db import migrate
 from toaster.db.engine import make_engine
 from toaster.db.invariants import violations
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 HUMANS = ("ANNE", "BOB", "CAROL")
 OBJECTS = ("MUG", "KEYS", "BALL")
 ROOMS = ("KITCHEN", "HALL")

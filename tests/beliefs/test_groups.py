@@ -11,6 +11,7 @@ from __future__ import annotations
 import random
 from typing import Any
 
+import pytest
 import sqlalchemy as sa
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -18,6 +19,8 @@ from hypothesis import strategies as st
 import toaster
 from toaster.beliefs import api, scenario
 from toaster.beliefs.tell import tell
+
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
 
 PEOPLE = ("ANNE", "BOB", "CARL", "DORA")
 ROOMS = ("KITCHEN", "HALL")

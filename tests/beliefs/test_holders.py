@@ -3,11 +3,14 @@ neither entities nor agents, and go with the agents their chain names."""
 
 from __future__ import annotations
 
+import pytest
 import sqlalchemy as sa
 
 import toaster
 import toaster.queries as q
 from toaster.beliefs import api
+
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
 
 F = toaster.Fact
 

@@ -14,11 +14,14 @@ from __future__ import annotations
 import random
 from typing import Any
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import toaster
 from toaster.beliefs import api, scenario
+
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
 
 PEOPLE = ("SALLY", "ANNE", "BOB")
 ROOMS = ("KITCHEN", "HALL")

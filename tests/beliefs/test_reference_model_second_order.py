@@ -28,6 +28,7 @@ import random
 from itertools import permutations
 from typing import Any
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -134,6 +135,7 @@ def believed(db: toaster.Database, holder: Holder, t_ns: int) -> dict[str, str |
     return {x: "+".join(sorted(p)) or None for x, p in places.items()}
 
 
+@pytest.mark.slow
 def test_the_model_states_the_first_order_reference_model() -> None:
     """Restricted to first-order holders, this model is ``test_reference_model``'s."""
     for seed in range(200):
@@ -177,6 +179,7 @@ def _check(db: toaster.Database, steps: list[dict[str, Any]]) -> None:
             assert believed(db, holder, t_ns) == want[holder], (step, ">".join(holder))
 
 
+@pytest.mark.slow
 @settings(max_examples=10, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(seed=st.integers(0, 2**32 - 1), length=st.integers(3, 12), busy=st.booleans())
@@ -190,6 +193,7 @@ def test_second_order_beliefs_match_the_reference_model(db_url: str, seed: int, 
         db.close()
 
 
+@pytest.mark.slow
 def test_a_nested_holder_seeing_a_move_through_the_actor_drops_its_stale_place(
         db_url: str) -> None:
     """Bob, in the hall, believes Sally believes the marble is in the drawer (he did not see

@@ -19,6 +19,7 @@ EXAMPLES = sorted(p.name for p in (resources.files("toaster") / "examples").iter
                   if p.name.startswith("beliefs_"))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", EXAMPLES)
 def test_example_scenarios_meet_their_expectations(db: toaster.Database, name: str) -> None:
     sc = scenario.replay(db, resources.files("toaster") / "examples" / name)
@@ -28,6 +29,7 @@ def test_example_scenarios_meet_their_expectations(db: toaster.Database, name: s
         assert violations(conn) == []
 
 
+@pytest.mark.slow
 def test_sally_anne_false_belief_report_and_history(db: toaster.Database) -> None:
     scenario.replay(db, resources.files("toaster") / "examples" / "beliefs_sally_anne.yaml")
     t4 = 4_000_000_000
@@ -44,6 +46,7 @@ def test_sally_anne_false_belief_report_and_history(db: toaster.Database) -> Non
     assert [d for d in api.false_beliefs(db, "ANNE") if d.subject_id == "MARBLE"] == []
 
 
+@pytest.mark.slow
 def test_targetless_facts_and_confidence_product(db: toaster.Database) -> None:
     st = db.store()
     st.add_entity("R", "robot", is_self=True, t_ns=0)
@@ -60,6 +63,7 @@ def test_targetless_facts_and_confidence_product(db: toaster.Database) -> None:
     assert api.belief_value(db, "H", "BALL", "IsMoving", at=2).valid_to_ns == 3
 
 
+@pytest.mark.slow
 def test_depth_one_creates_no_nested_holders(db: toaster.Database) -> None:
     api.configure(db, depth=1)
     scenario.replay(db, resources.files("toaster") / "examples" / "beliefs_cookie_box.yaml")
@@ -68,6 +72,7 @@ def test_depth_one_creates_no_nested_holders(db: toaster.Database) -> None:
         api.beliefs(db, "BOB", about="ROBOT")
 
 
+@pytest.mark.slow
 def test_rules_can_be_disabled(db: toaster.Database) -> None:
     api.configure(db, enabled=False)
     scenario.replay(db, resources.files("toaster") / "examples" / "beliefs_sally_anne.yaml")
@@ -75,6 +80,7 @@ def test_rules_can_be_disabled(db: toaster.Database) -> None:
     assert api.beliefs(db, "ROBOT", property="IsIn")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("key", "value"), [("depth", 0), ("depth", "2"), ("visibility", {"X": "y"}),
                                             ("nope", 1), ("copresence", "IsInRoom")])
 def test_bad_settings_are_rejected_in_one_line(db: toaster.Database, key: str,
@@ -96,6 +102,7 @@ def test_bad_scenario_files_name_the_problem(tmp_path) -> None:
         scenario.load(tmp_path / "missing.yaml")
 
 
+@pytest.mark.slow
 def test_two_store_processes_both_apply_the_rules(db_url: str) -> None:
     first, second = toaster.connect(db_url), toaster.connect(db_url)
     try:
@@ -111,6 +118,7 @@ def test_two_store_processes_both_apply_the_rules(db_url: str) -> None:
         second.close()
 
 
+@pytest.mark.slow
 def test_beliefs_revision_downgrades_and_upgrades(db_url: str) -> None:
     db = toaster.connect(db_url)
     scenario.replay(db, resources.files("toaster") / "examples" / "beliefs_sally_anne.yaml")
@@ -128,6 +136,7 @@ def test_beliefs_revision_downgrades_and_upgrades(db_url: str) -> None:
         assert api.config(again)["depth"] == 2
 
 
+@pytest.mark.slow
 def test_false_beliefs_needs_the_robot_named_when_there_are_two(db: toaster.Database) -> None:
     st = db.store()
     for robot in ("R1", "R2"):

@@ -12,6 +12,8 @@ from toaster.beliefs.tell import tell
 from toaster.cli import cli
 from toaster.errors import InvalidInputError
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 F = toaster.Fact
 S = 1_000_000_000
 

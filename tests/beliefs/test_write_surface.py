@@ -28,6 +28,8 @@ from toaster.db.engine import make_engine
 from toaster.db.invariants import violations
 from toaster.errors import TimeOrderError
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 HUMANS = ("SALLY", "ANNE", "BOB")
 ROOMS = ("KITCHEN", "HALL")
 BOXES = ("BOX", "BASKET")

@@ -83,6 +83,7 @@ def write(tmp_path: Path, name: str, body: str | bytes) -> str:
 
 
 # ---------------------------------------------------------------------------- times
+@pytest.mark.slow
 @pytest.mark.parametrize("args", [
     ("set-info", "FACT", "--subject", "MUG", "--property", "IsOn", "--target", "TABLE"),
     ("set-info", "EVENT", "--subject", "MUG", "--property", "Dropped"),
@@ -100,6 +101,7 @@ def test_times_outside_the_database_range(fails: Fails, args: tuple[str, ...]) -
               "(1970-01-01T00:00:00Z) to 2^63-1 ns (2262-04-11T23:47:16Z)")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("option", ["--from", "--to"])
 def test_event_windows_outside_the_range(fails: Fails, tmp_path: Path, option: str) -> None:
     fails("get-info", "EVENT", option, "999999999h", message=f"{option}: time '999999999h'")
@@ -117,6 +119,7 @@ def test_time_parser_bounds() -> None:
 
 
 # ---------------------------------------------------------------------------- ids and text
+@pytest.mark.slow
 @pytest.mark.parametrize(("value", "message"), [
     ("a\x00b", "NUL character"),
     ("x\udcff", "not valid UTF-8"),
@@ -146,6 +149,7 @@ def test_check_id_is_the_one_place() -> None:
             check_id(bad, "id")
 
 
+@pytest.mark.slow
 def test_the_longest_ids_fit_every_index(db_url: str) -> None:
     """Ids of MAX_ID_BYTES of 4-byte characters, in the widest index row: a fact key (six ids)
     of a nested holder A>B>C>D at the deepest depth. PostgreSQL's btree holds 2704 bytes."""
@@ -175,6 +179,7 @@ def test_the_longest_ids_fit_every_index(db_url: str) -> None:
 
 
 # ---------------------------------------------------------------------------- numbers
+@pytest.mark.slow
 @pytest.mark.parametrize(("args", "message"), [
     (("--rate", "nan"), "invalid rate nan: give a finite number"),
     (("--rate", "0"), "--rate 0.0 must be a positive number of ticks per second"),
@@ -186,6 +191,7 @@ def test_run_options(sqlite_fails: Fails, args: tuple[str, ...], message: str) -
     sqlite_fails("run", str(EXAMPLES / "scenario_flat.yaml"), *args, message=message)
 
 
+@pytest.mark.slow
 def test_limits_and_numbers(fails: Fails) -> None:
     fails("get-info", "FACT", "--limit", "99999999999999999999", message="--limit", code=2)
     fails("get-info", "FACT", "--limit", "-1", message="--limit", code=2)
@@ -196,6 +202,7 @@ def test_limits_and_numbers(fails: Fails) -> None:
 
 
 # ---------------------------------------------------------------------------- files
+@pytest.mark.slow
 def test_deeply_nested_yaml(sqlite_fails: Fails, tmp_path: Path) -> None:
     """RecursionError in the YAML and JSON parsers."""
     deep = "facts: " + "[" * 5000 + "]" * 5000 + "\n"
@@ -308,6 +315,7 @@ def test_bad_frames_file(sqlite_fails: Fails, tmp_path: Path, body: bytes, messa
                  message=message)
 
 
+@pytest.mark.slow
 def test_belief_replay_writes_all_or_nothing(sqlite_fails: Fails, tmp_path: Path) -> None:
     doc = {"self": "ROBOT", "agents": ["SALLY"], "objects": ["BALL"],
            "steps": [{"t": 1, "rooms": {"SALLY": "ROOM"}}],

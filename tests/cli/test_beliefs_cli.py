@@ -10,6 +10,8 @@ from click.testing import CliRunner
 
 from toaster.cli import cli
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 
 @pytest.fixture
 def sally_anne(db_url: str):

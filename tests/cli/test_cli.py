@@ -13,6 +13,8 @@ from click.testing import CliRunner
 from tests.conftest import shared_data
 from toaster.cli import cli
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 
 @pytest.fixture
 def run(db_url: str):

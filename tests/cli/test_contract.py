@@ -194,6 +194,7 @@ def test_listing_options_on_exactly_the_listings(path: str) -> None:
     assert has == (path in LISTINGS), path
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("path", "args"), [(path, args) for path, runs in LISTINGS.items()
                                             for args in runs],
                          ids=lambda x: x if isinstance(x, str) else " ".join(x))
@@ -245,6 +246,7 @@ def test_piped_rows_show_their_whole_key(seeded: str) -> None:
     assert sorted(row["sub_property"] for row in near) == ["2D", "3D"]
 
 
+@pytest.mark.slow
 def test_terminal_table_shows_sub_property(seeded: str) -> None:
     """On a terminal (a pseudo-terminal here) the table is drawn, with the sub-property
     column when a row has one and without the empty owner columns."""
@@ -323,6 +325,7 @@ def _q() -> Any:
     return queries
 
 
+@pytest.mark.slow
 def test_flag_wins_over_environment(db_url: str, tmp_path: Path) -> None:
     """$TOASTER_DB names a decoy: each command given --db (after its name, or before)
     uses the flag's database and never creates the decoy."""
@@ -361,6 +364,7 @@ BLOCKED = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("module", "extra", "make"), BLOCKED, ids=[b[2](Path("x"))[0]
                                                                       for b in BLOCKED])
 def test_missing_extra_fails_before_any_work(empty_url: str, tmp_path: Path, module: str,
@@ -390,6 +394,7 @@ def test_missing_extra_fails_before_any_work(empty_url: str, tmp_path: Path, mod
 
 
 # ----------------------------------------------------------------------------- reference
+@pytest.mark.slow
 def test_cli_reference_is_up_to_date() -> None:
     """docs/cli.md is what `python -m toaster.cli.reference docs/cli.md` writes now (run as
     that command, in a fresh interpreter: click caches each command's help option the first

@@ -40,6 +40,7 @@ def one_fact(url: str) -> None:
         store.sync_snapshot("test", "R", S, [Fact("CUP", "IsOn", "TABLE")])
 
 
+@pytest.mark.slow
 def test_demo_tells_sallys_false_belief_in_a_fresh_file(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The README's first command: a fresh ./toaster-demo.db (an old one is replaced, the
@@ -78,6 +79,7 @@ def test_demo_tells_sallys_false_belief_in_a_fresh_file(
         assert count(db, "SELECT count(*) FROM fact_keys WHERE subject_id = 'CUP'") == 0
 
 
+@pytest.mark.slow
 def test_run_demo_on_each_backend(empty_url: str, tmp_path: Path) -> None:
     """The library call behind the command: Sally's beliefs at each moment against the
     robot's, the SQL rows read-only, and the false-belief span the picture hatches."""
@@ -101,6 +103,7 @@ def test_run_demo_on_each_backend(empty_url: str, tmp_path: Path) -> None:
     assert "***" not in demo.story()  # no password in what it prints
 
 
+@pytest.mark.slow
 def test_demo_refuses_a_database_that_holds_facts(db_url: str, tmp_path: Path) -> None:
     """--db must be empty: one line naming it, nothing written, no picture."""
     runner = CliRunner()
@@ -115,6 +118,7 @@ def test_demo_refuses_a_database_that_holds_facts(db_url: str, tmp_path: Path) -
         assert count(db, "SELECT count(*) FROM entities WHERE id = 'SALLY'") == 0
 
 
+@pytest.mark.slow
 def test_demo_without_matplotlib_writes_gnuplot_data(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Without the plot extra the timeline is gnuplot data, and the story says what to

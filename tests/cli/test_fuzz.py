@@ -36,6 +36,8 @@ from toaster.db import migrate
 from toaster.db.engine import make_engine
 from toaster.documents import read_document
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 EXAMPLES = Path(__file__).resolve().parents[2] / "src" / "toaster" / "examples"
 EXAMPLES_N = int(os.environ.get("TOASTER_FUZZ_EXAMPLES", "40"))
 FUZZ = settings(max_examples=EXAMPLES_N, deadline=None, database=None,

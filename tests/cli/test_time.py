@@ -16,6 +16,8 @@ from tests.test_timeutil import REAL, S, scenario
 from toaster.cli import cli
 from toaster.timeutil import now_ns
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 
 @pytest.fixture
 def run(db_url: str) -> Any:

@@ -30,6 +30,8 @@ from toaster import queries as q
 from toaster.outputs.export import export
 from toaster.outputs.plotting import plot_facts
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 EXAMPLES_N = int(os.environ.get("TOASTER_FUZZ_EXAMPLES", "150"))
 FUZZ = settings(max_examples=EXAMPLES_N, deadline=None, database=None,
                 derandomize="TOASTER_FUZZ_EXAMPLES" not in os.environ,

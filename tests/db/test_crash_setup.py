@@ -14,11 +14,14 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
 import sqlalchemy as sa
 
 import toaster
 from toaster.db import migrate
 from toaster.db.engine import make_engine
+
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
 
 ROOT = Path(__file__).resolve().parents[2]
 KILLS = 10

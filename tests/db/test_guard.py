@@ -15,6 +15,8 @@ from toaster.beliefs import api, scenario
 from toaster.db.dialects import GUARD_MESSAGE, GUARDED_TABLES
 from toaster.db.engine import make_engine
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 SALLY_ANNE = resources.files("toaster") / "examples" / "beliefs_sally_anne.yaml"
 FIRST_COLUMN = {"fact_keys": "agent_id", "facts": "key_id", "events": "key_id",
                 "fact_samples": "fact_id", "belief_follow": "hkey", "belief_chain": "holder_id",

@@ -4,11 +4,14 @@ without their boundary."""
 
 from __future__ import annotations
 
+import pytest
 import sqlalchemy as sa
 
 import toaster
 from toaster import Fact
 from toaster.db.invariants import violations
+
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
 
 CUP = Fact("MUG", "IsOn", "TABLE")
 

@@ -3,10 +3,14 @@ database layer imports nothing from the layers above it (tests/test_architecture
 
 from __future__ import annotations
 
+import pytest
+
 import toaster
 from toaster.app import session
 from toaster.db import open_database
 from toaster.rules.hook import BeliefRule
+
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
 
 
 def test_connect_installs_the_belief_rule_and_the_bare_opener_none(db_url: str) -> None:

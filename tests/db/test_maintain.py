@@ -11,6 +11,8 @@ import toaster
 from toaster import Fact
 from toaster.producers import Runner
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 S = 1_000_000_000
 
 

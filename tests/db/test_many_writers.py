@@ -34,6 +34,8 @@ from toaster.model import Fact
 
 from . import writers
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 ROOT = Path(__file__).resolve().parents[2]
 ROLES = ("R1:rooms", "R1:things", "R2:rooms", "R2:things", "reader")
 TICKS = 40

@@ -151,6 +151,7 @@ def test_bad_files_are_refused_and_left_unchanged(kind: str, tmp_path: Path,
     assert digest(tmp_path) == before
 
 
+@pytest.mark.slow
 def test_no_traceback_from_the_real_command(tmp_path: Path, sqlite_template: Path) -> None:
     """``python -m toaster``: a corrupted file and an unreachable server, one stderr line."""
     bad = tmp_path / "bad.db"
@@ -165,6 +166,7 @@ def test_no_traceback_from_the_real_command(tmp_path: Path, sqlite_template: Pat
             assert proc.stderr.startswith("Error: ")
 
 
+@pytest.mark.slow
 def test_empty_file_is_repaired(tmp_path: Path) -> None:
     """A 0-byte file and a SQLite file without any table (a crash of an older toaster) are
     taken as new databases and migrated to head."""
@@ -257,6 +259,7 @@ def _sqlite_lock_held(path: Path) -> Iterator[None]:
         thread.join(60)
 
 
+@pytest.mark.slow
 def test_locked_sqlite_fails_in_one_line_and_writes_nothing(
         tmp_path: Path, sqlite_template: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A write transaction held elsewhere: after TOASTER_LOCK_TIMEOUT (0.5 s) the writer
@@ -287,6 +290,7 @@ def test_locked_sqlite_fails_in_one_line_and_writes_nothing(
     conn.close()
 
 
+@pytest.mark.slow
 @pytest.mark.postgresql
 def test_locked_postgresql_fails_in_one_line(pg_schema_url: str,
                                              monkeypatch: pytest.MonkeyPatch) -> None:

@@ -9,12 +9,15 @@ from __future__ import annotations
 import itertools
 from collections import defaultdict
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import toaster
 from toaster import Fact
 from toaster import queries as q
+
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
 
 SUBJECTS = ("A", "B")
 PROPS = ("IsOn", "IsNear")

@@ -320,6 +320,7 @@ def expect_refused(db: toaster.Database, url: str, sql: str, root: Path,
 
 
 # ---------------------------------------------------------------------------- hostile
+@pytest.mark.slow
 @pytest.mark.parametrize("sql", [pytest.param(sql, id=name) for name, sql in HOSTILE])
 def test_hostile_statement_is_refused(read_db: toaster.Database, read_url: str,
                                       scratch: Path, other: psycopg.Connection[Any] | None,
@@ -332,6 +333,7 @@ def test_hostile_statement_is_refused(read_db: toaster.Database, read_url: str,
     expect_refused(db, read_url, sql.format(tmp=scratch, pid=pid), scratch, other, **BOUNDS)
 
 
+@pytest.mark.slow
 def test_the_database_alone_stops_them(read_db: toaster.Database, read_url: str,
                                        scratch: Path, other: psycopg.Connection[Any] | None,
                                        monkeypatch: pytest.MonkeyPatch) -> None:
@@ -364,6 +366,7 @@ def test_the_load_test_statements_are_refused(read_db: toaster.Database) -> None
             q.execute(read_db, sql)
 
 
+@pytest.mark.slow
 def test_statement_cached_by_a_write_is_authorized_again(db: toaster.Database) -> None:
     """SQLite caches prepared statements: one prepared by --write is checked again."""
     sql = "INSERT INTO settings VALUES ('test', 'colour', '\"red\"')"
@@ -390,6 +393,7 @@ def test_statement_runs_as_the_reader_role(read_db: toaster.Database) -> None:
         assert conn.exec_driver_sql("SELECT current_user").scalar() == "postgres"
 
 
+@pytest.mark.slow
 @pytest.mark.postgresql
 def test_views_made_after_the_first_read_are_readable(store: toaster.Store) -> None:
     """An agent's views, created after the reader role's grants, are granted on demand."""
@@ -445,6 +449,7 @@ def plain_role_url(db: toaster.Database, db_url: str) -> Iterator[str]:
             conn.exec_driver_sql(f"DROP ROLE {role}")
 
 
+@pytest.mark.slow
 @pytest.mark.postgresql
 def test_a_role_that_cannot_create_roles_falls_back(plain_role_url: str, scratch: Path,
                                                    db_url: str) -> None:
@@ -501,6 +506,7 @@ WRAPPER_CALL = ("SELECT * FROM pg_temp.toaster_readonly_run('SELECT pg_terminate
                 "1000000) AS t(a text)")
 
 
+@pytest.mark.slow
 @pytest.mark.postgresql
 @pytest.mark.parametrize("reader", [False, True], ids=["fallback", "reader-role"])
 def test_the_wrapper_cannot_be_called_by_a_statement(owner_url: str, reader: bool,
@@ -563,6 +569,7 @@ def test_toasters_own_functions_are_refused(read_db: toaster.Database) -> None:
 
 
 # ---------------------------------------------------------------------------- reads
+@pytest.mark.slow
 def test_ordinary_reads_still_work(store: toaster.Store) -> None:
     """Parameters, views, WITH, EXPLAIN, quotes and semicolons in strings, trailing ';'."""
     db = store.db
@@ -612,6 +619,7 @@ def test_byte_cap_and_timeout(read_db: toaster.Database) -> None:
         q.execute(read_db, _ENDLESS + "SELECT count(*) FROM c", timeout_s=0.3)
 
 
+@pytest.mark.slow
 def test_sqlite_memory_is_bounded(read_db: toaster.Database,
                                   monkeypatch: pytest.MonkeyPatch) -> None:
     """A sort of endless rows stops at SQLite's heap limit (lowered here to be quick)."""
@@ -655,6 +663,7 @@ def test_sqlite_printf_past_the_bound_is_refused(read_db: toaster.Database) -> N
         assert q.execute(read_db, same, max_bytes=4096).rows == [plain.execute(same).fetchone()]
 
 
+@pytest.mark.slow
 def test_a_long_function_call_stops_at_the_deadline(read_db: toaster.Database) -> None:
     """SQLite looks at its deadline only between steps of its virtual machine, never inside
     one function call: this instr() alone runs for minutes (its cost is the product of the
@@ -669,6 +678,7 @@ def test_a_long_function_call_stops_at_the_deadline(read_db: toaster.Database) -
     assert q.execute(read_db, "SELECT 1").rows == [(1,)]
 
 
+@pytest.mark.slow
 def test_the_deadline_starts_when_the_worker_is_ready(read_url: str,
                                                       monkeypatch: pytest.MonkeyPatch) -> None:
     """The deadline bounds the statement, not the start of its process (seconds on a loaded
@@ -728,6 +738,7 @@ def peak_rss(tmp_path: Path, *args: str) -> tuple[subprocess.CompletedProcess[st
     return result, own * 1024, children * 1024
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fmt", ["tsv", "--json"])
 def test_a_result_at_the_bound_prints_with_bounded_memory(read_url: str, tmp_path: Path,
                                                           fmt: str) -> None:
@@ -747,6 +758,7 @@ def test_a_result_at_the_bound_prints_with_bounded_memory(read_url: str, tmp_pat
     assert children < base_own + 2 * bound, (children >> 20, base_own >> 20)
 
 
+@pytest.mark.slow
 def test_big_values_are_refused_before_they_are_held(read_url: str, tmp_path: Path) -> None:
     """Rows of 900 kB values past a 1 MiB bound are refused at the second row (the whole
     batch of 1000 rows was fetched, ~0.9 GB, before the size was looked at), in one line,
@@ -777,6 +789,7 @@ REFUSALS = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("sqlite_sql", "pg_sql", "options", "bound"),
                          [pytest.param(*case[1:], id=case[0]) for case in REFUSALS])
 def test_cli_refusal_names_the_bound(read_url: str, sqlite_sql: str, pg_sql: str | None,
@@ -814,6 +827,7 @@ def test_read_only_needs_its_own_transaction(read_db: toaster.Database) -> None:
         q.execute(read_db, "SELECT 1")
 
 
+@pytest.mark.slow
 def test_write_still_writes(db: toaster.Database) -> None:
     """--write runs the statement as before and bumps the cache epoch."""
     epoch = q.execute(db, "SELECT cache_epoch FROM store_state").rows[0][0]
@@ -840,6 +854,7 @@ def test_tokenizer(sql: str, dialect: str, kinds: list[str]) -> None:
     assert [t.kind for t in tokenize(sql, dialect)] == kinds
 
 
+@pytest.mark.slow
 def test_unterminated_quotes_are_refused() -> None:
     """Unterminated strings, identifiers, dollar quotes and comments: one-line errors."""
     for sql in ("SELECT 'a", 'SELECT "a', "SELECT $$a", "SELECT /* a", "SELECT E'\\'"):

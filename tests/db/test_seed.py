@@ -12,6 +12,8 @@ from toaster import queries as q
 from toaster.db.seed import load_file
 from toaster.errors import FileFormatError, InvalidInputError
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 
 def test_original_xml_seeds(db: toaster.Database) -> None:
     """id_list, ontology and static_property from the original load with quotes stripped."""

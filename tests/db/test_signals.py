@@ -17,6 +17,8 @@ from toaster.producers import AgentMonitor
 from toaster.producers.batch import as_facts
 from toaster.world import World
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 S = 1_000_000_000
 TICK = S // 30
 

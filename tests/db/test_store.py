@@ -12,6 +12,8 @@ from toaster import Fact
 from toaster import queries as q
 from toaster.errors import InvalidInputError, TimeOrderError, UnknownAgentError, UnknownEntityError
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 ON = Fact("MUG", "IsOn", "TABLE", observability=0.8, property_type="position")
 
 

@@ -22,6 +22,7 @@ from toaster.db.schema import metadata
 from toaster.errors import SchemaOutdatedError
 
 
+@pytest.mark.slow
 def test_migrations_match_the_declared_schema(empty_url: str) -> None:
     """Upgrading an empty database yields exactly the tables and indexes of schema.py."""
     engine = make_engine(empty_url)
@@ -32,6 +33,7 @@ def test_migrations_match_the_declared_schema(empty_url: str) -> None:
     assert diff == []
 
 
+@pytest.mark.slow
 def test_upgrade_downgrade_upgrade(empty_url: str) -> None:
     """Down to base removes every table and view (agents' views included); up again works."""
     with toaster.connect(empty_url) as db:
@@ -58,12 +60,14 @@ def test_new_database_is_created_and_old_one_refused(empty_url: str) -> None:
         toaster.connect(empty_url)
 
 
+@pytest.mark.slow
 def test_empty_database_is_created_on_first_use(empty_url: str) -> None:
     """connect() on an empty database migrates it to head."""
     with toaster.connect(empty_url) as db:
         assert migrate.current_revision(db.engine) == migrate.head_revision()
 
 
+@pytest.mark.slow
 def test_downgrade_with_nested_holders_named_oddly(empty_url: str) -> None:
     """Agents and nested holders whose ids hold ':', '%', quotes are dropped cleanly."""
     from toaster import Fact
@@ -111,6 +115,7 @@ def _schema_matches(engine: Any) -> None:
         assert "belief_rules" not in inspect(conn).get_table_names()
 
 
+@pytest.mark.slow
 def test_a_database_written_before_the_squash_upgrades(tmp_path: Path) -> None:
     """A SQLite database written at 0005 by the code of the unsquashed 0002/0003 (data dump):
     it upgrades to the declared schema, reads the same, and the rules go on: the robot's
@@ -171,6 +176,7 @@ def _assert_well_formed(rows: list[Any]) -> None:
             assert a.valid_to_ns is not None and a.valid_to_ns <= b.valid_from_ns, key
 
 
+@pytest.mark.slow
 def test_a_database_at_the_previous_head_upgrades(empty_url: str, tmp_path: Path) -> None:
     """Both backends: a database as 0005 left it (defaults stored as settings rows, the
     ``belief_rules`` table of the unsquashed 0002) upgrades and the rules go on unchanged."""

@@ -30,6 +30,7 @@ def other(db_url: str) -> Iterator[toaster.Database]:
 HOSTILE_IDS = ["x" * 300, "cup\x00", "h" * 1_000_000, " ", "\ud800"]
 
 
+@pytest.mark.slow
 def test_ids_the_store_refuses_never_reach_the_tick(db):
     """A 300-character or NUL id was queued, then failed registration inside the tick."""
     node, clock = LiveNode(db), Clock()
@@ -60,6 +61,7 @@ def test_ids_the_store_refuses_never_reach_the_tick(db):
     assert counts["api confidence"] == 1
 
 
+@pytest.mark.slow
 def test_a_publisher_inventing_ids_cannot_grow_the_world_without_end(db):
     """Every new id became an entity, in the world and the database, for as long as the node
     ran: past ``max_entities`` the poses of new ids are refused and counted; known ids move."""
@@ -80,6 +82,7 @@ def test_a_publisher_inventing_ids_cannot_grow_the_world_without_end(db):
     assert "invented4" not in {e.id for e in q.entities(db)}
 
 
+@pytest.mark.slow
 def test_commands_are_checked_and_removal_is_complete(db, other):
     node, clock = LiveNode(db), Clock()
     walk(node, clock, 2)

@@ -121,6 +121,7 @@ class Running:
         assert self.runner.is_alive(), "the node stopped"
 
 
+@pytest.mark.slow
 @pytest.mark.postgresql
 def test_connections_cut_between_and_inside_ticks_heal_and_the_gaps_are_recorded():
     with named_pg() as (url, plain_url, cut), toaster.connect(url) as db:
@@ -175,6 +176,7 @@ def test_connections_cut_between_and_inside_ticks_heal_and_the_gaps_are_recorded
         db_check(plain_url)
 
 
+@pytest.mark.slow
 @pytest.mark.postgresql
 def test_a_running_node_survives_repeated_cuts_and_applies_commands_given_meanwhile():
     with named_pg() as (url, plain_url, cut), toaster.connect(url) as db:
@@ -197,6 +199,7 @@ def test_a_running_node_survives_repeated_cuts_and_applies_commands_given_meanwh
         db_check(plain_url)
 
 
+@pytest.mark.slow
 def test_a_locked_sqlite_file_stalls_the_node_which_heals_once_released(
     tmp_path, sqlite_template, monkeypatch
 ):
@@ -347,6 +350,7 @@ class Lines:
         return "\n".join(self.lines)
 
 
+@pytest.mark.slow
 @pytest.mark.postgresql
 def test_serve_heals_when_the_server_comes_back_and_sigterm_during_an_outage_stops_it():
     with pg_schema(migrated=True) as url:

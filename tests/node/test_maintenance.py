@@ -40,6 +40,7 @@ def _feed(node: LiveNode, stop: threading.Event) -> None:
         k += 1
 
 
+@pytest.mark.slow
 def test_ticks_go_on_while_maintenance_waits(pg_schema_url: str) -> None:
     """A VACUUM held up by another session's lock (a long ALTER, someone's own VACUUM) does not
     hold up the node: ticking between two maintenance runs, the node stopped for as long."""
@@ -67,6 +68,7 @@ def test_ticks_go_on_while_maintenance_waits(pg_schema_url: str) -> None:
         db.close()
 
 
+@pytest.mark.slow
 def test_maintainer_runs_and_survives_failures(db_url: str) -> None:
     db = toaster.connect(db_url)
     try:

@@ -60,6 +60,7 @@ def other(db_url: str):
     database.close()
 
 
+@pytest.mark.slow
 def test_poses_become_stored_facts_and_a_second_connection_controls_the_node(db, other):
     node, clock = LiveNode(db), Clock()
     facts = walk(node, clock, 20)
@@ -81,6 +82,7 @@ def test_poses_become_stored_facts_and_a_second_connection_controls_the_node(db,
     assert props(facts, "area_manager") == set()
 
 
+@pytest.mark.slow
 def test_monitor_all_humans_covers_humans_seen_later_and_remove_excludes_one(db, other):
     node, clock = LiveNode(db), Clock()
     control.monitor_clear(other)
@@ -97,6 +99,7 @@ def test_monitor_all_humans_covers_humans_seen_later_and_remove_excludes_one(db,
         assert control.read_state(conn).excluded == ["ann"]
 
 
+@pytest.mark.slow
 def test_stream_off_drops_its_poses_and_on_takes_them_again(db, other):
     node, clock = LiveNode(db), Clock()
     walk(node, clock, 3)
@@ -109,6 +112,7 @@ def test_stream_off_drops_its_poses_and_on_takes_them_again(db, other):
     assert node.world.pos[row, 0] == pytest.approx(3.0)
 
 
+@pytest.mark.slow
 def test_put_in_hand_and_set_entity_pose_from_another_connection(db, other):
     node, clock = LiveNode(db), Clock()
     t = clock.next()
@@ -133,6 +137,7 @@ def test_put_in_hand_and_set_entity_pose_from_another_connection(db, other):
         assert control.pending(conn) == []
 
 
+@pytest.mark.slow
 def test_queries_are_answered_by_the_running_node_between_its_ticks(db, other):
     """A query is answered while the node runs, not when it stops (time-outs sized for a loaded
     machine: the answer, not its speed, is what this checks)."""
@@ -156,12 +161,14 @@ def test_queries_are_answered_by_the_running_node_between_its_ticks(db, other):
     assert count(db, "SELECT COUNT(*) FROM control_commands") == 0  # askers delete answers
 
 
+@pytest.mark.slow
 def test_a_query_with_no_node_fails_with_a_hint_and_leaves_nothing_behind(db):
     with pytest.raises(control.NoNodeError, match="toaster serve"):
         control.ask(db, "pointing", {"agent": "bob"}, timeout_s=0.1)
     assert count(db, "SELECT COUNT(*) FROM control_commands") == 0
 
 
+@pytest.mark.slow
 def test_commands_given_with_no_node_running_apply_at_the_next_start(db, other):
     control.submit(other, "set_entity_pose", {"id": "box", "position": [2, 1],
                                               "kind": "object"})
@@ -172,6 +179,7 @@ def test_commands_given_with_no_node_running_apply_at_the_next_start(db, other):
     assert ("box", "kitchen") in stored(db, "IsInRoom")
 
 
+@pytest.mark.slow
 def test_a_restart_carries_on_the_open_intervals(db_url):
     clock = Clock()
     with toaster.connect(db_url) as db:
@@ -193,6 +201,7 @@ def test_a_restart_carries_on_the_open_intervals(db_url):
         assert count(db, "SELECT COUNT(*) FROM events WHERE kind = 'appeared'") >= appeared
 
 
+@pytest.mark.slow
 def test_bad_poses_are_refused_with_a_reason_and_the_node_keeps_ticking(db):
     node, clock = LiveNode(db), Clock()
     assert not node.api.push("bob", (float("nan"), 0.0), t_ns=clock.t)
@@ -211,6 +220,7 @@ def test_bad_poses_are_refused_with_a_reason_and_the_node_keeps_ticking(db):
     assert node.stats.warnings >= 1
 
 
+@pytest.mark.slow
 def test_the_newest_pose_per_entity_wins_and_the_buffer_stays_bounded(db):
     node, clock = LiveNode(db), Clock()
     t = clock.next()
@@ -229,6 +239,7 @@ def test_quaternions_give_the_heading():
     assert yaw == pytest.approx(1.5707963, abs=1e-6)
 
 
+@pytest.mark.slow
 def test_monitor_commands_start_from_the_default_and_respect_a_clear(db):
     """add/remove start from what a node monitors by default (every human); after a clear,
     removing one agent does not bring the others back."""

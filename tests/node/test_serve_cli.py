@@ -14,6 +14,8 @@ import pytest
 import toaster
 from toaster.queries import current_facts
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 ROOM = json.dumps({"shape": "polygon", "points": [[-1, -1], [6, -1], [6, 2], [-1, 2]],
                    "area_type": "room"})
 

@@ -5,9 +5,13 @@ from __future__ import annotations
 import threading
 import time
 
+import pytest
+
 import toaster
 from toaster.model import Fact
 from toaster.queries import watch
+
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
 
 
 def test_a_watcher_gets_matching_events_committed_by_another_writer(db_url):

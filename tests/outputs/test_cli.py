@@ -4,12 +4,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from click.testing import CliRunner
 
 import toaster
 from tests.outputs.conftest import T0, S
 from toaster.cli.export import export
 from toaster.cli.plot import plot_facts
+
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
 
 
 def test_plot_facts_command(run_db: toaster.Database, db_url: str, tmp_path: Path) -> None:

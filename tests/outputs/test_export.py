@@ -13,6 +13,8 @@ from toaster.errors import InvalidInputError, UnknownAgentError
 from toaster.outputs.export import export, read_frame, read_rows, select_rows
 from toaster.queries import history, to_dataframe
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 
 @pytest.mark.parametrize("fmt", ["csv", "jsonl", "parquet"])
 def test_every_kind_round_trips(run_db: toaster.Database, tmp_path: Path, fmt: str) -> None:

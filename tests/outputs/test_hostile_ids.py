@@ -200,6 +200,7 @@ def _gnuplot_column(gnuplot: str, data: Path, index: int, rows: int, folder: Pat
     return out.read_bytes().decode("utf-8")  # as printed: a carriage return stays one
 
 
+@pytest.mark.slow
 def test_gnuplot_script_runs_nothing_and_labels_show_the_ids(
     hostile_sqlite: toaster.Database, tmp_path: Path
 ) -> None:
@@ -260,6 +261,7 @@ def _mpl_shown(figure: Any) -> list[str]:
     return out
 
 
+@pytest.mark.slow
 def test_matplotlib_draws_ids_as_text(hostile_sqlite: toaster.Database, tmp_path: Path) -> None:
     """PNG, SVG and PDF: no label is math text or LaTeX (even under a matplotlibrc that asks
     for LaTeX), every id shows as its visible text (an id starting with _ stays in the legend),
@@ -305,6 +307,7 @@ TEXT_FIELDS = (
 )
 
 
+@pytest.mark.slow
 def test_exports_read_back_exactly(hostile_db: toaster.Database, tmp_path: Path) -> None:
     """CSV, JSON lines and Parquet of the history: pandas and pyarrow read every id back
     exactly (CSV after the reader strips the one leading ' of a neutralised cell), the raw CSV
@@ -345,6 +348,7 @@ def test_exports_read_back_exactly(hostile_db: toaster.Database, tmp_path: Path)
     assert "touch" not in table.schema.metadata[b"pandas"].decode()
 
 
+@pytest.mark.slow
 def test_plot_csv_reads_back_exactly(hostile_sqlite: toaster.Database, tmp_path: Path) -> None:
     """The plot CSV: text cells neutralised as in exports, pandas reads the ids back after
     stripping the leading ', the negative numbers stay numbers."""
@@ -373,6 +377,7 @@ def test_json_line_holds_any_text() -> None:
 
 
 # -- the command line ---------------------------------------------------------------------------
+@pytest.mark.slow
 def test_cli_listings_quote_ids(hostile_db: toaster.Database) -> None:
     """--csv (formulas neutralised, every id back after the reader strips one '), --json
     (ASCII, exact) and piped tab-separated lines (one line per row, every character visible,
@@ -403,6 +408,7 @@ def test_cli_listings_quote_ids(hostile_db: toaster.Database) -> None:
     assert not any(s.startswith(FORMULA_START) for s in shown)
 
 
+@pytest.mark.slow
 def test_terminal_table_shows_ids_as_text(hostile_sqlite: toaster.Database) -> None:
     """On a terminal (a pseudo-terminal here) the table shows rich markup and escape
     sequences of ids as text, with no traceback."""
@@ -455,6 +461,7 @@ def test_shell_word_runs_nothing(tmp_path: Path) -> None:
 
 
 # -- SQL ----------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_agent_views_read_each_hostile_agent(hostile_db: toaster.Database) -> None:
     """Each hostile agent's view (a quoted identifier) holds that agent's fact."""
     agents = {a.id: a for a in toaster.queries.agents(hostile_db)}
@@ -537,6 +544,7 @@ print(json.dumps(out))
 """
 
 
+@pytest.mark.slow
 def test_recordings_open_in_ros_tools(hostile_sqlite: toaster.Database, tmp_path: Path) -> None:
     """A rosbag2 MCAP and a ROS 1 bag of hostile frames and beliefs: rosbags, the mcap library
     (every message decoded), metadata.yaml (a YAML parser) and Debian's rosbag (its Python API

@@ -14,6 +14,8 @@ from toaster.errors import InvalidInputError, MissingDependencyError, UnknownAge
 from toaster.outputs.plotting import FALSE_BELIEF, UNAWARE, Timeline, build_timeline, plot_facts
 from toaster.queries import history
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 MAGIC = {"png": b"\x89PNG", "pdf": b"%PDF", "svg": b"<?xml"}
 
 

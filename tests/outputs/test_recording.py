@@ -84,6 +84,7 @@ def _on(messages: list[tuple[str, str, int, Any]], topic: str) -> list[tuple[int
     return [(stamp, msg) for t, _, stamp, msg in messages if t == topic]
 
 
+@pytest.mark.slow
 def test_recording_replays_frames_and_facts(run_db: toaster.Database, tmp_path: Path) -> None:
     """Entities, areas and the database's events come back, typed as ROS tools expect."""
     result = record(tmp_path / "run", _frames(), db=run_db, until=T0 + 20 * S)
@@ -221,6 +222,7 @@ def _facts_db(url: str) -> toaster.Database:
     return db
 
 
+@pytest.mark.slow
 def test_fact_lists_hold_the_current_facts(db_url: str, tmp_path: Path) -> None:
     """/<producer>/factList: the self agent's facts of that producer held at each frame time
     where they changed (and at the first frame), as toaster_msgs/FactList."""
@@ -294,6 +296,7 @@ def test_metadata_version_matches_the_distro(tmp_path: Path, distro: str, versio
     assert read_bag(result.bag).start_ns == T0  # rosbags reads every one of them back
 
 
+@pytest.mark.slow
 def test_shipped_scenario_records(tmp_path: Path) -> None:
     """A shipped scenario's world and facts record frame by frame."""
     db = toaster.connect(f"sqlite:///{tmp_path / 'flat.db'}")
@@ -309,6 +312,7 @@ def test_shipped_scenario_records(tmp_path: Path) -> None:
         t for t, *_ in messages}
 
 
+@pytest.mark.slow
 def test_cli_record(run_db: toaster.Database, db_url: str, tmp_path: Path) -> None:
     """``toaster record FRAMES OUT`` reads JSON-lines frames: the old six-field poses and
     polygons, and full poses (named fields) with area specs."""
@@ -397,6 +401,7 @@ def test_bad_frames(tmp_path: Path) -> None:
         record(tmp_path / "c", [(1, [], None)])
 
 
+@pytest.mark.slow
 def test_run_records_what_it_saw(tmp_path: Path) -> None:
     """`toaster run --record DIR` writes the run's frames and the events it stored."""
     from click.testing import CliRunner
@@ -430,6 +435,7 @@ def _self_facts(url: str) -> set[tuple[Any, ...]]:
              r.valid_to_ns) for r in rows}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["bag", "run.bag"])
 def test_recording_replays_as_input(tmp_path: Path, name: str) -> None:
     """`toaster run BAG` (no options) replays a `toaster run --record` recording, rosbag2

@@ -69,6 +69,7 @@ def _marble_in(belief: Any) -> set[str]:
     return {f.target_id for f in belief.facts if (f.subject_id, f.property) == ("MARBLE", "IsIn")}
 
 
+@pytest.mark.slow
 def test_sally_anne_scene_and_beliefs(db_url: str, tmp_path: Path) -> None:
     """`toaster run SALLY --record DIR`: a /tf frame per entity under map, the wall (and every
     object) a box of its declared size standing where it is declared, and one typed belief
@@ -134,6 +135,7 @@ def _yaw(q: Any) -> float:
     return math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
 
 
+@pytest.mark.slow
 def test_flat_areas_circles_and_owner_relative(tmp_path: Path) -> None:
     """Circles as discs of the declared centre and radius; the robot's owner-relative area
     drawn where the robot's /tf frame puts it, at every stamp it moved."""
@@ -222,6 +224,7 @@ print(json.dumps(out))
 """
 
 
+@pytest.mark.slow
 def test_ros1_bag_reads_with_debian_rosbag(tmp_path: Path) -> None:
     """`--record NAME.bag` writes a ROS 1 bag that Debian's rosbag reads: standard types with
     Debian's md5 sums, toaster_msgs with the original's (genmsg's), the wall's box, /tf under

@@ -75,6 +75,7 @@ def _line(figure: Any, gid: str) -> tuple[Any, Any]:
     return lines[0], lines[0].axes
 
 
+@pytest.mark.slow
 def test_number_line_holds_every_stored_value(signal_db: toaster.Database,
                                               tmp_path: Path) -> None:
     """The Distance line steps through 1.0, 1.3, 1.8 m at 1, 2, 3 s (not only the last 1.8),
@@ -105,6 +106,7 @@ def _svg_paths(svg: Path, gid: str) -> list[list[tuple[float, float]]]:
     return runs
 
 
+@pytest.mark.slow
 def test_svg_line_is_drawn_at_the_stored_values(signal_db: toaster.Database,
                                                 tmp_path: Path) -> None:
     """In the SVG file itself the number line has two runs (the gap), and its levels and
@@ -188,6 +190,7 @@ def test_csv_has_one_row_per_number(signal_db: toaster.Database, tmp_path: Path)
     assert states == [(0, ""), (1 * S, "1.0"), (5 * S, ""), (7 * S, "2.5"), (9 * S, "")]
 
 
+@pytest.mark.slow
 def test_numbers_modes(signal_db: toaster.Database, tmp_path: Path) -> None:
     """``only`` keeps the facts with numbers (one panel each, units on the y axes), ``off``
     draws today's bars only, and ``only`` without any number is a one-line error."""
@@ -213,6 +216,7 @@ def test_numbers_modes(signal_db: toaster.Database, tmp_path: Path) -> None:
         plot_facts(signal_db, tmp_path / "x.csv", numbers="lines")
 
 
+@pytest.mark.slow
 def test_timeline_signals_are_clipped_to_the_window(signal_db: toaster.Database) -> None:
     """A window starting inside a stretch starts with the number held then (1.3 m at 2.5 s)."""
     timeline = build_timeline(signal_db, property="Distance", agents=["pr2"],
@@ -223,6 +227,7 @@ def test_timeline_signals_are_clipped_to_the_window(signal_db: toaster.Database)
     assert not build_timeline(signal_db, property="Distance", numbers=False).number_lanes
 
 
+@pytest.mark.slow
 def test_plot_facts_command_numbers(signal_db: toaster.Database, db_url: str,
                                     tmp_path: Path) -> None:
     """``toaster plot-facts out.csv --numbers only`` writes the number rows and says so."""

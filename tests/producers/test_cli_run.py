@@ -6,6 +6,8 @@ from click.testing import CliRunner
 from toaster.cli import cli
 from toaster.cli.run import area, run
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 EXAMPLES = Path(__file__).resolve().parents[2] / "src" / "toaster" / "examples"
 DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "eth-ucy-opentraj"
 for command in (run, area):

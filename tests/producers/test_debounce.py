@@ -51,6 +51,7 @@ def standing(seconds: float, hz: int, seed: int = 0) -> np.ndarray:
     return np.column_stack([rng.normal(0, 0.02, (n, 2)), np.zeros(n)])
 
 
+@pytest.mark.slow
 def test_standing_person_with_tracker_noise_stops_flickering():
     pos = standing(60, 30)
     hand = np.column_stack([np.random.default_rng(9).normal(0, 0.02, (len(pos), 2)),
@@ -128,6 +129,7 @@ def facing_flips(min_duration: float | None, seconds: float = 30) -> int:
     return count
 
 
+@pytest.mark.slow
 def test_is_facing_resists_noise_at_its_threshold():
     raw, debounced = facing_flips(0.0), facing_flips(None)
     print(f"\nIsFacing at the edge of facing_angle, 3° yaw noise, 30 s at 30 Hz: {raw} flips with "
@@ -147,6 +149,7 @@ def test_min_duration_is_validated_and_merged():
         assert "\n" not in str(err.value)
 
 
+@pytest.mark.slow
 def test_eth_track_with_noise_at_30hz_flickers_less():
     """ETH hotel's first 60 s, interpolated from 2.5 Hz to 30 Hz, with 2 cm noise."""
     src = read_obsmat(shared_data("eth-ucy-opentraj", "ETH", "seq_hotel", "obsmat.txt"))
@@ -217,6 +220,7 @@ def toward_series(min_duration: float, seed: int = 4) -> list[set[tuple[str, str
     return out
 
 
+@pytest.mark.slow
 def test_moving_toward_pairs_resist_noise_at_the_cone_edge():
     """IsMovingToward is debounced per (mover, target) pair: at the edge of the direction cone
     noise no longer makes the pair flip every few ticks; 0 keeps the raw flicker."""

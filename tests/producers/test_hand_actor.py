@@ -11,6 +11,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+import pytest
+
 import toaster
 from toaster.beliefs import api
 from toaster.model import Fact
@@ -64,6 +66,7 @@ def _in_hand(db: toaster.Database, holder: str, at: int) -> bool:
     return api.belief_value(db, holder, "MUG", "IsInHand", "ANNE", at=at) is not None
 
 
+@pytest.mark.slow
 def test_the_holder_knows_where_it_passed_the_mug_the_other_saw_it_leave(
         tmp_path: Path, db_url: str) -> None:
     """Anne, in the kitchen, takes the mug, passes it through the hatch into the hall, lets
@@ -97,6 +100,7 @@ def test_the_holder_knows_where_it_passed_the_mug_the_other_saw_it_leave(
         db.close()
 
 
+@pytest.mark.slow
 def test_carried_out_of_the_room_the_holder_knows_at_every_tick(tmp_path: Path,
                                                                db_url: str) -> None:
     """Anne walks into the hall with the mug in hand (the hand crosses the door before her):

@@ -46,6 +46,7 @@ def humans(db_url: str) -> set[str]:
     return {r[0] for r in rows(db_url, "SELECT id FROM entities WHERE kind = 'human'")}
 
 
+@pytest.mark.slow
 @pytest.mark.shared_data
 def test_tracks_have_no_human_holders_by_default(db_url: str) -> None:
     run(db_url, zara01(), "--until", "5s")
@@ -56,6 +57,7 @@ def test_tracks_have_no_human_holders_by_default(db_url: str) -> None:
     assert facts > 0
 
 
+@pytest.mark.slow
 @pytest.mark.shared_data
 def test_holders_humans_makes_every_person_an_agent(db_url: str) -> None:
     run(db_url, zara01(), "--until", "5s", "--holders", "humans")
@@ -66,12 +68,14 @@ def test_holders_humans_makes_every_person_an_agent(db_url: str) -> None:
     assert not any(held.values())
 
 
+@pytest.mark.slow
 @pytest.mark.shared_data
 def test_holders_ids(db_url: str) -> None:
     run(db_url, zara01(), "--until", "5s", "--holders", "ped1, ped3")
     assert agents(db_url) == {"toaster": True, "ped1": False, "ped3": False}
 
 
+@pytest.mark.slow
 @pytest.mark.shared_data
 def test_unknown_holder_is_refused_before_writing(db_url: str) -> None:
     done = CliRunner().invoke(cli, ["run", str(zara01()), "--db", db_url,
@@ -83,11 +87,13 @@ def test_unknown_holder_is_refused_before_writing(db_url: str) -> None:
     assert rows(db_url, "SELECT count(*) FROM entities") == [(0,)]
 
 
+@pytest.mark.slow
 def test_scenario_keeps_its_humans_as_agents(db_url: str) -> None:
     run(db_url, EXAMPLES / "scenario_flat.yaml", "--until", "2s")
     assert agents(db_url) == {"pr2": True, "alice": False, "bob": False}
 
 
+@pytest.mark.slow
 def test_scenario_config_and_option_choose_holders(db_url: str, tmp_path: Path) -> None:
     text = (EXAMPLES / "scenario_simu_set.yaml").read_text()
     assert "\nconfig:" not in text
@@ -119,6 +125,7 @@ def test_holders_choices_are_checked(tmp_path: Path) -> None:
     assert load_session(csv, holders="bob").belief_holders == ("bob",)
 
 
+@pytest.mark.slow
 def test_fps_with_a_scenario_is_one_line_error(db_url: str) -> None:
     done = CliRunner().invoke(cli, ["run", str(EXAMPLES / "scenario_flat.yaml"), "--db", db_url,
                                     "--fps", "25"])

@@ -64,6 +64,7 @@ def test_reach() -> None:
     assert by_key[("MUG", "IsReachableBy", "BOB")].value_num <= 0.75
 
 
+@pytest.mark.slow
 def test_on_your_left_flips_when_bob_turns() -> None:
     world, _, _ = facts_at(0)
     words, local = relative_position_from(world, "BOB", "MUG", "BOX")

@@ -14,7 +14,7 @@ from toaster.world import World, read_obsmat
 DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "eth-ucy-opentraj"
 SCENES = {"hotel": DATA / "ETH" / "seq_hotel", "zara01": DATA / "UCY" / "zara01"}
 
-pytestmark = [pytest.mark.shared_data,
+pytestmark = [pytest.mark.shared_data, pytest.mark.slow,
               pytest.mark.skipif(not DATA.is_dir(), reason=f"shared data not found at {DATA}")]
 
 

@@ -70,6 +70,7 @@ def planar(world, f) -> float:
     return float(np.sqrt(((b - a) ** 2).sum()))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1])
 def test_indexed_facts_equal_dense_facts_within_range(monkeypatch, seed):
     world, pos, yaw, velocity, rng = random_scene(seed)

@@ -4,11 +4,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from click.testing import CliRunner
 
 import toaster
 from toaster.cli.run import run
 from toaster.queries import current_facts
+
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
 
 KITCHEN = Path(toaster.__file__).parent / "examples" / "scenario_spatial_kitchen.yaml"
 

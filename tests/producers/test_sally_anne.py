@@ -39,6 +39,7 @@ def held(db: object, agent: str, target: str, at: int, about: str | None = None)
     return belief_value(db, agent, "MARBLE", "IsIn", target, about=about, at=at) is not None
 
 
+@pytest.mark.slow
 def test_everyone_sees_the_marble_go_into_the_basket(sally_db: object) -> None:
     for agent in ("ROBOT", "SALLY", "ANNE"):
         assert held(sally_db, agent, "BASKET", 2 * S)
@@ -69,6 +70,7 @@ def test_sally_opens_the_basket(sally_db: object) -> None:
     assert belief_value(sally_db, "ROBOT", "BASKET", "IsClosed", at=at) is None
 
 
+@pytest.mark.slow
 def test_sally_anne_on_each_backend(db_url: str) -> None:
     """The same false beliefs on SQLite and PostgreSQL (skips when PostgreSQL is absent)."""
     db = run_into_store(EXAMPLE, db_url)

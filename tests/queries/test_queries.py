@@ -9,6 +9,8 @@ from toaster import Fact
 from toaster import queries as q
 from toaster.errors import ReadOnlyError, ToasterError
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 ON_TABLE = Fact("MUG", "IsOn", "TABLE")
 ON_SHELF = Fact("MUG", "IsOn", "SHELF")
 

@@ -15,6 +15,8 @@ import pytest
 from tests.conftest import PG_URL, require_postgres
 from tests.ros1.conftest import require_ros
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 BENCH = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_soak.py"
 
 

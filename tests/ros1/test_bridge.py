@@ -72,6 +72,7 @@ def world(node: NodeProcess, client: RosClient, db: toaster.Database) -> RosClie
     return client
 
 
+@pytest.mark.slow
 def test_poses_and_tf_become_stored_facts_and_fact_lists(world: RosClient,
                                                          db: toaster.Database) -> None:
     row = next(r for r in q.current_facts(db, SELF, property="IsInRoom", subject="cup"))
@@ -178,6 +179,7 @@ def test_watch_service_pushes_matching_events_on_its_topic(world: RosClient) -> 
     assert got["kind"] == "ended"
 
 
+@pytest.mark.slow
 def test_manage_stream_off_stops_updates(world: RosClient, db: toaster.Database) -> None:
     world.publish("/mocap/box", "geometry_msgs/PoseStamped", pose_msg(1, 1), rate=20)
     wait_for(lambda: holds(db, "IsInRoom", "box", "kitchen"), message="box in the kitchen")
@@ -276,6 +278,7 @@ def test_ros4hri_and_toaster_simu_lists_become_entities(world: RosClient,
         world.stop(key)
 
 
+@pytest.mark.slow
 def test_bad_input_leaves_the_node_running(world: RosClient, node: NodeProcess,
                                            db: toaster.Database) -> None:
     world.publish("/mocap/box", "geometry_msgs/PoseStamped", pose_msg(math.nan, 0))

@@ -77,6 +77,7 @@ def known(db: toaster.Database, entity_id: str) -> bool:
     return any(e.id == entity_id for e in q.entities(db, entity_id))
 
 
+@pytest.mark.slow
 def test_bad_ids_and_poses_in_an_object_list_are_dropped_the_rest_is_taken(
     node: NodeProcess, client: RosClient, db: toaster.Database
 ) -> None:
@@ -137,6 +138,7 @@ def test_bad_ids_and_poses_in_an_object_list_are_dropped_the_rest_is_taken(
     assert len([line for line in lines if "(dropped: id" in line]) <= 3
 
 
+@pytest.mark.slow
 def test_a_one_megabyte_id_and_nan_poses_through_services_are_refused(
     node: NodeProcess, client: RosClient, db: toaster.Database
 ) -> None:
@@ -289,6 +291,7 @@ def test_a_removed_entity_is_found_by_no_query(
     assert node.alive()
 
 
+@pytest.mark.slow
 def test_hostile_tf_frames_are_dropped(node: NodeProcess, client: RosClient) -> None:
     def transform(parent: str, child: str, x: float) -> dict[str, Any]:
         return {

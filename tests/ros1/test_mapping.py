@@ -52,6 +52,7 @@ def tf_msg(*edges: tuple[str, str, tuple[float, float, float], float, int]) -> A
     return TFMessage(transforms=out)
 
 
+@pytest.mark.slow
 def test_tf_chain_is_composed_up_to_map(reg: Any) -> None:
     tree = TfTree()
     frames = mapping.read_frame_map({"cup_link": {"id": "cup"},
@@ -77,6 +78,7 @@ def test_tf_chain_is_composed_up_to_map(reg: Any) -> None:
     assert bad and "finite" in bad[0]
 
 
+@pytest.mark.slow
 def test_poses_of_one_call_come_from_the_same_messages(reg: Any) -> None:
     """rospy's thread stores /tf messages while the tick composes poses: every pose of one
     tf_updates call comes from the same message (each moves a human's body and its head

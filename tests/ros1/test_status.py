@@ -11,6 +11,8 @@ import pytest
 
 from tests.ros1.conftest import TIMEOUT, NodeProcess, RosClient
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 WINDOW = re.compile(
     r"window (\d+) s: (\d+) ticks, p50 ([\d.]+) ms, p99 ([\d.]+) ms, "
     r"max ([\d.]+) ms, (\d+) overruns"

@@ -45,6 +45,7 @@ def test_every_setting_has_a_kind_and_a_database_default(db: toaster.Database) -
     assert api.config(db) == revision.DEFAULTS  # nothing stored: the database's defaults
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("key", sorted(OTHER))
 def test_a_deleted_setting_row_means_the_default(db: toaster.Database, key: str) -> None:
     default = api.config(db)[key]
@@ -57,6 +58,7 @@ def test_a_deleted_setting_row_means_the_default(db: toaster.Database, key: str)
     assert json.loads(stored) == default
 
 
+@pytest.mark.slow
 def test_room_rule_behaves_as_default_once_its_row_is_deleted(db: toaster.Database) -> None:
     """The reported bug: deleting the copresence row left the SQL without a room property
     (nobody learnt anything) while ``beliefs config`` showed the default. With the default
@@ -66,6 +68,7 @@ def test_room_rule_behaves_as_default_once_its_row_is_deleted(db: toaster.Databa
     assert marble_beliefs(db) == {"SALLY": {"BASKET"}, "ANNE": {"BOX"}}
 
 
+@pytest.mark.slow
 def test_reset_puts_settings_back_and_rejects_unknown_keys(db: toaster.Database) -> None:
     api.configure(db, depth=1, share_rows=False)
     assert api.reset(db, "depth")["depth"] == revision.DEFAULTS["depth"]

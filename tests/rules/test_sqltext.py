@@ -62,6 +62,7 @@ def test_the_pipeline_runs_every_step_and_only_postgresql_makes_scratch_tables()
     assert len(pipeline.statements(sqltext.render("00_temp", "postgresql"))) == 9 + 2
 
 
+@pytest.mark.slow
 def test_the_triggers_of_a_database_at_head_are_the_rendered_ones(db: toaster.Database) -> None:
     """A change of a template or of the pipeline needs a revision that installs the triggers
     again: the database's must be what the package renders."""
@@ -118,6 +119,7 @@ def test_the_beliefs_revision_froze_the_views_of_the_followed_period(backend: st
         (n, _normal(b)) for n, b in sqltext.views(backend)]
 
 
+@pytest.mark.slow
 def test_the_views_of_a_database_at_head_are_the_rendered_ones(db: toaster.Database) -> None:
     """Whatever revision last replaced them, the database's views are :func:`sqltext.views`
     (a change of the followed period needs a revision that replaces them)."""

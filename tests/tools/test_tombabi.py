@@ -8,6 +8,8 @@ import pytest
 from tests.conftest import shared_data
 from tools import tombabi
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 
 @pytest.mark.shared_data
 def test_tom_easy_sample_is_answered_and_perceivers_match(db_url: str) -> None:

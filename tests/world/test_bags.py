@@ -16,6 +16,8 @@ from tests.conftest import shared_data
 from toaster.world.bags import typestore
 from toaster.world.tracks import read_obsmat
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
+
 pytest.importorskip("rosbags")
 
 

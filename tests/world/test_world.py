@@ -165,6 +165,7 @@ def test_obsmat_reader():
     assert np.all(np.diff(src.t) >= 0)
 
 
+@pytest.mark.slow
 def test_quaternions_are_accepted_in_scenarios_and_tracks(tmp_path):
     """ROS gives orientations as quaternions: scenario poses and track rows take them."""
     half = math.sqrt(0.5)
