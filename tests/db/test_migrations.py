@@ -4,18 +4,24 @@ from __future__ import annotations
 
 import hashlib
 import itertools
+import json
+import re
 import sqlite3
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import pytest
 from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
-from sqlalchemy import inspect
+from sqlalchemy import inspect, text
 
 import toaster
 import toaster.queries as q
+from tests.conftest import pg_schema
 from tests.db import beliefs_story
+from toaster.beliefs import triggers
 from toaster.db import migrate
 from toaster.db.engine import make_engine
 from toaster.db.schema import metadata
@@ -211,13 +217,182 @@ RELEASED_FROZEN = {
     "0013_triggers.json": "547f86302e3d674714215160c0860f974d44e24dbe1bd2ded68a79856a4007b5",
     "0014_triggers.json": "a7a9a5db02fb811c6b6286df5d1a33268b2de2a0e495f5e2033620ed543a825c",
     "0015_triggers.json": "4c713be8ba342c5d22b2af7c9948e6d9e5287ddf053170e60cf8d17bad2cf436",
+    "0016_units.json":
+        "15c95a258d87e77bdefa006aa8888c6c875b961ff5e7d3d43e7edb9757ef9eaf",
+    "0016/00_temp.json":
+        "ef445ef6509c1eb2d49655972d80847f98e1098a62e3119a1c98cbbb0130df20",
+    "0016/10_focus.json":
+        "fafc0d54f990eefad7e9660cedc4d8220886269f63a5db87ae54f6fedebbf71d",
+    "0016/12_moves.json":
+        "2e63b5927a0c05f5cde3324a08362fc2298828f485078e35e70ca36c56d89761",
+    "0016/13_late.json":
+        "59e966b304bd1544c0826ed63fc6202cad5c7f983d7e66fc69f413bf032f7cc5",
+    "0016/15_ungroup.json":
+        "c78910e7a38d6b29e214f8476fa510ee946db123e4f77b2c6acf8d938ebbcdf7",
+    "0016/20_perceive_0_around.json":
+        "37926eb5eb6f34b9eb41ab88fecec1d6b52b352da696779e1453d8e97eb1972e",
+    "0016/20_perceive_1_after.json":
+        "faed6603800aafc466f1999aa3f7f4891806eedaac628fdcbbd92c30e75e03f7",
+    "0016/20_perceive_1_before.json":
+        "889c348283d2216e4842dbcf1f516104389a9709852fd8985a2e456fc1e95e1e",
+    "0016/30_changes_0.json":
+        "b8e56809d54c9a36fc8acfbe8716eba14a9dfb7889640719a5c67dfcb14603b6",
+    "0016/30_changes_1.json":
+        "51a054397d9652fd10b7e2572b697a3c8a06313ee3c943f47e8f0b0c60871590",
+    "0016/32_expand.json":
+        "17ca66aa80eca0cd185d381e063750f297e231a68bd81eca752fe93c98f4e366",
+    "0016/35_freeze.json":
+        "50070376c8721e3cf88fdfba0ef1a37774258834182dca731e79188582ac1969",
+    "0016/40_refresh.json":
+        "e1a6e03314124c603f6413c240cdafc53bb6cf3e220b8cb7f18e0b1a40e89864",
+    "0016/42_keep_max.json":
+        "dcfe5063bfd02ddc383e34ae9f2687c4889160b75cf64e21a7a1e5ce42c70119",
+    "0016/45_resolve.json":
+        "86b5bb1bc1a27819639b52ddc5090afa9dc54206c497fa471e5944e9e4297576",
+    "0016/50_keys.json":
+        "050a755e4d4839ea50af1ad5c2b0561eadc25ec4a49b1d4e6e224046456a9eed",
+    "0016/55_switch.json":
+        "a53967e9370d655e6b167c036521d9185bd9f9384a7b5e629d752e8882d4401a",
+    "0016/58_frozen.json":
+        "6c080f136c3545a093fd20c47b17ac95693e94a3db8f3fd3b70ec139dfee1517",
+    "0016/60_plan.json":
+        "b221b085b6d8597c75e1b9813ff65e74ed28e25a5cabe645afc49828bc2ab77f",
+    "0016/70_events.json":
+        "8861d666297b4baee573b9aa3e34ba642496f1f1ebf0ef4230d1d6e74ff7edcd",
+    "0016/80_close.json":
+        "a662dde718f4a65bfd972aece2a59a1a3f72c9ed41d9bae144ab386914f0abd6",
+    "0016/85_refresh_rows.json":
+        "671d94988ce1e94a9d20383c3c2205e34ab5beeac06ba5ce29ad02cd6da5049d",
+    "0016/90_follow.json":
+        "12b0db1b115bedd4651495ab7483ed37d542e20720368ba8a8950b86532c9ac2",
+    "0016/91_open.json":
+        "e0b8e8293ea012c844419006a2aa14a2f31c61309a008e7832e4e79e14a5aa8f",
+    "0016/92_repconf.json":
+        "02ef09fb365825853d702ea2ab8e0b6613601fa693efe10fec9968bbf5107129",
+    "0016/94_keep_groups.json":
+        "701f9a98ece826f176c99b4717f1739ff1ab32344410116fbedbb402a415baa8",
+    "0016/96_regroup.json":
+        "6a24fd9176e925b3e258da66ff71e9cd76a9d0c6c3d26261dc7d1cd5c4751baa",
+    "0016/99_clear.json":
+        "a261fd2d56cd86f2566c66e1592c8d4e9284437db8aa3f90d51fd365fff8e7b5",
+    "0016/holders.json":
+        "e3df19fed8cb1ccd66ded59cea8b68117dfa3d811ee3bdeed00d8e2cfd36bd5c",
+    "0016/holders_seen.json":
+        "db7e521f77d0462b12b00247d1df3304cc9f3f9774a32fe1e138a210bc09ee5b",
+    "0016/inbox.json":
+        "52c8e35406bc33088a740f10aa05824d5354a107eccf66f4164e44eb72b9fc6a",
+    "0016/pipeline.json":
+        "752a5a4688455a1771975d8f72666d71b3da57d34c3e70a262aa50e2edaa11ae",
+    "0016/reperceive.json":
+        "2ba5040ede18c12a22906e6c3e76b1ca725ea67d34acbe138403e70b3cc07d02",
+    "0016/ungroup.json":
+        "3f38619715bb5f9b468e20ff9bcc93255a26f476ede03caac98d64b047e22a0a",
 }
 
 
 def test_released_frozen_triggers_never_change() -> None:
     frozen = Path(toaster.__file__).parent / "migrations" / "frozen"
-    found = {path.name: hashlib.sha256(path.read_bytes()).hexdigest()
-             for path in frozen.glob("*.json")}
+    found = {path.relative_to(frozen).as_posix(): hashlib.sha256(path.read_bytes()).hexdigest()
+             for path in frozen.rglob("*.json")}
     changed = sorted(name for name in RELEASED_FROZEN if found.get(name) != RELEASED_FROZEN[name])
     assert not changed, f"released frozen triggers changed: {changed} (write a new revision)"
     assert sorted(found) == sorted(RELEASED_FROZEN), "pin a new revision's frozen file here"
+
+
+# -- Revision 0016: the rule's triggers per unit ------------------------------------------------
+
+def _normal(sql: str) -> str:
+    return re.sub(r"\s+", " ", sql).strip()
+
+
+def _rule_objects(engine: Any) -> set[str]:
+    """The SQL of the rule's triggers (SQLite) or the bodies of its functions (PostgreSQL)."""
+    with engine.connect() as conn:
+        if engine.dialect.name == "sqlite":
+            return {_normal(sql) for (sql,) in conn.exec_driver_sql(
+                "SELECT sql FROM sqlite_master WHERE type = 'trigger' "
+                "AND name NOT LIKE '%_guard_%' AND name <> 'agents_holder'")}
+        return {_normal(src) for (src,) in conn.exec_driver_sql(
+            "SELECT prosrc FROM pg_proc WHERE (left(proname, 13) = 'toaster_step_' OR proname IN "
+            "('toaster_belief_run', 'toaster_fact_inbox', 'toaster_settings_changed', "
+            "'toaster_agents_changed')) AND pronamespace = "
+            "(SELECT oid FROM pg_namespace WHERE nspname = current_schema())")}
+
+
+def _frozen_objects(backend: str, create: list[str]) -> set[str]:
+    if backend == "postgresql":
+        return {_normal(s.split("$fn$")[1]) for s in create if "$fn$" in s}
+    return {_normal(s) for s in create}
+
+
+def _frozen_sets(backend: str) -> dict[str, set[str]]:
+    """What revisions 0015 and 0016 install (their frozen files, not the package's rendering)."""
+    frozen = Path(toaster.__file__).parent / "migrations" / "frozen"
+    whole = json.loads((frozen / "0015_triggers.json").read_text(encoding="utf-8"))
+    units = [json.loads((frozen / ref / f"{unit}.json").read_text(encoding="utf-8"))
+             for unit, ref in triggers.manifest("0016").items()]
+    return {"0015": _frozen_objects(backend, whole[backend]["create"]),
+            "0016": _frozen_objects(backend, [s for u in units for s in u[backend]["create"]])}
+
+
+#: Changes written as a plain SQL client would (fact_inbox): the installed rule runs them.
+_INBOX = [("assert", "MUG", "Color", "", "purple", 50), ("assert", "BOB", "IsInRoom", "HALL",
+                                                         "true", 60),
+          ("retract", "MUG", "IsIn", "BOX", "true", 70), ("assert", "BOX", "IsClosed", "",
+                                                         "true", 80),
+          ("assert", "MUG", "Color", "", "white", 90), ("assert", "BOB", "IsInRoom", "LAB",
+                                                        "true", 100)]
+
+
+def _inbox_story(url: str, revision: str) -> list[Any]:
+    """The story's first half, then :data:`_INBOX` written with the rule of ``revision``:
+    every row of every holder (ids and write times left out)."""
+    with toaster.connect(url) as db:
+        beliefs_story.first_half(db)
+    engine = make_engine(url)
+    migrate.downgrade(engine, revision)
+    with engine.begin() as conn:
+        for action, subject, prop, target, value, t in _INBOX:
+            conn.execute(text(
+                "INSERT INTO fact_inbox (action, agent_id, subject_id, property, target_id, "
+                "value_text, t_ns) VALUES (:a, 'R', :s, :p, :tg, :v, :t)"),
+                {"a": action, "s": subject, "p": prop, "tg": target or None, "v": value, "t": t})
+    with engine.connect() as conn:
+        rows = [sorted(tuple(row) for row in conn.exec_driver_sql(sql)) for sql in (
+            "SELECT agent_id, subject_id, property, target_id, value_text, value_num, "
+            "confidence, valid_from_ns, valid_to_ns, source FROM fact_history",
+            "SELECT agent_id, kind, stamp_ns, subject_id, property, target_id, value_text, "
+            "confidence, previous_text, source FROM event_log",
+            "SELECT holder_id, position, member_id FROM belief_chain")]
+    engine.dispose()
+    return rows
+
+
+@contextmanager
+def _another(empty_url: str, tmp_path: Path) -> Iterator[str]:
+    """A second empty database on the backend of ``empty_url``."""
+    if empty_url.startswith("sqlite"):
+        yield f"sqlite:///{tmp_path / 'other.db'}"
+        return
+    with pg_schema() as url:
+        yield url
+
+
+def test_the_step_units_replace_the_whole_set_and_back(empty_url: str, tmp_path: Path) -> None:
+    """0015 <-> 0016 installs exactly each revision's frozen objects, and a plain SQL client's
+    writes give the same rows with 0015's whole set as with 0016's units."""
+    engine = make_engine(empty_url)
+    expected = _frozen_sets(engine.dialect.name)
+    assert expected["0015"] != expected["0016"]
+    migrate.upgrade(engine, "0015")
+    assert _rule_objects(engine) == expected["0015"]
+    migrate.upgrade(engine, "0016")
+    assert _rule_objects(engine) == expected["0016"]
+    migrate.downgrade(engine, "0015")
+    assert _rule_objects(engine) == expected["0015"]
+    migrate.downgrade(engine, "base")
+    engine.dispose()
+    with _another(empty_url, tmp_path) as other:
+        whole, units = _inbox_story(empty_url, "0015"), _inbox_story(other, "0016")
+    assert whole == units
+    assert len(whole[0]) > 30 and len({row[0] for row in whole[0]}) > 3  # holders' rows too
