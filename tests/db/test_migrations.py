@@ -7,6 +7,7 @@ import itertools
 import json
 import re
 import sqlite3
+import tomllib
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -297,6 +298,20 @@ def test_released_frozen_triggers_never_change() -> None:
     changed = sorted(name for name in RELEASED_FROZEN if found.get(name) != RELEASED_FROZEN[name])
     assert not changed, f"released frozen triggers changed: {changed} (write a new revision)"
     assert sorted(found) == sorted(RELEASED_FROZEN), "pin a new revision's frozen file here"
+
+
+def test_the_package_ships_every_frozen_file() -> None:
+    """The wheel's package data (pyproject.toml) takes the unit files in their folders too."""
+    package = Path(toaster.__file__).parent
+    pyproject = package.parents[1] / "pyproject.toml"
+    if not pyproject.exists():
+        pytest.skip("an installed package: no pyproject.toml beside it")
+    globs = tomllib.loads(pyproject.read_text(encoding="utf-8"))["tool"]["setuptools"][
+        "package-data"]["toaster"]
+    for path in (package / "migrations" / "frozen").rglob("*.json"):
+        relative = path.relative_to(package)
+        assert any(relative.match(glob) and len(relative.parts) == len(Path(glob).parts)
+                   for glob in globs), relative
 
 
 # -- Revision 0016: the rule's triggers per unit ------------------------------------------------
