@@ -59,7 +59,8 @@ _PG_SETTINGS = ("SET join_collapse_limit = 1 SET plan_cache_mode = force_custom_
                 "SET jit = off")
 _RUNS_GUARD = GUARD_MESSAGE.format(table="belief_runs")
 BACKENDS = ("sqlite", "postgresql")
-#: The units that are not steps of the pipeline (``pipeline`` is created last, dropped first).
+#: The scratch tables' units (before and after a run: they read no run values) and the
+#: driver's (the loader creates it last and drops it first).
 SCRATCH = ("00_temp", "99_clear")
 PIPELINE_UNIT = "pipeline"
 #: One unit as frozen: per backend, its ``create`` and ``drop`` statements.
@@ -347,6 +348,10 @@ def _write(path: Path, content: object) -> None:
 
 
 # -- The revisions' loader: frozen copies only, nothing rendered ------------------------------
+#: The unit created last and dropped first: the driver, which calls the others.
+_DRIVER = "pipeline"
+
+
 def _frozen(*parts: str) -> Any:
     path = resources.files("toaster.migrations") / "frozen"
     for part in parts:
@@ -383,7 +388,7 @@ def manifest(revision: str) -> dict[str, str]:
 def _run_units(conn: Connection, refs: dict[str, str], which: str) -> None:
     """``which`` of each unit in ``refs`` (unit -> revision), the pipeline last on create
     and first on drop."""
-    order = sorted(refs, key=lambda unit: (unit == PIPELINE_UNIT) == (which == "create"))
+    order = sorted(refs, key=lambda unit: (unit == _DRIVER) == (which == "create"))
     for unit in order:
         _execute(conn, _frozen(refs[unit], f"{unit}.json")[conn.dialect.name][which])
 
