@@ -221,71 +221,71 @@ RELEASED_FROZEN = {
     "0016_units.json":
         "15c95a258d87e77bdefa006aa8888c6c875b961ff5e7d3d43e7edb9757ef9eaf",
     "0016/00_temp.json":
-        "ef445ef6509c1eb2d49655972d80847f98e1098a62e3119a1c98cbbb0130df20",
+        "c12335edcfede1317721389cc215aba4e9e86fb20460d49d0ddffc76eab4fa37",
     "0016/10_focus.json":
-        "fafc0d54f990eefad7e9660cedc4d8220886269f63a5db87ae54f6fedebbf71d",
+        "254378fcc680a1752759c80498a4992e1d433c0e7c8d5ee04da3d5ac7ab9a40a",
     "0016/12_moves.json":
-        "2e63b5927a0c05f5cde3324a08362fc2298828f485078e35e70ca36c56d89761",
+        "ac1e88ee9b6020bc168d4bafc460ca474b221a312b4c0faf224d6e4ed3ff3481",
     "0016/13_late.json":
-        "59e966b304bd1544c0826ed63fc6202cad5c7f983d7e66fc69f413bf032f7cc5",
+        "989f88d91ba75af8c7d32a628413ccb39c4759c0b480836027b597d3dbc4ca9d",
     "0016/15_ungroup.json":
-        "c78910e7a38d6b29e214f8476fa510ee946db123e4f77b2c6acf8d938ebbcdf7",
+        "19f03a072cd524aaecf983782f5b1aa9adcee3b1dfee34be66f1d829190d374e",
     "0016/20_perceive_0_around.json":
-        "37926eb5eb6f34b9eb41ab88fecec1d6b52b352da696779e1453d8e97eb1972e",
+        "f90a8a7a1a448247b10f753caadbb2dc1351c9abf57f0b6ab8792adec730e3d6",
     "0016/20_perceive_1_after.json":
-        "faed6603800aafc466f1999aa3f7f4891806eedaac628fdcbbd92c30e75e03f7",
+        "3dac6e5c4266bf2339851a3338f23e51ff20675b454d4cff6cca330b6757e2f6",
     "0016/20_perceive_1_before.json":
-        "889c348283d2216e4842dbcf1f516104389a9709852fd8985a2e456fc1e95e1e",
+        "1d4d76fbb7e80c3433dbf889a2ce995b082de509893f9d09371c85425a16191f",
     "0016/30_changes_0.json":
-        "b8e56809d54c9a36fc8acfbe8716eba14a9dfb7889640719a5c67dfcb14603b6",
+        "c93645297c2c58ebd486d12bfb3fcfa3271909efcd5c8c763e07d32682cc7014",
     "0016/30_changes_1.json":
-        "51a054397d9652fd10b7e2572b697a3c8a06313ee3c943f47e8f0b0c60871590",
+        "7fb0ff5472685c086f71cd27007108b6ceb0c59f2eda2d0d7baea6f1c739d69c",
     "0016/32_expand.json":
-        "17ca66aa80eca0cd185d381e063750f297e231a68bd81eca752fe93c98f4e366",
+        "f93aa4c22aba6102ebfe04e956795739f61b3c0324cd4b46af04f85c8b34b0ed",
     "0016/35_freeze.json":
-        "50070376c8721e3cf88fdfba0ef1a37774258834182dca731e79188582ac1969",
+        "a06653c345157c8f1e6e003654d0517e5546d315bf938548bf47ace3de19baab",
     "0016/40_refresh.json":
-        "e1a6e03314124c603f6413c240cdafc53bb6cf3e220b8cb7f18e0b1a40e89864",
+        "cdded6aa39a2c7a2dc8a9fba6c46039c21e4aeab5b3c7f31153a93efea06f653",
     "0016/42_keep_max.json":
-        "dcfe5063bfd02ddc383e34ae9f2687c4889160b75cf64e21a7a1e5ce42c70119",
+        "4c7b2bbeb60f165c946c372b3e31f31cbb950c991afdc3d58f1960aaf1f14631",
     "0016/45_resolve.json":
-        "86b5bb1bc1a27819639b52ddc5090afa9dc54206c497fa471e5944e9e4297576",
+        "4901028b0bb87e920d0a5f32335df32ebc12d19daddbafed67ca8928d7e8fafd",
     "0016/50_keys.json":
-        "050a755e4d4839ea50af1ad5c2b0561eadc25ec4a49b1d4e6e224046456a9eed",
+        "678e2e336ab32997c7b1891518bb5d33ff12897a2b5d70aa8f88acbad179c3ec",
     "0016/55_switch.json":
-        "a53967e9370d655e6b167c036521d9185bd9f9384a7b5e629d752e8882d4401a",
+        "6e60bbb61a42cf3043de9a7f559ab16aa93f8ac720bf66498e3d0ea2a0644bdb",
     "0016/58_frozen.json":
-        "6c080f136c3545a093fd20c47b17ac95693e94a3db8f3fd3b70ec139dfee1517",
+        "71a29bc52700a1c42347e40ede6f07c6e1f93108ce8b5305db46aa91643b72f7",
     "0016/60_plan.json":
-        "b221b085b6d8597c75e1b9813ff65e74ed28e25a5cabe645afc49828bc2ab77f",
+        "7baa34fdc819ec26f5c3f39b87861e8bee67401f05dc2bc6c4959b44f545209a",
     "0016/70_events.json":
-        "8861d666297b4baee573b9aa3e34ba642496f1f1ebf0ef4230d1d6e74ff7edcd",
+        "376ee5fe9161d59606d68839659c06489ca241e2f83510b8661f34e3fc9eebf9",
     "0016/80_close.json":
-        "a662dde718f4a65bfd972aece2a59a1a3f72c9ed41d9bae144ab386914f0abd6",
+        "01e495902e6fedfc793de2fc23eec653c5893494cc2efe54022cb119215e6c2d",
     "0016/85_refresh_rows.json":
-        "671d94988ce1e94a9d20383c3c2205e34ab5beeac06ba5ce29ad02cd6da5049d",
+        "3ef801b0ad66d9100ade6b97d27cd4bbd6b752c6caa4a4915eb06e32b4238015",
     "0016/90_follow.json":
-        "12b0db1b115bedd4651495ab7483ed37d542e20720368ba8a8950b86532c9ac2",
+        "ed89a30b642f843b6ae5c6bd6e13f0c4527408ebd4f5622691d5b71701479f7e",
     "0016/91_open.json":
-        "e0b8e8293ea012c844419006a2aa14a2f31c61309a008e7832e4e79e14a5aa8f",
+        "791f46867f49e64410049f01299d0d2c8b13bfabf03486b185968b78294841b9",
     "0016/92_repconf.json":
-        "02ef09fb365825853d702ea2ab8e0b6613601fa693efe10fec9968bbf5107129",
+        "877a4ab34803186085a4c9dbf1c013a8caf54aec8853f55c0af0c4d8fef782a0",
     "0016/94_keep_groups.json":
-        "701f9a98ece826f176c99b4717f1739ff1ab32344410116fbedbb402a415baa8",
+        "5ba876db4d0e452ec3bc70c0e782fc266d46a130bc68084a7ce5d6c3812f574e",
     "0016/96_regroup.json":
-        "6a24fd9176e925b3e258da66ff71e9cd76a9d0c6c3d26261dc7d1cd5c4751baa",
+        "b6c0b5ca5a7a4954b9316b4141b28c3f9a96e0a7882e1b86631c482cf7b49c69",
     "0016/99_clear.json":
-        "a261fd2d56cd86f2566c66e1592c8d4e9284437db8aa3f90d51fd365fff8e7b5",
+        "5068a7e7332dbc0e5c344cf318c05cc9a9987e2c50f1bf69b072ad91a75f39ba",
     "0016/holders.json":
-        "e3df19fed8cb1ccd66ded59cea8b68117dfa3d811ee3bdeed00d8e2cfd36bd5c",
+        "7adb6c895373dbdbc34800939eca530ddc0bf3b6c86cf358587ecd8fccd27ee6",
     "0016/holders_seen.json":
-        "db7e521f77d0462b12b00247d1df3304cc9f3f9774a32fe1e138a210bc09ee5b",
+        "0a2385798a3cc7b406b737e8c2e648d6e800b4b16330626e3e815f7e43ce2cc0",
     "0016/inbox.json":
         "52c8e35406bc33088a740f10aa05824d5354a107eccf66f4164e44eb72b9fc6a",
     "0016/pipeline.json":
-        "752a5a4688455a1771975d8f72666d71b3da57d34c3e70a262aa50e2edaa11ae",
+        "2cd0b616cefbf61ebcfc65a39112438ad253242fde55c8fb8a809498a12dd252",
     "0016/reperceive.json":
-        "2ba5040ede18c12a22906e6c3e76b1ca725ea67d34acbe138403e70b3cc07d02",
+        "135c9e86cf9d73fb4d44164a57a78491b43c0dd872d94d3de0dfc431fdf1c4dd",
     "0016/ungroup.json":
         "3f38619715bb5f9b468e20ff9bcc93255a26f476ede03caac98d64b047e22a0a",
 }
@@ -344,10 +344,8 @@ def _frozen_sets(backend: str) -> dict[str, set[str]]:
     """What revisions 0015 and 0016 install (their frozen files, not the package's rendering)."""
     frozen = Path(toaster.__file__).parent / "migrations" / "frozen"
     whole = json.loads((frozen / "0015_triggers.json").read_text(encoding="utf-8"))
-    units = [json.loads((frozen / ref / f"{unit}.json").read_text(encoding="utf-8"))
-             for unit, ref in triggers.manifest("0016").items()]
     return {"0015": _frozen_objects(backend, whole[backend]["create"]),
-            "0016": _frozen_objects(backend, [s for u in units for s in u[backend]["create"]])}
+            "0016": _frozen_objects(backend, triggers.unit_statements("0016", backend, "create"))}
 
 
 #: Changes written as a plain SQL client would (fact_inbox): the installed rule runs them.

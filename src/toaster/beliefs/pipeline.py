@@ -7,9 +7,8 @@ step instance (see :mod:`toaster.beliefs.triggers`):
 - PostgreSQL: a row trigger running the plpgsql function ``toaster_belief_run()``, one ``IF``
   per block, calling a function ``toaster_step_<unit>`` per step;
 - SQLite: a row trigger on ``belief_runs`` and one trigger per block on ``belief_steps`` (a
-  block runs when its row is inserted, and its condition is that insert's ``WHERE``), which
-  inserts a row per step for the step's trigger ``belief_step_<unit>`` (block and unit names
-  never coincide).
+  block runs when its row is inserted, and its condition is that insert's ``WHERE``), with
+  the statements of its steps inlined when installed.
 
 A writer starts a run by filling ``belief_changed`` with the self keys it changed, then
 inserting ``(self_id, t_ns, recorded_ns)`` into ``belief_runs`` (the row is never kept): the

@@ -10,9 +10,10 @@ A unit (:func:`units`) is what a revision installs or replaces as one piece: eac
 of the pipeline (``20_perceive_1_before`` is 20_perceive with its constants), ``00_temp``,
 ``99_clear``, ``inbox``, ``ungroup`` (the settings' and agents' triggers) and ``pipeline``
 (the driver that runs the steps). On PostgreSQL a step is the function
-``toaster_step_<unit>(p_self, p_t, p_recorded)`` that the run function calls (``PERFORM``); on
-SQLite the trigger ``belief_step_<unit>`` on ``belief_steps``, run by the insert of a row
-naming it.
+``toaster_step_<unit>(p_self, p_t, p_recorded)`` that the run function calls (``PERFORM``). On
+SQLite a step's statements are inlined into the driver's block triggers where its placeholder
+``{{unit:<name>}}`` stands, when the driver is installed (:func:`compose`): a trigger per step
+on ``belief_steps`` cost ~3 ms per run, as every insert there runs each trigger's program.
 
 A migration installs frozen copies (``migrations/frozen/NNNN_units.json``, the manifest: each
 unit's revision, and ``migrations/frozen/NNNN/<unit>.json``, written by :func:`freeze` for the
@@ -29,6 +30,7 @@ import functools
 import json
 import re
 import sys
+from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -63,7 +65,8 @@ BACKENDS = ("sqlite", "postgresql")
 #: driver's (the loader creates it last and drops it first).
 SCRATCH = ("00_temp", "99_clear")
 PIPELINE_UNIT = "pipeline"
-#: One unit as frozen: per backend, its ``create`` and ``drop`` statements.
+#: One unit as frozen: per backend, its ``create`` and ``drop`` statements, and the statements
+#: it puts where the driver holds its placeholder (``inline``, SQLite's steps).
 Unit = dict[str, dict[str, list[str]]]
 
 
@@ -232,10 +235,8 @@ def _sqlite_enter(block: Block) -> str:
 
 
 def _sqlite_call(unit: str) -> list[str]:
-    """The statement that runs the unit's trigger (none when it has no statements)."""
-    return [f"INSERT INTO belief_steps (block, self_id, t_ns, recorded_ns) "
-            f"VALUES ('{unit}', NEW.self_id, NEW.t_ns, NEW.recorded_ns);"] if _unit_sql(
-        unit, "sqlite") else []
+    """The placeholder of the unit's statements (none when it has none)."""
+    return [f"{{{{unit:{unit}}}}}"] if _unit_sql(unit, "sqlite") else []
 
 
 def _sqlite_trigger(name: str, block: str, body: list[str]) -> str:
@@ -254,11 +255,7 @@ def _sqlite_block(block: Block) -> str:
 
 
 def _sqlite_unit(unit: str) -> dict[str, list[str]]:
-    sql = _unit_sql(unit, "sqlite")
-    if not sql:
-        return {"create": [], "drop": []}
-    return {"create": [_sqlite_trigger(f"belief_step_{unit}", unit, [s + ";" for s in sql])],
-            "drop": [f"DROP TRIGGER IF EXISTS belief_step_{unit}"]}
+    return {"create": [], "drop": [], "inline": [s + ";" for s in _unit_sql(unit, "sqlite")]}
 
 
 def _sqlite_pipeline() -> dict[str, list[str]]:
@@ -304,7 +301,9 @@ def ddl(backend: str) -> list[str]:
     if backend not in BACKENDS:
         msg = f"unsupported database backend {backend!r}"
         raise ValueError(msg)
-    return [s for unit in units().values() for s in unit[backend]["create"]]
+    found = units()
+    return compose([s for unit in found.values() for s in unit[backend]["create"]],
+                   lambda unit: found[unit][backend]["inline"])
 
 
 def freeze(revision: str, folder: Path | None = None) -> list[str]:
@@ -348,8 +347,16 @@ def _write(path: Path, content: object) -> None:
 
 
 # -- The revisions' loader: frozen copies only, nothing rendered ------------------------------
-#: The unit created last and dropped first: the driver, which calls the others.
+#: The unit created last and dropped first: the driver, which calls the others (and holds the
+#: inlined ones' statements: it is created again when one of them changes).
 _DRIVER = "pipeline"
+_PLACEHOLDER = re.compile(r"\{\{unit:(\w+)\}\}")
+
+
+def compose(sql: list[str], inline: Callable[[str], list[str]]) -> list[str]:
+    """``sql`` with each placeholder ``{{unit:<name>}}`` replaced by the unit's ``inline``
+    statements, one a line."""
+    return [_PLACEHOLDER.sub(lambda m: "\n".join(inline(m.group(1))), s) for s in sql]
 
 
 def _frozen(*parts: str) -> Any:
@@ -385,26 +392,41 @@ def manifest(revision: str) -> dict[str, str]:
     return found
 
 
-def _run_units(conn: Connection, refs: dict[str, str], which: str) -> None:
-    """``which`` of each unit in ``refs`` (unit -> revision), the pipeline last on create
-    and first on drop."""
-    order = sorted(refs, key=lambda unit: (unit == _DRIVER) == (which == "create"))
-    for unit in order:
-        _execute(conn, _frozen(refs[unit], f"{unit}.json")[conn.dialect.name][which])
+def _unit(ref: str, unit: str, backend: str) -> dict[str, list[str]]:
+    found: dict[str, list[str]] = _frozen(ref, f"{unit}.json")[backend]
+    return found
+
+
+def unit_statements(revision: str, backend: str, which: str,
+                    only: set[str] | None = None) -> list[str]:
+    """The ``which`` (``create`` or ``drop``) statements of the units of ``revision``'s
+    manifest (``only``: of these), placeholders filled from the manifest, the driver last on
+    create and first on drop."""
+    refs = manifest(revision)
+    order = sorted(only if only is not None else refs,
+                   key=lambda unit: (unit == _DRIVER) == (which == "create"))
+    return compose([s for unit in order for s in _unit(refs[unit], unit, backend)[which]],
+                   lambda unit: _unit(refs[unit], unit, backend).get("inline", []))
 
 
 def run_units(conn: Connection, revision: str, which: str) -> None:
     """Create or drop (``which``) every unit of ``revision``'s manifest."""
-    _run_units(conn, manifest(revision), which)
+    _execute(conn, unit_statements(revision, conn.dialect.name, which))
 
 
 def swap_units(conn: Connection, old: str, new: str) -> None:
     """Replace the units of manifest ``old`` by those of ``new``: the units whose file
-    differs are dropped as ``old`` froze them and created as ``new`` did (a revision's
-    upgrade, and with the two swapped its downgrade)."""
+    differs are dropped as ``old`` froze them and created as ``new`` did, and the driver too
+    when one of them is inlined into it (a revision's upgrade, and with the two swapped its
+    downgrade)."""
+    backend = conn.dialect.name
     before, after = manifest(old), manifest(new)
-    _run_units(conn, {u: ref for u, ref in before.items() if after.get(u) != ref}, "drop")
-    _run_units(conn, {u: ref for u, ref in after.items() if before.get(u) != ref}, "create")
+    changed = {u for u in before.keys() | after.keys() if before.get(u) != after.get(u)}
+    if any(_unit(refs[u], u, backend).get("inline") for refs in (before, after)
+           for u in changed & refs.keys()):
+        changed.add(_DRIVER)
+    _execute(conn, unit_statements(old, backend, "drop", changed & before.keys()))
+    _execute(conn, unit_statements(new, backend, "create", changed & after.keys()))
 
 
 if __name__ == "__main__":  # python -m toaster.beliefs.triggers freeze NNNN

@@ -3,10 +3,11 @@
 
 Triggers only: 0015's set (``0015_triggers.json``: one PostgreSQL function with every step,
 one SQLite trigger per block) is dropped, and every unit of the manifest ``0016_units.json``
-(``frozen/0016/<unit>.json``) is created: a plpgsql function ``toaster_step_<unit>`` or a
-SQLite trigger ``belief_step_<unit>`` per step, called by the pipeline in the same order
-under the same conditions (see :mod:`toaster.beliefs.triggers`). A later revision swaps the
-units whose file changed (``swap_units``).
+(``frozen/0016/<unit>.json``) is created: on PostgreSQL a plpgsql function
+``toaster_step_<unit>`` per step, called by the run function in the same order under the same
+conditions; on SQLite the same triggers as 0015's (three blocks renamed), each step's
+statements inlined from its unit (see :mod:`toaster.beliefs.triggers`). A later revision
+swaps the units whose file changed (``swap_units``).
 
 Revision ID: 0016
 Revises: 0015
