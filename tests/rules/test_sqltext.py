@@ -74,9 +74,9 @@ def test_the_triggers_of_a_database_at_head_are_the_rendered_ones(db: toaster.Da
                 "AND name NOT LIKE '%_guard_%' AND name <> 'agents_holder'"))}
         else:
             stored = {_normal(row[0]) for row in conn.execute(text(
-                "SELECT prosrc FROM pg_proc WHERE proname IN "
-                "('toaster_belief_run', 'toaster_fact_inbox', 'toaster_settings_changed', "
-                "'toaster_agents_changed') "
+                "SELECT prosrc FROM pg_proc WHERE (left(proname, 13) = 'toaster_step_' OR "
+                "proname IN ('toaster_belief_run', 'toaster_fact_inbox', "
+                "'toaster_settings_changed', 'toaster_agents_changed')) "
                 "AND pronamespace = "
                 "(SELECT oid FROM pg_namespace WHERE nspname = current_schema())"))}
     rendered = triggers.ddl(backend)
@@ -139,9 +139,35 @@ def test_the_views_of_a_database_at_head_are_the_rendered_ones(db: toaster.Datab
             conn.exec_driver_sql(f"DROP VIEW check_{name}")
 
 
-def test_the_newest_frozen_triggers_are_the_rendered_ones() -> None:
-    """Revisions install frozen DDL: a change of a template or of the pipeline must come with
-    a new revision and its frozen copy (python -m toaster.rules.triggers FILE.json)."""
+def test_the_newest_frozen_units_are_the_rendered_ones() -> None:
+    """Revisions install frozen units: a change of a template or of the pipeline must come with
+    a new revision and its frozen units (python -m toaster.rules.triggers freeze NNNN)."""
     folder = resources.files("toaster.migrations") / "frozen"
-    newest = max(p.name for p in folder.iterdir() if p.name.endswith("_triggers.json"))
-    assert json.loads((folder / newest).read_text(encoding="utf-8")) == triggers.frozen()
+    newest = max(p.name for p in folder.iterdir() if p.name.endswith("_units.json"))
+    manifest = triggers.manifest(newest.removesuffix("_units.json"))
+    rendered = triggers.units()
+    assert list(manifest) == list(rendered)
+    for unit, ref in manifest.items():
+        frozen = json.loads((folder / ref / f"{unit}.json").read_text(encoding="utf-8"))
+        assert frozen == rendered[unit], f"unit {unit} changed: freeze a new revision"
+
+
+def test_every_frozen_unit_file_is_in_its_revisions_manifest() -> None:
+    """A revision's folder holds the units its manifest takes from it, and no others."""
+    folder = resources.files("toaster.migrations") / "frozen"
+    for path in folder.iterdir():
+        if not path.name.endswith("_units.json"):
+            continue
+        revision = path.name.removesuffix("_units.json")
+        own = {unit for unit, ref in triggers.manifest(revision).items() if ref == revision}
+        assert {p.name for p in (folder / revision).iterdir()} == {f"{u}.json" for u in own}
+
+
+def test_a_step_unit_per_step_instance_and_no_name_shared_with_a_block() -> None:
+    units = triggers.step_units()
+    assert len(units) == len({part for block in pipeline.blocks() for part in block.body
+                              if isinstance(part, pipeline.Step)})
+    assert triggers.unit_name(pipeline.Step("20_perceive", (("everything", "1"), (
+        "phase", "'before'")))) == "20_perceive_1_before"
+    assert not {block.name for block in pipeline.blocks()} & set(triggers.units())
+    assert all(re.fullmatch(r"\w+", unit) for unit in triggers.units())

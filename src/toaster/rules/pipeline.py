@@ -1,12 +1,14 @@
 """The belief rule as one pipeline of the database's own triggers, for every writer.
 
 :data:`PIPELINE` declares, once, which steps (templates of ``rules/sql``) run and under
-which conditions. It is rendered per backend into triggers on ``belief_runs``:
+which conditions. It is rendered per backend into triggers on ``belief_runs``, one unit per
+step instance (see :mod:`toaster.rules.triggers`):
 
 - PostgreSQL: a row trigger running the plpgsql function ``toaster_belief_run()``, one ``IF``
-  per block;
+  per block, calling a function ``toaster_step_<unit>`` per step;
 - SQLite: a row trigger on ``belief_runs`` and one trigger per block on ``belief_steps`` (a
-  block runs when its row is inserted, and its condition is that insert's ``WHERE``).
+  block runs when its row is inserted, and its condition is that insert's ``WHERE``), with
+  the statements of its steps inlined when installed.
 
 A writer starts a run by filling ``belief_changed`` with the self keys it changed, then
 inserting ``(self_id, t_ns, recorded_ns)`` into ``belief_runs`` (the row is never kept): the
@@ -109,13 +111,13 @@ REGROUP = "{{groups_ended}}"
 
 PIPELINE = Block("run", RUNS, (
     *_steps("10_focus", "12_moves", "13_late", "58_frozen"),
-    Block("ungroup", f"NOT ({STEADY})", _steps("15_ungroup")),
+    Block("not_steady", f"NOT ({STEADY})", _steps("15_ungroup")),
     *_steps("20_perceive", **AROUND),
     *_steps("30_changes", moves="0"),
     *_steps("32_expand"),
-    Block("holders", NEW_AGENTS, (
+    Block("new_agents", NEW_AGENTS, (
         *_steps("holders"),
-        Block("reperceive", HOLDERS_ADDED, (
+        Block("holders_added", HOLDERS_ADDED, (
             *_steps("reperceive"), *_steps("20_perceive", **AROUND),
             *_steps("30_changes", moves="0"))),
         *_steps("holders_seen"),
