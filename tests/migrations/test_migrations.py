@@ -26,7 +26,7 @@ from toaster.db import migrate
 from toaster.db.engine import make_engine
 from toaster.db.schema import metadata
 from toaster.errors import SchemaOutdatedError
-from toaster.rules import triggers
+from toaster.migrations import frozen_triggers
 
 
 @pytest.mark.slow
@@ -351,7 +351,7 @@ def _frozen_sets(backend: str) -> dict[str, set[str]]:
     frozen = Path(toaster.__file__).parent / "migrations" / "frozen"
     whole = json.loads((frozen / "0015_triggers.json").read_text(encoding="utf-8"))
     return {"0015": _frozen_objects(backend, whole[backend]["create"]),
-            "0016": _frozen_objects(backend, triggers.unit_statements("0016", backend, "create"))}
+            "0016": _frozen_objects(backend, frozen_triggers.unit_statements("0016", backend, "create"))}
 
 
 #: Changes written as a plain SQL client would (fact_inbox): the installed rule runs them.

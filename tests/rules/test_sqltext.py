@@ -11,6 +11,7 @@ import pytest
 from sqlalchemy import text
 
 import toaster
+from toaster.migrations import frozen_triggers
 from toaster.rules import hook as rules
 from toaster.rules import pipeline, sqltext, triggers
 
@@ -144,7 +145,7 @@ def test_the_newest_frozen_units_are_the_rendered_ones() -> None:
     a new revision and its frozen units (python -m toaster.rules.triggers freeze NNNN)."""
     folder = resources.files("toaster.migrations") / "frozen"
     newest = max(p.name for p in folder.iterdir() if p.name.endswith("_units.json"))
-    manifest = triggers.manifest(newest.removesuffix("_units.json"))
+    manifest = frozen_triggers.manifest(newest.removesuffix("_units.json"))
     rendered = triggers.units()
     assert list(manifest) == list(rendered)
     for unit, ref in manifest.items():
@@ -159,7 +160,7 @@ def test_every_frozen_unit_file_is_in_its_revisions_manifest() -> None:
         if not path.name.endswith("_units.json"):
             continue
         revision = path.name.removesuffix("_units.json")
-        own = {unit for unit, ref in triggers.manifest(revision).items() if ref == revision}
+        own = {unit for unit, ref in frozen_triggers.manifest(revision).items() if ref == revision}
         assert {p.name for p in (folder / revision).iterdir()} == {f"{u}.json" for u in own}
 
 

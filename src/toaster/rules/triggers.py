@@ -12,16 +12,16 @@ of the pipeline (``20_perceive_1_before`` is 20_perceive with its constants), ``
 (the driver that runs the steps). On PostgreSQL a step is the function
 ``toaster_step_<unit>(p_self, p_t, p_recorded)`` that the run function calls (``PERFORM``). On
 SQLite a step's statements are inlined into the driver's block triggers where its placeholder
-``{{unit:<name>}}`` stands, when the driver is installed (:func:`compose`): a trigger per step
-on ``belief_steps`` cost ~3 ms per run, as every insert there runs each trigger's program.
+``{{unit:<name>}}`` stands, when the driver is installed (``compose``): a trigger per step on
+``belief_steps`` cost ~3 ms per run, as every insert there runs each trigger's program.
 
 A migration installs frozen copies (``migrations/frozen/NNNN_units.json``, the manifest: each
 unit's revision, and ``migrations/frozen/NNNN/<unit>.json``, written by :func:`freeze` for the
 units that changed), never the live rendering, so that a revision always creates the same
-objects. A change of a template or of the pipeline needs a new revision that swaps the changed
-units (:func:`swap_units`); tests check that the newest manifest is what the package renders
-and that a database at head holds it. Revisions 0007-0015 installed the whole set at once
-(``NNNN_triggers.json``, :func:`run_frozen`).
+objects; :mod:`toaster.migrations.frozen_triggers` loads them (``swap_units``; revisions
+0007-0015 installed the whole set at once, ``NNNN_triggers.json``, ``run_frozen``). A change
+of a template or of the pipeline needs a new revision that swaps the changed units; tests check
+that the newest manifest is what the package renders and that a database at head holds it.
 """
 
 from __future__ import annotations
@@ -30,14 +30,12 @@ import functools
 import json
 import re
 import sys
-from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import Connection
-
 from toaster.db.dialects import GUARD_MESSAGE
+from toaster.migrations.frozen_triggers import compose
 from toaster.rules import sqltext
 from toaster.rules.pipeline import (
     CLOCK,
@@ -344,89 +342,6 @@ def _write(path: Path, content: object) -> None:
     with open(path, "w", encoding="utf-8") as out:
         json.dump(content, out, indent=1)
         out.write("\n")
-
-
-# -- The revisions' loader: frozen copies only, nothing rendered ------------------------------
-#: The unit created last and dropped first: the driver, which calls the others (and holds the
-#: inlined ones' statements: it is created again when one of them changes).
-_DRIVER = "pipeline"
-_PLACEHOLDER = re.compile(r"\{\{unit:(\w+)\}\}")
-
-
-def compose(sql: list[str], inline: Callable[[str], list[str]]) -> list[str]:
-    """``sql`` with each placeholder ``{{unit:<name>}}`` replaced by the unit's ``inline``
-    statements, one a line."""
-    return [_PLACEHOLDER.sub(lambda m: "\n".join(inline(m.group(1))), s) for s in sql]
-
-
-def _frozen(*parts: str) -> Any:
-    path = resources.files("toaster.migrations") / "frozen"
-    for part in parts:
-        path = path / part
-    return json.loads(path.read_text(encoding="utf-8"))
-
-
-def _execute(conn: Connection, sql: list[str]) -> None:
-    cursor = conn.connection.dbapi_connection.cursor()  # type: ignore[union-attr]
-    for statement in sql:
-        cursor.execute(statement)
-
-
-def run_frozen(conn: Connection, name: str, which: str) -> None:
-    """Execute the frozen ``which`` (``create`` or ``drop``) statements of
-    ``migrations/frozen/<name>.json`` for ``conn``'s backend (raw cursor: no parameter
-    parsing). Used by the revisions 0007-0016."""
-    _execute(conn, _frozen(f"{name}.json")[conn.dialect.name][which])
-
-
-def swap_frozen(conn: Connection, old: str, new: str) -> None:
-    """Drop the frozen triggers ``old`` and create the frozen ``new`` (see
-    :func:`run_frozen`): a revision's upgrade, and with the two swapped its downgrade."""
-    run_frozen(conn, old, "drop")
-    run_frozen(conn, new, "create")
-
-
-def manifest(revision: str) -> dict[str, str]:
-    """The units installed at ``revision`` and the revision holding each one's file."""
-    found: dict[str, str] = _frozen(f"{revision}_units.json")
-    return found
-
-
-def _unit(ref: str, unit: str, backend: str) -> dict[str, list[str]]:
-    found: dict[str, list[str]] = _frozen(ref, f"{unit}.json")[backend]
-    return found
-
-
-def unit_statements(revision: str, backend: str, which: str,
-                    only: set[str] | None = None) -> list[str]:
-    """The ``which`` (``create`` or ``drop``) statements of the units of ``revision``'s
-    manifest (``only``: of these), placeholders filled from the manifest, the driver last on
-    create and first on drop."""
-    refs = manifest(revision)
-    order = sorted(only if only is not None else refs,
-                   key=lambda unit: (unit == _DRIVER) == (which == "create"))
-    return compose([s for unit in order for s in _unit(refs[unit], unit, backend)[which]],
-                   lambda unit: _unit(refs[unit], unit, backend).get("inline", []))
-
-
-def run_units(conn: Connection, revision: str, which: str) -> None:
-    """Create or drop (``which``) every unit of ``revision``'s manifest."""
-    _execute(conn, unit_statements(revision, conn.dialect.name, which))
-
-
-def swap_units(conn: Connection, old: str, new: str) -> None:
-    """Replace the units of manifest ``old`` by those of ``new``: the units whose file
-    differs are dropped as ``old`` froze them and created as ``new`` did, and the driver too
-    when one of them is inlined into it (a revision's upgrade, and with the two swapped its
-    downgrade)."""
-    backend = conn.dialect.name
-    before, after = manifest(old), manifest(new)
-    changed = {u for u in before.keys() | after.keys() if before.get(u) != after.get(u)}
-    if any(_unit(refs[u], u, backend).get("inline") for refs in (before, after)
-           for u in changed & refs.keys()):
-        changed.add(_DRIVER)
-    _execute(conn, unit_statements(old, backend, "drop", changed & before.keys()))
-    _execute(conn, unit_statements(new, backend, "create", changed & after.keys()))
 
 
 if __name__ == "__main__":  # python -m toaster.rules.triggers freeze NNNN

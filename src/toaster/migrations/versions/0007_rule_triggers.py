@@ -22,7 +22,7 @@ import sqlalchemy as sa
 from alembic import op
 
 from toaster.db.views import drop_agent_views
-from toaster.rules.triggers import run_frozen
+from toaster.migrations.frozen_triggers import run_frozen
 
 revision = "0007"
 down_revision = "0006"

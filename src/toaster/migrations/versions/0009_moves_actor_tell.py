@@ -22,7 +22,7 @@ import importlib
 import sqlalchemy as sa
 from alembic import op
 
-from toaster.rules.triggers import run_frozen
+from toaster.migrations.frozen_triggers import run_frozen
 
 revision = "0009"
 down_revision = "0008"

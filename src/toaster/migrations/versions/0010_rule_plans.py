@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from alembic import op
 
-from toaster.rules.triggers import swap_frozen
+from toaster.migrations.frozen_triggers import swap_frozen
 
 revision = "0010"
 down_revision = "0009"

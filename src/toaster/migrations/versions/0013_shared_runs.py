@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from alembic import op
 
-from toaster.rules.triggers import swap_frozen
+from toaster.migrations.frozen_triggers import swap_frozen
 
 revision = "0013"
 down_revision = "0012"

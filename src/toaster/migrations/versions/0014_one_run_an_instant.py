@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from alembic import op
 
-from toaster.rules.triggers import swap_frozen
+from toaster.migrations.frozen_triggers import swap_frozen
 
 revision = "0014"
 down_revision = "0013"

@@ -21,7 +21,7 @@ from __future__ import annotations
 import sqlalchemy as sa
 from alembic import op
 
-from toaster.rules.triggers import run_frozen
+from toaster.migrations.frozen_triggers import run_frozen
 
 revision = "0015"
 down_revision = "0014"

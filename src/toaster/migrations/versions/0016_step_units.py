@@ -6,7 +6,7 @@ one SQLite trigger per block) is dropped, and every unit of the manifest ``0016_
 (``frozen/0016/<unit>.json``) is created: on PostgreSQL a plpgsql function
 ``toaster_step_<unit>`` per step, called by the run function in the same order under the same
 conditions; on SQLite the same triggers as 0015's (three blocks renamed), each step's
-statements inlined from its unit (see :mod:`toaster.rules.triggers`). A later revision
+statements inlined from its unit (see :mod:`toaster.migrations.frozen_triggers`). A later revision
 swaps the units whose file changed (``swap_units``).
 
 Revision ID: 0016
@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from alembic import op
 
-from toaster.rules.triggers import run_frozen, run_units
+from toaster.migrations.frozen_triggers import run_frozen, run_units
 
 revision = "0016"
 down_revision = "0015"
