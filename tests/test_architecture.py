@@ -1,4 +1,5 @@
-"""The layering of docs/architecture.md holds: no module imports a component its table forbids.
+"""The layering of docs/architecture.md holds: no module imports a component its table forbids,
+a folder is one component, no two modules import each other in a circle, no module is long.
 
 Every import counts (top level, inside functions, under TYPE_CHECKING). The tables are read from
 the page, so the page is the one place the rule lives. ``python tests/test_architecture.py``
@@ -19,6 +20,8 @@ ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / "src"
 PAGE = ROOT / "docs" / "architecture.md"
 PACKAGE = "toaster"
+MAX_LINES = 600  # a module over this is cut by concern
+MAX_TOP = 9  # modules at the package top: the base and the front door
 
 
 def _table(heading: str) -> list[list[str]]:
@@ -123,6 +126,73 @@ def test_every_module_is_in_a_component() -> None:
                          "(add each to the component it belongs to)")
 
 
+def test_each_folder_is_one_row() -> None:
+    """A row names at most one folder, whole, and every folder has its row: the tree is the
+    table."""
+    owner, _ = components()
+    top = SRC / PACKAGE
+    folders = {f"{PACKAGE}.{p.parent.name}" for p in top.glob("*/__init__.py")}
+    rows: dict[str, list[str]] = defaultdict(list)
+    for module, name in owner.items():
+        rows[name].append(module)
+    for name, named in rows.items():
+        inner = [m for m in named if m != PACKAGE and not (top / f"{m.split('.')[-1]}.py").exists()]
+        assert len(inner) <= 1 and all(m in folders for m in inner), (
+            f"architecture.md: row {name} names {inner}: a row is one folder of src/toaster")
+    missing = folders - set(owner)
+    assert not missing, f"folders with no row of their own in architecture.md: {sorted(missing)}"
+
+
+def cycles() -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan), over every import."""
+    graph: dict[str, set[str]] = defaultdict(set)
+    for importer, imported, _ in edges():
+        graph[importer].add(imported)
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    found: list[list[str]] = []
+
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        for nxt in sorted(graph[node]):
+            if nxt not in index:
+                visit(nxt)
+                low[node] = min(low[node], low[nxt])
+            elif nxt in stack:
+                low[node] = min(low[node], index[nxt])
+        if low[node] == index[node]:
+            component = []
+            while True:
+                member = stack.pop()
+                component.append(member)
+                if member == node:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for node in sorted(modules()):
+        if node not in index:
+            visit(node)
+    return found
+
+
+def test_no_import_cycle() -> None:
+    assert not cycles(), f"modules that import each other in a circle: {cycles()}"
+
+
+def test_no_module_over_600_lines() -> None:
+    long = {name: n for name, path in modules().items()
+            if (n := len(path.read_text(encoding="utf-8").splitlines())) > MAX_LINES}
+    assert not long, f"modules over {MAX_LINES} lines (cut each by concern): {long}"
+
+
+def test_few_modules_at_the_package_top() -> None:
+    top = sorted(p.name for p in (SRC / PACKAGE).glob("*.py"))
+    assert len(top) <= MAX_TOP, f"{len(top)} modules at the package top (at most {MAX_TOP}): {top}"
+
+
 def test_no_forbidden_import() -> None:
     _, closure = components()
     allowed = exceptions()
@@ -158,6 +228,8 @@ def test_exceptions_are_forbidden_imports() -> None:
     ("toaster.node.live_node", "toaster.queries"),
     ("toaster.app.session", "toaster.ros1"),
     ("toaster.node.live_node", "toaster.app"),
+    ("toaster.migrations.frozen_triggers", "toaster.rules"),  # old revisions import no live rule
+    ("toaster.world.rosmsg", "toaster.producers"),
 ])
 def test_the_table_forbids(importer: str, imported: str) -> None:
     """The rule reads as the page says (a page whose table allowed everything would pass)."""
