@@ -55,8 +55,17 @@ def _holder_rows(db: toaster.Database) -> int:
         ).scalar_one()
 
 
-def run(url: str, agents: int, depth: int, rules: bool, ticks: int, entities: int,
-        churn: bool = False, share: bool = True, grouped: bool = True) -> tuple[float, float]:
+def run(
+    url: str,
+    agents: int,
+    depth: int,
+    rules: bool,
+    ticks: int,
+    entities: int,
+    churn: bool = False,
+    share: bool = True,
+    grouped: bool = True,
+) -> tuple[float, float]:
     """(changed self facts per second, holder rows written per changed self fact)."""
     with toaster.connect(url) as db:
         api.configure(db, enabled=rules, depth=depth, share_rows=share, group_holders=grouped)
@@ -71,8 +80,10 @@ def run(url: str, agents: int, depth: int, rules: bool, ticks: int, entities: in
             where = list(room)
             if churn and k % 4 >= 2:  # H0 spends two ticks in four in the hall: it misses
                 where[0] = toaster.Fact("H0", "IsInRoom", "HALL")  # the 2nd, sees the 1st again
-            return where + [toaster.Fact(f"O{i}", "Distance", "R", "near" if k % 2 else "far")
-                            for i in range(entities)]
+            return where + [
+                toaster.Fact(f"O{i}", "Distance", "R", "near" if k % 2 else "far")
+                for i in range(entities)
+            ]
 
         st.sync_snapshot("bench", "R", 1, snapshot(0))  # warm-up: keys, holders
         st.sync_snapshot("bench", "R", 2, snapshot(1))
@@ -94,24 +105,32 @@ def single_writes(url: str, agents: int, writes: int, raw: bool) -> float:
         st.add_entity("R", "robot", is_self=True, t_ns=0)
         for i in range(agents):
             st.add_entity(f"H{i}", "human", t_ns=0)
-        st.sync_snapshot("room", "R", 1, [toaster.Fact(f"H{i}", "IsInRoom", "LAB")
-                                          for i in range(agents)]
-                         + [toaster.Fact(f"O{i}", "IsInRoom", "LAB") for i in range(50)])
-        changes = [(f"O{k % 50}", "near" if (k // 50) % 2 else "far", k + 2)
-                   for k in range(writes)]
+        st.sync_snapshot(
+            "room",
+            "R",
+            1,
+            [toaster.Fact(f"H{i}", "IsInRoom", "LAB") for i in range(agents)]
+            + [toaster.Fact(f"O{i}", "IsInRoom", "LAB") for i in range(50)],
+        )
+        changes = [(f"O{k % 50}", "near" if (k // 50) % 2 else "far", k + 2) for k in range(writes)]
         engine = sa.create_engine(db.url.replace("postgresql://", "postgresql+psycopg://"))
         start = time.perf_counter()
         if raw:
             for subject, value, t in changes:
                 with engine.begin() as conn:
-                    conn.execute(sa.text(
-                        "INSERT INTO fact_inbox (agent_id, subject_id, property, target_id, "
-                        "value_text, t_ns, source) VALUES ('R', :s, 'Distance', 'R', :v, :t, "
-                        "'user')"), {"s": subject, "v": value, "t": t})
+                    conn.execute(
+                        sa.text(
+                            "INSERT INTO fact_inbox (agent_id, subject_id, property, target_id, "
+                            "value_text, t_ns, source) VALUES ('R', :s, 'Distance', 'R', :v, :t, "
+                            "'user')"
+                        ),
+                        {"s": subject, "v": value, "t": t},
+                    )
         else:
             for subject, value, t in changes:
-                st.assert_fact("R", toaster.Fact(subject, "Distance", "R", value), t_ns=t,
-                               strict=False)
+                st.assert_fact(
+                    "R", toaster.Fact(subject, "Distance", "R", value), t_ns=t, strict=False
+                )
         elapsed = time.perf_counter() - start
         engine.dispose()
         return writes / elapsed
@@ -119,12 +138,20 @@ def single_writes(url: str, agents: int, writes: int, raw: bool) -> float:
 
 #: (agents, depth, rules, churn, share_rows, group_holders); "copied" is the straightforward
 #: design, "alone" every holder computed by itself.
-CASES = [(0, 1, False, False, True, True), (1, 1, True, False, True, True),
-         (5, 1, True, False, True, True), (10, 1, True, False, True, True),
-         (20, 1, True, False, True, True), (5, 2, True, False, True, True),
-         (10, 2, True, False, True, True), (10, 2, True, False, True, False),
-         (5, 3, True, False, True, True), (5, 4, True, False, True, True),
-         (10, 1, True, True, True, True), (10, 1, True, False, False, True)]
+CASES = [
+    (0, 1, False, False, True, True),
+    (1, 1, True, False, True, True),
+    (5, 1, True, False, True, True),
+    (10, 1, True, False, True, True),
+    (20, 1, True, False, True, True),
+    (5, 2, True, False, True, True),
+    (10, 2, True, False, True, True),
+    (10, 2, True, False, True, False),
+    (5, 3, True, False, True, True),
+    (5, 4, True, False, True, True),
+    (10, 1, True, True, True, True),
+    (10, 1, True, False, False, True),
+]
 
 
 def _label(rules: bool, share: bool, grouped: bool) -> str:
@@ -140,19 +167,26 @@ def main() -> None:
     parser.add_argument("--writes", type=int, default=300)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--pg", default=PG, help="PostgreSQL URL ('' to skip)")
-    parser.add_argument("--only", default="", help="run the cases whose label contains this "
-                        "(e.g. 'depth 2', 'sqlite')")
+    parser.add_argument(
+        "--only",
+        default="",
+        help="run the cases whose label contains this (e.g. 'depth 2', 'sqlite')",
+    )
     args = parser.parse_args()
-    print(f"{'backend':10} {'agents':>6} {'depth':>5} {'rules':>7} {'churn':>5} "
-          f"{'changed facts/s':>16} {'range':>15} {'vs no rules':>11} {'holder rows/change':>18}")
+    print(
+        f"{'backend':10} {'agents':>6} {'depth':>5} {'rules':>7} {'churn':>5} "
+        f"{'changed facts/s':>16} {'range':>15} {'vs no rules':>11} {'holder rows/change':>18}"
+    )
     with tempfile.TemporaryDirectory() as tmp:
         for backend in ("sqlite", "postgresql"):
             if backend == "postgresql" and not args.pg:
                 continue
             baseline = None
             for n, (agents, depth, rules, churn, share, grouped) in enumerate(CASES):
-                label = (f"{backend} {agents} agents depth {depth} {_label(rules, share, grouped)}"
-                         f"{' churn' if churn else ''}")
+                label = (
+                    f"{backend} {agents} agents depth {depth} {_label(rules, share, grouped)}"
+                    f"{' churn' if churn else ''}"
+                )
                 if rules and args.only not in label:  # (the baseline always runs)
                     continue
                 rates, rows = [], 0.0
@@ -161,28 +195,40 @@ def main() -> None:
                         url = f"sqlite:///{tmp}/bench{n}_{r}.db"
                     else:
                         url = _pg_schema(args.pg, f"bench_beliefs_{n}")
-                    rate, rows = run(url, agents, depth, rules, args.ticks, args.entities,
-                                     churn, share, grouped)
+                    rate, rows = run(
+                        url, agents, depth, rules, args.ticks, args.entities, churn, share, grouped
+                    )
                     rates.append(rate)
                 rate = statistics.median(rates)
                 baseline = baseline or rate
                 spread = f"{min(rates) / 1000:.1f}-{max(rates) / 1000:.1f}k"
-                print(f"{backend:10} {agents:6d} {depth:5d} {_label(rules, share, grouped):>7} "
-                      f"{'yes' if churn else 'no':>5} {rate:16,.0f} {spread:>15} "
-                      f"{rate / baseline:10.2f}x {rows:18.2f}", flush=True)
-        print(f"\nsingle writes (one change per transaction, 10 agents in the room)\n"
-              f"{'backend':10} {'library/s':>10} {'fact_inbox/s':>13} {'inbox vs library':>17}")
+                print(
+                    f"{backend:10} {agents:6d} {depth:5d} {_label(rules, share, grouped):>7} "
+                    f"{'yes' if churn else 'no':>5} {rate:16,.0f} {spread:>15} "
+                    f"{rate / baseline:10.2f}x {rows:18.2f}",
+                    flush=True,
+                )
+        print(
+            f"\nsingle writes (one change per transaction, 10 agents in the room)\n"
+            f"{'backend':10} {'library/s':>10} {'fact_inbox/s':>13} {'inbox vs library':>17}"
+        )
         for backend in ("sqlite", "postgresql"):
-            if (backend == "postgresql" and not args.pg) or (args.only and "single" not in
-                                                              args.only):
+            if (backend == "postgresql" and not args.pg) or (
+                args.only and "single" not in args.only
+            ):
                 continue
             rates = []
             for n, raw in enumerate((False, True)):
-                url = (f"sqlite:///{tmp}/single{n}.db" if backend == "sqlite"
-                       else _pg_schema(args.pg, f"bench_single_{n}"))
+                url = (
+                    f"sqlite:///{tmp}/single{n}.db"
+                    if backend == "sqlite"
+                    else _pg_schema(args.pg, f"bench_single_{n}")
+                )
                 rates.append(single_writes(url, 10, args.writes, raw))
-            print(f"{backend:10} {rates[0]:10,.0f} {rates[1]:13,.0f} {rates[1] / rates[0]:16.2f}x",
-                  flush=True)
+            print(
+                f"{backend:10} {rates[0]:10,.0f} {rates[1]:13,.0f} {rates[1] / rates[0]:16.2f}x",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

@@ -72,8 +72,9 @@ class Watcher:
         self.thread.start()
 
     def _run(self) -> None:
-        for row in watch(self.db, property="IsInArea", target="zone_*", poll_s=0.002,
-                         stop=self.stop):
+        for row in watch(
+            self.db, property="IsInArea", target="zone_*", poll_s=0.002, stop=self.stop
+        ):
             if row.target_id == f"zone_{row.subject_id}":
                 self.seen.append((row.subject_id, row.kind == "appeared", time.time_ns()))
 
@@ -108,17 +109,39 @@ def ros_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dic
             log = Path(tmp) / "serve.log"
             with log.open("w") as err:
                 node = subprocess.Popen(
-                    [sys.executable, "-m", "toaster", "--db", database.url, "serve", "--ros1",
-                     "--tf-map", str(frames)], env=env, stderr=err, start_new_session=True)
+                    [
+                        sys.executable,
+                        "-m",
+                        "toaster",
+                        "--db",
+                        database.url,
+                        "serve",
+                        "--ros1",
+                        "--tf-map",
+                        str(frames),
+                    ],
+                    env=env,
+                    stderr=err,
+                    start_new_session=True,
+                )
                 while "(Ctrl-C stops)" not in log.read_text():
                     if node.poll() is not None:
                         raise RuntimeError(log.read_text()[-2000:])
                     time.sleep(0.05)
                 watcher = Watcher(database.url)
                 client = subprocess.run(
-                    ["/usr/bin/python3", str(HERE / "live_client.py"), str(humans), "50",
-                     str(seconds)], env=env, capture_output=True, text=True,
-                    timeout=seconds + 120)
+                    [
+                        "/usr/bin/python3",
+                        str(HERE / "live_client.py"),
+                        str(humans),
+                        "50",
+                        str(seconds),
+                    ],
+                    env=env,
+                    capture_output=True,
+                    text=True,
+                    timeout=seconds + 120,
+                )
                 watcher.close()
                 os.killpg(node.pid, signal.SIGTERM)
                 node.wait(30)
@@ -128,12 +151,20 @@ def ros_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dic
             summary = log.read_text()
     finally:
         database.close()
-    found = re.search(r"stopped after (\d+) ticks \((\d+) overran [\d.]+ ms; median "
-                      r"([\d.]+) ms", summary)
-    ticks, overruns, median = (found.groups() if found else ("nan", "nan", "nan"))
-    return {"db": latencies(out["toggles"], watcher.seen),
-            "ros": latencies(out["toggles"], out["seen"]), "toggles": len(out["toggles"]),
-            "ticks": int(ticks), "overruns": int(overruns), "tick_ms": float(median)}
+    found = re.search(
+        r"stopped after (\d+) ticks \((\d+) overran [\d.]+ ms; median "
+        r"([\d.]+) ms",
+        summary,
+    )
+    ticks, overruns, median = found.groups() if found else ("nan", "nan", "nan")
+    return {
+        "db": latencies(out["toggles"], watcher.seen),
+        "ros": latencies(out["toggles"], out["seen"]),
+        "toggles": len(out["toggles"]),
+        "ticks": int(ticks),
+        "overruns": int(overruns),
+        "tick_ms": float(median),
+    }
 
 
 def api_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dict[str, Any]:
@@ -160,8 +191,14 @@ def api_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dic
                         toggles.append([f"h{i}", want, wall])
                     node.api.push(f"h{i}", (x, y, 0.0), t_ns=wall)
                     for joint, (dx, dy, dz) in joint_offsets().items():
-                        node.api.push(f"h{i}/{joint}", (x + dx, y + dy, dz), kind="joint",
-                                      owner_id=f"h{i}", joint=joint, t_ns=wall)
+                        node.api.push(
+                            f"h{i}/{joint}",
+                            (x + dx, y + dy, dz),
+                            kind="joint",
+                            owner_id=f"h{i}",
+                            joint=joint,
+                            t_ns=wall,
+                        )
                 for j in range(50):
                     node.api.push(f"o{j}", object_pose(j), kind="object", t_ns=wall)
                 tick += 1
@@ -173,9 +210,14 @@ def api_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dic
             stats = node.stats
     finally:
         database.close()
-    return {"db": latencies(toggles, watcher.seen), "ros": [], "toggles": len(toggles),
-            "ticks": stats.ticks, "overruns": stats.overruns,
-            "tick_ms": statistics.median(stats.tick_ms) if stats.tick_ms else float("nan")}
+    return {
+        "db": latencies(toggles, watcher.seen),
+        "ros": [],
+        "toggles": len(toggles),
+        "ticks": stats.ticks,
+        "overruns": stats.overruns,
+        "tick_ms": statistics.median(stats.tick_ms) if stats.tick_ms else float("nan"),
+    }
 
 
 def main() -> None:
@@ -187,29 +229,39 @@ def main() -> None:
     parser.add_argument("--humans", default="10,100")
     args = parser.parse_args()
     backends = ["sqlite"] + ([] if args.no_pg else ["postgresql"])
-    print(f"Live latency, pose published -> fact (ms; median over {args.repeats} runs of each "
-          f"run's p50 / p99; {args.seconds:.0f} s per run, 30 Hz, 50 objects, 2 joints per "
-          "human; target p99 < 33 ms for 10 humans)")
-    print(f"{'path':<20} {'humans':>6} {'backend':<11} {'changes':>8} {'db p50':>7} "
-          f"{'db p99':>7} {'ros p50':>8} {'ros p99':>8} {'tick ms':>8} {'overruns':>9}")
+    print(
+        f"Live latency, pose published -> fact (ms; median over {args.repeats} runs of each "
+        f"run's p50 / p99; {args.seconds:.0f} s per run, 30 Hz, 50 objects, 2 joints per "
+        "human; target p99 < 33 ms for 10 humans)"
+    )
+    print(
+        f"{'path':<20} {'humans':>6} {'backend':<11} {'changes':>8} {'db p50':>7} "
+        f"{'db p99':>7} {'ros p50':>8} {'ros p99':>8} {'tick ms':>8} {'overruns':>9}"
+    )
     with tempfile.TemporaryDirectory() as tmp:
         for humans in (int(h) for h in args.humans.split(",")):
             for backend in backends:
-                for label, run in (("in-process (base)", api_run),
-                                   ("toaster serve --ros1", ros_run)):
-                    runs = [run(backend, args.pg, humans, args.seconds, tmp)
-                            for _ in range(args.repeats)]
+                for label, run in (
+                    ("in-process (base)", api_run),
+                    ("toaster serve --ros1", ros_run),
+                ):
+                    runs = [
+                        run(backend, args.pg, humans, args.seconds, tmp)
+                        for _ in range(args.repeats)
+                    ]
 
                     def med(key: str, q: float, runs: list = runs) -> float:
                         return statistics.median(pct(r[key], q) for r in runs)
 
-                    print(f"{label:<20} {humans:>6} {backend:<11} "
-                          f"{statistics.median(r['toggles'] for r in runs):>8.0f} "
-                          f"{med('db', 50):>7.1f} {med('db', 99):>7.1f} {med('ros', 50):>8.1f} "
-                          f"{med('ros', 99):>8.1f} "
-                          f"{statistics.median(r['tick_ms'] for r in runs):>8.1f} "
-                          f"{statistics.median(r['overruns'] for r in runs):>9.0f}",
-                          flush=True)
+                    print(
+                        f"{label:<20} {humans:>6} {backend:<11} "
+                        f"{statistics.median(r['toggles'] for r in runs):>8.0f} "
+                        f"{med('db', 50):>7.1f} {med('db', 99):>7.1f} {med('ros', 50):>8.1f} "
+                        f"{med('ros', 99):>8.1f} "
+                        f"{statistics.median(r['tick_ms'] for r in runs):>8.1f} "
+                        f"{statistics.median(r['overruns'] for r in runs):>9.0f}",
+                        flush=True,
+                    )
 
 
 if __name__ == "__main__":

@@ -35,8 +35,11 @@ def build(n: int, n_areas: int = 100, agents: int = 20, seed: int = 0):
         if a % 2:
             areas[f"a{a}"] = {"shape": "circle", "center": [cx, cy], "radius": 3.0}
         else:
-            areas[f"a{a}"] = {"points": [[cx, cy], [cx + 6, cy], [cx + 6, cy + 4], [cx, cy + 4]],
-                              "enter_hysteresis": 0.1, "leave_hysteresis": 0.1}
+            areas[f"a{a}"] = {
+                "points": [[cx, cy], [cx + 6, cy], [cx + 6, cy + 4], [cx, cy + 4]],
+                "enter_hysteresis": 0.1,
+                "leave_hysteresis": 0.1,
+            }
     pos = np.column_stack([rng.uniform(0, side, (n, 2)), np.zeros(n)])
     return world, areas, pos, rng
 
@@ -50,8 +53,14 @@ def tick_all(world, pos, rng, t, managers, diff):
 
 
 def naive(world, areas, t):
-    polys = {k: (shapely.Point(v["center"]).buffer(v["radius"]) if v.get("shape") == "circle"
-                 else shapely.Polygon(v["points"])) for k, v in areas.items()}
+    polys = {
+        k: (
+            shapely.Point(v["center"]).buffer(v["radius"])
+            if v.get("shape") == "circle"
+            else shapely.Polygon(v["points"])
+        )
+        for k, v in areas.items()
+    }
     facts = []
     n = len(world.ids)
     for i in range(n):
@@ -70,8 +79,7 @@ def naive(world, areas, t):
     return facts
 
 
-def measure(n: int, agents: int = 20, repeats: int = 30
-            ) -> tuple[float, float, float, float, int]:
+def measure(n: int, agents: int = 20, repeats: int = 30) -> tuple[float, float, float, float, int]:
     """(median ms, naive median ms, best ms, naive best ms, monitor facts per tick)."""
     world, areas, pos, rng = build(n, agents=agents)
     managers = [AreaManager(areas), AgentMonitor()]
@@ -92,20 +100,29 @@ def measure(n: int, agents: int = 20, repeats: int = 30
         naive(world, areas, t)
         naive_times.append(time.perf_counter() - start)
     facts = len(managers[1].compute_batch(world, t - S // 30))
-    return (statistics.median(times) * 1e3, statistics.median(naive_times) * 1e3,
-            min(times) * 1e3, min(naive_times) * 1e3, facts)
+    return (
+        statistics.median(times) * 1e3,
+        statistics.median(naive_times) * 1e3,
+        min(times) * 1e3,
+        min(naive_times) * 1e3,
+        facts,
+    )
 
 
 def main() -> None:
     # Medians are the targets; "best" (minimum) shows the cost without the preemption spikes
     # of a loaded 2-vCPU machine (a tick descheduled once costs +4 ms).
-    print(f"{'entities':>9} {'areas':>6} {'agents':>6} {'tick ms':>9} {'naive ms':>9} {'ratio':>7}"
-          f" {'target':>8} {'best ms':>8} {'naive best':>10} {'ratio':>6} {'monitor facts':>13}")
+    print(
+        f"{'entities':>9} {'areas':>6} {'agents':>6} {'tick ms':>9} {'naive ms':>9} {'ratio':>7}"
+        f" {'target':>8} {'best ms':>8} {'naive best':>10} {'ratio':>6} {'monitor facts':>13}"
+    )
     for n, agents, target in ((1_000, 20, 5.0), (10_000, 20, 50.0), (10_000, 30, 50.0)):
         fast, slow, fast_min, slow_min, facts = measure(n, agents)
-        print(f"{n:>9} {100:>6} {agents:>6} {fast:>9.2f} {slow:>9.1f} {slow / fast:>6.0f}× "
-              f"{'≤' + str(target):>8} {fast_min:>8.2f} {slow_min:>10.1f} "
-              f"{slow_min / fast_min:>5.0f}× {facts:>13}")
+        print(
+            f"{n:>9} {100:>6} {agents:>6} {fast:>9.2f} {slow:>9.1f} {slow / fast:>6.0f}× "
+            f"{'≤' + str(target):>8} {fast_min:>8.2f} {slow_min:>10.1f} "
+            f"{slow_min / fast_min:>5.0f}× {facts:>13}"
+        )
 
 
 if __name__ == "__main__":

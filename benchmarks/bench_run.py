@@ -78,14 +78,17 @@ class PgSchema:
         row = self.conn.execute(
             "SELECT COALESCE(SUM(pg_total_relation_size(relid)), 0), COALESCE(SUM(n_live_tup), "
             "0), COALESCE(SUM(n_dead_tup), 0) FROM pg_stat_user_tables WHERE schemaname = %s",
-            (self.name,)).fetchone()
+            (self.name,),
+        ).fetchone()
         return int(row[0]), int(row[1]), int(row[2])
 
     def tables(self) -> dict[str, int]:
         """Bytes of each table with its indexes (and TOAST)."""
         rows = self.conn.execute(
             "SELECT relname, pg_total_relation_size(relid) FROM pg_stat_user_tables "
-            "WHERE schemaname = %s", (self.name,)).fetchall()
+            "WHERE schemaname = %s",
+            (self.name,),
+        ).fetchall()
         return {str(name): int(size) for name, size in rows}
 
     def drop(self) -> None:
@@ -115,7 +118,8 @@ class Database:
         with sqlite3.connect(f"file:{self.path}?mode=ro", uri=True) as conn:
             rows = conn.execute(
                 "SELECT COALESCE(m.tbl_name, d.name), SUM(d.pgsize) FROM dbstat d "
-                "LEFT JOIN sqlite_master m ON m.name = d.name GROUP BY 1").fetchall()
+                "LEFT JOIN sqlite_master m ON m.name = d.name GROUP BY 1"
+            ).fetchall()
         return {str(name): int(size) for name, size in rows}
 
     def close(self) -> None:
@@ -150,16 +154,27 @@ class Jitter:
 def scene_session(n: int, agents: int, config: dict[str, Any], holders: str) -> Session:
     world, areas, pos, rng = bp.build(n, agents=agents)
     producers = [PerceptionFacts(config), AreaManager(areas, config), AgentMonitor(config)]
-    return Session(world, [Jitter(pos, rng)], producers, areas, "toaster", 0, 0, 30.0, config,
-                   belief_holders=holders)
+    return Session(
+        world,
+        [Jitter(pos, rng)],
+        producers,
+        areas,
+        "toaster",
+        0,
+        0,
+        30.0,
+        config,
+        belief_holders=holders,
+    )
 
 
 def time_ticks(session: Session, store: Any, ticks: int) -> tuple[float, float]:
     """(median ms per tick, median rows written per tick) after 5 warm-up ticks."""
     if store is not None:
         session.register(store)
-    runner = Runner(session.world, session.sources, session.producers, store=store,
-                    agent_id=session.self_id)
+    runner = Runner(
+        session.world, session.sources, session.producers, store=store, agent_id=session.self_id
+    )
     t = 10 * S
     times, rows = [], []
     for i in range(ticks + 5):
@@ -177,20 +192,29 @@ def _written(store: Any) -> int:
     if store is None:
         return 0
     with store.db.transaction() as conn:
-        return sum(conn.exec_driver_sql(f"SELECT COUNT(*) FROM {table}").scalar_one()
-                   for table in ("facts", "events", "fact_samples"))
+        return sum(
+            conn.exec_driver_sql(f"SELECT COUNT(*) FROM {table}").scalar_one()
+            for table in ("facts", "events", "fact_samples")
+        )
 
 
 def bench_ticks(backends: list[str], pg: str | None, ticks: int, repeats: int) -> None:
-    print("\n1. One full tick with the database (median ms of "
-          f"{ticks} ticks, median of {repeats} runs; rows = new facts + events + samples)")
-    print(f"{'scene':<34} {'backend':<11} {'holders':<8} {'no-db ms':>9} {'before ms':>10}"
-          f" {'rows':>7} {'tick ms':>8} {'rows':>6} {'db/geom':>8} {'target':>7}")
-    scenes = [(1_000, 20, "1,000 ent / 100 areas / 20 humans", {"sqlite": 20, "postgresql": 33}),
-              (10_000, 30, "10,000 ent / 100 areas / 30 humans", {"sqlite": 100})]
+    print(
+        "\n1. One full tick with the database (median ms of "
+        f"{ticks} ticks, median of {repeats} runs; rows = new facts + events + samples)"
+    )
+    print(
+        f"{'scene':<34} {'backend':<11} {'holders':<8} {'no-db ms':>9} {'before ms':>10}"
+        f" {'rows':>7} {'tick ms':>8} {'rows':>6} {'db/geom':>8} {'target':>7}"
+    )
+    scenes = [
+        (1_000, 20, "1,000 ent / 100 areas / 20 humans", {"sqlite": 20, "postgresql": 33}),
+        (10_000, 30, "10,000 ent / 100 areas / 30 humans", {"sqlite": 100}),
+    ]
     for n, agents, label, targets in scenes:
-        geom = statistics.median(time_ticks(scene_session(n, agents, {}, "none"), None, ticks)[0]
-                                 for _ in range(repeats))
+        geom = statistics.median(
+            time_ticks(scene_session(n, agents, {}, "none"), None, ticks)[0] for _ in range(repeats)
+        )
         for backend in backends:
             if backend not in targets:
                 continue
@@ -215,20 +239,32 @@ def bench_ticks(backends: list[str], pg: str | None, ticks: int, repeats: int) -
                 before_rows = statistics.median(f[1] for f in figures["before"])
                 ms = statistics.median(f[0] for f in figures["now"])
                 rows = statistics.median(f[1] for f in figures["now"])
-                print(f"{label:<34} {backend:<11} {holders:<8} {geom:>9.2f} {before_ms:>10.1f}"
-                      f" {before_rows:>7.0f} {ms:>8.1f} {rows:>6.0f} {(ms - geom) / geom:>7.1f}×"
-                      f" {'≤' + str(targets[backend]):>7}", flush=True)
+                print(
+                    f"{label:<34} {backend:<11} {holders:<8} {geom:>9.2f} {before_ms:>10.1f}"
+                    f" {before_rows:>7.0f} {ms:>8.1f} {rows:>6.0f} {(ms - geom) / geom:>7.1f}×"
+                    f" {'≤' + str(targets[backend]):>7}",
+                    flush=True,
+                )
 
 
 # -- 2. crowd replay ------------------------------------------------------------------------------
 _SPEED = re.compile(r"in ([\d.]+) s \(([\d.]+)× real time\)")
 
 
-def toaster_run(csv: Path, url: str | None, rate: float, extra: tuple[str, ...] = ()
-                ) -> tuple[float, str]:
+def toaster_run(
+    csv: Path, url: str | None, rate: float, extra: tuple[str, ...] = ()
+) -> tuple[float, str]:
     """``toaster run`` as a user types it: (wall seconds of the run loop, its output)."""
-    cmd = [TOASTER, *(["--db", url] if url else []), "run", str(csv), "--rate", str(rate),
-           *(["--no-db"] if url is None else []), *extra]
+    cmd = [
+        TOASTER,
+        *(["--db", url] if url else []),
+        "run",
+        str(csv),
+        "--rate",
+        str(rate),
+        *(["--no-db"] if url is None else []),
+        *extra,
+    ]
     out = subprocess.run(cmd, capture_output=True, text=True, check=False)
     if out.returncode:
         msg = f"{' '.join(cmd)} failed: {out.stderr.strip() or out.stdout}"
@@ -241,19 +277,26 @@ def toaster_run(csv: Path, url: str | None, rate: float, extra: tuple[str, ...] 
 
 
 def bench_crowd(backends: list[str], pg: str | None, repeats: int) -> None:
-    print("\n2. Crowd replay with `toaster run` (× real time = input seconds / run seconds; "
-          f"median of {repeats})")
-    print(f"{'crowd':<26} {'backend':<11} {'input s':>8} {'no-db ×':>8} {'×':>7} {'target':>7}"
-          f" {'store ms/tick':>14}")
-    cases = [("400 crossing, 2.5 Hz", 2.5, 200.0, 2.0, {"sqlite": 30, "postgresql": 10}),
-             ("400 crossing, 30 Hz", 30.0, 100.0, 2.0, {"sqlite": 1, "postgresql": 1}),
-             ("400 at once, 2.5 Hz", 2.5, 60.0, 0.0, {"sqlite": 0, "postgresql": 0})]
+    print(
+        "\n2. Crowd replay with `toaster run` (× real time = input seconds / run seconds; "
+        f"median of {repeats})"
+    )
+    print(
+        f"{'crowd':<26} {'backend':<11} {'input s':>8} {'no-db ×':>8} {'×':>7} {'target':>7}"
+        f" {'store ms/tick':>14}"
+    )
+    cases = [
+        ("400 crossing, 2.5 Hz", 2.5, 200.0, 2.0, {"sqlite": 30, "postgresql": 10}),
+        ("400 crossing, 30 Hz", 30.0, 100.0, 2.0, {"sqlite": 1, "postgresql": 1}),
+        ("400 at once, 2.5 Hz", 2.5, 60.0, 0.0, {"sqlite": 0, "postgresql": 0}),
+    ]
     with tempfile.TemporaryDirectory() as tmp:
         for label, hz, seconds, arrivals, targets in cases:
             csv = Path(tmp) / f"crowd_{hz}_{arrivals}.csv"
             crowd.write_crowd(csv, 400, hz, seconds, arrivals=arrivals)
-            base = statistics.median(seconds / toaster_run(csv, None, hz)[0]
-                                     for _ in range(repeats))
+            base = statistics.median(
+                seconds / toaster_run(csv, None, hz)[0] for _ in range(repeats)
+            )
             for backend in backends:
                 if backend not in targets:
                     continue
@@ -267,34 +310,43 @@ def bench_crowd(backends: list[str], pg: str | None, repeats: int) -> None:
                     speeds.append(seconds / wall)
                     found = re.search(r"store\s+[\d.]+ ms\s+\(([\d.]+) ms/tick\)", out)
                     store_ms.append(float(found.group(1)) if found else float("nan"))
-                print(f"{label:<26} {backend:<11} {seconds:>8.0f} {base:>7.0f}×"
-                      f" {statistics.median(speeds):>6.1f}× {'≥' + str(targets[backend]):>7}"
-                      f" {statistics.median(store_ms):>14.2f}", flush=True)
+                print(
+                    f"{label:<26} {backend:<11} {seconds:>8.0f} {base:>7.0f}×"
+                    f" {statistics.median(speeds):>6.1f}× {'≥' + str(targets[backend]):>7}"
+                    f" {statistics.median(store_ms):>14.2f}",
+                    flush=True,
+                )
 
 
 # -- 3. size per hour -----------------------------------------------------------------------------
 def bench_size(backends: list[str], pg: str | None) -> None:
-    print("\n3. Growth per hour: crowds at 30 Hz with 2 cm tracker noise (`toaster run`, defaults;"
-          " slope between a 40 s and a 120 s replay; target ≤ 100 MB/h for 100 people);\n"
-          "   last rows: the same with IsMovingToward toward people asked for (opt-in)")
-    print(f"{'crowd':<22} {'backend':<11} {'MB/h':>8} {'rows/h':>12} {'dead rows at end':>17}"
-          f" {'samples/h':>10} {'intervals/h':>12} {'events/h':>10}")
+    print(
+        "\n3. Growth per hour: crowds at 30 Hz with 2 cm tracker noise (`toaster run`, defaults;"
+        " slope between a 40 s and a 120 s replay; target ≤ 100 MB/h for 100 people);\n"
+        "   last rows: the same with IsMovingToward toward people asked for (opt-in)"
+    )
+    print(
+        f"{'crowd':<22} {'backend':<11} {'MB/h':>8} {'rows/h':>12} {'dead rows at end':>17}"
+        f" {'samples/h':>10} {'intervals/h':>12} {'events/h':>10}"
+    )
     with tempfile.TemporaryDirectory() as tmp:
         social = Path(tmp) / "social.yaml"
         social.write_text("toward_range_humans: 3.6\n")
         for label, people, arrivals, extra in (
-                ("100 at once", 100, 0.0, ()), ("400 crossing", 400, 2.0, ()),
-                ("100, toward people 3.6m", 100, 0.0, ("--config", str(social)))):
+            ("100 at once", 100, 0.0, ()),
+            ("400 crossing", 400, 2.0, ()),
+            ("100, toward people 3.6m", 100, 0.0, ("--config", str(social))),
+        ):
             csv = Path(tmp) / f"crowd{people}.csv"
             if not csv.exists():
-                crowd.write_crowd(csv, people, 30.0, 120.0, noise=0.02, seed=1,
-                                  arrivals=arrivals)
+                crowd.write_crowd(csv, people, 30.0, 120.0, noise=0.02, seed=1, arrivals=arrivals)
             for backend in backends:
                 _size_row(label, csv, backend, pg, tmp, extra)
 
 
-def _size_row(label: str, csv: Path, backend: str, pg: str | None, tmp: str,
-              extra: tuple[str, ...]) -> None:
+def _size_row(
+    label: str, csv: Path, backend: str, pg: str | None, tmp: str, extra: tuple[str, ...]
+) -> None:
     """One row of section 3: a 40 s and a 120 s replay, growth per hour from the difference."""
     sizes = []
     for seconds in (40, 120):
@@ -302,8 +354,10 @@ def _size_row(label: str, csv: Path, backend: str, pg: str | None, tmp: str,
         try:
             toaster_run(csv, database.url, 30.0, ("--until", f"{seconds}s", *extra))
             with toaster.connect(database.url) as db, db.transaction() as conn:
-                counts = [conn.exec_driver_sql(f"SELECT COUNT(*) FROM {t}").scalar_one()
-                          for t in ("fact_samples", "facts", "events")]
+                counts = [
+                    conn.exec_driver_sql(f"SELECT COUNT(*) FROM {t}").scalar_one()
+                    for t in ("fact_samples", "facts", "events")
+                ]
             sizes.append((database.size(), counts))
         finally:
             database.close()
@@ -311,18 +365,24 @@ def _size_row(label: str, csv: Path, backend: str, pg: str | None, tmp: str,
     (b1, _, dead), c1 = sizes[1]
     per_hour = 3600 / 80
     deltas = [(b - a) * per_hour for a, b in zip(c0, c1, strict=True)]
-    print(f"{label:<22} {backend:<11} {(b1 - b0) * per_hour / 1e6:>8.1f} {sum(deltas):>12,.0f}"
-          f" {dead:>17,} {deltas[0]:>10,.0f} {deltas[1]:>12,.0f} {deltas[2]:>10,.0f}",
-          flush=True)
+    print(
+        f"{label:<22} {backend:<11} {(b1 - b0) * per_hour / 1e6:>8.1f} {sum(deltas):>12,.0f}"
+        f" {dead:>17,} {deltas[0]:>10,.0f} {deltas[1]:>12,.0f} {deltas[2]:>10,.0f}",
+        flush=True,
+    )
 
 
 # -- 4. PostgreSQL over a long run ----------------------------------------------------------------
 def bench_pg_long(pg: str, seconds: float) -> None:
-    print(f"\n4. PostgreSQL over {seconds:.0f} s of a 100-person crowd at 30 Hz with 2 cm noise "
-          "(Runner as `toaster run`): facts table and dead rows as the run goes;\n   baseline in "
-          "the same run: no maintenance between ticks (these servers run without autovacuum)")
-    print(f"{'maintenance':<14} {'input s':>8} {'wall s':>7} {'facts MB':>9} {'all MB':>8}"
-          f" {'facts dead':>11} {'HOT share of updates':>21} {'vacuums':>8}")
+    print(
+        f"\n4. PostgreSQL over {seconds:.0f} s of a 100-person crowd at 30 Hz with 2 cm noise "
+        "(Runner as `toaster run`): facts table and dead rows as the run goes;\n   baseline in "
+        "the same run: no maintenance between ticks (these servers run without autovacuum)"
+    )
+    print(
+        f"{'maintenance':<14} {'input s':>8} {'wall s':>7} {'facts MB':>9} {'all MB':>8}"
+        f" {'facts dead':>11} {'HOT share of updates':>21} {'vacuums':>8}"
+    )
 
     with tempfile.TemporaryDirectory() as tmp:
         csv = Path(tmp) / "crowd100.csv"
@@ -341,8 +401,9 @@ def _pg_long_run(pg: str, csv: Path, label: str) -> None:
         store = db.store()
         session = load_session(csv)
         session.register(store)
-        runner = Runner(session.world, session.sources, session.producers, store=store,
-                        agent_id=session.self_id)
+        runner = Runner(
+            session.world, session.sources, session.producers, store=store, agent_id=session.self_id
+        )
         wall = time.perf_counter()
         next_report = session.start_ns + 60 * S
 
@@ -355,15 +416,25 @@ def _pg_long_run(pg: str, csv: Path, label: str) -> None:
             row = schema.conn.execute(
                 "SELECT pg_total_relation_size(relid), n_dead_tup, n_tup_hot_upd, n_tup_upd, "
                 "vacuum_count + autovacuum_count FROM pg_stat_user_tables WHERE schemaname = %s "
-                "AND relname = 'facts'", (schema.name,)).fetchone()
+                "AND relname = 'facts'",
+                (schema.name,),
+            ).fetchone()
             total = schema.size()[0]
             hot = row[2] / row[3] if row[3] else 0.0
-            print(f"{label:<14} {(t_ns - session.start_ns) / S:>8.0f}"
-                  f" {time.perf_counter() - wall:>7.1f} {row[0] / 1e6:>9.1f}"
-                  f" {total / 1e6:>8.1f} {row[1]:>11,} {hot:>20.0%} {row[4]:>8}", flush=True)
+            print(
+                f"{label:<14} {(t_ns - session.start_ns) / S:>8.0f}"
+                f" {time.perf_counter() - wall:>7.1f} {row[0] / 1e6:>9.1f}"
+                f" {total / 1e6:>8.1f} {row[1]:>11,} {hot:>20.0%} {row[4]:>8}",
+                flush=True,
+            )
 
-        runner.run(session.start_ns, session.end_ns, session.rate_hz, on_tick=report,
-                   maintain_every_s=60.0 if label == "every 60 s" else None)
+        runner.run(
+            session.start_ns,
+            session.end_ns,
+            session.rate_hz,
+            on_tick=report,
+            maintain_every_s=60.0 if label == "every 60 s" else None,
+        )
         db.close()
     finally:
         schema.drop()
@@ -376,8 +447,12 @@ def main() -> None:
     parser.add_argument("--ticks", type=int, default=15)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--only", choices=("tick", "crowd", "size", "pg-long"))
-    parser.add_argument("--long", type=float, default=600.0,
-                        help="input seconds of the PostgreSQL long run (section 4)")
+    parser.add_argument(
+        "--long",
+        type=float,
+        default=600.0,
+        help="input seconds of the PostgreSQL long run (section 4)",
+    )
     args = parser.parse_args()
     pg = None if args.no_pg else args.pg
     if pg:

@@ -35,12 +35,21 @@ def build(n_objects: int, n_agents: int = 10, seed: int = 0) -> World:
             world.set_shape(f"o{i}", role="support", size=[1.2, 0.8, 0.75])
         elif i % 10 == 1:
             world.set_shape(f"o{i}", role="container", closed=bool(i % 20 == 1))
-    world.observe("b", [f"h{i}" for i in range(n_agents)], np.zeros(n_agents, np.int64),
-                  np.column_stack([rng.uniform(0, side, (n_agents, 2)), np.zeros(n_agents)]),
-                  np.column_stack([np.zeros((n_agents, 2)), rng.uniform(-3, 3, n_agents)]))
+    world.observe(
+        "b",
+        [f"h{i}" for i in range(n_agents)],
+        np.zeros(n_agents, np.int64),
+        np.column_stack([rng.uniform(0, side, (n_agents, 2)), np.zeros(n_agents)]),
+        np.column_stack([np.zeros((n_agents, 2)), rng.uniform(-3, 3, n_agents)]),
+    )
     pos = np.column_stack([rng.uniform(0, side, (n_objects, 2)), np.zeros(n_objects)])
-    world.observe("b", [f"o{i}" for i in range(n_objects)], np.zeros(n_objects, np.int64), pos,
-                  np.column_stack([np.zeros((n_objects, 2)), rng.uniform(-3, 3, n_objects)]))
+    world.observe(
+        "b",
+        [f"o{i}" for i in range(n_objects)],
+        np.zeros(n_objects, np.int64),
+        pos,
+        np.column_stack([np.zeros((n_objects, 2)), rng.uniform(-3, 3, n_objects)]),
+    )
     world.commit()
     return world
 
@@ -54,8 +63,15 @@ def naive(world: World, producer: SpatialFacts) -> dict[tuple[int, int], float]:
         size = world.size[r] if world.kind[r] == 2 else cfg["agent_size"]
         x, y, z = world.pos[r].tolist()
         yaw = float(world.rpy[r, 2])
-        boxes.append((r, (x, y, z + size[2] / 2), (size[0] / 2, size[1] / 2, size[2] / 2),
-                      math.cos(yaw), math.sin(yaw)))
+        boxes.append(
+            (
+                r,
+                (x, y, z + size[2] / 2),
+                (size[0] / 2, size[1] / 2, size[2] / 2),
+                math.cos(yaw),
+                math.sin(yaw),
+            )
+        )
 
     def local(p, box):
         _, c, _, co, si = box
@@ -88,15 +104,23 @@ def naive(world: World, producer: SpatialFacts) -> dict[tuple[int, int], float]:
             seen = 0
             for px, py, pz in POINTS.tolist():
                 ox, oy, oz = px * 2 * tb[2][0], py * 2 * tb[2][1], pz * 2 * tb[2][2]
-                p = (tb[1][0] + tb[3] * ox - tb[4] * oy, tb[1][1] + tb[4] * ox + tb[3] * oy,
-                     tb[1][2] + oz)
+                p = (
+                    tb[1][0] + tb[3] * ox - tb[4] * oy,
+                    tb[1][1] + tb[4] * ox + tb[3] * oy,
+                    tb[1][2] + oz,
+                )
                 d = (p[0] - eye[0], p[1] - eye[1], p[2] - eye[2])
                 dist = math.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2)
-                if dist > cfg["view_range"] or d[0] * gaze[0] + d[1] * gaze[1] + d[
-                        2] * gaze[2] < cos_half * dist:
+                if (
+                    dist > cfg["view_range"]
+                    or d[0] * gaze[0] + d[1] * gaze[1] + d[2] * gaze[2] < cos_half * dist
+                ):
                     continue
-                if not any(hits(local(eye, ob), local(p, ob), ob[2])
-                           for ob in boxes if ob is not tb and ob is not ag):
+                if not any(
+                    hits(local(eye, ob), local(p, ob), ob[2])
+                    for ob in boxes
+                    if ob is not tb and ob is not ag
+                ):
                     seen += 1
             if seen:
                 out[(ag[0], tb[0])] = seen / len(POINTS)
@@ -123,8 +147,10 @@ def vectorised(world: World, producer: SpatialFacts) -> dict[tuple[int, int], fl
     hidden = np.zeros(len(boxes.rows), bool)
     ag, frac = producer.visible_fraction(world, boxes, container, hidden)
     ai, bi = np.nonzero(frac)
-    return {(int(boxes.rows[ag[a]]), int(boxes.rows[b])): float(frac[a, b])
-            for a, b in zip(ai, bi, strict=True)}
+    return {
+        (int(boxes.rows[ag[a]]), int(boxes.rows[b])): float(frac[a, b])
+        for a, b in zip(ai, bi, strict=True)
+    }
 
 
 def bench(n_objects: int, repeat: int, with_naive: bool) -> None:

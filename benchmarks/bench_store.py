@@ -67,8 +67,10 @@ def snapshots(n_facts: int, ticks: int, rate: float, seed: int = 1) -> list[list
     """Snapshots of ``n_facts`` facts where ``rate`` of them change each tick."""
     rng = random.Random(seed)
     values = ("far", "medium", "close")
-    live = {i: Fact(f"E{i % 500}", "Distance", f"T{i}", values[0], 1.0, 0.9,
-                    sub_property="3D") for i in range(n_facts)}
+    live = {
+        i: Fact(f"E{i % 500}", "Distance", f"T{i}", values[0], 1.0, 0.9, sub_property="3D")
+        for i in range(n_facts)
+    }
     next_id = n_facts
     out = [list(live.values())]
     per_kind = max(1, int(n_facts * rate) // 3)
@@ -80,8 +82,9 @@ def snapshots(n_facts: int, ticks: int, rate: float, seed: int = 1) -> list[list
         for i in ids[per_kind:]:  # ended
             del live[i]
         for _ in range(per_kind):  # appeared
-            live[next_id] = Fact(f"E{next_id % 500}", "Distance", f"T{next_id}", "far", 2.0, 0.9,
-                                 sub_property="3D")
+            live[next_id] = Fact(
+                f"E{next_id % 500}", "Distance", f"T{next_id}", "far", 2.0, 0.9, sub_property="3D"
+            )
             next_id += 1
         out.append(list(live.values()))
     return out
@@ -111,10 +114,13 @@ def bench_sync(db: toaster.Database, snaps: list[list[Fact]]) -> dict[str, float
         store.sync_snapshot("bench", AGENT, (len(snaps) + tick) * 1000, snaps[-1])
         quiet.append(time.perf_counter() - start)
     per_tick = statistics.median(times)
-    return {"changed_per_s": changed / len(times) / per_tick,
-            "rows_per_s": rows / len(times) / per_tick,
-            "rows_per_tick": rows / len(times), "tick_ms": per_tick * 1000,
-            "quiet_ms": median_ms(quiet)}
+    return {
+        "changed_per_s": changed / len(times) / per_tick,
+        "rows_per_s": rows / len(times) / per_tick,
+        "rows_per_tick": rows / len(times),
+        "tick_ms": per_tick * 1000,
+        "quiet_ms": median_ms(quiet),
+    }
 
 
 def raw_limit(db: toaster.Database, rows_per_tick: int, ticks: int = 15) -> float:
@@ -122,12 +128,15 @@ def raw_limit(db: toaster.Database, rows_per_tick: int, ticks: int = 15) -> floa
     raw = db.engine.raw_connection()
     cur = raw.cursor()
     sqlite = db.dialect_name == "sqlite"
-    cur.execute("CREATE TABLE raw_rows (id INTEGER PRIMARY KEY, key_id BIGINT NOT NULL, "
-                "value_text TEXT, value_num DOUBLE PRECISION, confidence DOUBLE PRECISION, "
-                "valid_from_ns BIGINT, source TEXT)" if not sqlite else
-                "CREATE TABLE raw_rows (id INTEGER PRIMARY KEY, key_id INTEGER NOT NULL, "
-                "value_text TEXT, value_num REAL, confidence REAL, valid_from_ns INTEGER, "
-                "source TEXT)")
+    cur.execute(
+        "CREATE TABLE raw_rows (id INTEGER PRIMARY KEY, key_id BIGINT NOT NULL, "
+        "value_text TEXT, value_num DOUBLE PRECISION, confidence DOUBLE PRECISION, "
+        "valid_from_ns BIGINT, source TEXT)"
+        if not sqlite
+        else "CREATE TABLE raw_rows (id INTEGER PRIMARY KEY, key_id INTEGER NOT NULL, "
+        "value_text TEXT, value_num REAL, confidence REAL, valid_from_ns INTEGER, "
+        "source TEXT)"
+    )
     cur.execute("CREATE UNIQUE INDEX raw_rows_key ON raw_rows (key_id, valid_from_ns)")
     raw.commit()
     times, key = [], 0
@@ -137,14 +146,20 @@ def raw_limit(db: toaster.Database, rows_per_tick: int, ticks: int = 15) -> floa
         start = time.perf_counter()
         if sqlite:
             cur.execute("BEGIN")
-            cur.executemany("INSERT INTO raw_rows (key_id, value_text, value_num, confidence, "
-                            "valid_from_ns, source) VALUES (?,?,?,?,?,?)", batch)
+            cur.executemany(
+                "INSERT INTO raw_rows (key_id, value_text, value_num, confidence, "
+                "valid_from_ns, source) VALUES (?,?,?,?,?,?)",
+                batch,
+            )
         else:
             cols = [list(c) for c in zip(*batch, strict=True)]
-            cur.execute("INSERT INTO raw_rows (id, key_id, value_text, value_num, confidence, "
-                        "valid_from_ns, source) SELECT k, k, v, n, c, f, s FROM "
-                        "unnest(%s::bigint[], %s::text[], %s::float8[], %s::float8[], "
-                        "%s::bigint[], %s::text[]) AS u(k, v, n, c, f, s)", cols)
+            cur.execute(
+                "INSERT INTO raw_rows (id, key_id, value_text, value_num, confidence, "
+                "valid_from_ns, source) SELECT k, k, v, n, c, f, s FROM "
+                "unnest(%s::bigint[], %s::text[], %s::float8[], %s::float8[], "
+                "%s::bigint[], %s::text[]) AS u(k, v, n, c, f, s)",
+                cols,
+            )
         raw.commit()
         times.append(time.perf_counter() - start)
     cur.execute("DROP TABLE raw_rows")
@@ -163,18 +178,26 @@ def raw_same_tables(db: toaster.Database, rows_per_tick: int, ticks: int = 15) -
     times, key = [], 50_000_000
     for tick in range(ticks):
         facts = [(key + i, "far", 1.0, 0.9, 1.0, tick, 0, "raw") for i in range(half)]
-        events = [(key + i, AGENT, "appeared", tick, "far", 1.0, 0.9, 1.0, None, "raw", 0)
-                  for i in range(half)]
+        events = [
+            (key + i, AGENT, "appeared", tick, "far", 1.0, 0.9, 1.0, None, "raw", 0)
+            for i in range(half)
+        ]
         key += half
         start = time.perf_counter()
         if sqlite:
             cur.execute("BEGIN")
-            cur.executemany("INSERT INTO facts (key_id, value_text, value_num, confidence, "
-                            "observability, valid_from_ns, recorded_ns, source) "
-                            "VALUES (?,?,?,?,?,?,?,?)", facts)
-            cur.executemany("INSERT INTO events (key_id, agent_id, kind, stamp_ns, value_text, "
-                            "value_num, confidence, observability, previous_text, source, "
-                            "recorded_ns) VALUES (?,?,?,?,?,?,?,?,?,?,?)", events)
+            cur.executemany(
+                "INSERT INTO facts (key_id, value_text, value_num, confidence, "
+                "observability, valid_from_ns, recorded_ns, source) "
+                "VALUES (?,?,?,?,?,?,?,?)",
+                facts,
+            )
+            cur.executemany(
+                "INSERT INTO events (key_id, agent_id, kind, stamp_ns, value_text, "
+                "value_num, confidence, observability, previous_text, source, "
+                "recorded_ns) VALUES (?,?,?,?,?,?,?,?,?,?,?)",
+                events,
+            )
         else:
             db.backend.insert_intervals(cur, facts)
             db.backend.insert_events(cur, events)
@@ -202,23 +225,37 @@ def naive_baseline(db: toaster.Database, n_changes: int = 300) -> float:
         driver.autocommit = True
     cur = driver.cursor()
     mark = "?" if sqlite else "%s"
-    cur.execute("CREATE TABLE naive_facts (subject TEXT, predicate TEXT, target TEXT, "
-                "value TEXT, start BIGINT, stop BIGINT)")
+    cur.execute(
+        "CREATE TABLE naive_facts (subject TEXT, predicate TEXT, target TEXT, "
+        "value TEXT, start BIGINT, stop BIGINT)"
+    )
     cur.execute("CREATE UNIQUE INDEX naive_key ON naive_facts (subject, predicate, target, stop)")
-    cur.execute("CREATE TABLE naive_events (subject TEXT, predicate TEXT, target TEXT, "
-                "value TEXT, stamp BIGINT)")
+    cur.execute(
+        "CREATE TABLE naive_events (subject TEXT, predicate TEXT, target TEXT, "
+        "value TEXT, stamp BIGINT)"
+    )
     start = time.perf_counter()
     for i in range(n_changes):
         key = (f"E{i % 50}", "Distance", f"T{i}")
-        cur.execute(f"SELECT value FROM naive_facts WHERE subject = {mark} AND predicate = {mark} "
-                    f"AND target = {mark} AND stop = 0", key)
+        cur.execute(
+            f"SELECT value FROM naive_facts WHERE subject = {mark} AND predicate = {mark} "
+            f"AND target = {mark} AND stop = 0",
+            key,
+        )
         cur.fetchall()
-        cur.execute(f"UPDATE naive_facts SET stop = {mark} WHERE subject = {mark} AND "
-                    f"predicate = {mark} AND target = {mark} AND stop = 0", (i, *key))
-        cur.execute(f"INSERT INTO naive_facts VALUES ({mark}, {mark}, {mark}, {mark}, {mark}, 0)",
-                    (*key, "far", i))
-        cur.execute(f"INSERT INTO naive_events VALUES ({mark}, {mark}, {mark}, {mark}, {mark})",
-                    (*key, "far", i))
+        cur.execute(
+            f"UPDATE naive_facts SET stop = {mark} WHERE subject = {mark} AND "
+            f"predicate = {mark} AND target = {mark} AND stop = 0",
+            (i, *key),
+        )
+        cur.execute(
+            f"INSERT INTO naive_facts VALUES ({mark}, {mark}, {mark}, {mark}, {mark}, 0)",
+            (*key, "far", i),
+        )
+        cur.execute(
+            f"INSERT INTO naive_events VALUES ({mark}, {mark}, {mark}, {mark}, {mark})",
+            (*key, "far", i),
+        )
     elapsed = time.perf_counter() - start
     cur.execute("DROP TABLE naive_facts")
     cur.execute("DROP TABLE naive_events")
@@ -248,8 +285,10 @@ def fill_memory(db: toaster.Database, agents: int, keys: int, intervals: int) ->
     raw = db.engine.raw_connection()
     cur = raw.cursor()
     sqlite = db.dialect_name == "sqlite"
-    cur.execute("CREATE TABLE flat_memory (agent_id TEXT, key_id BIGINT, value_text TEXT, "
-                "valid_from_ns BIGINT, valid_to_ns BIGINT)")
+    cur.execute(
+        "CREATE TABLE flat_memory (agent_id TEXT, key_id BIGINT, value_text TEXT, "
+        "valid_from_ns BIGINT, valid_to_ns BIGINT)"
+    )
     key_id = 10_000_000
     for a in range(agents):
         key_rows = [(key_id + k, f"H{a}", f"S{k}", "P", f"T{k}") for k in range(keys)]
@@ -262,19 +301,28 @@ def fill_memory(db: toaster.Database, agents: int, keys: int, intervals: int) ->
                 flat.append((f"H{a}", key_id + k, "v", start, start + 1000))
         key_id += keys
         if sqlite:
-            cur.executemany("INSERT INTO fact_keys (id, agent_id, subject_id, property, target_id) "
-                            "VALUES (?,?,?,?,?)", key_rows)
-            cur.executemany("INSERT INTO facts (key_id, value_text, value_num, confidence, "
-                            "observability, valid_from_ns, valid_to_ns, recorded_ns, source) "
-                            "VALUES (?,?,?,?,?,?,?,?,?)", fact_rows)
+            cur.executemany(
+                "INSERT INTO fact_keys (id, agent_id, subject_id, property, target_id) "
+                "VALUES (?,?,?,?,?)",
+                key_rows,
+            )
+            cur.executemany(
+                "INSERT INTO facts (key_id, value_text, value_num, confidence, "
+                "observability, valid_from_ns, valid_to_ns, recorded_ns, source) "
+                "VALUES (?,?,?,?,?,?,?,?,?)",
+                fact_rows,
+            )
             cur.executemany("INSERT INTO flat_memory VALUES (?,?,?,?,?)", flat)
         else:
-            with cur.copy("COPY fact_keys (id, agent_id, subject_id, property, target_id) "
-                          "FROM STDIN") as copy:
+            with cur.copy(
+                "COPY fact_keys (id, agent_id, subject_id, property, target_id) FROM STDIN"
+            ) as copy:
                 for row in key_rows:
                     copy.write_row(row)
-            with cur.copy("COPY facts (key_id, value_text, value_num, confidence, observability, "
-                          "valid_from_ns, valid_to_ns, recorded_ns, source) FROM STDIN") as copy:
+            with cur.copy(
+                "COPY facts (key_id, value_text, value_num, confidence, observability, "
+                "valid_from_ns, valid_to_ns, recorded_ns, source) FROM STDIN"
+            ) as copy:
                 for row in fact_rows:
                     copy.write_row(row)
             with cur.copy("COPY flat_memory FROM STDIN") as copy:
@@ -288,8 +336,9 @@ def fill_memory(db: toaster.Database, agents: int, keys: int, intervals: int) ->
     return agents * keys * intervals
 
 
-def bench_as_of(db: toaster.Database, agents: int, intervals: int,
-                n: int = 15) -> tuple[float, float]:
+def bench_as_of(
+    db: toaster.Database, agents: int, intervals: int, n: int = 15
+) -> tuple[float, float]:
     """Median ms of beliefs_at for one agent at random t, and of the plain b-tree scan."""
     rng = random.Random(3)
     ours, scan = [], []
@@ -302,9 +351,12 @@ def bench_as_of(db: toaster.Database, agents: int, intervals: int,
         rows = q.beliefs_at(db, agent, t)
         ours.append(time.perf_counter() - start)
         start = time.perf_counter()
-        cur.execute(f"SELECT key_id, value_text, valid_from_ns, valid_to_ns FROM flat_memory "
-                    f"WHERE agent_id = {mark} AND valid_from_ns <= {mark} AND "
-                    f"(valid_to_ns IS NULL OR valid_to_ns > {mark})", (agent, t, t))
+        cur.execute(
+            f"SELECT key_id, value_text, valid_from_ns, valid_to_ns FROM flat_memory "
+            f"WHERE agent_id = {mark} AND valid_from_ns <= {mark} AND "
+            f"(valid_to_ns IS NULL OR valid_to_ns > {mark})",
+            (agent, t, t),
+        )
         baseline = cur.fetchall()
         scan.append(time.perf_counter() - start)
         raw.rollback()
@@ -324,12 +376,30 @@ def run_backend(backend: str, quick: bool) -> list[tuple[str, str, str, str]]:
         same = raw_same_tables(db, int(sync["rows_per_tick"]))
         naive = naive_baseline(db, 100 if quick else 300)
         point = bench_point(db, snaps)
-    out.append(("sync: changed facts/s (5% of 10k per tick)", f"{sync['changed_per_s']:,.0f}",
-                f"naive {naive:,.0f}/s", f"{sync['changed_per_s'] / naive:.0f}×"))
-    out.append(("sync: rows written/s", f"{sync['rows_per_s']:,.0f}", f"raw {raw:,.0f}/s",
-                f"{sync['rows_per_s'] / raw:.0%} of raw"))
-    out.append(("  raw inserts into toaster's own tables", "", f"{same:,.0f}/s",
-                f"{sync['rows_per_s'] / same:.0%} of it"))
+    out.append(
+        (
+            "sync: changed facts/s (5% of 10k per tick)",
+            f"{sync['changed_per_s']:,.0f}",
+            f"naive {naive:,.0f}/s",
+            f"{sync['changed_per_s'] / naive:.0f}×",
+        )
+    )
+    out.append(
+        (
+            "sync: rows written/s",
+            f"{sync['rows_per_s']:,.0f}",
+            f"raw {raw:,.0f}/s",
+            f"{sync['rows_per_s'] / raw:.0%} of raw",
+        )
+    )
+    out.append(
+        (
+            "  raw inserts into toaster's own tables",
+            "",
+            f"{same:,.0f}/s",
+            f"{sync['rows_per_s'] / same:.0%} of it",
+        )
+    )
     out.append(("sync: tick with 500 changes", f"{sync['tick_ms']:.2f} ms", "", ""))
     out.append(("sync: tick with no change", f"{sync['quiet_ms']:.3f} ms", "target < 2 ms", ""))
     out.append(("fact_value (current, Python API)", f"{point:.3f} ms", "", ""))
@@ -338,8 +408,14 @@ def run_backend(backend: str, quick: bool) -> list[tuple[str, str, str, str]]:
         with database(backend) as db:
             rows = fill_memory(db, agents, keys, intervals)
             ours, scan = bench_as_of(db, agents, intervals)
-        out.append((f"as-of: {keys} beliefs of 1 agent, {rows:,} rows", f"{ours:.2f} ms",
-                    f"b-tree scan {scan:.2f} ms", f"{scan / ours:.0f}×"))
+        out.append(
+            (
+                f"as-of: {keys} beliefs of 1 agent, {rows:,} rows",
+                f"{ours:.2f} ms",
+                f"b-tree scan {scan:.2f} ms",
+                f"{scan / ours:.0f}×",
+            )
+        )
     return out
 
 

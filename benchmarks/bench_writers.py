@@ -64,8 +64,9 @@ def _drop(url: str, urls: list[str]) -> None:
     engine.dispose()
 
 
-def once(url: str, writers: int, shared: bool, ticks: int,
-         holders: str = "humans", pace: str = "") -> tuple[float, float, float, int]:
+def once(
+    url: str, writers: int, shared: bool, ticks: int, holders: str = "humans", pace: str = ""
+) -> tuple[float, float, float, int]:
     """(p50 ms, p99 ms, wall s, failed ticks) of one run."""
     urls = [_schema(url)] if shared else [_schema(url) for _ in range(writers)]
     with tempfile.TemporaryDirectory() as tmp:
@@ -74,9 +75,24 @@ def once(url: str, writers: int, shared: bool, ticks: int,
         for i in range(writers):
             out = Path(tmp) / f"w{i}.json"
             role = f"run:R{i}:{SCENARIO}:30:{ticks}:{holders}:{pace}"
-            procs.append((out, subprocess.Popen(
-                [sys.executable, "-m", "tests.db.writers", urls[0 if shared else i], role,
-                 "0", str(i), str(out)], cwd=ROOT)))
+            procs.append(
+                (
+                    out,
+                    subprocess.Popen(
+                        [
+                            sys.executable,
+                            "-m",
+                            "tests.db.writers",
+                            urls[0 if shared else i],
+                            role,
+                            "0",
+                            str(i),
+                            str(out),
+                        ],
+                        cwd=ROOT,
+                    ),
+                )
+            )
         for _, proc in procs:
             proc.wait()
         wall = time.perf_counter() - start
@@ -88,8 +104,12 @@ def once(url: str, writers: int, shared: bool, ticks: int,
             failed += len(report["failures"])
     _drop(url, urls)
     latencies.sort()
-    return (latencies[len(latencies) // 2] * 1e3,
-            latencies[min(len(latencies) - 1, int(len(latencies) * 0.99))] * 1e3, wall, failed)
+    return (
+        latencies[len(latencies) // 2] * 1e3,
+        latencies[min(len(latencies) - 1, int(len(latencies) * 0.99))] * 1e3,
+        wall,
+        failed,
+    )
 
 
 def main() -> None:
@@ -98,29 +118,49 @@ def main() -> None:
     parser.add_argument("--ticks", type=int, default=150)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--pg", default=PG)
-    parser.add_argument("--pace", choices=("live", "none"), default="live",
-                        help="live (default): each robot ticks at 30 Hz of wall time, as "
-                             "`toaster serve` and `run --realtime` do; none: ticks back to "
-                             "back, as an offline `toaster run` (every writer saturates)")
-    parser.add_argument("--holders", default="humans",
-                        help="humans (the scenario's people hold beliefs) or none (no belief "
-                             "rule work: the store alone)")
+    parser.add_argument(
+        "--pace",
+        choices=("live", "none"),
+        default="live",
+        help="live (default): each robot ticks at 30 Hz of wall time, as "
+        "`toaster serve` and `run --realtime` do; none: ticks back to "
+        "back, as an offline `toaster run` (every writer saturates)",
+    )
+    parser.add_argument(
+        "--holders",
+        default="humans",
+        help="humans (the scenario's people hold beliefs) or none (no belief "
+        "rule work: the store alone)",
+    )
     args = parser.parse_args()
     counts = [int(n) for n in args.writers.split(",")]
-    print(f"{'writers':>7} {'database':>8} {'p50 ms':>8} {'p99 ms':>8} {'wall s':>7} "
-          f"{'failed':>6}   (medians of {args.repeats}; {args.ticks} ticks per writer; "
-          f"holders: {args.holders}; pace: {args.pace})")
+    print(
+        f"{'writers':>7} {'database':>8} {'p50 ms':>8} {'p99 ms':>8} {'wall s':>7} "
+        f"{'failed':>6}   (medians of {args.repeats}; {args.ticks} ticks per writer; "
+        f"holders: {args.holders}; pace: {args.pace})"
+    )
     for n in counts:
         results = {}
         for shared in (False, True):  # the baseline first
-            runs = [once(args.pg, n, shared, args.ticks, args.holders,
-                         "" if args.pace == "none" else args.pace)
-                    for _ in range(args.repeats)]
+            runs = [
+                once(
+                    args.pg,
+                    n,
+                    shared,
+                    args.ticks,
+                    args.holders,
+                    "" if args.pace == "none" else args.pace,
+                )
+                for _ in range(args.repeats)
+            ]
             p50, p99, wall = (statistics.median(r[k] for r in runs) for k in range(3))
             failed = sum(r[3] for r in runs)
             results[shared] = p50, p99
-            print(f"{n:7d} {'shared' if shared else 'own':>8} {p50:8.1f} {p99:8.1f} "
-                  f"{wall:7.1f} {failed:6d}", flush=True)
+            print(
+                f"{n:7d} {'shared' if shared else 'own':>8} {p50:8.1f} {p99:8.1f} "
+                f"{wall:7.1f} {failed:6d}",
+                flush=True,
+            )
         ratio50 = results[True][0] / results[False][0]
         ratio99 = results[True][1] / results[False][1]
         print(f"{'':7} {'ratio':>8} {ratio50:7.2f}x {ratio99:7.2f}x   (shared / own)")

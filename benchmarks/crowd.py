@@ -27,8 +27,7 @@ import numpy as np
 SPEED, DENSITY = 1.2, 0.12
 
 
-def _edge_points(rng: np.random.Generator, n: int, side: float
-                 ) -> tuple[np.ndarray, np.ndarray]:
+def _edge_points(rng: np.random.Generator, n: int, side: float) -> tuple[np.ndarray, np.ndarray]:
     """``n`` (entry, exit) pairs on different edges of the square."""
     edge = rng.integers(0, 4, n)
     other = (edge + rng.integers(1, 4, n)) % 4
@@ -36,22 +35,29 @@ def _edge_points(rng: np.random.Generator, n: int, side: float
     def on(e: np.ndarray) -> np.ndarray:
         u = rng.uniform(0, side, len(e))
         x = np.select([e == 0, e == 1, e == 2], [u, np.full(len(e), side), u], 0.0)
-        y = np.select([e == 0, e == 1, e == 2], [np.zeros(len(e)), u, np.full(len(e), side)],
-                      u)
+        y = np.select([e == 0, e == 1, e == 2], [np.zeros(len(e)), u, np.full(len(e), side)], u)
         return np.column_stack([x, y])
 
     return on(edge), on(other)
 
 
-def write_crowd(path: Path, people: int, hz: float, seconds: float, noise: float = 0.0,
-                seed: int = 0, arrivals: float = 0.0) -> int:
+def write_crowd(
+    path: Path,
+    people: int,
+    hz: float,
+    seconds: float,
+    noise: float = 0.0,
+    seed: int = 0,
+    arrivals: float = 0.0,
+) -> int:
     """Write the crowd to ``path``; return the number of samples."""
     rng = np.random.default_rng(seed)
     if arrivals > 0:
         # people in the scene ≈ arrivals × (side / speed + stops) = DENSITY × side²
         stops = 5.0 / 3
-        side = (arrivals / SPEED + math.sqrt((arrivals / SPEED) ** 2
-                                             + 4 * DENSITY * arrivals * stops)) / (2 * DENSITY)
+        side = (
+            arrivals / SPEED + math.sqrt((arrivals / SPEED) ** 2 + 4 * DENSITY * arrivals * stops)
+        ) / (2 * DENSITY)
         start = np.sort(rng.uniform(0, people / arrivals, people))
         pos, goal = _edge_points(rng, people, side)
     else:
@@ -77,9 +83,12 @@ def write_crowd(path: Path, people: int, hz: float, seconds: float, noise: float
             here = (start <= t) & ~gone
             seen = pos + (rng.normal(0, noise, pos.shape) if noise else 0.0)
             rows = np.flatnonzero(here)
-            out.writelines(f"{t:.4f},{ids[i]},human,{x:.4f},{y:.4f},0,{a:.4f}\n"
-                           for i, (x, y), a in zip(rows.tolist(), seen[rows].tolist(),
-                                                   yaw[rows].tolist(), strict=True))
+            out.writelines(
+                f"{t:.4f},{ids[i]},human,{x:.4f},{y:.4f},0,{a:.4f}\n"
+                for i, (x, y), a in zip(
+                    rows.tolist(), seen[rows].tolist(), yaw[rows].tolist(), strict=True
+                )
+            )
             samples += len(rows)
             delta = goal - pos
             dist = np.linalg.norm(delta, axis=1)
@@ -114,8 +123,12 @@ def main() -> None:
     parser.add_argument("--arrivals", type=float, default=2.0)
     parser.add_argument("--noise", type=float, default=0.0)
     args = parser.parse_args()
-    print(write_crowd(args.out, args.people, args.hz, args.seconds, args.noise,
-                      arrivals=args.arrivals), "samples")
+    print(
+        write_crowd(
+            args.out, args.people, args.hz, args.seconds, args.noise, arrivals=args.arrivals
+        ),
+        "samples",
+    )
 
 
 if __name__ == "__main__":

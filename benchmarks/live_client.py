@@ -28,7 +28,8 @@ from live_scene import human_pose, joint_offsets, object_pose
 
 ROOT = Path(__file__).resolve().parents[1]
 _spec = importlib.util.spec_from_file_location(
-    "toaster_ros1_messages", ROOT / "src" / "toaster" / "ros1" / "messages.py")
+    "toaster_ros1_messages", ROOT / "src" / "toaster" / "ros1" / "messages.py"
+)
 messages = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(messages)
 
@@ -58,15 +59,19 @@ def main() -> None:
 
     def on_facts(msg) -> None:
         now = time.time_ns()
-        current = {f.subjectId for f in msg.factList
-                   if f.property == "IsInArea" and f.targetId == f"zone_{f.subjectId}"}
+        current = {
+            f.subjectId
+            for f in msg.factList
+            if f.property == "IsInArea" and f.targetId == f"zone_{f.subjectId}"
+        }
         for human in current ^ inside_now:
             seen.append([human, human in current, now])
         inside_now.clear()
         inside_now.update(current)
 
-    rospy.Subscriber("/area_manager/factList", fact_list, on_facts, queue_size=100,
-                     tcp_nodelay=True)
+    rospy.Subscriber(
+        "/area_manager/factList", fact_list, on_facts, queue_size=100, tcp_nodelay=True
+    )
     while pub.get_num_connections() == 0:
         time.sleep(0.05)
     time.sleep(1.0)
@@ -85,8 +90,10 @@ def main() -> None:
                 inside[i] = want
                 toggles.append([f"h{i}", want, wall])
             transforms.append(transform(f"h{i}_base", x, y, 0.0, stamp))
-            transforms += [transform(f"h{i}_{joint}", x + dx, y + dy, dz, stamp)
-                           for joint, (dx, dy, dz) in joint_offsets().items()]
+            transforms += [
+                transform(f"h{i}_{joint}", x + dx, y + dy, dz, stamp)
+                for joint, (dx, dy, dz) in joint_offsets().items()
+            ]
         transforms += [transform(f"o{j}", *object_pose(j), stamp) for j in range(objects)]
         pub.publish(TFMessage(transforms=transforms))
         tick += 1

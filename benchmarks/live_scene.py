@@ -14,12 +14,17 @@ SPACING, ZONE_RADIUS = 3.0, 1.0
 def zone(i: int) -> dict[str, object]:
     """Human i's zone, as an area spec."""
     x, y = SPACING * (i % 10), SPACING * (i // 10)
-    return {"shape": "circle", "center": [x + 1.0, y], "radius": ZONE_RADIUS,
-            "area_type": "interaction"}
+    return {
+        "shape": "circle",
+        "center": [x + 1.0, y],
+        "radius": ZONE_RADIUS,
+        "area_type": "interaction",
+    }
 
 
-def human_pose(i: int, humans: int, elapsed: float,
-               cycle: float = 1.0) -> tuple[bool, float, float]:
+def human_pose(
+    i: int, humans: int, elapsed: float, cycle: float = 1.0
+) -> tuple[bool, float, float]:
     """(inside its zone, x, y) of human i at ``elapsed`` seconds: inside during the first half
     of its own ``cycle`` seconds, staggered by i / humans of a cycle, from the first second
     on."""

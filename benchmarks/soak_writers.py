@@ -63,8 +63,14 @@ def writer(url: str, robot: str, scene: str, seconds: float, out: str) -> None:
     with toaster.connect(url) as db:
         store = db.store()
         session = load_session(scene, store.areas())
-        runner = Runner(session.world, session.sources, session.producers, store=store,
-                        agent_id=robot, config=session.config)
+        runner = Runner(
+            session.world,
+            session.sources,
+            session.producers,
+            store=store,
+            agent_id=robot,
+            config=session.config,
+        )
         session.register(store)
         step = round(1e9 / 30)
         wall0 = time.monotonic()
@@ -86,8 +92,9 @@ def writer(url: str, robot: str, scene: str, seconds: float, out: str) -> None:
                 except Exception as exc:  # counted and reported: the run must have none
                     errors[f"{type(exc).__name__}: {str(exc).splitlines()[0][:160]}"] += 1
                     break
-    Path(out).write_text(json.dumps({"robot": robot, "ticks": ticks, "errors": errors,
-                                     "locked": locked}))
+    Path(out).write_text(
+        json.dumps({"robot": robot, "ticks": ticks, "errors": errors, "locked": locked})
+    )
 
 
 def main() -> None:
@@ -110,20 +117,42 @@ def main() -> None:
         robot = f"R{i}"
         scene = long_scene(args.minutes, robot, folder)
         out = folder / f"{robot}.json"
-        procs.append((out, subprocess.Popen(
-            [sys.executable, __file__, "--writer", url, robot, str(scene),
-             str(args.minutes * 60), str(out)], cwd=ROOT)))
+        procs.append(
+            (
+                out,
+                subprocess.Popen(
+                    [
+                        sys.executable,
+                        __file__,
+                        "--writer",
+                        url,
+                        robot,
+                        str(scene),
+                        str(args.minutes * 60),
+                        str(out),
+                    ],
+                    cwd=ROOT,
+                ),
+            )
+        )
     total, failed = 0, 0
     for out, proc in procs:
         proc.wait()
         report = json.loads(out.read_text())
         total += report["ticks"]
         failed += sum(report["errors"].values())
-        print(f"{report['robot']}: {report['ticks']} ticks, "
-              f"{sum(report['errors'].values())} failed {dict(report['errors'])}, "
-              f"{report['locked']} lock time-outs written again", flush=True)
-    check = subprocess.run([sys.executable, "-m", "toaster", "--db", url, "db", "check"],
-                           cwd=ROOT, capture_output=True, text=True)
+        print(
+            f"{report['robot']}: {report['ticks']} ticks, "
+            f"{sum(report['errors'].values())} failed {dict(report['errors'])}, "
+            f"{report['locked']} lock time-outs written again",
+            flush=True,
+        )
+    check = subprocess.run(
+        [sys.executable, "-m", "toaster", "--db", url, "db", "check"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
     print(f"total: {total} ticks, {failed} failed; toaster db check: exit {check.returncode}")
     print((check.stdout + check.stderr).strip()[:4000])
 

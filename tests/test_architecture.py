@@ -28,8 +28,9 @@ def _table(heading: str) -> list[list[str]]:
     """The cells of the first table under ``## heading`` (header and rule rows skipped)."""
     text = PAGE.read_text(encoding="utf-8")
     section = text.split(f"\n## {heading}\n", 1)[1].split("\n## ", 1)[0]
-    rows = [line.strip().strip("|").split("|") for line in section.splitlines()
-            if line.startswith("|")]
+    rows = [
+        line.strip().strip("|").split("|") for line in section.splitlines() if line.startswith("|")
+    ]
     return [[cell.strip() for cell in row] for row in rows[2:]]
 
 
@@ -99,14 +100,14 @@ def imports(module: str, path: Path, known: set[str]) -> list[tuple[str, int]]:
         elif isinstance(node, ast.ImportFrom):
             base = node.module or ""
             if node.level:
-                parent = package.split(".")[:len(package.split(".")) - node.level + 1]
+                parent = package.split(".")[: len(package.split(".")) - node.level + 1]
                 base = ".".join([*parent, *([node.module] if node.module else [])])
-            targets = [f"{base}.{a.name}" if f"{base}.{a.name}" in known else base
-                       for a in node.names]
+            targets = [
+                f"{base}.{a.name}" if f"{base}.{a.name}" in known else base for a in node.names
+            ]
         else:
             continue
-        found += [(t, node.lineno) for t in targets
-                  if t == PACKAGE or t.startswith(PACKAGE + ".")]
+        found += [(t, node.lineno) for t in targets if t == PACKAGE or t.startswith(PACKAGE + ".")]
     return found
 
 
@@ -115,15 +116,20 @@ def edges() -> list[tuple[str, str, str]]:
     """(importer, imported, where) for every import between two toaster modules."""
     found = modules()
     known = set(found)
-    return [(module, target, f"{path.relative_to(ROOT)}:{line}")
-            for module, path in found.items()
-            for target, line in imports(module, path, known) if target != module]
+    return [
+        (module, target, f"{path.relative_to(ROOT)}:{line}")
+        for module, path in found.items()
+        for target, line in imports(module, path, known)
+        if target != module
+    ]
 
 
 def test_every_module_is_in_a_component() -> None:
     missing = [m for m in modules() if component_of(m) is None]
-    assert not missing, (f"modules in no row of docs/architecture.md: {missing} "
-                         "(add each to the component it belongs to)")
+    assert not missing, (
+        f"modules in no row of docs/architecture.md: {missing} "
+        "(add each to the component it belongs to)"
+    )
 
 
 def test_each_folder_is_one_row() -> None:
@@ -138,7 +144,8 @@ def test_each_folder_is_one_row() -> None:
     for name, named in rows.items():
         inner = [m for m in named if m != PACKAGE and not (top / f"{m.split('.')[-1]}.py").exists()]
         assert len(inner) <= 1 and all(m in folders for m in inner), (
-            f"architecture.md: row {name} names {inner}: a row is one folder of src/toaster")
+            f"architecture.md: row {name} names {inner}: a row is one folder of src/toaster"
+        )
     missing = folders - set(owner)
     assert not missing, f"folders with no row of their own in architecture.md: {sorted(missing)}"
 
@@ -183,8 +190,11 @@ def test_no_import_cycle() -> None:
 
 
 def test_no_module_over_600_lines() -> None:
-    long = {name: n for name, path in modules().items()
-            if (n := len(path.read_text(encoding="utf-8").splitlines())) > MAX_LINES}
+    long = {
+        name: n
+        for name, path in modules().items()
+        if (n := len(path.read_text(encoding="utf-8").splitlines())) > MAX_LINES
+    }
     assert not long, f"modules over {MAX_LINES} lines (cut each by concern): {long}"
 
 
@@ -201,9 +211,12 @@ def test_no_forbidden_import() -> None:
         a, b = component_of(importer), component_of(imported)
         if a and b and b not in closure[a] and (importer, imported) not in allowed:
             bad.append(f"{where}: {importer} ({a}) imports {imported} ({b})")
-    assert not bad, ("imports that docs/architecture.md forbids:\n" + "\n".join(bad)
-                     + "\n(move the code to the right layer, or add the import to the page's"
-                     " Exceptions table with the reason)")
+    assert not bad, (
+        "imports that docs/architecture.md forbids:\n"
+        + "\n".join(bad)
+        + "\n(move the code to the right layer, or add the import to the page's"
+        " Exceptions table with the reason)"
+    )
 
 
 def test_every_exception_still_occurs() -> None:
@@ -217,20 +230,27 @@ def test_exceptions_are_forbidden_imports() -> None:
     for importer, imported in exceptions():
         a, b = component_of(importer), component_of(imported)
         assert a and b and b not in closure[a], (
-            f"{importer} -> {imported} is allowed by the components: not an exception")
+            f"{importer} -> {imported} is allowed by the components: not an exception"
+        )
 
 
-@pytest.mark.parametrize(("importer", "imported"), [
-    ("toaster.db.writer.store", "toaster.queries"),          # the store knows no layer above it
-    ("toaster.queries.facts", "toaster.beliefs.api"),
-    ("toaster.world.state", "toaster.db"),
-    ("toaster.beliefs.api", "toaster"),               # nothing inside uses the front door
-    ("toaster.node.live_node", "toaster.queries"),
-    ("toaster.app.session", "toaster.ros1"),
-    ("toaster.node.live_node", "toaster.app"),
-    ("toaster.migrations.frozen_triggers", "toaster.rules"),  # old revisions import no live rule
-    ("toaster.world.rosmsg", "toaster.producers"),
-])
+@pytest.mark.parametrize(
+    ("importer", "imported"),
+    [
+        ("toaster.db.writer.store", "toaster.queries"),  # the store knows no layer above it
+        ("toaster.queries.facts", "toaster.beliefs.api"),
+        ("toaster.world.state", "toaster.db"),
+        ("toaster.beliefs.api", "toaster"),  # nothing inside uses the front door
+        ("toaster.node.live_node", "toaster.queries"),
+        ("toaster.app.session", "toaster.ros1"),
+        ("toaster.node.live_node", "toaster.app"),
+        (
+            "toaster.migrations.frozen_triggers",
+            "toaster.rules",
+        ),  # old revisions import no live rule
+        ("toaster.world.rosmsg", "toaster.producers"),
+    ],
+)
 def test_the_table_forbids(importer: str, imported: str) -> None:
     """The rule reads as the page says (a page whose table allowed everything would pass)."""
     _, closure = components()
@@ -239,9 +259,11 @@ def test_the_table_forbids(importer: str, imported: str) -> None:
 
 def test_imports_inside_functions_and_relative_ones_are_seen(tmp_path: Path) -> None:
     module = tmp_path / "__init__.py"
-    module.write_text("from . import model\n"
-                      "def f():\n    from toaster.db import store\n    import toaster.cli\n"
-                      "if True:\n    from .. import queries, connect\n")
+    module.write_text(
+        "from . import model\n"
+        "def f():\n    from toaster.db import store\n    import toaster.cli\n"
+        "if True:\n    from .. import queries, connect\n"
+    )
     known = {"toaster.beliefs.model", "toaster.db.store", "toaster.queries"}
     found = {t for t, _ in imports("toaster.beliefs", module, known)}
     assert found == {*known, "toaster.cli", "toaster"}

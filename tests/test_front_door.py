@@ -18,16 +18,29 @@ import toaster
 ROOT = Path(__file__).resolve().parents[1]
 LAZY_PACKAGES = ["toaster", "toaster.beliefs", "toaster.db", "toaster.producers"]
 #: what `import toaster` and `toaster --help` must not load (seconds of import time)
-HEAVY = ("sqlalchemy", "alembic", "psycopg", "numpy", "scipy", "shapely", "matplotlib",
-         "pandas", "pyarrow", "rosbags")
+HEAVY = (
+    "sqlalchemy",
+    "alembic",
+    "psycopg",
+    "numpy",
+    "scipy",
+    "shapely",
+    "matplotlib",
+    "pandas",
+    "pyarrow",
+    "rosbags",
+)
 
 
 def loaded_after(code: str) -> set[str]:
     """The heavy packages a fresh interpreter has imported after running ``code``."""
-    probe = (f"{code}\nimport sys\n"
-             f"print(' '.join(m for m in {HEAVY!r} if m in sys.modules), file=sys.stderr)")
-    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
-                          check=True, timeout=120)
+    probe = (
+        f"{code}\nimport sys\n"
+        f"print(' '.join(m for m in {HEAVY!r} if m in sys.modules), file=sys.stderr)"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, check=True, timeout=120
+    )
     return set(done.stderr.split())
 
 
@@ -37,8 +50,10 @@ def test_importing_a_package_loads_nothing_heavy(package: str) -> None:
 
 
 def test_toaster_help_loads_nothing_heavy() -> None:
-    code = ("import sys\nfrom toaster.cli import main\nsys.argv = ['toaster', '--help']\n"
-            "try:\n    main()\nexcept SystemExit as exc:\n    assert exc.code in (0, None)")
+    code = (
+        "import sys\nfrom toaster.cli import main\nsys.argv = ['toaster', '--help']\n"
+        "try:\n    main()\nexcept SystemExit as exc:\n    assert exc.code in (0, None)"
+    )
     assert loaded_after(code) == set()
 
 
@@ -63,8 +78,11 @@ def test_every_export_is_listed_and_resolves(package: str) -> None:
 @pytest.mark.parametrize("package", LAZY_PACKAGES)
 def test_a_misspelt_name_is_an_attribute_error_naming_it(package: str) -> None:
     module = importlib.import_module(package)
-    with pytest.raises(AttributeError, match=rf"module '{re.escape(package)}' has no attribute "
-                                             "'conect'"):
+    with pytest.raises(
+        AttributeError,
+        match=rf"module '{re.escape(package)}' has no attribute "
+        "'conect'",
+    ):
         _ = module.conect
     assert not hasattr(module, "conect")
 
@@ -80,8 +98,12 @@ def _declared(package: str) -> tuple[set[str], set[str], bool]:
         if isinstance(node, ast.If):
             test = ast.unparse(node.test)
             if test == "TYPE_CHECKING":
-                typed |= {a.asname or a.name for n in node.body
-                          if isinstance(n, ast.ImportFrom) for a in n.names}
+                typed |= {
+                    a.asname or a.name
+                    for n in node.body
+                    if isinstance(n, ast.ImportFrom)
+                    for a in n.names
+                }
             elif test == "not TYPE_CHECKING":
                 hidden = "__getattr__" in ast.unparse(node)
         elif isinstance(node, ast.Assign) and ast.unparse(node.targets[0]) == "_HOMES":
@@ -104,9 +126,12 @@ def test_mypy_gives_the_front_door_real_types(tmp_path: Path) -> None:
     mypy_api = pytest.importorskip("mypy.api")
     names = [f"{p}.{n}" for p in LAZY_PACKAGES for n in importlib.import_module(p).__all__]
     probe = tmp_path / "probe.py"
-    probe.write_text("".join(f"import {p}\n" for p in LAZY_PACKAGES)
-                     + "".join(f"reveal_type({n})\n" for n in names)
-                     + "toaster.conect\ntoaster.beliefs.belief\n", encoding="utf-8")
+    probe.write_text(
+        "".join(f"import {p}\n" for p in LAZY_PACKAGES)
+        + "".join(f"reveal_type({n})\n" for n in names)
+        + "toaster.conect\ntoaster.beliefs.belief\n",
+        encoding="utf-8",
+    )
     with pytest.MonkeyPatch.context() as mp:
         mp.chdir(ROOT)
         out, err, _ = mypy_api.run(["--no-error-summary", str(probe)])
@@ -118,8 +143,9 @@ def test_mypy_gives_the_front_door_real_types(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-def test_architecture_example_runs(db_url: str, capsys: pytest.CaptureFixture[str],
-                                   monkeypatch: pytest.MonkeyPatch) -> None:
+def test_architecture_example_runs(
+    db_url: str, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
     """The Python example of docs/architecture.md prints what it says, on each backend."""
     page = (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8")
     code = re.search(r"```python\n(.*?)```", page, re.DOTALL)
@@ -133,21 +159,31 @@ def test_architecture_example_runs(db_url: str, capsys: pytest.CaptureFixture[st
     assert isinstance(db, toaster.Database)
     try:
         printed = capsys.readouterr().out.splitlines()
-        promised = [line.removeprefix("# ") for line in example.splitlines()
-                    if line.startswith("# MARBLE")]
-        assert printed == promised == ["MARBLE IsIn BASKET Sally: true robot: None",
-                                       "MARBLE IsIn BOX Sally: None robot: true"]
+        promised = [
+            line.removeprefix("# ") for line in example.splitlines() if line.startswith("# MARBLE")
+        ]
+        assert (
+            printed
+            == promised
+            == [
+                "MARBLE IsIn BASKET Sally: true robot: None",
+                "MARBLE IsIn BOX Sally: None robot: true",
+            ]
+        )
         told = toaster.belief_value(db, "SALLY", "MARBLE", "IsIn", "BASKET")
         assert told is not None and told.source == "told:ANNE"
         # a told place replaces the one she believed: the lie is now her false belief
-        assert [(d.target_id, d.value_a, d.value_b) for d in toaster.false_beliefs(db, "SALLY")
-                ] == [("BASKET", "true", None), ("BOX", None, "true")]
+        assert [
+            (d.target_id, d.value_a, d.value_b) for d in toaster.false_beliefs(db, "SALLY")
+        ] == [("BASKET", "true", None), ("BOX", None, "true")]
     finally:
         db.close()
 
 
 @pytest.mark.slow
 def test_tell_is_the_function_whichever_import_runs_first() -> None:
-    code = ("import toaster.beliefs.tell, toaster\n"
-            "assert callable(toaster.tell) and toaster.tell.__module__ == 'toaster.beliefs.tell'")
+    code = (
+        "import toaster.beliefs.tell, toaster\n"
+        "assert callable(toaster.tell) and toaster.tell.__module__ == 'toaster.beliefs.tell'"
+    )
     subprocess.run([sys.executable, "-c", code], check=True, timeout=120)

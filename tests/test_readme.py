@@ -24,12 +24,18 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
-LEAD = ["python3 -m venv .venv && . .venv/bin/activate && pip install -e '.[test]' && toaster demo",
-        "python -m pytest -q"]
+LEAD = [
+    "python3 -m venv .venv && . .venv/bin/activate && pip install -e '.[test]' && toaster demo",
+    "python -m pytest -q",
+]
 #: Steps of the lead block this environment has already done (the venv, the install) or is
 #: doing (the tests).
-DONE = {"python3 -m venv .venv", ". .venv/bin/activate", "pip install -e '.[test]'",
-        "python -m pytest -q"}
+DONE = {
+    "python3 -m venv .venv",
+    ". .venv/bin/activate",
+    "pip install -e '.[test]'",
+    "python -m pytest -q",
+}
 NEEDS = re.compile(r"\s#\s*needs\b[^'\"]*$")
 EXPORT = re.compile(r"export ([A-Z_][A-Z0-9_]*)=(\S+)$")
 COPIED = ("src/toaster/examples",)  # what README commands read from the clone
@@ -84,10 +90,14 @@ def bash_commands(body: list[str], first: int) -> list[Command]:
 
 def run(command: Command, cwd: Path, env: dict[str, str]) -> subprocess.CompletedProcess[str]:
     """A bash command through ``bash -c``, a python block through the venv's interpreter."""
-    argv = ([sys.executable, "-c", command.text] if command.lang == "python"
-            else ["bash", "-c", command.text])
-    return subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True,
-                          timeout=TIMEOUT_S, check=False)
+    argv = (
+        [sys.executable, "-c", command.text]
+        if command.lang == "python"
+        else ["bash", "-c", command.text]
+    )
+    return subprocess.run(
+        argv, cwd=cwd, env=env, capture_output=True, text=True, timeout=TIMEOUT_S, check=False
+    )
 
 
 def test_readme_leads_with_the_two_commands() -> None:
@@ -124,9 +134,13 @@ def test_readme_commands_run(tmp_path: Path) -> None:
             ran += 1
             if done.returncode != 0:
                 said = (done.stderr.strip() or done.stdout.strip()).splitlines()[-3:]
-                failures.append(f"README.md:{command.line}: {command.text.strip()}\n    exit "
-                                f"{done.returncode}: " + "\n    ".join(said))
+                failures.append(
+                    f"README.md:{command.line}: {command.text.strip()}\n    exit "
+                    f"{done.returncode}: " + "\n    ".join(said)
+                )
     assert ran >= 20, f"only {ran} README commands found: is the parser still right?"
     if failures:
-        pytest.fail(f"{len(failures)} of {ran} README commands failed:\n"
-                    + "\n".join(failures), pytrace=False)
+        pytest.fail(
+            f"{len(failures)} of {ran} README commands failed:\n" + "\n".join(failures),
+            pytrace=False,
+        )

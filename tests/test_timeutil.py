@@ -155,8 +155,10 @@ timeline:
 def scenario(tmp_path: Path, *, start: str | None, enter: str, duration: str) -> Path:
     """A scenario where bob enters the room at ``enter`` after its start."""
     path = tmp_path / "clock.yaml"
-    path.write_text(SCENARIO.format(start=f"start: {start}\n" if start else "", enter=enter,
-                                    duration=duration), encoding="utf-8")
+    path.write_text(
+        SCENARIO.format(start=f"start: {start}\n" if start else "", enter=enter, duration=duration),
+        encoding="utf-8",
+    )
     return path
 
 
@@ -165,16 +167,21 @@ def run_scenario(db: toaster.Database, path: Path) -> None:
 
     session = load_session(path)
     store = db.store()
-    runner = Runner(session.world, session.sources, session.producers, store=store,
-                    agent_id=session.self_id, config=session.config)
+    runner = Runner(
+        session.world,
+        session.sources,
+        session.producers,
+        store=store,
+        agent_id=session.self_id,
+        config=session.config,
+    )
     session.register(store)
     runner.run(session.start_ns, session.end_ns, session.rate_hz, maintain_every_s=None)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("start", [None, "2026-11-22T12:00:00Z"])
-def test_a_run_records_its_start(db: toaster.Database, tmp_path: Path,
-                                 start: str | None) -> None:
+def test_a_run_records_its_start(db: toaster.Database, tmp_path: Path, start: str | None) -> None:
     run_scenario(db, scenario(tmp_path, start=start, enter="2s", duration="4s"))
     expected = 0 if start is None else REAL
     assert db.time_frame().start_ns == expected
@@ -185,22 +192,27 @@ def test_a_run_records_its_start(db: toaster.Database, tmp_path: Path,
 def test_batches_record_their_start(store: toaster.Store, tmp_path: Path) -> None:
     db = store.db
     dated = tmp_path / "dated.yaml"
-    dated.write_text("entities: [{id: ROOM, kind: area}]\n"
-                     "facts:\n"
-                     "  - {subject: MUG, property: IsOn, target: TABLE, at: 2026-11-22T12:05:00Z}\n"
-                     "  - {subject: MUG, property: IsIn, target: BOX, at: 2026-11-22T12:01:00Z}\n",
-                     encoding="utf-8")
+    dated.write_text(
+        "entities: [{id: ROOM, kind: area}]\n"
+        "facts:\n"
+        "  - {subject: MUG, property: IsOn, target: TABLE, at: 2026-11-22T12:05:00Z}\n"
+        "  - {subject: MUG, property: IsIn, target: BOX, at: 2026-11-22T12:01:00Z}\n",
+        encoding="utf-8",
+    )
     load_file(store, dated)
     assert db.time_frame().start_ns == REAL + 60 * S  # its earliest row
     based = tmp_path / "based.yaml"
-    based.write_text("base_time: 2026-11-22T12:00:00Z\n"
-                     "facts: [{subject: MUG, property: IsNear, target: BOB, at: 90s}]\n",
-                     encoding="utf-8")
+    based.write_text(
+        "base_time: 2026-11-22T12:00:00Z\n"
+        "facts: [{subject: MUG, property: IsNear, target: BOB, at: 90s}]\n",
+        encoding="utf-8",
+    )
     load_file(store, based)
     assert db.time_frame().start_ns == REAL  # what its durations count from
     simulated = tmp_path / "simulated.yaml"
-    simulated.write_text("facts: [{subject: BOB, property: IsIn, target: ROOM, at: 3s}]\n",
-                         encoding="utf-8")
+    simulated.write_text(
+        "facts: [{subject: BOB, property: IsIn, target: ROOM, at: 3s}]\n", encoding="utf-8"
+    )
     load_file(store, simulated)
     assert db.time_frame().start_ns == 0  # durations from the epoch
 
@@ -209,8 +221,9 @@ def test_batches_record_their_start(store: toaster.Store, tmp_path: Path) -> Non
 def test_a_belief_replay_starts_at_zero(db: toaster.Database) -> None:
     from toaster.beliefs import scenario as belief_scenario
 
-    belief_scenario.replay(db, Path(toaster.__file__).parent / "examples"
-                           / "beliefs_sally_anne.yaml")
+    belief_scenario.replay(
+        db, Path(toaster.__file__).parent / "examples" / "beliefs_sally_anne.yaml"
+    )
     assert db.time_frame().start_ns == 0
 
 
@@ -221,18 +234,20 @@ def test_plot_axis_counts_from_the_data_start(db: toaster.Database, tmp_path: Pa
     from toaster.outputs.plotting import plot_facts
 
     batch = tmp_path / "move.yaml"
-    batch.write_text("entities: [{id: PR2, kind: robot, self: true}, {id: BOB, kind: human},"
-                     " {id: MUG, kind: object}, {id: KITCHEN, kind: area}, {id: HALL, kind: area}]\n"
-                     "facts:\n"
-                     "  - {subject: MUG, property: IsIn, target: KITCHEN, at: 1s}\n"
-                     "  - {subject: MUG, property: Distance, target: BOB, num: 2.0, at: 1s}\n"
-                     "timeline:\n"
-                     "  - at: 6.4s\n"
-                     "    retract: [{subject: MUG, property: IsIn, target: NULL},\n"
-                     "              {subject: MUG, property: Distance, target: NULL}]\n"
-                     "    facts: [{subject: MUG, property: IsIn, target: HALL},\n"
-                     "            {subject: MUG, property: Distance, target: BOB, num: 3.0}]\n",
-                     encoding="utf-8")
+    batch.write_text(
+        "entities: [{id: PR2, kind: robot, self: true}, {id: BOB, kind: human},"
+        " {id: MUG, kind: object}, {id: KITCHEN, kind: area}, {id: HALL, kind: area}]\n"
+        "facts:\n"
+        "  - {subject: MUG, property: IsIn, target: KITCHEN, at: 1s}\n"
+        "  - {subject: MUG, property: Distance, target: BOB, num: 2.0, at: 1s}\n"
+        "timeline:\n"
+        "  - at: 6.4s\n"
+        "    retract: [{subject: MUG, property: IsIn, target: NULL},\n"
+        "              {subject: MUG, property: Distance, target: NULL}]\n"
+        "    facts: [{subject: MUG, property: IsIn, target: HALL},\n"
+        "            {subject: MUG, property: Distance, target: BOB, num: 3.0}]\n",
+        encoding="utf-8",
+    )
     load_file(db.store(), batch)
     out = plot_facts(db, tmp_path / "move.csv", subject="MUG", agents=["PR2"])
     with out.path.open(encoding="utf-8") as handle:
@@ -243,17 +258,28 @@ def test_plot_axis_counts_from_the_data_start(db: toaster.Database, tmp_path: Pa
     pytest.importorskip("matplotlib")
     from toaster.outputs.plotting.render import number_gid
 
-    picture = plot_facts(db, tmp_path / "move.png", subject="MUG", property="Distance",
-                         agents=["PR2"])
+    picture = plot_facts(
+        db, tmp_path / "move.png", subject="MUG", property="Distance", agents=["PR2"]
+    )
     lane = picture.timeline.lanes[0]
-    (line,) = [ln for ax in picture.figure.axes for ln in ax.lines
-               if ln.get_gid() == number_gid(lane, "PR2")]
+    (line,) = [
+        ln
+        for ax in picture.figure.axes
+        for ln in ax.lines
+        if ln.get_gid() == number_gid(lane, "PR2")
+    ]
     assert list(line.get_xdata())[:2] == [1.0, 6.4]
     axis = picture.figure.axes[-1]
     assert axis.get_xlim()[0] == 1.0
     assert axis.get_xlabel() == "seconds since the data's start"
-    dated = plot_facts(db, tmp_path / "dated.png", subject="MUG", property="Distance",
-                       agents=["PR2"], frame=db.time_frame("date"))
+    dated = plot_facts(
+        db,
+        tmp_path / "dated.png",
+        subject="MUG",
+        property="Distance",
+        agents=["PR2"],
+        frame=db.time_frame("date"),
+    )
     axis = dated.figure.axes[-1]
     assert axis.get_xlabel() == "time (UTC)"
     assert axis.xaxis.get_major_formatter()(6.4, 0) == "1970-01-01 00:00:06.400Z"

@@ -67,8 +67,8 @@ def replay_story(db: Any, story: list[str]) -> StoryResult:
     store.empty()
     result = StoryResult()
     agents: list[str] = []
-    rooms: dict[str, str] = {}   # agent -> room
-    ids: dict[str, str] = {}     # observer id -> agent
+    rooms: dict[str, str] = {}  # agent -> room
+    ids: dict[str, str] = {}  # observer id -> agent
     replayer = Replayer(db, Scenario("tom", SELF, [], [], {}, [], []))
     replayer.setup()
     room = ""
@@ -119,11 +119,13 @@ def replay_story(db: Any, story: list[str]) -> StoryResult:
         if observers:
             result.perceiver_lines += 1
             expected = {ids.get(o, f"?{o}") for o in observers}
-            seen = {e.agent_id for e in q.events(db, since=t_ns, until=t_ns)
-                    if e.agent_id in agents}
+            seen = {
+                e.agent_id for e in q.events(db, since=t_ns, until=t_ns) if e.agent_id in agents
+            }
             if seen != expected:
                 result.perceiver_mismatches.append(
-                    f"{sentence}: rules {sorted(seen)}, line {sorted(expected)}")
+                    f"{sentence}: rules {sorted(seen)}, line {sorted(expected)}"
+                )
     return result
 
 
@@ -140,8 +142,9 @@ def _answer(db: Any, question: str) -> str | None:
     return None
 
 
-def evaluate(zip_path: Path, url: str, *, limit: int | None = None,
-             noise: tuple[str, ...] = ("0", "10")) -> dict[str, Any]:
+def evaluate(
+    zip_path: Path, url: str, *, limit: int | None = None, noise: tuple[str, ...] = ("0", "10")
+) -> dict[str, Any]:
     """Replay every test story (or the first ``limit`` per file); return accuracy tables."""
     db = toaster.connect(url)
     table: dict[tuple[str, str], list[int]] = defaultdict(lambda: [0, 0])
@@ -173,8 +176,11 @@ def main(argv: list[str]) -> int:
     if "--help" in argv or "-h" in argv:
         print("usage: python -m tools.tombabi [ZIP] [--limit N] [--db URL]")
         return 0
-    zip_path = Path(argv[0]) if argv and not argv[0].startswith("--") else Path(
-        "../shared/data/tom-babi/tom_easy.zip")
+    zip_path = (
+        Path(argv[0])
+        if argv and not argv[0].startswith("--")
+        else Path("../shared/data/tom-babi/tom_easy.zip")
+    )
     limit = int(argv[argv.index("--limit") + 1]) if "--limit" in argv else None
     url = argv[argv.index("--db") + 1] if "--db" in argv else None
     with tempfile.TemporaryDirectory() as tmp:

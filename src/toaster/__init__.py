@@ -34,13 +34,24 @@ if TYPE_CHECKING:  # what the lazy names below are, for type checkers
 __version__ = "0.1.0"
 
 _HOMES = {
-    "connect": "toaster.app.session", "Database": "toaster.db", "Store": "toaster.db",
-    "Fact": "toaster.model", "FactRow": "toaster.model", "EventRow": "toaster.model",
-    "Entity": "toaster.model", "Agent": "toaster.model", "OntologyRow": "toaster.model",
-    "PropertyRow": "toaster.model", "ToasterError": "toaster.errors",
-    "errors": "toaster.errors", "queries": "toaster.queries", "beliefs": "toaster.beliefs",
-    "false_beliefs": "toaster.beliefs.api", "belief_value": "toaster.beliefs.api",
-    "belief_history": "toaster.beliefs.api", "BeliefDiff": "toaster.beliefs.api",
+    "connect": "toaster.app.session",
+    "Database": "toaster.db",
+    "Store": "toaster.db",
+    "Fact": "toaster.model",
+    "FactRow": "toaster.model",
+    "EventRow": "toaster.model",
+    "Entity": "toaster.model",
+    "Agent": "toaster.model",
+    "OntologyRow": "toaster.model",
+    "PropertyRow": "toaster.model",
+    "ToasterError": "toaster.errors",
+    "errors": "toaster.errors",
+    "queries": "toaster.queries",
+    "beliefs": "toaster.beliefs",
+    "false_beliefs": "toaster.beliefs.api",
+    "belief_value": "toaster.beliefs.api",
+    "belief_history": "toaster.beliefs.api",
+    "BeliefDiff": "toaster.beliefs.api",
     "tell": "toaster.beliefs.tell",
 }
 __all__ = sorted(_HOMES)

@@ -20,8 +20,9 @@ from importlib import import_module
 from typing import Any
 
 
-def exports(package: str, homes: Mapping[str, str]
-            ) -> tuple[Callable[[str], Any], Callable[[], list[str]]]:
+def exports(
+    package: str, homes: Mapping[str, str]
+) -> tuple[Callable[[str], Any], Callable[[], list[str]]]:
     """``(__getattr__, __dir__)`` for ``package``. ``homes`` maps each name to the module that
     defines it, or to ``package.name`` itself for a submodule."""
 

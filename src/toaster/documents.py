@@ -53,8 +53,10 @@ def read_document(path: str | Path, what: str = "file") -> Any:
         body = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         line = raw.count(b"\n", 0, exc.start) + 1
-        msg = (f"cannot read {label}: not UTF-8 text (byte 0x{raw[exc.start]:02x} on line "
-               f"{line}); save it as UTF-8")
+        msg = (
+            f"cannot read {label}: not UTF-8 text (byte 0x{raw[exc.start]:02x} on line "
+            f"{line}); save it as UTF-8"
+        )
         raise FileFormatError(msg) from None
     return parse_text(body, label, json_only=path.suffix.lower() == ".json")
 
@@ -74,8 +76,10 @@ def parse_text(body: str, label: str, *, json_only: bool = False) -> Any:
         msg = f"cannot read {label}: not valid YAML ({where}{problem}): fix the syntax"
         raise FileFormatError(msg) from None
     except yaml.YAMLError as exc:
-        msg = (f"cannot read {label}: not valid YAML ({str(exc).strip().splitlines()[0]}): "
-               "fix the syntax")
+        msg = (
+            f"cannot read {label}: not valid YAML ({str(exc).strip().splitlines()[0]}): "
+            "fix the syntax"
+        )
         raise FileFormatError(msg) from None
     except RecursionError:
         msg = f"cannot read {label}: nested too deep for {kind} (at most {MAX_DEPTH} levels)"
@@ -103,8 +107,10 @@ def _size(root: Any, label: str, sizes: dict[int, int]) -> int:
         node, depth, done = stack.pop()
         if not isinstance(node, dict | list):
             if not isinstance(node, str | int | float | bool | dt.date | None):
-                msg = (f"cannot read {label}: {type(node).__name__} values are not supported; "
-                       "use text, numbers, lists and mappings")
+                msg = (
+                    f"cannot read {label}: {type(node).__name__} values are not supported; "
+                    "use text, numbers, lists and mappings"
+                )
                 raise FileFormatError(msg)
             continue
         if id(node) in sizes and sizes[id(node)] > 0:

@@ -57,8 +57,14 @@ class Fact(NamedTuple):
     @builtins.property  # the field ``property`` hides the builtin here
     def key(self) -> FactKey:
         """The identity of this fact (owners included, value excluded)."""
-        return FactKey(self.subject_id, self.subject_owner_id, self.property,
-                       self.sub_property, self.target_id, self.target_owner_id)
+        return FactKey(
+            self.subject_id,
+            self.subject_owner_id,
+            self.property,
+            self.sub_property,
+            self.target_id,
+            self.target_owner_id,
+        )
 
 
 def fact_key(fact: Fact) -> tuple[str, str, str, str, str, str]:
@@ -93,9 +99,19 @@ class FactRow(NamedTuple):
 
     def to_fact(self) -> Fact:
         """The statement this row holds (without agent and interval)."""
-        return Fact(self.subject_id, self.property, self.target_id, self.value_text,
-                    self.value_num, self.confidence, self.observability, self.property_type,
-                    self.sub_property, self.subject_owner_id, self.target_owner_id)
+        return Fact(
+            self.subject_id,
+            self.property,
+            self.target_id,
+            self.value_text,
+            self.value_num,
+            self.confidence,
+            self.observability,
+            self.property_type,
+            self.sub_property,
+            self.subject_owner_id,
+            self.target_owner_id,
+        )
 
 
 class EventRow(NamedTuple):
@@ -188,8 +204,10 @@ def check_text(value: object, what: str) -> str:
         msg = f"invalid {what} {shown(value)}: it must be text"
         raise InvalidInputError(msg)
     if not value.isascii() and _SURROGATE.search(value):
-        msg = (f"invalid {what} {shown(value)}: it is not valid UTF-8 text "
-               "(undecodable bytes); give UTF-8")
+        msg = (
+            f"invalid {what} {shown(value)}: it is not valid UTF-8 text "
+            "(undecodable bytes); give UTF-8"
+        )
         raise InvalidInputError(msg)
     if "\x00" in value:
         msg = f"invalid {what} {shown(value)}: it holds a NUL character; remove it"
@@ -211,8 +229,10 @@ def check_id(value: object, what: str) -> str:
         raise InvalidInputError(msg)
     size = utf8_size(value)
     if size > MAX_ID_BYTES:
-        msg = (f"invalid {what} {shown(value)}: ids are at most {MAX_ID_BYTES} bytes of UTF-8 "
-               f"({MAX_ID_BYTES} ASCII characters), not {size}; use a shorter id")
+        msg = (
+            f"invalid {what} {shown(value)}: ids are at most {MAX_ID_BYTES} bytes of UTF-8 "
+            f"({MAX_ID_BYTES} ASCII characters), not {size}; use a shorter id"
+        )
         raise InvalidInputError(msg)
     return check_text(value, what)
 
@@ -234,9 +254,11 @@ def check_agent_id(value: object, what: str = "agent id") -> str:
     :data:`HOLDER_SEPARATOR`, which would make it a nested holder's id."""
     agent = check_id(value, what)
     if HOLDER_SEPARATOR in agent:
-        msg = (f"invalid {what} {shown(value)}: {HOLDER_SEPARATOR!r} joins nested belief "
-               f"holders (ANNE{HOLDER_SEPARATOR}SALLY is Anne's model of Sally); an agent's "
-               "id cannot hold it: rename the agent")
+        msg = (
+            f"invalid {what} {shown(value)}: {HOLDER_SEPARATOR!r} joins nested belief "
+            f"holders (ANNE{HOLDER_SEPARATOR}SALLY is Anne's model of Sally); an agent's "
+            "id cannot hold it: rename the agent"
+        )
         raise InvalidInputError(msg)
     return agent
 
@@ -258,8 +280,14 @@ def check_unit_interval(value: object, what: str) -> float:
     return number
 
 
-_KEY_FIELDS = ("subject_id", "property", "target_id", "sub_property", "subject_owner_id",
-               "target_owner_id")
+_KEY_FIELDS = (
+    "subject_id",
+    "property",
+    "target_id",
+    "sub_property",
+    "subject_owner_id",
+    "target_owner_id",
+)
 _TEXT_FIELDS = ("value_text", "property_type")
 
 
@@ -269,17 +297,41 @@ def _plain(fact: object) -> bool:
     if type(fact) is not Fact:
         return False
     s, p, t, vt, vn, c, o, pt, sp, so, to = fact  # type: ignore[misc]
-    if not (type(s) is str and type(p) is str and type(t) is str and type(vt) is str
-            and type(pt) is str and type(sp) is str and type(so) is str and type(to) is str
-            and type(c) is float and 0.0 <= c <= 1.0 and type(o) is float and 0.0 <= o <= 1.0
-            and (vn is None or (type(vn) is float and math.isfinite(vn)))
-            and bool(s) and bool(p) and not s.isspace() and not p.isspace()):
+    if not (
+        type(s) is str
+        and type(p) is str
+        and type(t) is str
+        and type(vt) is str
+        and type(pt) is str
+        and type(sp) is str
+        and type(so) is str
+        and type(to) is str
+        and type(c) is float
+        and 0.0 <= c <= 1.0
+        and type(o) is float
+        and 0.0 <= o <= 1.0
+        and (vn is None or (type(vn) is float and math.isfinite(vn)))
+        and bool(s)
+        and bool(p)
+        and not s.isspace()
+        and not p.isspace()
+    ):
         return False
     key = s + p + t + sp + so + to
-    return (len(s) <= MAX_ID_BYTES and len(p) <= MAX_ID_BYTES and len(t) <= MAX_ID_BYTES
-            and len(sp) <= MAX_ID_BYTES and len(so) <= MAX_ID_BYTES and len(to) <= MAX_ID_BYTES
-            and key.isascii() and "\x00" not in key and vt.isascii() and pt.isascii()
-            and "\x00" not in vt and "\x00" not in pt)
+    return (
+        len(s) <= MAX_ID_BYTES
+        and len(p) <= MAX_ID_BYTES
+        and len(t) <= MAX_ID_BYTES
+        and len(sp) <= MAX_ID_BYTES
+        and len(so) <= MAX_ID_BYTES
+        and len(to) <= MAX_ID_BYTES
+        and key.isascii()
+        and "\x00" not in key
+        and vt.isascii()
+        and pt.isascii()
+        and "\x00" not in vt
+        and "\x00" not in pt
+    )
 
 
 def check_fact(fact: Fact) -> Fact:
@@ -308,11 +360,14 @@ def check_fact(fact: Fact) -> Fact:
         except (TypeError, ValueError):
             value_num = math.nan
         if not math.isfinite(value_num):
-            msg = (f"invalid numeric value {fact.value_num!r} for {fact.subject_id} "
-                   f"{fact.property}: must be finite")
+            msg = (
+                f"invalid numeric value {fact.value_num!r} for {fact.subject_id} "
+                f"{fact.property}: must be finite"
+            )
             raise InvalidInputError(msg)
     normalised = (confidence, observability, value_num)
     if normalised != (fact.confidence, fact.observability, fact.value_num):
-        fact = fact._replace(confidence=confidence, observability=observability,
-                             value_num=value_num)
+        fact = fact._replace(
+            confidence=confidence, observability=observability, value_num=value_num
+        )
     return fact

@@ -19,8 +19,16 @@ from toaster.errors import InvalidInputError
 from toaster.model import shown
 
 NS_PER_S = 1_000_000_000
-_UNITS = {"ns": 1, "us": 1_000, "µs": 1_000, "ms": 1_000_000, "s": NS_PER_S,
-          "m": 60 * NS_PER_S, "min": 60 * NS_PER_S, "h": 3600 * NS_PER_S}
+_UNITS = {
+    "ns": 1,
+    "us": 1_000,
+    "µs": 1_000,
+    "ms": 1_000_000,
+    "s": NS_PER_S,
+    "m": 60 * NS_PER_S,
+    "min": 60 * NS_PER_S,
+    "h": 3600 * NS_PER_S,
+}
 _DURATION = re.compile(r"^\s*([-+]?\d+(?:\.\d*)?|[-+]?\.\d+)\s*(ns|us|µs|ms|s|min|m|h)\s*$")
 #: Times are signed 64-bit nanoseconds in the database, and never before the epoch.
 MAX_NS = 2**63 - 1
@@ -68,8 +76,11 @@ def check_count(value: object, what: str) -> int | None:
 def check_seconds(value: object, what: str) -> float:
     """``value`` as a number of seconds if it is a finite number >= 0 (a time-out, a polling
     period), else a one-line error naming it."""
-    number = float(value) if isinstance(value, int | float) and not isinstance(
-        value, bool) and abs(value) < 1e300 else math.nan
+    number = (
+        float(value)
+        if isinstance(value, int | float) and not isinstance(value, bool) and abs(value) < 1e300
+        else math.nan
+    )
     if not (math.isfinite(number) and number >= 0):
         msg = f"invalid {what} {shown(value)}: give a number of seconds >= 0"
         raise InvalidInputError(msg)
@@ -86,13 +97,18 @@ def check_rate(value: object, what: str = "rate") -> float:
     """Return ``value`` as ticks per second if it is a number from MIN_RATE_HZ to
     MAX_RATE_HZ, else raise a one-line error naming it."""
     try:
-        rate = float(value) if isinstance(value, int | float | str) and not isinstance(
-            value, bool) else math.nan
+        rate = (
+            float(value)
+            if isinstance(value, int | float | str) and not isinstance(value, bool)
+            else math.nan
+        )
     except (ValueError, OverflowError):
         rate = math.nan
     if not (math.isfinite(rate) and MIN_RATE_HZ <= rate <= MAX_RATE_HZ):
-        msg = (f"{what} {shown(value)} must be a positive number of ticks per second, from "
-               f"{MIN_RATE_HZ:g} to {MAX_RATE_HZ:g}")
+        msg = (
+            f"{what} {shown(value)} must be a positive number of ticks per second, from "
+            f"{MIN_RATE_HZ:g} to {MAX_RATE_HZ:g}"
+        )
         raise InvalidInputError(msg)
     return rate
 
@@ -120,16 +136,16 @@ def parse_duration(text: str | int | float) -> int:
     Its magnitude is at most 2^63-1 ns (about 292 years); fractions are exact.
     """
     if isinstance(text, bool) or not isinstance(text, str | int | float):
-        msg = (f"invalid duration {text!r}: give nanoseconds or a number with a unit "
-               "(5s, 300ms)")
+        msg = f"invalid duration {text!r}: give nanoseconds or a number with a unit (5s, 300ms)"
         raise InvalidInputError(msg)
     if isinstance(text, float):
         msg = f"invalid duration {text!r}: floats are ambiguous, write '{text}s' or nanoseconds"
         raise InvalidInputError(msg)
     value = text if isinstance(text, int) else _duration_ns(text)
     if value is None:
-        msg = (f"invalid duration {text!r}: give nanoseconds or a number with a unit "
-               "(5s, 300ms, 2min)")
+        msg = (
+            f"invalid duration {text!r}: give nanoseconds or a number with a unit (5s, 300ms, 2min)"
+        )
         raise InvalidInputError(msg)
     if abs(value) > MAX_NS:
         msg = f"duration {text!r} is out of range: at most 2^63-1 ns (about 292 years)"
@@ -183,8 +199,10 @@ def _parse_iso(text: str) -> int:
     try:
         moment = datetime.fromisoformat(body)
     except ValueError:
-        msg = (f"invalid time {text!r}: give nanoseconds, 'now', an ISO date "
-               "(2026-11-22T12:03:00Z) or a duration such as 12.5s")
+        msg = (
+            f"invalid time {text!r}: give nanoseconds, 'now', an ISO date "
+            "(2026-11-22T12:03:00Z) or a duration such as 12.5s"
+        )
         raise InvalidInputError(msg) from None
     if moment.tzinfo is None:
         moment = moment.replace(tzinfo=UTC)

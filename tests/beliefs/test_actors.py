@@ -43,9 +43,17 @@ def _setup(db: toaster.Database) -> toaster.Store:
     st.add_entity("ROBOT", "robot", is_self=True, t_ns=0)
     for who in PEOPLE:
         st.add_entity(who, "human", t_ns=0)
-    st.sync_snapshot("s", "ROBOT", 1 * S, [
-        *PLACES, *(F(p, "IsInRoom", "ROOM") for p in PEOPLE),
-        F("MARBLE", "IsIn", "BASKET"), F("KEY", "IsIn", "BOX")])
+    st.sync_snapshot(
+        "s",
+        "ROBOT",
+        1 * S,
+        [
+            *PLACES,
+            *(F(p, "IsInRoom", "ROOM") for p in PEOPLE),
+            F("MARBLE", "IsIn", "BASKET"),
+            F("KEY", "IsIn", "BOX"),
+        ],
+    )
     return st
 
 
@@ -61,19 +69,35 @@ def test_two_changes_two_actors_each_perceives_only_its_own(db: toaster.Database
     st = _setup(db)
     recorder = Recorder()
     st.add_rule(recorder)
-    st.sync_snapshot("s", "ROBOT", 2 * S, _hall(F("MARBLE", "IsIn", "BASKET"),
-                                                 F("KEY", "IsIn", "BOX")))
+    st.sync_snapshot(
+        "s", "ROBOT", 2 * S, _hall(F("MARBLE", "IsIn", "BASKET"), F("KEY", "IsIn", "BOX"))
+    )
     # Out of the room, Anne moves the marble and Bob the key, in one snapshot.
     marble, key = F("MARBLE", "IsIn", "DRAWER"), F("KEY", "IsIn", "SHELF")
-    st.sync_snapshot("s", "ROBOT", 3 * S, _hall(marble, key),
-                     actors={fact_key(marble): "ANNE", fact_key(key): "BOB",
-                             fact_key(F("MARBLE", "IsIn", "BASKET")): "ANNE",
-                             fact_key(F("KEY", "IsIn", "BOX")): "BOB"})
+    st.sync_snapshot(
+        "s",
+        "ROBOT",
+        3 * S,
+        _hall(marble, key),
+        actors={
+            fact_key(marble): "ANNE",
+            fact_key(key): "BOB",
+            fact_key(F("MARBLE", "IsIn", "BASKET")): "ANNE",
+            fact_key(F("KEY", "IsIn", "BOX")): "BOB",
+        },
+    )
     changes = recorder.changes[-1]
-    by_subject = {(f.subject_id, f.target_id): changes.actor_of(k)
-                  for part in (changes.appeared, changes.ended) for k, f in part}
-    assert by_subject == {("MARBLE", "DRAWER"): "ANNE", ("MARBLE", "BASKET"): "ANNE",
-                          ("KEY", "SHELF"): "BOB", ("KEY", "BOX"): "BOB"}
+    by_subject = {
+        (f.subject_id, f.target_id): changes.actor_of(k)
+        for part in (changes.appeared, changes.ended)
+        for k, f in part
+    }
+    assert by_subject == {
+        ("MARBLE", "DRAWER"): "ANNE",
+        ("MARBLE", "BASKET"): "ANNE",
+        ("KEY", "SHELF"): "BOB",
+        ("KEY", "BOX"): "BOB",
+    }
     assert changes.actor is None
     assert _where(db, "ANNE", "MARBLE") == {"DRAWER"} and _where(db, "ANNE", "KEY") == {"BOX"}
     assert _where(db, "BOB", "MARBLE") == {"BASKET"} and _where(db, "BOB", "KEY") == {"SHELF"}
@@ -83,23 +107,31 @@ def test_two_changes_two_actors_each_perceives_only_its_own(db: toaster.Database
     assert _where(db, "BOB>ANNE", "KEY") == {"BOX"}
 
 
-def test_the_write_actor_is_the_default_of_keys_without_their_own(
-        db: toaster.Database) -> None:
+def test_the_write_actor_is_the_default_of_keys_without_their_own(db: toaster.Database) -> None:
     """``actor`` names who made the changes a per-fact function leaves unnamed; sync_many
     merges two sources' changes with their actors into one rule run."""
     st = _setup(db)
-    st.sync_snapshot("s", "ROBOT", 2 * S, _hall(F("MARBLE", "IsIn", "BASKET"),
-                                                 F("KEY", "IsIn", "BOX")))
+    st.sync_snapshot(
+        "s", "ROBOT", 2 * S, _hall(F("MARBLE", "IsIn", "BASKET"), F("KEY", "IsIn", "BOX"))
+    )
     recorder = Recorder()
     st.add_rule(recorder)
-    st.sync_many("ROBOT", 3 * S, [
-        ("s", _hall(F("MARBLE", "IsIn", "DRAWER"), F("KEY", "IsIn", "BOX"))),
-        ("u", [F("CUP", "IsOn", "SHELF")])],
-        actor="SALLY", actors=lambda f: "BOB" if f.subject_id == "CUP" else None)
+    st.sync_many(
+        "ROBOT",
+        3 * S,
+        [
+            ("s", _hall(F("MARBLE", "IsIn", "DRAWER"), F("KEY", "IsIn", "BOX"))),
+            ("u", [F("CUP", "IsOn", "SHELF")]),
+        ],
+        actor="SALLY",
+        actors=lambda f: "BOB" if f.subject_id == "CUP" else None,
+    )
     assert len(recorder.changes) == 1  # merged: one rule run
     changes = recorder.changes[0]
     assert {f.subject_id: changes.actor_of(k) for k, f in changes.appeared} == {
-        "MARBLE": "SALLY", "CUP": "BOB"}
+        "MARBLE": "SALLY",
+        "CUP": "BOB",
+    }
     assert _where(db, "SALLY", "MARBLE") == {"DRAWER"}
     assert _where(db, "BOB", "MARBLE") == _where(db, "ANNE", "MARBLE") == {"BASKET"}
     on_shelf = {h for h in PEOPLE if api.belief_value(db, h, "CUP", "IsOn", "SHELF")}
@@ -110,10 +142,16 @@ def test_an_ended_fact_carries_its_actor(db: toaster.Database) -> None:
     """Anne takes the marble out of the basket (it is nowhere the robot knows): she no longer
     believes it is there; the others, away, still do."""
     st = _setup(db)
-    st.sync_snapshot("s", "ROBOT", 2 * S, _hall(F("MARBLE", "IsIn", "BASKET"),
-                                                 F("KEY", "IsIn", "BOX")))
-    st.sync_snapshot("s", "ROBOT", 3 * S, _hall(F("KEY", "IsIn", "BOX")),
-                     actors=lambda f: "ANNE" if f.subject_id == "MARBLE" else None)
+    st.sync_snapshot(
+        "s", "ROBOT", 2 * S, _hall(F("MARBLE", "IsIn", "BASKET"), F("KEY", "IsIn", "BOX"))
+    )
+    st.sync_snapshot(
+        "s",
+        "ROBOT",
+        3 * S,
+        _hall(F("KEY", "IsIn", "BOX")),
+        actors=lambda f: "ANNE" if f.subject_id == "MARBLE" else None,
+    )
     assert _where(db, "ANNE", "MARBLE") == set()
     assert _where(db, "BOB", "MARBLE") == _where(db, "SALLY", "MARBLE") == {"BASKET"}
 
@@ -122,8 +160,9 @@ def test_unknown_per_fact_actors_fail_and_write_nothing(db: toaster.Database) ->
     st = _setup(db)
     moved = _hall(F("MARBLE", "IsIn", "DRAWER"), F("KEY", "IsIn", "BOX"))
     with pytest.raises(UnknownAgentError, match="unknown actor 'NOBODY'"):
-        st.sync_snapshot("s", "ROBOT", 2 * S, moved,
-                         actors={fact_key(F("MARBLE", "IsIn", "DRAWER")): "NOBODY"})
+        st.sync_snapshot(
+            "s", "ROBOT", 2 * S, moved, actors={fact_key(F("MARBLE", "IsIn", "DRAWER")): "NOBODY"}
+        )
     with pytest.raises(UnknownAgentError, match="unknown actor 'ANNE>BOB'"):
         st.sync_snapshot("s", "ROBOT", 2 * S, moved, actors=lambda f: "ANNE>BOB")
     assert _where(db, "ROBOT", "MARBLE") == {"BASKET"}  # rolled back

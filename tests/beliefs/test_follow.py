@@ -30,8 +30,14 @@ ROOMS = ("KITCHEN", "HALL")
 
 
 def _key(row: object) -> tuple[str, ...]:
-    return (row.subject_id, row.subject_owner_id, row.property, row.sub_property,
-            row.target_id, row.target_owner_id)
+    return (
+        row.subject_id,
+        row.subject_owner_id,
+        row.property,
+        row.sub_property,
+        row.target_id,
+        row.target_owner_id,
+    )
 
 
 class Story:
@@ -75,8 +81,7 @@ class Story:
         out = [Fact(e, "IsInRoom", r) for e, r in self.room.items() if r is not None]
         out += [Fact(o, "IsIn", "BOX") for o, inside in self.in_box.items() if inside]
         out += [Fact(o, "Color", value_text=c) for o, c in self.color.items()]
-        out += [Fact(o, "Temperature", value_text="num", value_num=v)
-                for o, v in self.temp.items()]
+        out += [Fact(o, "Temperature", value_text="num", value_num=v) for o, v in self.temp.items()]
         out += [Fact(o, "IsVisibleBy", h, confidence=c) for (o, h), c in self.seen.items()]
         if self.closed:
             out.append(Fact("BOX", "IsClosed", value_text="true"))
@@ -121,22 +126,38 @@ def _check_timelines(db: toaster.Database, times: list[int]) -> int:
                     assert prev.valid_to_ns is not None, (holder, key, "two open intervals")
                     assert prev.valid_to_ns <= r.valid_from_ns, (holder, key, "overlap")
                     assert not (touching and prev.value_text == r.value_text), (
-                        holder, key, "an unchanged belief split in two intervals")
-                expected.append(("changed" if touching else "appeared", r.valid_from_ns,
-                                 r.value_text, prev.value_text if touching else None))
-                if r.valid_to_ns is not None and (nxt is None
-                                                  or nxt.valid_from_ns != r.valid_to_ns):
+                        holder,
+                        key,
+                        "an unchanged belief split in two intervals",
+                    )
+                expected.append(
+                    (
+                        "changed" if touching else "appeared",
+                        r.valid_from_ns,
+                        r.value_text,
+                        prev.value_text if touching else None,
+                    )
+                )
+                if r.valid_to_ns is not None and (
+                    nxt is None or nxt.valid_from_ns != r.valid_to_ns
+                ):
                     expected.append(("ended", r.valid_to_ns, r.value_text, None))
                 checked += 1
-            got = [(e.kind, e.stamp_ns, e.value_text, e.previous_text)
-                   for e in sorted(events.pop(key, []), key=lambda e: (e.stamp_ns, e.kind))]
+            got = [
+                (e.kind, e.stamp_ns, e.value_text, e.previous_text)
+                for e in sorted(events.pop(key, []), key=lambda e: (e.stamp_ns, e.kind))
+            ]
             assert got == sorted(expected, key=lambda x: (x[1], x[0])), (holder, key)
         assert not events, (holder, "events without intervals", list(events))
         for t in times:
-            held = {(_key(r), r.value_text, round(r.confidence, 9)) for r in rows
-                    if r.valid_from_ns <= t and (r.valid_to_ns is None or r.valid_to_ns > t)}
-            as_of = {(_key(r), r.value_text, round(r.confidence, 9))
-                     for r in q.beliefs_at(db, holder, t)}
+            held = {
+                (_key(r), r.value_text, round(r.confidence, 9))
+                for r in rows
+                if r.valid_from_ns <= t and (r.valid_to_ns is None or r.valid_to_ns > t)
+            }
+            as_of = {
+                (_key(r), r.value_text, round(r.confidence, 9)) for r in q.beliefs_at(db, holder, t)
+            }
             assert as_of == held, (holder, t)
         current = {(_key(r), r.value_text) for r in q.current_facts(db, holder)}
         assert current == {(_key(r), r.value_text) for r in rows if r.valid_to_ns is None}
@@ -154,15 +175,16 @@ def test_a_change_every_holder_perceives_writes_no_holder_row(db: toaster.Databa
     st.add_entity("R", "robot", is_self=True, t_ns=0)
     for h in HUMANS:
         st.add_entity(h, "human", t_ns=0)
-    room = [Fact(h, "IsInRoom", "KITCHEN") for h in HUMANS] + [Fact("MUG", "IsInRoom",
-                                                                    "KITCHEN")]
+    room = [Fact(h, "IsInRoom", "KITCHEN") for h in HUMANS] + [Fact("MUG", "IsInRoom", "KITCHEN")]
 
     def physical_rows() -> int:
         with db.transaction() as conn:
-            return conn.execute(text(
-                "SELECT (SELECT count(*) FROM facts f JOIN fact_keys k ON k.id = f.key_id "
-                "WHERE k.agent_id <> 'R') + (SELECT count(*) FROM events WHERE agent_id <> 'R')"
-            )).scalar_one()
+            return conn.execute(
+                text(
+                    "SELECT (SELECT count(*) FROM facts f JOIN fact_keys k ON k.id = f.key_id "
+                    "WHERE k.agent_id <> 'R') + (SELECT count(*) FROM events WHERE agent_id <> 'R')"
+                )
+            ).scalar_one()
 
     st.sync_snapshot("w", "R", 1, [*room, Fact("MUG", "Color", value_text="red")])
     st.sync_snapshot("w", "R", 2, [*room, Fact("MUG", "Color", value_text="blue")])
@@ -174,7 +196,10 @@ def test_a_change_every_holder_perceives_writes_no_holder_row(db: toaster.Databa
     for holder in (*HUMANS, "ANNE>BOB"):
         changes = q.events(db, holder, subject="MUG", property="Color", kind="changed")
         assert [(e.stamp_ns, e.previous_text, e.value_text) for e in changes][-3:] == [
-            (3, "blue", "green"), (4, "green", "red"), (5, "red", "blue")]
+            (3, "blue", "green"),
+            (4, "green", "red"),
+            (5, "red", "blue"),
+        ]
 
 
 def test_a_missed_change_keeps_one_unsplit_interval(db: toaster.Database) -> None:
@@ -182,27 +207,28 @@ def test_a_missed_change_keeps_one_unsplit_interval(db: toaster.Database) -> Non
     st.add_entity("R", "robot", is_self=True, t_ns=0)
     st.add_entity("SALLY", "human", t_ns=0)
     here = [Fact("MARBLE", "IsInRoom", "LAB")]
-    st.sync_snapshot("w", "R", 1, [*here, Fact("SALLY", "IsInRoom", "LAB"),
-                                   Fact("MARBLE", "IsIn", "BASKET")])
+    st.sync_snapshot(
+        "w", "R", 1, [*here, Fact("SALLY", "IsInRoom", "LAB"), Fact("MARBLE", "IsIn", "BASKET")]
+    )
     st.sync_snapshot("w", "R", 2, [*here, Fact("MARBLE", "IsIn", "BASKET")])  # Sally leaves
     st.sync_snapshot("w", "R", 3, [*here, Fact("MARBLE", "IsIn", "BOX")])  # unseen move
     basket = q.history(db, "SALLY", subject="MARBLE", property="IsIn")
-    assert [(r.target_id, r.valid_from_ns, r.valid_to_ns) for r in basket] == [
-        ("BASKET", 1, None)]
-    assert [(e.kind, e.stamp_ns) for e in q.events(db, "SALLY", subject="MARBLE",
-                                                   property="IsIn")] == [("appeared", 1)]
+    assert [(r.target_id, r.valid_from_ns, r.valid_to_ns) for r in basket] == [("BASKET", 1, None)]
+    assert [
+        (e.kind, e.stamp_ns) for e in q.events(db, "SALLY", subject="MARBLE", property="IsIn")
+    ] == [("appeared", 1)]
 
 
 def test_direct_writes_and_emptying_the_robot_keep_holder_beliefs(db: toaster.Database) -> None:
     times = _replay(db, 4, 15)
-    before = {h: {(_key(r), r.value_text) for r in q.current_facts(db, h)}
-              for h in api.holders(db)}
+    before = {h: {(_key(r), r.value_text) for r in q.current_facts(db, h)} for h in api.holders(db)}
     st = db.store()
     # A user corrects Anne directly: the rest of what she follows stays as it was.
     st.assert_fact("ANNE", Fact("MUG", "Color", value_text="purple"), t_ns=times[-1] + 1)
     anne = {(_key(r), r.value_text) for r in q.current_facts(db, "ANNE")}
     assert anne == {x for x in before["ANNE"] if x[0][2] != "Color" or x[0][0] != "MUG"} | {
-        (("MUG", "", "Color", "", "", ""), "purple")}
+        (("MUG", "", "Color", "", "", ""), "purple")
+    }
     assert _check_timelines(db, times) > 0
     # Emptying the robot's facts leaves every holder's beliefs (and history) in place.
     history = {h: q.history(db, h) for h in api.holders(db)}
@@ -249,7 +275,11 @@ def test_two_robots_writing_the_same_fact(db: toaster.Database) -> None:
     st.sync_snapshot("w", "R2", 6, [*here, Fact("MUG", "Color", value_text="black")])
     colors = q.history(db, "ANNE", subject="MUG", property="Color")
     assert [(r.value_text, r.valid_from_ns, r.valid_to_ns) for r in colors] == [
-        ("red", 1, 2), ("blue", 2, 3), ("green", 3, 6), ("black", 6, None)]
+        ("red", 1, 2),
+        ("blue", 2, 3),
+        ("green", 3, 6),
+        ("black", 6, None),
+    ]
     assert _check_timelines(db, [1, 2, 3, 4, 5, 6]) >= 4
 
 
@@ -271,7 +301,8 @@ def _two_robots(db: toaster.Database) -> toaster.Store:
 
 def _rooms(where: dict[str, str]) -> list[Fact]:
     return [Fact(who, "IsInRoom", room) for who, room in sorted(where.items())] + [
-        Fact("DRAWER", "IsInRoom", "OFFICE")]
+        Fact("DRAWER", "IsInRoom", "OFFICE")
+    ]
 
 
 def _late_story(db: toaster.Database) -> None:
@@ -296,16 +327,20 @@ def test_a_late_robot_changes_beliefs_at_the_clock(db: toaster.Database, tmp_pat
     the belief then, who left keeps it (a false belief), with one event per interval boundary
     and the same timelines as with copied rows."""
     _late_story(db)
-    pen = [(r.valid_from_ns, r.valid_to_ns)
-           for r in q.history(db, "R2", subject="PEN", property="IsIn")]
+    pen = [
+        (r.valid_from_ns, r.valid_to_ns)
+        for r in q.history(db, "R2", subject="PEN", property="IsIn")
+    ]
     assert pen == [(95 * S, 96 * S)]
-    assert [(r.valid_from_ns, r.valid_to_ns)
-            for r in q.history(db, "ANNE", subject="PEN", property="IsIn")] == [
-        (100 * S + 2, 102 * S + 1)]  # R2's runs after R1's at 100 s (then 100 s + 1) and 102 s
-    assert [(e.kind, e.stamp_ns) for e in q.events(db, "ANNE")
-            if e.subject_id == "PEN"] == [("appeared", 100 * S + 2), ("ended", 102 * S + 1)]
-    assert [r.target_id for r in q.current_facts(db, "BOB") if r.subject_id == "PEN"] == [
-        "DRAWER"]
+    assert [
+        (r.valid_from_ns, r.valid_to_ns)
+        for r in q.history(db, "ANNE", subject="PEN", property="IsIn")
+    ] == [(100 * S + 2, 102 * S + 1)]  # R2's runs after R1's at 100 s (then 100 s + 1) and 102 s
+    assert [(e.kind, e.stamp_ns) for e in q.events(db, "ANNE") if e.subject_id == "PEN"] == [
+        ("appeared", 100 * S + 2),
+        ("ended", 102 * S + 1),
+    ]
+    assert [r.target_id for r in q.current_facts(db, "BOB") if r.subject_id == "PEN"] == ["DRAWER"]
     with db.transaction() as conn:
         assert violations(conn) == []
     with toaster.connect(f"sqlite:///{tmp_path}/copied.db") as copied:
@@ -314,26 +349,29 @@ def test_a_late_robot_changes_beliefs_at_the_clock(db: toaster.Database, tmp_pat
         assert _timeline(db) == _timeline(copied)
 
 
-def test_two_robots_changing_a_belief_at_one_instant_give_one_event(
-        db: toaster.Database) -> None:
+def test_two_robots_changing_a_belief_at_one_instant_give_one_event(db: toaster.Database) -> None:
     """R1 moves Bob to the kitchen at the clock's time; R2's late snapshot says the same and
     runs at that instant too: Bob's belief starts once, with one event."""
     st = _two_robots(db)
     st.sync_many("R1", 100 * S, [("rooms", _rooms(ROBOT_ROOMS))])
     st.sync_many("R1", 101 * S, [("rooms", _rooms({**ROBOT_ROOMS, "BOB": "KITCHEN"}))])
     st.sync_many("R2", 99 * S, [("rooms", _rooms({**ROBOT_ROOMS, "BOB": "KITCHEN"}))])
-    kitchen = [(e.kind, e.stamp_ns) for e in q.events(db, "BOB")
-               if e.subject_id == "BOB" and e.target_id == "KITCHEN"]
+    kitchen = [
+        (e.kind, e.stamp_ns)
+        for e in q.events(db, "BOB")
+        if e.subject_id == "BOB" and e.target_id == "KITCHEN"
+    ]
     assert kitchen == [("appeared", 101 * S)]
-    assert [(r.valid_from_ns, r.valid_to_ns) for r in q.history(
-        db, "BOB", subject="BOB", property="IsInRoom") if r.target_id == "KITCHEN"] == [
-        (101 * S, None)]
+    assert [
+        (r.valid_from_ns, r.valid_to_ns)
+        for r in q.history(db, "BOB", subject="BOB", property="IsInRoom")
+        if r.target_id == "KITCHEN"
+    ] == [(101 * S, None)]
     with db.transaction() as conn:
         assert violations(conn) == []
 
 
-def test_a_robot_whose_lag_grows_past_the_skew_stays_on_the_clock(
-        db: toaster.Database) -> None:
+def test_a_robot_whose_lag_grows_past_the_skew_stays_on_the_clock(db: toaster.Database) -> None:
     """A live robot 0.5 s behind another is written on the rules' clock; when its lag then
     grows past LIVE_CLOCK_SKEW_NS its snapshots stay on the clock (not before the one already
     moved there, which would be a time-order error)."""
@@ -342,8 +380,10 @@ def test_a_robot_whose_lag_grows_past_the_skew_stays_on_the_clock(
     st.sync_many("R2", 100 * S - S // 2, [("rooms", _rooms(ROBOT_ROOMS))])
     st.sync_many("R1", 103 * S, [("rooms", _rooms({**ROBOT_ROOMS, "BOB": "KITCHEN"}))])
     st.sync_many("R2", 100 * S - S // 10, [("rooms", _rooms({**ROBOT_ROOMS, "CARL": "HALL"}))])
-    carl = {r.target_id: (r.valid_from_ns, r.valid_to_ns)
-            for r in q.history(db, "R2", subject="CARL", property="IsInRoom")}
+    carl = {
+        r.target_id: (r.valid_from_ns, r.valid_to_ns)
+        for r in q.history(db, "R2", subject="CARL", property="IsInRoom")
+    }
     assert carl == {"KITCHEN": (100 * S + 1, 103 * S + 1), "HALL": (103 * S + 1, None)}
     with db.transaction() as conn:
         assert violations(conn) == []
@@ -353,19 +393,37 @@ def _timeline(db: toaster.Database) -> dict[str, tuple[list, list]]:
     """Every holder's intervals and events, without row ids and wall-clock stamps."""
     out = {}
     for holder in api.holders(db):
-        rows = sorted((_key(r), r.value_text, r.value_num, round(r.confidence, 9),
-                       r.observability, r.valid_from_ns, r.valid_to_ns)
-                      for r in q.history(db, holder))
-        events = sorted((_key(e), e.kind, e.stamp_ns, e.value_text, e.previous_text,
-                         None if e.confidence is None else round(e.confidence, 9))
-                        for e in q.events(db, holder))
+        rows = sorted(
+            (
+                _key(r),
+                r.value_text,
+                r.value_num,
+                round(r.confidence, 9),
+                r.observability,
+                r.valid_from_ns,
+                r.valid_to_ns,
+            )
+            for r in q.history(db, holder)
+        )
+        events = sorted(
+            (
+                _key(e),
+                e.kind,
+                e.stamp_ns,
+                e.value_text,
+                e.previous_text,
+                None if e.confidence is None else round(e.confidence, 9),
+            )
+            for e in q.events(db, holder)
+        )
         out[holder] = (rows, events)
     return out
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3, 6])
-def test_shared_rows_read_exactly_like_copied_rows(db: toaster.Database, tmp_path: object,
-                                                   seed: int) -> None:
+def test_shared_rows_read_exactly_like_copied_rows(
+    db: toaster.Database, tmp_path: object, seed: int
+) -> None:
     """The same story with share_rows off (every perceived change copied into the holder's
     own rows, on SQLite) gives every holder the same intervals and events."""
     times = _replay(db, seed, 40)
@@ -384,7 +442,8 @@ def test_shared_rows_read_exactly_like_copied_rows(db: toaster.Database, tmp_pat
 
 
 def test_robots_writing_through_sql_at_one_instant_keep_every_invariant(
-        db: toaster.Database) -> None:
+    db: toaster.Database,
+) -> None:
     """Two robots' SQL clients (fact_inbox, no store) that disagree at one instant: R1 sees the
     pen in the drawer and then not, R2 the same, all at 5 s. A robot's write at the time of
     its own run shares that instant, any other run at or behind the clock comes 1 ns after it
@@ -402,19 +461,27 @@ def test_robots_writing_through_sql_at_one_instant_keep_every_invariant(
         for robot in ("R1", "R2"):
             for action in ("assert", "retract"):
                 with engine.begin() as conn:
-                    conn.execute(text(
-                        "INSERT INTO fact_inbox (action, agent_id, subject_id, property, "
-                        "target_id, t_ns) VALUES (:a, :r, 'PEN', 'IsIn', 'DRAWER', :t)"),
-                        {"a": action, "r": robot, "t": 5 * S})
+                    conn.execute(
+                        text(
+                            "INSERT INTO fact_inbox (action, agent_id, subject_id, property, "
+                            "target_id, t_ns) VALUES (:a, :r, 'PEN', 'IsIn', 'DRAWER', :t)"
+                        ),
+                        {"a": action, "r": robot, "t": 5 * S},
+                    )
     finally:
         engine.dispose()
     with db.transaction() as conn:
         assert violations(conn) == []
-    assert [(r.valid_from_ns, r.valid_to_ns)
-            for r in q.history(db, "ANNE", subject="PEN", property="IsIn")] == [
-        (5 * S, 5 * S), (5 * S + 1, 5 * S + 2)]
+    assert [
+        (r.valid_from_ns, r.valid_to_ns)
+        for r in q.history(db, "ANNE", subject="PEN", property="IsIn")
+    ] == [(5 * S, 5 * S), (5 * S + 1, 5 * S + 2)]
     assert [(e.kind, e.stamp_ns) for e in q.events(db, "ANNE") if e.subject_id == "PEN"] == [
-        ("appeared", 5 * S), ("ended", 5 * S), ("appeared", 5 * S + 1), ("ended", 5 * S + 2)]
+        ("appeared", 5 * S),
+        ("ended", 5 * S),
+        ("appeared", 5 * S + 1),
+        ("ended", 5 * S + 2),
+    ]
     assert not [f for f in q.current_facts(db, "ANNE") if f.subject_id == "PEN"]
 
 
@@ -427,9 +494,14 @@ def test_the_sources_of_one_tick_are_written_at_one_stamp(db: toaster.Database) 
     store.sync_many("R1", 20 * S, [("rooms", _rooms(ROBOT_ROOMS))])
     store.sync_many("R2", 19 * S + S // 2, [("rooms", _rooms(ROBOT_ROOMS))])
     store.sync_many("R1", 30 * S, [("rooms", _rooms({**ROBOT_ROOMS, "CARL": "HALL"}))])
-    store.sync_many("R2", 19 * S + 6 * S // 10, [
-        ("things", [Fact("PEN", "IsIn", "DRAWER")]),
-        ("rooms", _rooms({**ROBOT_ROOMS, "BOB": "KITCHEN"}))])
+    store.sync_many(
+        "R2",
+        19 * S + 6 * S // 10,
+        [
+            ("things", [Fact("PEN", "IsIn", "DRAWER")]),
+            ("rooms", _rooms({**ROBOT_ROOMS, "BOB": "KITCHEN"})),
+        ],
+    )
     starts = {(r.subject_id, r.target_id): r.valid_from_ns for r in q.current_facts(db, "R2")}
     assert starts[("PEN", "DRAWER")] == starts[("BOB", "KITCHEN")] == 30 * S + 1
     with db.transaction() as conn:
@@ -462,13 +534,18 @@ def test_a_late_robots_runs_never_share_an_instant(db: toaster.Database) -> None
     benchmarks/soak_writers.py on SQLite)."""
     st = _two_robots(db)
     st.sync_many("R1", 10 * S, [("rooms", _rooms(ROBOT_ROOMS))])
-    st.sync_many("R2", 5 * S, [("rooms", _rooms(ROBOT_ROOMS)),
-                               ("things", [Fact("PEN", "IsIn", "DRAWER")])])
+    st.sync_many(
+        "R2", 5 * S, [("rooms", _rooms(ROBOT_ROOMS)), ("things", [Fact("PEN", "IsIn", "DRAWER")])]
+    )
     st.sync_many("R2", 5 * S + S // 10, [("rooms", _rooms(ROBOT_ROOMS)), ("things", [])])
-    st.sync_many("R2", 5 * S + S // 5, [("rooms", _rooms(ROBOT_ROOMS)),
-                                        ("things", [Fact("PEN", "IsIn", "DRAWER")])])
+    st.sync_many(
+        "R2",
+        5 * S + S // 5,
+        [("rooms", _rooms(ROBOT_ROOMS)), ("things", [Fact("PEN", "IsIn", "DRAWER")])],
+    )
     with db.transaction() as conn:
         assert violations(conn) == []
-    assert [(r.valid_from_ns, r.valid_to_ns)
-            for r in q.history(db, "ANNE", subject="PEN", property="IsIn")] == [
-        (10 * S + 1, 10 * S + 2), (10 * S + 3, None)]
+    assert [
+        (r.valid_from_ns, r.valid_to_ns)
+        for r in q.history(db, "ANNE", subject="PEN", property="IsIn")
+    ] == [(10 * S + 1, 10 * S + 2), (10 * S + 3, None)]

@@ -31,9 +31,13 @@ THINGS = ("MARBLE", "KEY", "CUP")
 def story(seed: int, length: int) -> list[dict[str, Any]]:
     """Scenario steps; most steps change values only (the runs groups serve)."""
     rng = random.Random(seed)
-    steps: list[dict[str, Any]] = [{
-        "t": 1, "rooms": {**{p: rng.choice(ROOMS) for p in PEOPLE}, **CONTAINERS},
-        "inside": {x: rng.choice(list(CONTAINERS)) for x in THINGS}}]
+    steps: list[dict[str, Any]] = [
+        {
+            "t": 1,
+            "rooms": {**{p: rng.choice(ROOMS) for p in PEOPLE}, **CONTAINERS},
+            "inside": {x: rng.choice(list(CONTAINERS)) for x in THINGS},
+        }
+    ]
     for i in range(length):
         step: dict[str, Any] = {"t": i + 2}
         roll = rng.random()
@@ -45,11 +49,16 @@ def story(seed: int, length: int) -> list[dict[str, Any]]:
                 step["actor"] = rng.choice(PEOPLE)
         elif roll < 0.5:
             speaker, listener = rng.sample(PEOPLE, 2)
-            step["tell"] = {"speaker": speaker, "listeners": [listener],
-                            "fact": [rng.choice(THINGS), "IsIn", rng.choice(list(CONTAINERS))]}
+            step["tell"] = {
+                "speaker": speaker,
+                "listeners": [listener],
+                "fact": [rng.choice(THINGS), "IsIn", rng.choice(list(CONTAINERS))],
+            }
         else:
-            step["facts"] = [[x, "Temperature", "", rng.choice(("hot", "cold"))]
-                             for x in rng.sample(THINGS, rng.randint(1, len(THINGS)))]
+            step["facts"] = [
+                [x, "Temperature", "", rng.choice(("hot", "cold"))]
+                for x in rng.sample(THINGS, rng.randint(1, len(THINGS)))
+            ]
         steps.append(step)
     return steps
 
@@ -57,31 +66,45 @@ def story(seed: int, length: int) -> list[dict[str, Any]]:
 def holders_view(db: toaster.Database) -> tuple[list[tuple[Any, ...]], list[tuple[Any, ...]]]:
     """Every holder's intervals and events, as the views show them."""
     with db.transaction() as conn:
-        facts = conn.execute(sa.text(
-            "SELECT agent_id, subject_id, property, target_id, value_text, valid_from_ns, "
-            "valid_to_ns, ROUND(CAST(confidence AS NUMERIC), 9) FROM fact_history "
-            "WHERE agent_id <> 'ROBOT'")).all()
-        events = conn.execute(sa.text(
-            "SELECT agent_id, kind, stamp_ns, subject_id, property, target_id, value_text, "
-            "previous_text FROM event_log WHERE agent_id <> 'ROBOT'")).all()
+        facts = conn.execute(
+            sa.text(
+                "SELECT agent_id, subject_id, property, target_id, value_text, valid_from_ns, "
+                "valid_to_ns, ROUND(CAST(confidence AS NUMERIC), 9) FROM fact_history "
+                "WHERE agent_id <> 'ROBOT'"
+            )
+        ).all()
+        events = conn.execute(
+            sa.text(
+                "SELECT agent_id, kind, stamp_ns, subject_id, property, target_id, value_text, "
+                "previous_text FROM event_log WHERE agent_id <> 'ROBOT'"
+            )
+        ).all()
     return sorted(tuple(r) for r in facts), sorted(tuple(r) for r in events)
 
 
 def replay(db: toaster.Database, steps: list[dict[str, Any]], grouped: bool) -> Any:
-    sc = scenario.parse({"self": "ROBOT", "agents": list(PEOPLE),
-                         "objects": [*THINGS, *CONTAINERS, *ROOMS],
-                         "settings": {"depth": 2, "group_holders": grouped},
-                         "steps": steps}, "groups")
+    sc = scenario.parse(
+        {
+            "self": "ROBOT",
+            "agents": list(PEOPLE),
+            "objects": [*THINGS, *CONTAINERS, *ROOMS],
+            "settings": {"depth": 2, "group_holders": grouped},
+            "steps": steps,
+        },
+        "groups",
+    )
     db.store().empty()
     scenario.Replayer(db, sc).run()
     return holders_view(db)
 
 
-@settings(max_examples=8, deadline=None,
-          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@settings(
+    max_examples=8,
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
 @given(seed=st.integers(0, 2**32 - 1), length=st.integers(4, 16))
-def test_grouped_holders_believe_what_each_would_alone(db_url: str, seed: int,
-                                                       length: int) -> None:
+def test_grouped_holders_believe_what_each_would_alone(db_url: str, seed: int, length: int) -> None:
     steps = story(seed, length)
     with toaster.connect(db_url) as db:
         grouped = replay(db, steps, grouped=True)
@@ -105,8 +128,9 @@ def groups_for(db: toaster.Database) -> str | None:
 
 
 def temperature(db: toaster.Database, holder: str, t: int) -> set[str]:
-    return {r.value_text for r in api.beliefs(db, holder, property="Temperature",
-                                                at=t * 1_000_000_000)}
+    return {
+        r.value_text for r in api.beliefs(db, holder, property="Temperature", at=t * 1_000_000_000)
+    }
 
 
 def lab(db: toaster.Database) -> Any:
@@ -118,9 +142,14 @@ def lab(db: toaster.Database) -> Any:
 
     def tick(t: int, carl: str, temp: str) -> None:
         rooms = {"ANNE": "LAB", "BOB": "LAB", "CARL": carl, "CUP": "LAB"}
-        st_.sync_snapshot("eyes", "ROBOT", t * 1_000_000_000,
-                          [toaster.Fact(x, "IsInRoom", r) for x, r in rooms.items()]
-                          + [toaster.Fact("CUP", "Temperature", "", temp)])
+        st_.sync_snapshot(
+            "eyes",
+            "ROBOT",
+            t * 1_000_000_000,
+            [toaster.Fact(x, "IsInRoom", r) for x, r in rooms.items()]
+            + [toaster.Fact("CUP", "Temperature", "", temp)],
+        )
+
     return tick
 
 
@@ -128,8 +157,17 @@ def test_people_in_one_room_share_the_work_until_one_leaves(db: toaster.Database
     tick = lab(db)
     tick(1, "LAB", "hot")
     tick(2, "LAB", "cold")
-    everyone = {"ANNE", "BOB", "CARL", "ANNE>BOB", "ANNE>CARL", "BOB>ANNE", "BOB>CARL",
-                "CARL>ANNE", "CARL>BOB"}
+    everyone = {
+        "ANNE",
+        "BOB",
+        "CARL",
+        "ANNE>BOB",
+        "ANNE>CARL",
+        "BOB>ANNE",
+        "BOB>CARL",
+        "CARL>ANNE",
+        "CARL>BOB",
+    }
     assert list(groups(db).values()) == [everyone]
     assert groups_for(db) == "ROBOT"
     tick(3, "HALL", "hot")  # Carl leaves as the cup warms: he saw it (before the tick)
@@ -146,8 +184,13 @@ def test_writes_that_change_one_holder_end_the_groups(db: toaster.Database) -> N
     tick = lab(db)
     tick(1, "LAB", "hot")
     assert groups(db)
-    tell(db, "ANNE", toaster.Fact("CUP", "Temperature", "", "frozen"), listeners=["BOB"],
-         t_ns=2_000_000_000)  # Bob no longer follows the robot's cup temperature
+    tell(
+        db,
+        "ANNE",
+        toaster.Fact("CUP", "Temperature", "", "frozen"),
+        listeners=["BOB"],
+        t_ns=2_000_000_000,
+    )  # Bob no longer follows the robot's cup temperature
     assert groups_for(db) is None
     tick(3, "LAB", "hot")  # no change: no run; Bob keeps what he was told
     assert temperature(db, "BOB", 3) == {"frozen"}

@@ -40,8 +40,10 @@ def story(seed: int, length: int) -> list[dict[str, Any]]:
             person = rng.choice(PEOPLE)
             steps.append({"t": i + 2, "rooms": {person: rng.choice(ROOMS)}})
         else:
-            step: dict[str, Any] = {"t": i + 2,
-                                    "inside": {rng.choice(THINGS): rng.choice(list(CONTAINERS))}}
+            step: dict[str, Any] = {
+                "t": i + 2,
+                "inside": {rng.choice(THINGS): rng.choice(list(CONTAINERS))},
+            }
             if rng.random() < 0.4:
                 step["actor"] = rng.choice(PEOPLE)
             steps.append(step)
@@ -65,8 +67,11 @@ def model(steps: list[dict[str, Any]]) -> list[dict[str, dict[str, str | None]]]
         for p in PEOPLE:
             for x in THINGS:
                 sees_after = rooms.get(p) == thing_room[x]
-                saw_before = (x in thing_room_before and p in room_before
-                              and room_before[p] == thing_room_before[x])
+                saw_before = (
+                    x in thing_room_before
+                    and p in room_before
+                    and room_before[p] == thing_room_before[x]
+                )
                 moved = inside_before.get(x) != inside[x]  # putting it where it is: no change
                 if sees_after and (moved or not saw_before or p == actor):
                     belief[p][x] = inside[x]  # sees it arrive, or sees it again
@@ -88,15 +93,24 @@ def believed(db: toaster.Database, person: str, t_ns: int) -> dict[str, str | No
     return where
 
 
-@settings(max_examples=12, deadline=None,
-          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@settings(
+    max_examples=12,
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
 @given(seed=st.integers(0, 2**32 - 1), length=st.integers(3, 14))
-def test_first_order_beliefs_match_the_reference_model(db_url: str, seed: int,
-                                                       length: int) -> None:
+def test_first_order_beliefs_match_the_reference_model(db_url: str, seed: int, length: int) -> None:
     steps = story(seed, length)
-    sc = scenario.parse({"self": "ROBOT", "agents": list(PEOPLE),
-                         "objects": [*THINGS, *CONTAINERS, *ROOMS],
-                         "settings": {"depth": 1}, "steps": steps}, f"story-{seed}")
+    sc = scenario.parse(
+        {
+            "self": "ROBOT",
+            "agents": list(PEOPLE),
+            "objects": [*THINGS, *CONTAINERS, *ROOMS],
+            "settings": {"depth": 1},
+            "steps": steps,
+        },
+        f"story-{seed}",
+    )
     with toaster.connect(db_url) as db:
         db.store().empty()
         scenario.Replayer(db, sc).run()

@@ -78,8 +78,9 @@ class World:
         return self.rooms.get(entity)
 
 
-def perceives(holder: Holder, entity: str, world: World, actor: str | None,
-              acted_on: set[str]) -> bool:
+def perceives(
+    holder: Holder, entity: str, world: World, actor: str | None, acted_on: set[str]
+) -> bool:
     """Whether ``holder`` perceives ``entity`` in ``world`` (a phase of the step)."""
     if len(holder) == 1:
         person = holder[0]
@@ -88,9 +89,11 @@ def perceives(holder: Holder, entity: str, world: World, actor: str | None,
         room = world.room_of(person)
         return room is not None and room == world.room_of(entity)
     a, b = holder
-    return (perceives((a,), entity, world, actor, acted_on)
-            and perceives((b,), entity, world, actor, acted_on)
-            and perceives((a,), b, world, actor, acted_on))
+    return (
+        perceives((a,), entity, world, actor, acted_on)
+        and perceives((b,), entity, world, actor, acted_on)
+        and perceives((a,), b, world, actor, acted_on)
+    )
 
 
 def model(steps: list[dict[str, Any]]) -> list[dict[Holder, dict[str, str | None]]]:
@@ -107,11 +110,20 @@ def model(steps: list[dict[str, Any]]) -> list[dict[Holder, dict[str, str | None
         actor = step.get("actor")
         # The entities of the step's changes (subjects, old and new targets): its actor
         # made them all.
-        acted_on = {e for x, c in step.get("inside", {}).items() if before.inside.get(x) != c
-                    for e in (x, c, before.inside.get(x)) if e}
-        acted_on |= {e for p, r in step.get("rooms", {}).items()
-                     if p in PEOPLE and before.rooms.get(p) != r
-                     for e in (p, r, before.rooms.get(p)) if e}
+        acted_on = {
+            e
+            for x, c in step.get("inside", {}).items()
+            if before.inside.get(x) != c
+            for e in (x, c, before.inside.get(x))
+            if e
+        }
+        acted_on |= {
+            e
+            for p, r in step.get("rooms", {}).items()
+            if p in PEOPLE and before.rooms.get(p) != r
+            for e in (p, r, before.rooms.get(p))
+            if e
+        }
         for holder in HOLDERS:
             for x in THINGS:
                 moved = before.inside.get(x) != inside[x]
@@ -163,9 +175,16 @@ def test_the_stories_reach_second_order_cases() -> None:
 
 
 def _replay(db_url: str, steps: list[dict[str, Any]], name: str) -> toaster.Database:
-    sc = scenario.parse({"self": "ROBOT", "agents": list(PEOPLE),
-                         "objects": [*THINGS, *CONTAINERS, *ROOMS],
-                         "settings": {"depth": 2}, "steps": steps}, name)
+    sc = scenario.parse(
+        {
+            "self": "ROBOT",
+            "agents": list(PEOPLE),
+            "objects": [*THINGS, *CONTAINERS, *ROOMS],
+            "settings": {"depth": 2},
+            "steps": steps,
+        },
+        name,
+    )
     db = toaster.connect(db_url)
     db.store().empty()
     scenario.Replayer(db, sc).run()
@@ -180,11 +199,15 @@ def _check(db: toaster.Database, steps: list[dict[str, Any]]) -> None:
 
 
 @pytest.mark.slow
-@settings(max_examples=10, deadline=None,
-          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@settings(
+    max_examples=10,
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
 @given(seed=st.integers(0, 2**32 - 1), length=st.integers(3, 12), busy=st.booleans())
-def test_second_order_beliefs_match_the_reference_model(db_url: str, seed: int, length: int,
-                                                        busy: bool) -> None:
+def test_second_order_beliefs_match_the_reference_model(
+    db_url: str, seed: int, length: int, busy: bool
+) -> None:
     steps = (busy_story if busy else story)(seed, length)
     db = _replay(db_url, steps, f"story-{seed}")
     try:
@@ -194,8 +217,7 @@ def test_second_order_beliefs_match_the_reference_model(db_url: str, seed: int, 
 
 
 @pytest.mark.slow
-def test_a_nested_holder_seeing_a_move_through_the_actor_drops_its_stale_place(
-        db_url: str) -> None:
+def test_a_nested_holder_seeing_a_move_through_the_actor_drops_its_stale_place(db_url: str) -> None:
     """Bob, in the hall, believes Sally believes the marble is in the drawer (he did not see
     it go to the basket, she did). Bob then brings Sally to the hall and the marble into the
     box there (he is the actor of both changes): Bob sees Sally see the marble before (he acts
@@ -203,8 +225,11 @@ def test_a_nested_holder_seeing_a_move_through_the_actor_drops_its_stale_place(
     the drawer (40_refresh: who perceives an arrival sees where the thing is now; toaster
     once kept BOB>SALLY believing it in the drawer *and* in the box)."""
     steps = [
-        {"t": 1, "rooms": {"SALLY": "KITCHEN", "ANNE": "KITCHEN", "BOB": "KITCHEN",
-                           **CONTAINERS}, "inside": {"MARBLE": "DRAWER", "KEY": "BOX"}},
+        {
+            "t": 1,
+            "rooms": {"SALLY": "KITCHEN", "ANNE": "KITCHEN", "BOB": "KITCHEN", **CONTAINERS},
+            "inside": {"MARBLE": "DRAWER", "KEY": "BOX"},
+        },
         {"t": 2, "rooms": {"BOB": "HALL"}},
         {"t": 3, "inside": {"MARBLE": "BASKET"}},
         {"t": 4, "rooms": {"SALLY": "HALL"}, "inside": {"MARBLE": "BOX"}, "actor": "BOB"},

@@ -15,8 +15,11 @@ from toaster.db.engine import make_engine
 from toaster.db.invariants import violations
 from toaster.errors import FileFormatError, InvalidInputError
 
-EXAMPLES = sorted(p.name for p in (resources.files("toaster") / "examples").iterdir()
-                  if p.name.startswith("beliefs_"))
+EXAMPLES = sorted(
+    p.name
+    for p in (resources.files("toaster") / "examples").iterdir()
+    if p.name.startswith("beliefs_")
+)
 
 
 @pytest.mark.slow
@@ -35,10 +38,13 @@ def test_sally_anne_false_belief_report_and_history(db: toaster.Database) -> Non
     t4 = 4_000_000_000
     diffs = api.false_beliefs(db, "SALLY", at=t4)
     assert {(d.target_id, d.value_a, d.value_b) for d in diffs if d.subject_id == "MARBLE"} == {
-        ("BASKET", "true", None), ("BOX", None, "true")}
+        ("BASKET", "true", None),
+        ("BOX", None, "true"),
+    }
     # Sally's false belief is an interval of her own: it ends when she sees the box again.
-    basket = [r for r in api.belief_history(db, "MARBLE", "IsIn", "BASKET")
-              if r.agent_id == "SALLY"]
+    basket = [
+        r for r in api.belief_history(db, "MARBLE", "IsIn", "BASKET") if r.agent_id == "SALLY"
+    ]
     assert [(r.valid_from_ns, r.valid_to_ns) for r in basket] == [(2_000_000_000, 5_000_000_000)]
     ended = q.events(db, "SALLY", kind="ended", subject="MARBLE")
     assert [(e.stamp_ns, e.target_id) for e in ended] == [(5_000_000_000, "BASKET")]
@@ -51,8 +57,10 @@ def test_targetless_facts_and_confidence_product(db: toaster.Database) -> None:
     st = db.store()
     st.add_entity("R", "robot", is_self=True, t_ns=0)
     st.add_entity("H", "human", t_ns=0)
-    base = [toaster.Fact("H", "IsInRoom", "LAB", confidence=0.5),
-            toaster.Fact("BALL", "IsInRoom", "LAB")]
+    base = [
+        toaster.Fact("H", "IsInRoom", "LAB", confidence=0.5),
+        toaster.Fact("BALL", "IsInRoom", "LAB"),
+    ]
     st.sync_snapshot("p", "R", 1, base)
     st.sync_snapshot("p", "R", 2, [*base, toaster.Fact("BALL", "IsMoving", confidence=0.8)])
     row = api.belief_value(db, "H", "BALL", "IsMoving")
@@ -81,10 +89,19 @@ def test_rules_can_be_disabled(db: toaster.Database) -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("key", "value"), [("depth", 0), ("depth", "2"), ("visibility", {"X": "y"}),
-                                            ("nope", 1), ("copresence", "IsInRoom")])
-def test_bad_settings_are_rejected_in_one_line(db: toaster.Database, key: str,
-                                               value: object) -> None:
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [
+        ("depth", 0),
+        ("depth", "2"),
+        ("visibility", {"X": "y"}),
+        ("nope", 1),
+        ("copresence", "IsInRoom"),
+    ],
+)
+def test_bad_settings_are_rejected_in_one_line(
+    db: toaster.Database, key: str, value: object
+) -> None:
     with pytest.raises(InvalidInputError) as info:
         api.configure(db, **{key: value})
     assert key in str(info.value) and "\n" not in str(info.value)
@@ -109,8 +126,12 @@ def test_two_store_processes_both_apply_the_rules(db_url: str) -> None:
         st = first.store()
         st.add_entity("R", "robot", is_self=True, t_ns=0)
         st.add_entity("H", "human", t_ns=0)
-        st.sync_snapshot("a", "R", 1, [toaster.Fact("H", "IsInRoom", "LAB"),
-                                       toaster.Fact("CUP", "IsInRoom", "LAB")])
+        st.sync_snapshot(
+            "a",
+            "R",
+            1,
+            [toaster.Fact("H", "IsInRoom", "LAB"), toaster.Fact("CUP", "IsInRoom", "LAB")],
+        )
         second.store().sync_snapshot("b", "R", 2, [toaster.Fact("CUP", "IsHot")])
         assert api.belief_value(first, "H", "CUP", "IsHot") is not None
     finally:

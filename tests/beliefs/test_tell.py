@@ -27,24 +27,34 @@ def _flat(db: toaster.Database, **settings: object) -> None:
         st.add_entity(who, "human", t_ns=0)
     for thing in ("CUP", "SHELF", "TABLE"):
         st.add_entity(thing, "object", t_ns=0)
-    room = [F("BASKET", "IsInRoom", "ROOM"), F("BOX", "IsInRoom", "ROOM"),
-            F("ANNE", "IsInRoom", "ROOM"), F("BOB", "IsInRoom", "ROOM")]
-    st.sync_snapshot("s", "ROBOT", 1 * S, [*room, F("SALLY", "IsInRoom", "ROOM"),
-                                           F("MARBLE", "IsIn", "BASKET")])
-    st.sync_snapshot("s", "ROBOT", 2 * S, [*room, F("SALLY", "IsInRoom", "HALL"),
-                                           F("MARBLE", "IsIn", "BASKET")])
-    st.sync_snapshot("s", "ROBOT", 3 * S, [*room, F("SALLY", "IsInRoom", "HALL"),
-                                           F("MARBLE", "IsIn", "BOX")])
+    room = [
+        F("BASKET", "IsInRoom", "ROOM"),
+        F("BOX", "IsInRoom", "ROOM"),
+        F("ANNE", "IsInRoom", "ROOM"),
+        F("BOB", "IsInRoom", "ROOM"),
+    ]
+    st.sync_snapshot(
+        "s", "ROBOT", 1 * S, [*room, F("SALLY", "IsInRoom", "ROOM"), F("MARBLE", "IsIn", "BASKET")]
+    )
+    st.sync_snapshot(
+        "s", "ROBOT", 2 * S, [*room, F("SALLY", "IsInRoom", "HALL"), F("MARBLE", "IsIn", "BASKET")]
+    )
+    st.sync_snapshot(
+        "s", "ROBOT", 3 * S, [*room, F("SALLY", "IsInRoom", "HALL"), F("MARBLE", "IsIn", "BOX")]
+    )
 
 
 def _where(db: toaster.Database, holder: str, at: int | None = None) -> set[str]:
     agent, *about = holder.split(">")
-    return {r.target_id for r in api.beliefs(db, agent, about or None, at=at,
-                                             subject="MARBLE", property="IsIn")}
+    return {
+        r.target_id
+        for r in api.beliefs(db, agent, about or None, at=at, subject="MARBLE", property="IsIn")
+    }
 
 
 def test_a_told_place_replaces_the_believed_one_and_carries_its_source(
-        db: toaster.Database) -> None:
+    db: toaster.Database,
+) -> None:
     _flat(db)
     assert _where(db, "SALLY") == {"BASKET"}
     learnt = tell(db, "ANNE", F("MARBLE", "IsIn", "BOX"), listeners=["SALLY"], t_ns=4 * S)
@@ -55,7 +65,8 @@ def test_a_told_place_replaces_the_believed_one_and_carries_its_source(
     assert row is not None and row.source == "told:ANNE" and row.valid_from_ns == 4 * S
     said = q.events(db, "ROBOT", kind="event", subject="ANNE")
     assert [(e.property, e.target_id, e.value_text) for e in said] == [
-        ("Tells", "SALLY", "MARBLE IsIn BOX")]
+        ("Tells", "SALLY", "MARBLE IsIn BOX")
+    ]
 
 
 def test_distrusted_speakers_and_witness_trust(db: toaster.Database) -> None:
@@ -77,10 +88,19 @@ def test_a_told_lie_is_refuted_by_seeing(db: toaster.Database) -> None:
     tell(db, "BOB", F("MARBLE", "IsIn", "BASKET"), listeners=["SALLY"], t_ns=4 * S)
     assert _where(db, "SALLY") == {"BASKET"}
     st = db.store()
-    st.sync_snapshot("s", "ROBOT", 5 * S, [
-        F("BASKET", "IsInRoom", "ROOM"), F("BOX", "IsInRoom", "ROOM"),
-        F("ANNE", "IsInRoom", "ROOM"), F("BOB", "IsInRoom", "ROOM"),
-        F("SALLY", "IsInRoom", "ROOM"), F("MARBLE", "IsIn", "BOX")])
+    st.sync_snapshot(
+        "s",
+        "ROBOT",
+        5 * S,
+        [
+            F("BASKET", "IsInRoom", "ROOM"),
+            F("BOX", "IsInRoom", "ROOM"),
+            F("ANNE", "IsInRoom", "ROOM"),
+            F("BOB", "IsInRoom", "ROOM"),
+            F("SALLY", "IsInRoom", "ROOM"),
+            F("MARBLE", "IsIn", "BOX"),
+        ],
+    )
     assert _where(db, "SALLY") == {"BOX"}
 
 
@@ -103,18 +123,56 @@ def test_tell_and_actor_from_the_command_line(db_url: str) -> None:
     with toaster.connect(db_url) as db:
         _flat(db)
     runner = CliRunner()
-    out = runner.invoke(cli, ["--db", db_url, "tell", "ROBOT", "MARBLE", "IsIn", "BOX",
-                              "--to", "SALLY", "--at", "4s"])
+    out = runner.invoke(
+        cli,
+        ["--db", db_url, "tell", "ROBOT", "MARBLE", "IsIn", "BOX", "--to", "SALLY", "--at", "4s"],
+    )
     assert out.exit_code == 0, out.output
     assert "SALLY" in out.output
     # Sally, in the hall, puts the cup on the shelf: she knows, Anne and Bob do not.
-    out = runner.invoke(cli, ["--db", db_url, "set-info", "FACT", "--agent", "ROBOT",
-                              "--subject", "CUP", "--property", "IsOn", "--target", "SHELF",
-                              "--actor", "SALLY", "--at", "5s"])
+    out = runner.invoke(
+        cli,
+        [
+            "--db",
+            db_url,
+            "set-info",
+            "FACT",
+            "--agent",
+            "ROBOT",
+            "--subject",
+            "CUP",
+            "--property",
+            "IsOn",
+            "--target",
+            "SHELF",
+            "--actor",
+            "SALLY",
+            "--at",
+            "5s",
+        ],
+    )
     assert out.exit_code == 0, out.output
-    bad = runner.invoke(cli, ["--db", db_url, "set-info", "FACT", "--agent", "ROBOT",
-                              "--subject", "CUP", "--property", "IsOn", "--target", "TABLE",
-                              "--actor", "NOBODY", "--at", "6s"])
+    bad = runner.invoke(
+        cli,
+        [
+            "--db",
+            db_url,
+            "set-info",
+            "FACT",
+            "--agent",
+            "ROBOT",
+            "--subject",
+            "CUP",
+            "--property",
+            "IsOn",
+            "--target",
+            "TABLE",
+            "--actor",
+            "NOBODY",
+            "--at",
+            "6s",
+        ],
+    )
     assert bad.exit_code != 0 and "unknown actor 'NOBODY'" in bad.output
     with toaster.connect(db_url) as db:
         assert _where(db, "SALLY") == {"BOX"}

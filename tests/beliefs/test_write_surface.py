@@ -42,12 +42,16 @@ def story(seed: int, length: int) -> list[Change]:
     """Random changes of the robot's world (and a few direct writes to SALLY's beliefs)."""
     rng = random.Random(seed)
     t = 1_000_000_000
-    out: list[Change] = [("assert", "ROBOT", h, "IsInRoom", "KITCHEN", "true", None, t, None)
-                         for h in HUMANS]
+    out: list[Change] = [
+        ("assert", "ROBOT", h, "IsInRoom", "KITCHEN", "true", None, t, None) for h in HUMANS
+    ]
     out += [("assert", "ROBOT", b, "IsInRoom", "KITCHEN", "true", None, t, None) for b in BOXES]
     out += [("assert", "ROBOT", x, "IsIn", "BOX", "true", None, t, None) for x in THINGS]
-    where = {**dict.fromkeys(HUMANS, "KITCHEN"), **dict.fromkeys(BOXES, "KITCHEN"),
-             **dict.fromkeys(THINGS, "BOX")}
+    where = {
+        **dict.fromkeys(HUMANS, "KITCHEN"),
+        **dict.fromkeys(BOXES, "KITCHEN"),
+        **dict.fromkeys(THINGS, "BOX"),
+    }
     for _ in range(length):
         t += rng.choice((0, 500_000_000, 1_000_000_000))
         kind = rng.randrange(8)
@@ -67,17 +71,51 @@ def story(seed: int, length: int) -> list[Change]:
             action = rng.choice(("assert", "retract"))
             out.append((action, "ROBOT", who, "IsLookingToward", box, "true", None, t, None))
         elif kind == 4:  # a box closes or opens
-            out.append(("assert", "ROBOT", rng.choice(BOXES), "IsClosed", "",
-                        rng.choice(("true", "false")), None, t, None))
+            out.append(
+                (
+                    "assert",
+                    "ROBOT",
+                    rng.choice(BOXES),
+                    "IsClosed",
+                    "",
+                    rng.choice(("true", "false")),
+                    None,
+                    t,
+                    None,
+                )
+            )
         elif kind == 5:  # a number moves (a refresh), with its confidence
-            out.append(("assert", "ROBOT", rng.choice(HUMANS), "Distance", rng.choice(BOXES),
-                        "true", round(rng.uniform(0, 5), 2), t, None))
+            out.append(
+                (
+                    "assert",
+                    "ROBOT",
+                    rng.choice(HUMANS),
+                    "Distance",
+                    rng.choice(BOXES),
+                    "true",
+                    round(rng.uniform(0, 5), 2),
+                    t,
+                    None,
+                )
+            )
         elif kind == 6:  # a point event
-            out.append(("event", "ROBOT", rng.choice(THINGS), "WasTouched", "", "true", None, t,
-                        None))
+            out.append(
+                ("event", "ROBOT", rng.choice(THINGS), "WasTouched", "", "true", None, t, None)
+            )
         else:  # somebody tells SALLY something: a direct write to a holder
-            out.append(("assert", "SALLY", rng.choice(THINGS), "IsIn", rng.choice(BOXES),
-                        "true", None, t, None))
+            out.append(
+                (
+                    "assert",
+                    "SALLY",
+                    rng.choice(THINGS),
+                    "IsIn",
+                    rng.choice(BOXES),
+                    "true",
+                    None,
+                    t,
+                    None,
+                )
+            )
     return out
 
 
@@ -92,13 +130,20 @@ def through_library(db: toaster.Database, changes: list[Change]) -> None:
     store = db.store()
     for action, agent, subject, prop, target, value, num, t, actor in changes:
         if action == "assert":
-            store.assert_fact(agent, toaster.Fact(subject, prop, target, value, num), t_ns=t,
-                              strict=False, source="sql", actor=actor)
+            store.assert_fact(
+                agent,
+                toaster.Fact(subject, prop, target, value, num),
+                t_ns=t,
+                strict=False,
+                source="sql",
+                actor=actor,
+            )
         elif action == "retract":
             store.retract_facts(agent, prop, subject, target, t_ns=t, source="sql", actor=actor)
         else:
-            store.record_event(agent, toaster.Fact(subject, prop, target, value, num), t_ns=t,
-                               source="sql")
+            store.record_event(
+                agent, toaster.Fact(subject, prop, target, value, num), t_ns=t, source="sql"
+            )
 
 
 def through_sql(url: str, changes: list[Change]) -> None:
@@ -106,25 +151,43 @@ def through_sql(url: str, changes: list[Change]) -> None:
     try:
         for action, agent, subject, prop, target, value, num, t, actor in changes:
             with engine.begin() as conn:
-                conn.execute(sa.text(
-                    "INSERT INTO fact_inbox (action, agent_id, subject_id, property, target_id, "
-                    "value_text, value_num, t_ns, actor_id) "
-                    "VALUES (:a, :g, :s, :p, :tg, :v, :n, :t, :actor)"),
-                    {"a": action, "g": agent, "s": subject, "p": prop, "tg": target, "v": value,
-                     "n": num, "t": t, "actor": actor})
+                conn.execute(
+                    sa.text(
+                        "INSERT INTO fact_inbox (action, agent_id, subject_id, property, target_id, "
+                        "value_text, value_num, t_ns, actor_id) "
+                        "VALUES (:a, :g, :s, :p, :tg, :v, :n, :t, :actor)"
+                    ),
+                    {
+                        "a": action,
+                        "g": agent,
+                        "s": subject,
+                        "p": prop,
+                        "tg": target,
+                        "v": value,
+                        "n": num,
+                        "t": t,
+                        "actor": actor,
+                    },
+                )
     finally:
         engine.dispose()
 
 
-_HISTORY = ("SELECT agent_id, subject_id, subject_owner_id, property, property_type, "
-            "sub_property, target_id, target_owner_id, value_text, value_num, confidence, "
-            "observability, valid_from_ns, valid_to_ns, source FROM fact_history")
-_EVENTS = ("SELECT agent_id, kind, stamp_ns, subject_id, property, target_id, value_text, "
-           "value_num, confidence, observability, previous_text, source FROM event_log")
-_CATALOG = {"entities": "SELECT id, name, kind, owner_id FROM entities",
-            "agents": "SELECT id, num, is_self FROM agents",
-            "chains": "SELECT holder_id, position, member_id FROM belief_chain",
-            "holders": "SELECT id, agent_id, depth FROM holders"}
+_HISTORY = (
+    "SELECT agent_id, subject_id, subject_owner_id, property, property_type, "
+    "sub_property, target_id, target_owner_id, value_text, value_num, confidence, "
+    "observability, valid_from_ns, valid_to_ns, source FROM fact_history"
+)
+_EVENTS = (
+    "SELECT agent_id, kind, stamp_ns, subject_id, property, target_id, value_text, "
+    "value_num, confidence, observability, previous_text, source FROM event_log"
+)
+_CATALOG = {
+    "entities": "SELECT id, name, kind, owner_id FROM entities",
+    "agents": "SELECT id, num, is_self FROM agents",
+    "chains": "SELECT holder_id, position, member_id FROM belief_chain",
+    "holders": "SELECT id, agent_id, depth FROM holders",
+}
 
 
 def snapshot(url: str) -> dict[str, list[tuple[Any, ...]]]:
@@ -132,8 +195,10 @@ def snapshot(url: str) -> dict[str, list[tuple[Any, ...]]]:
     try:
         with engine.connect() as conn:
             queries = {"history": _HISTORY, "events": _EVENTS, **_CATALOG}
-            return {name: sorted((tuple(r) for r in conn.execute(sa.text(sql))), key=repr)
-                    for name, sql in queries.items()}
+            return {
+                name: sorted((tuple(r) for r in conn.execute(sa.text(sql))), key=repr)
+                for name, sql in queries.items()
+            }
     finally:
         engine.dispose()
 
@@ -173,15 +238,17 @@ BACKENDS = ["sqlite", pytest.param("postgresql", marks=pytest.mark.postgresql)]
 
 
 @pytest.mark.parametrize("fresh_urls", BACKENDS, indirect=True)
-@settings(max_examples=6, deadline=None,
-          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@settings(
+    max_examples=6,
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
 @given(seed=st.integers(0, 2**32 - 1), length=st.integers(5, 40))
 def test_raw_sql_writes_equal_library_writes(fresh_urls: Any, seed: int, length: int) -> None:
     _written_both_ways(fresh_urls, story(seed, length))
 
 
-def _written_both_ways(fresh_urls: Any,
-                       changes: list[Change]) -> dict[str, list[tuple[Any, ...]]]:
+def _written_both_ways(fresh_urls: Any, changes: list[Change]) -> dict[str, list[tuple[Any, ...]]]:
     """Write ``changes`` through the library and through SQL; assert the same rows; return
     them."""
     library_url, sql_url = fresh_urls(), fresh_urls()
@@ -211,21 +278,46 @@ def test_a_holder_written_at_the_time_of_the_robots_writes(fresh_urls: Any) -> N
     assert sally == {1_000_000_000}
 
 
-@pytest.mark.parametrize(("row", "message"), [
-    ({"action": "assert", "agent_id": "NOBODY", "subject_id": "CUP", "property": "IsOn"},
-     "is not a registered agent"),
-    ({"action": "assert", "agent_id": "ROBOT", "subject_id": "CUP", "property": "IsOn",
-      "confidence": 2.0}, "between 0 and 1"),
-    ({"action": "move", "agent_id": "ROBOT", "subject_id": "CUP", "property": "IsOn"},
-     "assert, retract or event"),
-    ({"action": "assert", "agent_id": "ROBOT", "subject_id": None, "property": "IsOn"},
-     "give property, and subject_id"),
-    ({"action": "assert", "agent_id": "ROBOT", "subject_id": "CUP", "property": "IsOn",
-      "actor_id": "NOBODY"}, "is not a registered agent: name the agent who made the change"),
-])
-def test_bad_inbox_rows_fail_in_one_line_and_write_nothing(db: toaster.Database,
-                                                           row: dict[str, Any],
-                                                           message: str) -> None:
+@pytest.mark.parametrize(
+    ("row", "message"),
+    [
+        (
+            {"action": "assert", "agent_id": "NOBODY", "subject_id": "CUP", "property": "IsOn"},
+            "is not a registered agent",
+        ),
+        (
+            {
+                "action": "assert",
+                "agent_id": "ROBOT",
+                "subject_id": "CUP",
+                "property": "IsOn",
+                "confidence": 2.0,
+            },
+            "between 0 and 1",
+        ),
+        (
+            {"action": "move", "agent_id": "ROBOT", "subject_id": "CUP", "property": "IsOn"},
+            "assert, retract or event",
+        ),
+        (
+            {"action": "assert", "agent_id": "ROBOT", "subject_id": None, "property": "IsOn"},
+            "give property, and subject_id",
+        ),
+        (
+            {
+                "action": "assert",
+                "agent_id": "ROBOT",
+                "subject_id": "CUP",
+                "property": "IsOn",
+                "actor_id": "NOBODY",
+            },
+            "is not a registered agent: name the agent who made the change",
+        ),
+    ],
+)
+def test_bad_inbox_rows_fail_in_one_line_and_write_nothing(
+    db: toaster.Database, row: dict[str, Any], message: str
+) -> None:
     _setup(db)
     db.store().assert_fact("ROBOT", toaster.Fact("CUP", "IsOn", "TABLE"), t_ns=1, strict=False)
     before = snapshot(db.url)
@@ -233,9 +325,13 @@ def test_bad_inbox_rows_fail_in_one_line_and_write_nothing(db: toaster.Database,
     engine = make_engine(db.url)
     try:
         with pytest.raises(sa.exc.DBAPIError) as info, engine.begin() as conn:
-            conn.execute(sa.text(
-                f"INSERT INTO fact_inbox ({', '.join(columns)}) "
-                f"VALUES ({', '.join(':' + c for c in columns)})"), columns)
+            conn.execute(
+                sa.text(
+                    f"INSERT INTO fact_inbox ({', '.join(columns)}) "
+                    f"VALUES ({', '.join(':' + c for c in columns)})"
+                ),
+                columns,
+            )
     finally:
         engine.dispose()
     error = str(info.value.orig).strip().splitlines()[0]
@@ -248,16 +344,22 @@ def test_retract_and_events_through_the_inbox(db: toaster.Database) -> None:
     it, it ends, and nothing stays in the inbox."""
     _setup(db)
     store = db.store()
-    store.assert_fact("ROBOT", toaster.Fact("SALLY", "IsInRoom", "KITCHEN"), t_ns=1,
-                      strict=False)
+    store.assert_fact("ROBOT", toaster.Fact("SALLY", "IsInRoom", "KITCHEN"), t_ns=1, strict=False)
     store.assert_fact("ROBOT", toaster.Fact("CUP", "IsInRoom", "KITCHEN"), t_ns=1, strict=False)
-    through_sql(db.url, [("assert", "ROBOT", "CUP", "IsHot", "", "true", 80.0, 2, None),
-                         ("retract", "ROBOT", "CUP", "IsHot", None, "true", None, 3, None)])
-    sally = [(r.valid_from_ns, r.valid_to_ns) for r in api.belief_history(db, "CUP", "IsHot")
-             if r.agent_id == "SALLY"]
+    through_sql(
+        db.url,
+        [
+            ("assert", "ROBOT", "CUP", "IsHot", "", "true", 80.0, 2, None),
+            ("retract", "ROBOT", "CUP", "IsHot", None, "true", None, 3, None),
+        ],
+    )
+    sally = [
+        (r.valid_from_ns, r.valid_to_ns)
+        for r in api.belief_history(db, "CUP", "IsHot")
+        if r.agent_id == "SALLY"
+    ]
     assert sally == [(2, 3)]
-    kinds = [e.kind for e in q.events(db, "SALLY", subject="CUP")
-             if e.property == "IsHot"]
+    kinds = [e.kind for e in q.events(db, "SALLY", subject="CUP") if e.property == "IsHot"]
     assert kinds == ["appeared", "ended"]
     with db.transaction() as conn:
         assert conn.execute(sa.text("SELECT count(*) FROM fact_inbox")).scalar_one() == 0
@@ -277,9 +379,12 @@ def test_a_write_inside_a_closed_interval_is_refused(db: toaster.Database) -> No
     engine = make_engine(db.url)
     try:
         with pytest.raises(sa.exc.DBAPIError) as info, engine.begin() as conn:
-            conn.execute(sa.text(
-                "INSERT INTO fact_inbox (action, agent_id, subject_id, property, target_id, "
-                "t_ns) VALUES ('assert', 'ROBOT', 'CUP', 'IsOn', 'TABLE', 5)"))
+            conn.execute(
+                sa.text(
+                    "INSERT INTO fact_inbox (action, agent_id, subject_id, property, target_id, "
+                    "t_ns) VALUES ('assert', 'ROBOT', 'CUP', 'IsOn', 'TABLE', 5)"
+                )
+            )
     finally:
         engine.dispose()
     assert "write each fact in time order" in str(info.value.orig).splitlines()[0]

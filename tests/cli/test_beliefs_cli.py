@@ -33,18 +33,40 @@ def test_false_belief_while_sally_is_away(sally_anne) -> None:
     rows = [json.loads(line) for line in diff.output.splitlines()]
     marble = [r for r in rows if r["subject_id"] == "MARBLE" and r["property"] == "IsIn"]
     assert {(r["target_id"], r["value_a"], r["value_b"]) for r in marble} == {
-        ("BASKET", "true", None), ("BOX", None, "true")}
-    second = sally_anne("beliefs", "value", "ANNE", "--about", "SALLY", "--subject", "MARBLE",
-                        "--property", "IsIn", "--target", "BASKET", "--at", "4s", "--json")
+        ("BASKET", "true", None),
+        ("BOX", None, "true"),
+    }
+    second = sally_anne(
+        "beliefs",
+        "value",
+        "ANNE",
+        "--about",
+        "SALLY",
+        "--subject",
+        "MARBLE",
+        "--property",
+        "IsIn",
+        "--target",
+        "BASKET",
+        "--at",
+        "4s",
+        "--json",
+    )
     assert json.loads(second.output)["agent_id"] == "ANNE>SALLY"
 
 
 def test_holders_history_and_config(sally_anne) -> None:
     """Nested holders are listed; the history spans holders; settings round-trip."""
     assert sally_anne("beliefs", "holders").output.split() == [  # piped: under a header
-        "holder", "ANNE", "SALLY", "ANNE>SALLY", "SALLY>ANNE"]
-    history = sally_anne("beliefs", "history", "--subject", "MARBLE", "--property", "IsIn",
-                         "--json").output.splitlines()
+        "holder",
+        "ANNE",
+        "SALLY",
+        "ANNE>SALLY",
+        "SALLY>ANNE",
+    ]
+    history = sally_anne(
+        "beliefs", "history", "--subject", "MARBLE", "--property", "IsIn", "--json"
+    ).output.splitlines()
     assert {json.loads(x)["agent_id"] for x in history} >= {"ROBOT", "SALLY", "ANNE"}
     assert sally_anne("beliefs", "config", "depth", "1").exit_code == 0
     assert sally_anne("beliefs", "config", "depth").output.strip() == "1"

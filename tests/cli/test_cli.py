@@ -43,22 +43,60 @@ def seeded(run):
 def test_fact_add_value_and_remove(seeded) -> None:
     """set-info FACT add / remove and get-info FACT VALUE / CURRENT / OLD, as of a time."""
     run = seeded
-    run("set-info", "FACT", "--subject", "MUG", "--property", "IsOn", "--target", "TABLE",
-        "--at", "2026-01-01T00:00:00Z", "--confidence", "0.7")
-    run("set-info", "FACT", "--remove", "--subject", "MUG", "--property", "IsOn",
-        "--target", "NULL", "--at", "2026-01-01T00:01:00Z")
-    value = run("get-info", "FACT", "VALUE", "--subject", "MUG", "--property", "IsOn",
-                "--target", "TABLE", "--at", "2026-01-01T00:00:30Z", "--json")
+    run(
+        "set-info",
+        "FACT",
+        "--subject",
+        "MUG",
+        "--property",
+        "IsOn",
+        "--target",
+        "TABLE",
+        "--at",
+        "2026-01-01T00:00:00Z",
+        "--confidence",
+        "0.7",
+    )
+    run(
+        "set-info",
+        "FACT",
+        "--remove",
+        "--subject",
+        "MUG",
+        "--property",
+        "IsOn",
+        "--target",
+        "NULL",
+        "--at",
+        "2026-01-01T00:01:00Z",
+    )
+    value = run(
+        "get-info",
+        "FACT",
+        "VALUE",
+        "--subject",
+        "MUG",
+        "--property",
+        "IsOn",
+        "--target",
+        "TABLE",
+        "--at",
+        "2026-01-01T00:00:30Z",
+        "--json",
+    )
     row = json.loads(value.output)
     assert (row["agent_id"], row["confidence"], row["valid_to_ns"]) == (
-        "PR2", 0.7, 1767225660000000000)
-    now = run("get-info", "FACT", "VALUE", "--subject", "MUG", "--property", "IsOn",
-              "--target", "TABLE")
+        "PR2",
+        0.7,
+        1767225660000000000,
+    )
+    now = run(
+        "get-info", "FACT", "VALUE", "--subject", "MUG", "--property", "IsOn", "--target", "TABLE"
+    )
     assert "does not hold" in now.output
     old = run("get-info", "FACT", "OLD", "--agent", "PR2", "--csv")
     rows = list(csv.DictReader(io.StringIO(old.output)))
-    assert [(r["subject_id"], r["valid_from_ns"]) for r in rows] == [
-        ("MUG", "1767225600000000000")]
+    assert [(r["subject_id"], r["valid_from_ns"]) for r in rows] == [("MUG", "1767225600000000000")]
     table = run("get-info", "FACT", "ALL", "--agent", "PR2")
     assert "2026-01-01 00:01:00Z" in table.output  # times shown readably
 
@@ -66,8 +104,18 @@ def test_fact_add_value_and_remove(seeded) -> None:
 def test_events_ontology_property_agent(seeded) -> None:
     """EVENT, ONTOLOGY (LEAVE), PROPERTY and AGENT round trips."""
     run = seeded
-    run("set-info", "EVENT", "--subject", "BOB", "--property", "PickUp", "--target", "MUG",
-        "--at", "5s")
+    run(
+        "set-info",
+        "EVENT",
+        "--subject",
+        "BOB",
+        "--property",
+        "PickUp",
+        "--target",
+        "MUG",
+        "--at",
+        "5s",
+    )
     events = [json.loads(line) for line in run("get-info", "EVENT", "--json").output.splitlines()]
     assert [(e["kind"], e["stamp_ns"]) for e in events] == [("event", 5_000_000_000)]
     run("set-info", "ONTOLOGY", "--class", "container", "--individual", "mug")
@@ -79,7 +127,9 @@ def test_events_ontology_property_agent(seeded) -> None:
     assert prop.output.splitlines() == ["entity_id,key,value", "MUG,color,red"]
     agents = run("get-info", "AGENT", "--json").output.splitlines()
     assert {json.loads(a)["id"]: json.loads(a)["is_self"] for a in agents} == {
-        "PR2": True, "BOB": False}
+        "PR2": True,
+        "BOB": False,
+    }
 
 
 def test_execute_sql_read_only_and_empty(seeded) -> None:
@@ -91,26 +141,39 @@ def test_execute_sql_read_only_and_empty(seeded) -> None:
     assert "Traceback" not in refused.output
     counted = run("execute", "SQL", 'SELECT count(*) AS n FROM "fact_table_PR2"', "--csv")
     assert counted.output.splitlines() == ["n", "1"]
-    assert run("execute", "ARE_IN_TABLE", "--subject", "MUG", "--property", "IsOn",
-               "--target", "NULL").output.strip() == "true"
+    assert (
+        run(
+            "execute", "ARE_IN_TABLE", "--subject", "MUG", "--property", "IsOn", "--target", "NULL"
+        ).output.strip()
+        == "true"
+    )
     run("execute", "EMPTY", "AGENT", "--agent", "PR2", "--yes")
     absent = run("execute", "ARE_IN_TABLE", "--subject", "MUG", "--property", "IsOn", ok=False)
     assert absent.exit_code == 1 and absent.output.strip() == "false"
     run("execute", "SQL", "DELETE FROM properties", "--write")
 
 
-@pytest.mark.parametrize(("args", "message"), [
-    (("set-info", "FACT", "--agent", "SALLY", "--subject", "MUG", "--property", "IsOn"),
-     "unknown agent 'SALLY'"),
-    (("set-info", "FACT", "--subject", "CUP", "--property", "IsOn"), "unknown entity 'CUP'"),
-    (("set-info", "FACT", "--subject", "MUG", "--property", "IsOn", "--confidence", "nan"),
-     "invalid confidence nan"),
-    (("set-info", "FACT", "--subject", "MUG", "--property", "IsOn", "--observability", "2"),
-     "invalid observability 2.0"),
-    (("set-info", "ENTITY", "--id", " "), "invalid entity id ' '"),
-    (("get-info", "FACT", "CURRENT", "--at", "yesterday"), "invalid time 'yesterday'"),
-    (("get-info", "FACT", "CURRENT", "--agent", "NOBODY"), "unknown agent 'NOBODY'"),
-])
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (
+            ("set-info", "FACT", "--agent", "SALLY", "--subject", "MUG", "--property", "IsOn"),
+            "unknown agent 'SALLY'",
+        ),
+        (("set-info", "FACT", "--subject", "CUP", "--property", "IsOn"), "unknown entity 'CUP'"),
+        (
+            ("set-info", "FACT", "--subject", "MUG", "--property", "IsOn", "--confidence", "nan"),
+            "invalid confidence nan",
+        ),
+        (
+            ("set-info", "FACT", "--subject", "MUG", "--property", "IsOn", "--observability", "2"),
+            "invalid observability 2.0",
+        ),
+        (("set-info", "ENTITY", "--id", " "), "invalid entity id ' '"),
+        (("get-info", "FACT", "CURRENT", "--at", "yesterday"), "invalid time 'yesterday'"),
+        (("get-info", "FACT", "CURRENT", "--agent", "NOBODY"), "unknown agent 'NOBODY'"),
+    ],
+)
 def test_bad_input_is_one_line(seeded, args: tuple[str, ...], message: str) -> None:
     """Each user mistake: exit code != 0, one line naming the value, nothing written."""
     result = seeded(*args, ok=False)
@@ -127,12 +190,20 @@ def test_batch_file_and_xml_seed(run, tmp_path: Path) -> None:
     folder = shared_data("toaster-laas", "database_manager", "database")
     run("set-info", "--file", str(folder / "id_list.xml"), "--file", str(folder / "ontology.xml"))
     batch = tmp_path / "facts.json"
-    batch.write_text(json.dumps({"facts": [
-        {"subject": "RED_CUBE", "property": "IsOn", "target": "TABLE_4", "at": "1s"}]}))
+    batch.write_text(
+        json.dumps(
+            {
+                "facts": [
+                    {"subject": "RED_CUBE", "property": "IsOn", "target": "TABLE_4", "at": "1s"}
+                ]
+            }
+        )
+    )
     run("set-info", "--file", str(batch))
     current = run("get-info", "FACT", "CURRENT", "--json").output.splitlines()
     assert [(json.loads(x)["agent_id"], json.loads(x)["subject_id"]) for x in current] == [
-        ("PR2_ROBOT", "RED_CUBE")]
+        ("PR2_ROBOT", "RED_CUBE")
+    ]
 
 
 def test_db_commands(run) -> None:

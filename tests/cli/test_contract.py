@@ -42,11 +42,31 @@ BOX_CHARS = re.compile("[\u2500-\u257f]")  # rich's box drawing
 
 #: listing command -> invocations that each list at least one row of the seeded database
 LISTINGS: dict[str, list[list[str]]] = {
-    "get-info": [["FACT"], ["FACT", "CURRENT"], ["FACT", "OLD"], ["FACT", "CURRENT", "--at", "4s"],
-                 ["FACT", "VALUE", "--agent", "ROBOT", "--subject", "MARBLE", "--property",
-                  "IsIn", "--target", "BOX"],
-                 ["EVENT"], ["ONTOLOGY"], ["ONTOLOGY", "LEAVE", "--class", "container"],
-                 ["ID"], ["ENTITY"], ["AGENT"], ["PROPERTY"]],
+    "get-info": [
+        ["FACT"],
+        ["FACT", "CURRENT"],
+        ["FACT", "OLD"],
+        ["FACT", "CURRENT", "--at", "4s"],
+        [
+            "FACT",
+            "VALUE",
+            "--agent",
+            "ROBOT",
+            "--subject",
+            "MARBLE",
+            "--property",
+            "IsIn",
+            "--target",
+            "BOX",
+        ],
+        ["EVENT"],
+        ["ONTOLOGY"],
+        ["ONTOLOGY", "LEAVE", "--class", "container"],
+        ["ID"],
+        ["ENTITY"],
+        ["AGENT"],
+        ["PROPERTY"],
+    ],
     "execute": [["SQL", "SELECT id, kind FROM entities"], ["PRINT", "AGENT", "--agent", "ROBOT"]],
     "beliefs show": [["SALLY"], ["ANNE", "--about", "SALLY", "--at", "4s"]],
     "beliefs value": [["SALLY", "--subject", "MARBLE", "--property", "IsIn", "--target", "BOX"]],
@@ -60,20 +80,39 @@ LISTINGS: dict[str, list[list[str]]] = {
 }
 #: every other command -> why it prints no rows
 NOT_LISTINGS = {
-    "area add": "writes", "area clear": "writes", "area remove": "writes",
+    "area add": "writes",
+    "area clear": "writes",
+    "area remove": "writes",
     "area show": "one area's spec as JSON",
-    "beliefs config": "settings as JSON", "beliefs replay": "writes; reports expectations",
-    "db check": "a verdict", "db current": "two revisions", "db downgrade": "schema",
-    "db maintain": "maintenance", "db upgrade": "schema", "db views": "writes views",
-    "demo": "a guided tour", "entity add": "writes", "entity pose": "writes",
-    "entity remove": "writes", "export": "writes a file", "hand put": "writes",
-    "hand remove": "writes", "monitor add": "writes", "monitor all": "writes",
-    "monitor clear": "writes", "monitor remove": "writes",
+    "beliefs config": "settings as JSON",
+    "beliefs replay": "writes; reports expectations",
+    "db check": "a verdict",
+    "db current": "two revisions",
+    "db downgrade": "schema",
+    "db maintain": "maintenance",
+    "db upgrade": "schema",
+    "db views": "writes views",
+    "demo": "a guided tour",
+    "entity add": "writes",
+    "entity pose": "writes",
+    "entity remove": "writes",
+    "export": "writes a file",
+    "hand put": "writes",
+    "hand remove": "writes",
+    "monitor add": "writes",
+    "monitor all": "writes",
+    "monitor clear": "writes",
+    "monitor remove": "writes",
     "monitor list": "a state summary, the same as monitor add/remove print",
-    "plot-facts": "writes a file", "pointing": "a running node's answer",
-    "record": "writes a bag", "relative-position": "a running node's answer (JSON)",
-    "relpos": "one position", "run": "writes; a run report", "serve": "a live node",
-    "set-info": "writes", "tell": "writes",
+    "plot-facts": "writes a file",
+    "pointing": "a running node's answer",
+    "record": "writes a bag",
+    "relative-position": "a running node's answer (JSON)",
+    "relpos": "one position",
+    "run": "writes; a run report",
+    "serve": "a live node",
+    "set-info": "writes",
+    "tell": "writes",
 }
 
 
@@ -102,16 +141,18 @@ def seed(url: str) -> None:
         assert not failures
         store = db.store()
         for sub in ("2D", "3D"):
-            store.assert_fact("ROBOT", Fact("MARBLE", "IsNear", "BASKET", sub_property=sub),
-                              t_ns=10 * S)
+            store.assert_fact(
+                "ROBOT", Fact("MARBLE", "IsNear", "BASKET", sub_property=sub), t_ns=10 * S
+            )
         store.add_ontology("container", "box")
         store.add_ontology("box", "BOX", True)
         store.add_ontology("container", "BASKET", True)
         store.set_property("BOX", "color", "red")
         store.set_property("BASKET", "color", "brown")
         for name, center in (("kitchen", [0, 0]), ("hall", [5, 0])):
-            store.put_area(name, {"shape": "circle", "center": center, "radius": 2,
-                                  "area_type": "room"}, "")
+            store.put_area(
+                name, {"shape": "circle", "center": center, "radius": 2, "area_type": "room"}, ""
+            )
         control.set_stream(db, "pdg", False)
         control.set_stream(db, "mocap", True)
     finally:
@@ -119,8 +160,9 @@ def seed(url: str) -> None:
 
 
 @pytest.fixture(scope="module", params=BACKENDS)
-def seeded(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
-           ) -> Iterator[str]:
+def seeded(
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[str]:
     """The URL of a seeded database (:func:`seed`) on each backend, shared by the module's
     read-only tests."""
     if request.param == "sqlite":
@@ -195,17 +237,20 @@ def test_listing_options_on_exactly_the_listings(path: str) -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("path", "args"), [(path, args) for path, runs in LISTINGS.items()
-                                            for args in runs],
-                         ids=lambda x: x if isinstance(x, str) else " ".join(x))
+@pytest.mark.parametrize(
+    ("path", "args"),
+    [(path, args) for path, runs in LISTINGS.items() for args in runs],
+    ids=lambda x: x if isinstance(x, str) else " ".join(x),
+)
 def test_listing_formats_and_limit(seeded: str, path: str, args: list[str]) -> None:
     """--json (every field), --csv (the same rows and fields), piped: tab-separated lines
     under one header, no box drawing; --limit N-1 gives N-1 rows."""
     objects = [json.loads(line) for line in listing(seeded, path, args, "--json").splitlines()]
     assert objects, f"{path} {args} lists no row: the seeded database should give some"
     fields = [key for key in objects[0] if key != "table"]
-    rows = list(csv.reader(io.StringIO("\n".join(data_lines(
-        listing(seeded, path, args, "--csv"))))))
+    rows = list(
+        csv.reader(io.StringIO("\n".join(data_lines(listing(seeded, path, args, "--csv")))))
+    )
     assert rows[0] == fields
     assert len(rows) - 1 == len(objects)
     piped = listing(seeded, path, args)
@@ -223,8 +268,7 @@ def test_limit_works_with_at(seeded: str) -> None:
     """--limit with --at (beliefs as of a time) was ignored."""
     every = listing(seeded, "get-info", ["FACT", "CURRENT", "--at", "4s"], "--json")
     assert len(every.splitlines()) > 2
-    two = listing(seeded, "get-info", ["FACT", "CURRENT", "--at", "4s"], "--limit", "2",
-                  "--json")
+    two = listing(seeded, "get-info", ["FACT", "CURRENT", "--at", "4s"], "--limit", "2", "--json")
     assert two.splitlines() == every.splitlines()[:2]
     one = listing(seeded, "beliefs show", ["ANNE", "--at", "4s"], "--limit", "1", "--json")
     assert len(one.splitlines()) == 1
@@ -232,16 +276,22 @@ def test_limit_works_with_at(seeded: str) -> None:
 
 def _near_rows(lines: list[list[str]]) -> list[dict[str, str]]:
     header = lines[0]
-    return [dict(zip(header, line, strict=True)) for line in lines[1:]
-            if "IsNear" in line]
+    return [dict(zip(header, line, strict=True)) for line in lines[1:] if "IsNear" in line]
 
 
 def test_piped_rows_show_their_whole_key(seeded: str) -> None:
     """Two facts that differ only by sub-property are told apart in the listing."""
     piped = listing(seeded, "get-info", ["FACT", "CURRENT", "--agent", "ROBOT"])
     lines = [line.split("\t") for line in piped.splitlines()]
-    assert {"agent", "subject", "subject_owner", "property", "sub_property", "target",
-            "target_owner"} <= set(lines[0])
+    assert {
+        "agent",
+        "subject",
+        "subject_owner",
+        "property",
+        "sub_property",
+        "target",
+        "target_owner",
+    } <= set(lines[0])
     near = _near_rows(lines)
     assert sorted(row["sub_property"] for row in near) == ["2D", "3D"]
 
@@ -252,9 +302,25 @@ def test_terminal_table_shows_sub_property(seeded: str) -> None:
     column when a row has one and without the empty owner columns."""
     master, slave = pty.openpty()
     env = {**os.environ, "COLUMNS": "250", "TERM": "xterm"}
-    proc = subprocess.Popen([sys.executable, "-m", "toaster", "get-info", "FACT", "CURRENT",
-                             "--agent", "ROBOT", "--subject", "MARBLE", "--db", seeded],
-                            stdout=slave, stderr=subprocess.PIPE, env=env)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "toaster",
+            "get-info",
+            "FACT",
+            "CURRENT",
+            "--agent",
+            "ROBOT",
+            "--subject",
+            "MARBLE",
+            "--db",
+            seeded,
+        ],
+        stdout=slave,
+        stderr=subprocess.PIPE,
+        env=env,
+    )
     os.close(slave)
     chunks = []
     while True:
@@ -273,15 +339,19 @@ def test_terminal_table_shows_sub_property(seeded: str) -> None:
     header = next(line for line in table.splitlines() if "subject" in line)
     assert "sub_property" in header and "target_owner" not in header
     near = [line for line in table.splitlines() if "IsNear" in line]
-    assert len(near) == 2 and {"2D", "3D"} == {w for line in near for w in line.split()
-                                              if w in ("2D", "3D")}
+    assert len(near) == 2 and {"2D", "3D"} == {
+        w for line in near for w in line.split() if w in ("2D", "3D")
+    }
 
 
 # ----------------------------------------------------------------------------- --db
 def test_db_is_declared_once() -> None:
     """One declaration (toaster.cli.context): no other module of the CLI spells --db."""
-    spelled = [path.name for path in (ROOT / "src" / "toaster" / "cli").glob("*.py")
-               if '"--db"' in path.read_text() and path.name != "context.py"]
+    spelled = [
+        path.name
+        for path in (ROOT / "src" / "toaster" / "cli").glob("*.py")
+        if '"--db"' in path.read_text() and path.name != "context.py"
+    ]
     assert spelled == []
     for path, command in [("toaster", cli), *commands()]:
         option = next((p for p in command.params if p.name == "db"), None)
@@ -299,23 +369,43 @@ def test_db_is_accepted_before_and_after_every_command(path: str, tmp_path: Path
 #: commands run with --db after their name while $TOASTER_DB names a decoy; then a check
 #: that they used the flag's database
 FLAG_OVER_ENV: list[tuple[Callable[[Path], list[str]], Callable[[Any, str], bool]]] = [
-    (lambda _: ["set-info", "ENTITY", "--id", "CUP"],
-     lambda db, _out: any(e.id == "CUP" for e in _q().entities(db))),
+    (
+        lambda _: ["set-info", "ENTITY", "--id", "CUP"],
+        lambda db, _out: any(e.id == "CUP" for e in _q().entities(db)),
+    ),
     (lambda _: ["get-info", "AGENT", "--json"], lambda _db, out: '"SALLY"' in out),
-    (lambda p: ["export", "history", str(p / "h.csv")],
-     lambda _db, out: re.search(r"wrote [1-9]\d* history rows", out) is not None),
-    (lambda p: ["plot-facts", str(p / "p.csv"), "-s", "MARBLE"],
-     lambda _db, out: "wrote" in out and "MARBLE" in (Path(out.split()[1]).read_text())),
-    (lambda _: ["area", "add", "desk", "--spec", '{"shape": "circle", "center": [1, 2], '
-                '"radius": 1}'], lambda db, _out: "desk" in db.store().areas()),
-    (lambda _: ["tolerance", "Distance", "0.25"],
-     lambda db, _out: db.store().tolerances()["Distance"].value == 0.25),
+    (
+        lambda p: ["export", "history", str(p / "h.csv")],
+        lambda _db, out: re.search(r"wrote [1-9]\d* history rows", out) is not None,
+    ),
+    (
+        lambda p: ["plot-facts", str(p / "p.csv"), "-s", "MARBLE"],
+        lambda _db, out: "wrote" in out and "MARBLE" in (Path(out.split()[1]).read_text()),
+    ),
+    (
+        lambda _: [
+            "area",
+            "add",
+            "desk",
+            "--spec",
+            '{"shape": "circle", "center": [1, 2], "radius": 1}',
+        ],
+        lambda db, _out: "desk" in db.store().areas(),
+    ),
+    (
+        lambda _: ["tolerance", "Distance", "0.25"],
+        lambda db, _out: db.store().tolerances()["Distance"].value == 0.25,
+    ),
     (lambda _: ["beliefs", "holders"], lambda _db, out: "ANNE>SALLY" in out),
     (lambda _: ["db", "current"], lambda _db, out: migrate.head_revision() in out),
-    (lambda _: ["execute", "SQL", "SELECT count(*) AS n FROM holders", "--csv"],
-     lambda _db, out: out.splitlines()[1] != "0"),
-    (lambda _: ["run", str(EXAMPLES / "scenario_flat.yaml"), "--until", "1s"],
-     lambda db, _out: len(_q().history(db, "pr2")) > 0),
+    (
+        lambda _: ["execute", "SQL", "SELECT count(*) AS n FROM holders", "--csv"],
+        lambda _db, out: out.splitlines()[1] != "0",
+    ),
+    (
+        lambda _: ["run", str(EXAMPLES / "scenario_flat.yaml"), "--until", "1s"],
+        lambda db, _out: len(_q().history(db, "pr2")) > 0,
+    ),
 ]
 
 
@@ -356,8 +446,18 @@ def test_environment_without_flag_and_conflicting_flags(seeded: str, tmp_path: P
 
 # ----------------------------------------------------------------------------- extras
 BLOCKED = [
-    ("rosbags", "rosbag", lambda p: ["run", str(EXAMPLES / "scenario_flat.yaml"), "--until",
-                                     "1s", "--record", str(p / "rec")]),
+    (
+        "rosbags",
+        "rosbag",
+        lambda p: [
+            "run",
+            str(EXAMPLES / "scenario_flat.yaml"),
+            "--until",
+            "1s",
+            "--record",
+            str(p / "rec"),
+        ],
+    ),
     ("rosbags", "rosbag", lambda p: ["record", str(p / "frames.jsonl"), str(p / "rec")]),
     ("matplotlib", "plot", lambda p: ["plot-facts", str(p / "out.png")]),
     ("pyarrow", "export", lambda p: ["export", "history", str(p / "out.parquet")]),
@@ -365,20 +465,24 @@ BLOCKED = [
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("module", "extra", "make"), BLOCKED, ids=[b[2](Path("x"))[0]
-                                                                      for b in BLOCKED])
-def test_missing_extra_fails_before_any_work(empty_url: str, tmp_path: Path, module: str,
-                                             extra: str, make: Callable[[Path], list[str]]
-                                             ) -> None:
+@pytest.mark.parametrize(
+    ("module", "extra", "make"), BLOCKED, ids=[b[2](Path("x"))[0] for b in BLOCKED]
+)
+def test_missing_extra_fails_before_any_work(
+    empty_url: str, tmp_path: Path, module: str, extra: str, make: Callable[[Path], list[str]]
+) -> None:
     """The extra's package cannot be imported (blocked in sys.modules, as when it is not
     installed): one line naming pip install 'toaster[EXTRA]', the database untouched (not even
     created), no output written."""
     (tmp_path / "frames.jsonl").write_text(json.dumps({"t_ns": 0, "entities": []}) + "\n")
     argv = [*make(tmp_path), "--db", empty_url]
-    code = (f"import sys; sys.modules[{module!r}] = None; from toaster.cli import main; "
-            f"sys.argv = ['toaster', *{argv!r}]; main()")
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=120, cwd=tmp_path)
+    code = (
+        f"import sys; sys.modules[{module!r}] = None; from toaster.cli import main; "
+        f"sys.argv = ['toaster', *{argv!r}]; main()"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=tmp_path
+    )
     assert done.returncode == 1, done.stderr
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("Error: "), done.stderr
@@ -400,10 +504,16 @@ def test_cli_reference_is_up_to_date() -> None:
     that command, in a fresh interpreter: click caches each command's help option the first
     time it is used, so a test that invoked a command on its own, outside the group, would
     have it render `--help` without `-h`)."""
-    rendered = subprocess.run([sys.executable, "-m", "toaster.cli.reference"], check=True,
-                              capture_output=True, text=True, timeout=120).stdout
+    rendered = subprocess.run(
+        [sys.executable, "-m", "toaster.cli.reference"],
+        check=True,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    ).stdout
     written = (ROOT / "docs" / "cli.md").read_text(encoding="utf-8")
-    assert written == rendered, ("docs/cli.md is out of date: run "
-                                 "`python -m toaster.cli.reference docs/cli.md`")
+    assert written == rendered, (
+        "docs/cli.md is out of date: run `python -m toaster.cli.reference docs/cli.md`"
+    )
     for path, _ in commands():
         assert f"## toaster {path}\n" in written

@@ -35,14 +35,16 @@ def one_fact(url: str) -> None:
     with toaster.connect(url) as db:
         store = db.store()
         store.add_entity("R", "robot", is_self=True, t_ns=0)
-        store.add_entities([("CUP", "object", "", "", None), ("TABLE", "object", "", "", None)],
-                           t_ns=0)
+        store.add_entities(
+            [("CUP", "object", "", "", None), ("TABLE", "object", "", "", None)], t_ns=0
+        )
         store.sync_snapshot("test", "R", S, [Fact("CUP", "IsOn", "TABLE")])
 
 
 @pytest.mark.slow
 def test_demo_tells_sallys_false_belief_in_a_fresh_file(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """The README's first command: a fresh ./toaster-demo.db (an old one is replaced, the
     user's toaster.db is left alone), a story naming Sally's false belief, the SQL and its
     result, and a PNG timeline."""
@@ -66,8 +68,11 @@ def test_demo_tells_sallys_false_belief_in_a_fresh_file(
     assert moved["ROBOT"] == "IsIn BOX" and moved["SALLY"] == "IsIn BASKET"
     assert row[-1] == "<- Sally's false belief"
     assert "FROM fact_history" in out
-    sally_rows = [line.split() for line in out.splitlines()
-                  if line.strip().startswith("SALLY ") and "IsIn" in line]
+    sally_rows = [
+        line.split()
+        for line in out.splitlines()
+        if line.strip().startswith("SALLY ") and "IsIn" in line
+    ]
     assert sally_rows == [["SALLY", "IsIn", "BASKET", "+1.000", "s", "+14.000", "s"]]
     picture = tmp_path / "toaster-demo.png"
     assert str(picture) in out
@@ -92,13 +97,15 @@ def test_run_demo_on_each_backend(empty_url: str, tmp_path: Path) -> None:
         assert by_time[t].robot == ("IsIn BOX",)
         assert by_time[t].sally == by_time[t].anne_on_sally == ("IsIn BASKET",)
         assert [(d.target_id, d.value_a, d.value_b) for d in by_time[t].false] == [
-            ("BASKET", "true", None)]
+            ("BASKET", "true", None)
+        ]
     assert by_time[15].sally == () and by_time[15].robot == ("IsIn BOX",)
     rows = {(r[0], r[1], r[2]): (r[3], r[4]) for r in demo.result.rows}
     assert rows[(SALLY, "IsIn", "BASKET")] == (S, OPENED)
     assert rows[("ROBOT", "IsIn", "BOX")] == (MOVED, None)
     assert [(d.lane, d.start_ns, d.end_ns) for d in demo.divergences] == [
-        ("MARBLE IsIn BASKET", MOVED, OPENED)]
+        ("MARBLE IsIn BASKET", MOVED, OPENED)
+    ]
     assert demo.picture == tmp_path / "marble.png" and png_size(demo.picture)[0] > 600
     assert "***" not in demo.story()  # no password in what it prints
 
@@ -120,7 +127,8 @@ def test_demo_refuses_a_database_that_holds_facts(db_url: str, tmp_path: Path) -
 
 @pytest.mark.slow
 def test_demo_without_matplotlib_writes_gnuplot_data(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Without the plot extra the timeline is gnuplot data, and the story says what to
     install for the PNG."""
     monkeypatch.setitem(sys.modules, "matplotlib", None)
@@ -136,12 +144,15 @@ def test_demo_without_matplotlib_writes_gnuplot_data(
 
 
 def test_demo_refuses_a_picture_it_cannot_write_before_running(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """A bad --picture is one line naming it, before any database is made."""
     monkeypatch.chdir(tmp_path)
     monkeypatch.delenv("TOASTER_DB", raising=False)
-    for bad, said in (("out.txt", "unknown plot file suffix of 'out.txt'"),
-                      ("no/such/dir/t.png", "'no/such/dir/t.png': its folder does not exist")):
+    for bad, said in (
+        ("out.txt", "unknown plot file suffix of 'out.txt'"),
+        ("no/such/dir/t.png", "'no/such/dir/t.png': its folder does not exist"),
+    ):
         result = CliRunner().invoke(cli, ["demo", "--picture", bad])
         assert result.exit_code == 1
         assert said in result.output and "Traceback" not in result.output

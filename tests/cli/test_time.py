@@ -54,12 +54,10 @@ def test_at_counts_from_a_scenarios_start(run: Any, db_url: str, tmp_path: Path)
     assert bob_at(run, "11.5s") == []
 
 
-def test_at_on_real_data_counts_from_its_start(run: Any, db_url: str,
-                                                tmp_path: Path) -> None:
+def test_at_on_real_data_counts_from_its_start(run: Any, db_url: str, tmp_path: Path) -> None:
     """Data recorded on 2026-11-22 from 12:00: ``--at 60s`` is 12:01:00, not 60 s after 1970
     (which found nothing before)."""
-    run("run", str(scenario(tmp_path, start="2026-11-22T12:00:00Z", enter="60s",
-                            duration="62s")))
+    run("run", str(scenario(tmp_path, start="2026-11-22T12:00:00Z", enter="60s", duration="62s")))
     facts = bob_at(run, "60s")
     assert {f["valid_from_ns"] for f in facts} == {REAL + 60 * S}
     assert bob_at(run, "59s") == []
@@ -78,8 +76,7 @@ def test_tables_show_elapsed_for_simulated_data(run: Any, tmp_path: Path) -> Non
 
 
 def test_tables_show_dates_for_real_data(run: Any, tmp_path: Path) -> None:
-    run("run", str(scenario(tmp_path, start="2026-11-22T12:00:00Z", enter="60s",
-                            duration="61s")))
+    run("run", str(scenario(tmp_path, start="2026-11-22T12:00:00Z", enter="60s", duration="61s")))
     table = run("get-info", "FACT", "ALL", "--subject", "bob").output
     assert "2026-11-22 12:01:00Z" in table and "+60.000 s" not in table
     elapsed = run("--time", "elapsed", "get-info", "FACT", "ALL", "--subject", "bob").output
@@ -94,10 +91,30 @@ def test_a_negative_duration_is_before_now(run: Any) -> None:
     for name in ("MUG", "TABLE", "SHELF"):
         run("set-info", "ENTITY", "--id", name, "--type", "object")
     before = now_ns()
-    run("set-info", "FACT", "--subject", "MUG", "--property", "IsOn", "--target", "TABLE",
-        "--at", "-10m")
-    run("set-info", "FACT", "--subject", "MUG", "--property", "IsNear", "--target", "SHELF",
-        "--at", "-1m")
+    run(
+        "set-info",
+        "FACT",
+        "--subject",
+        "MUG",
+        "--property",
+        "IsOn",
+        "--target",
+        "TABLE",
+        "--at",
+        "-10m",
+    )
+    run(
+        "set-info",
+        "FACT",
+        "--subject",
+        "MUG",
+        "--property",
+        "IsNear",
+        "--target",
+        "SHELF",
+        "--at",
+        "-1m",
+    )
     held = rows(run("get-info", "FACT", "CURRENT", "--at", "-5m", "--json"))
     assert [f["property"] for f in held] == ["IsOn"]
     assert before - 600 * S <= held[0]["valid_from_ns"] <= now_ns() - 600 * S

@@ -42,9 +42,14 @@ print("done", flush=True)
 
 def spawn(url: str) -> subprocess.Popen[str]:
     """A child that will open ``url`` (see :data:`CHILD`)."""
-    return subprocess.Popen([sys.executable, "-c", CHILD, url], cwd=ROOT, text=True,
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE)
+    return subprocess.Popen(
+        [sys.executable, "-c", CHILD, url],
+        cwd=ROOT,
+        text=True,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
 
 
 def start(url: str) -> subprocess.Popen[str]:
@@ -82,10 +87,10 @@ def schema_state(url: str) -> str | None:
                 assert tables <= {"alembic_version"}, tables
             else:
                 assert revision == migrate.head_revision()
-                assert conn.execute(sa.text("SELECT COUNT(*) FROM alembic_version")
-                                    ).scalar_one() == 1
-                assert conn.execute(sa.text("SELECT COUNT(*) FROM store_state")
-                                    ).scalar_one() == 1
+                assert (
+                    conn.execute(sa.text("SELECT COUNT(*) FROM alembic_version")).scalar_one() == 1
+                )
+                assert conn.execute(sa.text("SELECT COUNT(*) FROM store_state")).scalar_one() == 1
         return revision
     finally:
         engine.dispose()

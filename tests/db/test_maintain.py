@@ -18,8 +18,12 @@ S = 1_000_000_000
 
 def _churn(store: toaster.Store) -> None:
     for i in range(30):
-        store.sync_snapshot("am", "R", i * S, [
-            Fact("BOB", "Distance", f"O{j}", "far", 1.0 + i % 2, 0.9) for j in range(i % 7)])
+        store.sync_snapshot(
+            "am",
+            "R",
+            i * S,
+            [Fact("BOB", "Distance", f"O{j}", "far", 1.0 + i % 2, 0.9) for j in range(i % 7)],
+        )
 
 
 def test_maintain_reclaims_what_a_run_leaves(db: toaster.Database) -> None:
@@ -31,9 +35,12 @@ def test_maintain_reclaims_what_a_run_leaves(db: toaster.Database) -> None:
     db.maintain()
     if db.dialect_name == "postgresql":
         with db.transaction() as conn:
-            vacuumed = conn.execute(sa.text(
-                "SELECT last_vacuum IS NOT NULL FROM pg_stat_user_tables "
-                "WHERE relname = 'facts' AND schemaname = current_schema()")).scalar_one()
+            vacuumed = conn.execute(
+                sa.text(
+                    "SELECT last_vacuum IS NOT NULL FROM pg_stat_user_tables "
+                    "WHERE relname = 'facts' AND schemaname = current_schema()"
+                )
+            ).scalar_one()
         assert vacuumed
     else:
         wal = Path(db.url.removeprefix("sqlite:///") + "-wal")

@@ -43,13 +43,26 @@ TICKS = 40
 WAIT_S = writers.TIMEOUT_S + 60
 
 
-def start(url: str, role: str, ticks: int, seed: int, out: Path,
-          progress: Path | None = None) -> subprocess.Popen[str]:
+def start(
+    url: str, role: str, ticks: int, seed: int, out: Path, progress: Path | None = None
+) -> subprocess.Popen[str]:
     """One writer (or reader) process doing ``ticks`` ticks."""
     return subprocess.Popen(
-        [sys.executable, "-m", "tests.db.writers", url, role, str(ticks), str(seed), str(out),
-         *([str(progress)] if progress else [])],
-        cwd=ROOT, stderr=subprocess.PIPE, text=True)
+        [
+            sys.executable,
+            "-m",
+            "tests.db.writers",
+            url,
+            role,
+            str(ticks),
+            str(seed),
+            str(out),
+            *([str(progress)] if progress else []),
+        ],
+        cwd=ROOT,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def finish(role: str, proc: subprocess.Popen[str], out: Path, ticks: int) -> dict[str, Any]:
@@ -59,18 +72,23 @@ def finish(role: str, proc: subprocess.Popen[str], out: Path, ticks: int) -> dic
     report: dict[str, Any] = json.loads(out.read_text())
     assert report["ticks"] == ticks, (
         f"{role} did {report['ticks']} of its {ticks} ticks in {writers.TIMEOUT_S:.0f} s "
-        f"(failures: {report['failures'][:3]})")
+        f"(failures: {report['failures'][:3]})"
+    )
     return report
 
 
-def run_processes(url: str, roles: tuple[str, ...], ticks: int,
-                  tmp_path: Path) -> list[dict[str, Any]]:
+def run_processes(
+    url: str, roles: tuple[str, ...], ticks: int, tmp_path: Path
+) -> list[dict[str, Any]]:
     """Start one process per role at once, each doing ``ticks`` ticks; their JSON reports."""
     outs = [tmp_path / f"writer{i}.json" for i in range(len(roles))]
-    procs = [start(url, role, ticks, i, out) for i, (role, out) in enumerate(
-        zip(roles, outs, strict=True))]
-    return [finish(role, proc, out, ticks)
-            for role, proc, out in zip(roles, procs, outs, strict=True)]
+    procs = [
+        start(url, role, ticks, i, out)
+        for i, (role, out) in enumerate(zip(roles, outs, strict=True))
+    ]
+    return [
+        finish(role, proc, out, ticks) for role, proc, out in zip(roles, procs, outs, strict=True)
+    ]
 
 
 def wait_for_ticks(progress: Path, ticks: int, proc: subprocess.Popen[str], role: str) -> None:
@@ -99,16 +117,23 @@ def test_writers_of_several_robots_keep_every_invariant(db_url: str, tmp_path: P
             if report["role"] == "reader":
                 continue
             robot, source = report["role"].split(":")
-            stored = {(f.subject_id, f.property, f.target_id)
-                      for f in q.current_facts(db, robot) if f.source == source}
+            stored = {
+                (f.subject_id, f.property, f.target_id)
+                for f in q.current_facts(db, robot)
+                if f.source == source
+            }
             assert stored == {tuple(f[:3]) for f in map(Fact._make, report["last"])}
         holders = [h for h in api.holders(db) if h not in ("R1", "R2")]
         assert len(holders) >= 5
         for holder in holders:
-            now = {(f.subject_id, f.property, f.target_id, f.value_text)
-                   for f in q.current_facts(db, holder)}
-            then = {(f.subject_id, f.property, f.target_id, f.value_text)
-                    for f in q.beliefs_at(db, holder, last_write + 1)}
+            now = {
+                (f.subject_id, f.property, f.target_id, f.value_text)
+                for f in q.current_facts(db, holder)
+            }
+            then = {
+                (f.subject_id, f.property, f.target_id, f.value_text)
+                for f in q.beliefs_at(db, holder, last_write + 1)
+            }
             assert now == then, holder
 
 
@@ -121,10 +146,16 @@ def test_robots_that_lag_one_another_keep_every_invariant(db_url: str, seed: int
     of these seeds broke an invariant before revision 0013: 30 seeds were tried)."""
     rng = random.Random(seed)
     sources = [(robot, source) for robot in ("R1", "R2") for source in ("rooms", "things")]
-    states = {(robot, "rooms"): {p: rng.choice(writers.ROOMS) for p in writers.PEOPLE}
-              for robot in ("R1", "R2")}
-    states.update({(robot, "things"): {x: rng.choice(list(writers.CONTAINERS))
-                                       for x in writers.THINGS} for robot in ("R1", "R2")})
+    states = {
+        (robot, "rooms"): {p: rng.choice(writers.ROOMS) for p in writers.PEOPLE}
+        for robot in ("R1", "R2")
+    }
+    states.update(
+        {
+            (robot, "things"): {x: rng.choice(list(writers.CONTAINERS)) for x in writers.THINGS}
+            for robot in ("R1", "R2")
+        }
+    )
     with toaster.connect(db_url) as db:
         for robot in ("R1", "R2"):
             writers.register(db, robot)
@@ -137,16 +168,18 @@ def test_robots_that_lag_one_another_keep_every_invariant(db_url: str, seed: int
             t = last[(robot, source)] = max(wall - lag, last[(robot, source)] + 1)
             state = states[(robot, source)]
             who = rng.choice(sorted(state))
-            state[who] = rng.choice(writers.ROOMS if source == "rooms"
-                                    else tuple(writers.CONTAINERS))
+            state[who] = rng.choice(
+                writers.ROOMS if source == "rooms" else tuple(writers.CONTAINERS)
+            )
             store.sync_many(robot, t, [(source, writers.snapshot(source, state))])
         with db.transaction() as conn:
             assert violations(conn) == []
 
 
 @pytest.mark.parametrize("seed", [1, 6])
-def test_robots_ticking_at_the_same_instants_keep_every_invariant(db_url: str, seed: int,
-                                                                  tmp_path: Path) -> None:
+def test_robots_ticking_at_the_same_instants_keep_every_invariant(
+    db_url: str, seed: int, tmp_path: Path
+) -> None:
     """The interleaving behind issue 25's double events, replayed in one process: four robots
     run the spatial Sally-Anne scene (each the scene's robot body under its own id) at 30 Hz,
     starting up to 40 ticks apart as processes started at once do, so that their ticks share
@@ -164,11 +197,20 @@ def test_robots_ticking_at_the_same_instants_keep_every_invariant(db_url: str, s
         for i, db in enumerate(dbs):
             store = db.store()
             mine = tmp_path / f"R{i}.yaml"
-            mine.write_text(re.sub(r"\bROBOT\b", f"R{i}", scene.read_text(encoding="utf-8")),
-                            encoding="utf-8")
+            mine.write_text(
+                re.sub(r"\bROBOT\b", f"R{i}", scene.read_text(encoding="utf-8")), encoding="utf-8"
+            )
             session = load_session(mine, store.areas())
-            runners.append(Runner(session.world, session.sources, session.producers,
-                                  store=store, agent_id=f"R{i}", config=session.config))
+            runners.append(
+                Runner(
+                    session.world,
+                    session.sources,
+                    session.producers,
+                    store=store,
+                    agent_id=f"R{i}",
+                    config=session.config,
+                )
+            )
             session.register(store)
             times.append(range(session.start_ns, session.end_ns + 1, round(1e9 / 30))[:60])
         start = [rng.randrange(40) for _ in runners]
@@ -185,8 +227,7 @@ def test_robots_ticking_at_the_same_instants_keep_every_invariant(db_url: str, s
 
 
 @pytest.mark.parametrize("robots", [1, 2])
-def test_concurrent_registration_is_idempotent(db_url: str, robots: int,
-                                               tmp_path: Path) -> None:
+def test_concurrent_registration_is_idempotent(db_url: str, robots: int, tmp_path: Path) -> None:
     """Processes registering the same agents at once all succeed: one agent each, numbered
     once, with its views. (Their ticks are not looked at: two processes writing one robot's
     one source stamp with their own wall clocks, and under load one's snapshot may come
@@ -205,13 +246,18 @@ def test_concurrent_registration_is_idempotent(db_url: str, robots: int,
 
 
 @pytest.mark.parametrize("seed", [1, 2])
-def test_a_writer_killed_at_any_moment_restarts_without_repair(db_url: str, seed: int,
-                                                               tmp_path: Path) -> None:
+def test_a_writer_killed_at_any_moment_restarts_without_repair(
+    db_url: str, seed: int, tmp_path: Path
+) -> None:
     """kill -9 of one writer while others write: its last tick is all or nothing, the
     database keeps every invariant, and the killed writer starts again on it at once."""
     rng = random.Random(seed)
-    others = [(role, out, start(db_url, role, 60, i, out)) for i, (role, out) in enumerate(
-        (("R1:rooms", tmp_path / "other0.json"), ("R2:rooms", tmp_path / "other1.json")))]
+    others = [
+        (role, out, start(db_url, role, 60, i, out))
+        for i, (role, out) in enumerate(
+            (("R1:rooms", tmp_path / "other0.json"), ("R2:rooms", tmp_path / "other1.json"))
+        )
+    ]
     progress = tmp_path / "victim.ticks"
     victim = start(db_url, "R1:things", 10**6, 9, tmp_path / "victim.json", progress)
     wait_for_ticks(progress, rng.randrange(5, 40), victim, "R1:things")  # then kill it mid-tick
@@ -226,8 +272,9 @@ def test_a_writer_killed_at_any_moment_restarts_without_repair(db_url: str, seed
 
 
 @pytest.mark.parametrize("seed", [3, 4])
-def test_an_import_killed_at_any_moment_writes_all_or_nothing(db_url: str, seed: int,
-                                                              tmp_path: Path) -> None:
+def test_an_import_killed_at_any_moment_writes_all_or_nothing(
+    db_url: str, seed: int, tmp_path: Path
+) -> None:
     """kill -9 of `toaster set-info --file` (one transaction): the batch is all there or not
     at all, the invariants hold, and the same import then runs on the database at once."""
     batch = tmp_path / "batch.yaml"
@@ -236,14 +283,21 @@ def test_an_import_killed_at_any_moment_writes_all_or_nothing(db_url: str, seed:
         "entities: [{id: R, kind: robot, self: true}, {id: ANNE, kind: human}, "
         + ", ".join(f"{{id: {t}}}" for t in things)
         + ", {id: ROOM0}, {id: ROOM1}, {id: ROOM2}]\n"
-        "timeline:\n" + "".join(
+        "timeline:\n"
+        + "".join(
             f"  - {{at: {k}s, facts: [{{subject: ANNE, property: IsInRoom, target: ROOM0}}, "
-            + ", ".join(f"{{subject: {t}, property: IsInRoom, target: ROOM{(i + k) % 3}}}"
-                        for i, t in enumerate(things[:100])) + "]}\n" for k in range(30)))
-    command = [sys.executable, "-m", "toaster", "--db", db_url, "set-info", "--file",
-               str(batch)]
-    victim = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.DEVNULL,
-                              stderr=subprocess.DEVNULL)
+            + ", ".join(
+                f"{{subject: {t}, property: IsInRoom, target: ROOM{(i + k) % 3}}}"
+                for i, t in enumerate(things[:100])
+            )
+            + "]}\n"
+            for k in range(30)
+        )
+    )
+    command = [sys.executable, "-m", "toaster", "--db", db_url, "set-info", "--file", str(batch)]
+    victim = subprocess.Popen(
+        command, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
     time.sleep(random.Random(seed).uniform(0.5, 4.0))
     victim.send_signal(signal.SIGKILL)
     victim.wait()
@@ -267,9 +321,11 @@ def test_a_store_session_keeps_its_scratch_tables_small(pg_schema_url: str) -> N
     them."""
     from toaster.rules.hook import VACUUM_SCRATCH_EVERY
 
-    sizes = ("SELECT c.relname, pg_relation_size(c.oid), c.relpersistence FROM pg_class c "
-             "WHERE c.relnamespace = pg_my_temp_schema() AND c.relkind = 'r' "
-             "ORDER BY c.relname")
+    sizes = (
+        "SELECT c.relname, pg_relation_size(c.oid), c.relpersistence FROM pg_class c "
+        "WHERE c.relnamespace = pg_my_temp_schema() AND c.relkind = 'r' "
+        "ORDER BY c.relname"
+    )
     with toaster.connect(pg_schema_url) as db:
         store = db.store()
         store.add_entity("ROBOT", "robot", is_self=True, t_ns=0)
@@ -277,10 +333,17 @@ def test_a_store_session_keeps_its_scratch_tables_small(pg_schema_url: str) -> N
         store.add_entity("MARBLE", "object", t_ns=0)
         for tick in range(2 * VACUUM_SCRATCH_EVERY):  # one belief run per tick
             where = ("BASKET", "BOX")[tick % 2]
-            store.sync_snapshot("p", "ROBOT", (tick + 1) * 1_000_000,
-                                [Fact("MARBLE", "IsIn", where), Fact("SALLY", "IsInRoom", "ROOM"),
-                                 Fact("BASKET", "IsInRoom", "ROOM"),
-                                 Fact("BOX", "IsInRoom", "ROOM")])
+            store.sync_snapshot(
+                "p",
+                "ROBOT",
+                (tick + 1) * 1_000_000,
+                [
+                    Fact("MARBLE", "IsIn", where),
+                    Fact("SALLY", "IsInRoom", "ROOM"),
+                    Fact("BASKET", "IsInRoom", "ROOM"),
+                    Fact("BOX", "IsInRoom", "ROOM"),
+                ],
+            )
         with db.transaction() as conn:
             tables = conn.exec_driver_sql(sizes).all()
             rows = conn.exec_driver_sql("SELECT count(*) FROM pg_temp.belief_changed").scalar()
@@ -288,7 +351,14 @@ def test_a_store_session_keeps_its_scratch_tables_small(pg_schema_url: str) -> N
         assert rows == 0  # the run emptied it
         assert [(name, size) for name, size, _ in tables if size > 0] == []
         with db.transaction() as conn:
-            followed = conn.execute(sa.text(
-                "SELECT target_id FROM current_facts WHERE agent_id = 'SALLY' "
-                "AND subject_id = 'MARBLE'")).scalars().all()
+            followed = (
+                conn.execute(
+                    sa.text(
+                        "SELECT target_id FROM current_facts WHERE agent_id = 'SALLY' "
+                        "AND subject_id = 'MARBLE'"
+                    )
+                )
+                .scalars()
+                .all()
+            )
         assert followed == ["BOX"]  # the last tick's change reached Sally (she is there)

@@ -57,8 +57,7 @@ def one_line_error(args: list[str], env: dict[str, str] | None = None) -> str:
     """``toaster ARGS`` through click: exit 1 and one line ``Error: ...``; that line."""
     result = CliRunner().invoke(cli, args, env=env)
     assert result.exit_code == 1, result.output
-    assert result.exception is None or isinstance(result.exception, SystemExit), \
-        result.exception
+    assert result.exception is None or isinstance(result.exception, SystemExit), result.exception
     lines = result.output.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("Error: "), result.output
     return lines[0]
@@ -66,13 +65,17 @@ def one_line_error(args: list[str], env: dict[str, str] | None = None) -> str:
 
 def digest(folder: Path) -> dict[str, str]:
     """Every file of ``folder`` (hidden ones too) -> the SHA-1 of its bytes."""
-    return {p.name: hashlib.sha1(p.read_bytes()).hexdigest()
-            for p in sorted(folder.iterdir()) if p.is_file()}
+    return {
+        p.name: hashlib.sha1(p.read_bytes()).hexdigest()
+        for p in sorted(folder.iterdir())
+        if p.is_file()
+    }
 
 
 @pytest.mark.parametrize(("url", "expected"), BAD_URLS.items())
-def test_bad_urls_are_refused_in_one_line(url: str, expected: str, tmp_path: Path,
-                                          monkeypatch: pytest.MonkeyPatch) -> None:
+def test_bad_urls_are_refused_in_one_line(
+    url: str, expected: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Nothing that keeps nothing or lets the server pick the database is accepted."""
     monkeypatch.chdir(tmp_path)
     with pytest.raises(InvalidInputError, match=re.escape(expected)):
@@ -83,8 +86,9 @@ def test_bad_urls_are_refused_in_one_line(url: str, expected: str, tmp_path: Pat
 
 
 @pytest.mark.parametrize("url", [5, b"sqlite:///x.db", ["sqlite:///x.db"]])
-def test_urls_that_are_not_text_are_refused(url: object, tmp_path: Path,
-                                            monkeypatch: pytest.MonkeyPatch) -> None:
+def test_urls_that_are_not_text_are_refused(
+    url: object, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.chdir(tmp_path)
     with pytest.raises(InvalidInputError, match="invalid database URL"):
         toaster.connect(url)  # type: ignore[arg-type]
@@ -94,9 +98,9 @@ def test_urls_that_are_not_text_are_refused(url: object, tmp_path: Path,
 def test_folder_and_missing_folder(tmp_path: Path) -> None:
     """A folder is not a database file; a file in a missing folder cannot be created."""
     assert "is a folder: name a file in it" in one_line_error(
-        ["--db", f"sqlite:///{tmp_path}", "db", "check"])
-    line = one_line_error(["--db", f"sqlite:///{tmp_path / 'no' / 'x.db'}", "get-info",
-                           "AGENT"])
+        ["--db", f"sqlite:///{tmp_path}", "db", "check"]
+    )
+    line = one_line_error(["--db", f"sqlite:///{tmp_path / 'no' / 'x.db'}", "get-info", "AGENT"])
     assert "does not exist" in line and str(tmp_path / "no") in line
 
 
@@ -133,8 +137,9 @@ BAD_FILES = {
 
 
 @pytest.mark.parametrize("kind", BAD_FILES)
-def test_bad_files_are_refused_and_left_unchanged(kind: str, tmp_path: Path,
-                                                  sqlite_template: Path) -> None:
+def test_bad_files_are_refused_and_left_unchanged(
+    kind: str, tmp_path: Path, sqlite_template: Path
+) -> None:
     """Not a database, corrupted, truncated, another application's: one line naming the
     file, from the library and every command; the folder's bytes do not change."""
     make, expected = BAD_FILES[kind]
@@ -144,8 +149,13 @@ def test_bad_files_are_refused_and_left_unchanged(kind: str, tmp_path: Path,
     url = f"sqlite:///{path}"
     with pytest.raises(DatabaseOpenError, match=re.escape(expected)):
         toaster.connect(url)
-    for command in (["db", "check"], ["db", "current"], ["db", "upgrade"],
-                    ["get-info", "AGENT"], ["execute", "SQL", "SELECT 1"]):
+    for command in (
+        ["db", "check"],
+        ["db", "current"],
+        ["db", "upgrade"],
+        ["get-info", "AGENT"],
+        ["execute", "SQL", "SELECT 1"],
+    ):
         line = one_line_error(["--db", url, *command])
         assert expected in line and str(path) in line, line
     assert digest(tmp_path) == before
@@ -158,8 +168,13 @@ def test_no_traceback_from_the_real_command(tmp_path: Path, sqlite_template: Pat
     _garbage_head(bad, sqlite_template)
     for url in (f"sqlite:///{bad}", "postgresql://127.0.0.1:1/test"):
         for command in (["db", "check"], ["get-info", "AGENT"]):
-            proc = subprocess.run([sys.executable, "-m", "toaster", "--db", url, *command],
-                                  capture_output=True, text=True, timeout=60, cwd=ROOT)
+            proc = subprocess.run(
+                [sys.executable, "-m", "toaster", "--db", url, *command],
+                capture_output=True,
+                text=True,
+                timeout=60,
+                cwd=ROOT,
+            )
             assert proc.returncode == 1, proc.stderr
             assert "Traceback" not in proc.stderr
             assert len(proc.stderr.strip().splitlines()) == 1, proc.stderr
@@ -194,21 +209,25 @@ def test_missing_file_is_not_created_by_check(tmp_path: Path) -> None:
     assert [p.name for p in tmp_path.iterdir()] == ["new.db"]
 
 
-@pytest.mark.parametrize("url", ["postgresql://127.0.0.1:1/test",
-                                 "postgresql://postgres@no-such-host.invalid/test"])
+@pytest.mark.parametrize(
+    "url", ["postgresql://127.0.0.1:1/test", "postgresql://postgres@no-such-host.invalid/test"]
+)
 def test_unreachable_server(url: str) -> None:
     """Refused connection, unknown host: one line naming the URL, for every db command."""
     with pytest.raises(DatabaseOpenError, match="cannot connect to PostgreSQL"):
         toaster.connect(url)
-    for command in (["db", "check"], ["db", "current"], ["db", "upgrade"],
-                    ["execute", "SQL", "SELECT 1"]):
+    for command in (
+        ["db", "check"],
+        ["db", "current"],
+        ["db", "upgrade"],
+        ["execute", "SQL", "SELECT 1"],
+    ):
         line = one_line_error(["--db", url, *command])
         assert "cannot connect to PostgreSQL" in line and url.split("//")[1] in line
 
 
 @pytest.mark.postgresql
-def test_missing_database_schema_and_other_application_on_postgresql(
-        pg_schema_url: str) -> None:
+def test_missing_database_schema_and_other_application_on_postgresql(pg_schema_url: str) -> None:
     """A database that does not exist, a search_path naming no schema, a schema holding
     another application's tables: one line each; the other tables stay as they were."""
     line = one_line_error(["--db", f"{PG_BASE}/no_such_db_x", "db", "current"])
@@ -230,8 +249,9 @@ def test_missing_database_schema_and_other_application_on_postgresql(
 
 def test_bad_lock_timeout_setting(tmp_path: Path) -> None:
     """TOASTER_LOCK_TIMEOUT must be a number of seconds."""
-    line = one_line_error(["--db", str(tmp_path / "x.db"), "get-info", "AGENT"],
-                          env={"TOASTER_LOCK_TIMEOUT": "soon"})
+    line = one_line_error(
+        ["--db", str(tmp_path / "x.db"), "get-info", "AGENT"], env={"TOASTER_LOCK_TIMEOUT": "soon"}
+    )
     assert "TOASTER_LOCK_TIMEOUT='soon' is not a number of seconds" in line
 
 
@@ -261,7 +281,8 @@ def _sqlite_lock_held(path: Path) -> Iterator[None]:
 
 @pytest.mark.slow
 def test_locked_sqlite_fails_in_one_line_and_writes_nothing(
-        tmp_path: Path, sqlite_template: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    tmp_path: Path, sqlite_template: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """A write transaction held elsewhere: after TOASTER_LOCK_TIMEOUT (0.5 s) the writer
     gets the one-line error, nothing is written, and it writes once the lock is gone."""
     path = tmp_path / "locked.db"
@@ -274,15 +295,18 @@ def test_locked_sqlite_fails_in_one_line_and_writes_nothing(
                 db.store().add_entity("BOB", "human", t_ns=0)
             message = str(caught.value)
             assert "\n" not in message
-            assert message.startswith(f"database '{path}' is locked by another process "
-                                      "(waited 0.5 s)")
+            assert message.startswith(
+                f"database '{path}' is locked by another process (waited 0.5 s)"
+            )
             assert "TOASTER_LOCK_TIMEOUT=" in message
             with db.transaction() as conn:
                 assert conn.execute(sa.text("SELECT COUNT(*) FROM entities")).scalar_one() == 0
         db.store().add_entity("BOB", "human", t_ns=0)  # the handle still works
     with _sqlite_lock_held(path):
-        line = one_line_error(["--db", url, "set-info", "ENTITY", "--id", "ANNE", "--type",
-                               "human"], env={"TOASTER_LOCK_TIMEOUT": "0.5"})
+        line = one_line_error(
+            ["--db", url, "set-info", "ENTITY", "--id", "ANNE", "--type", "human"],
+            env={"TOASTER_LOCK_TIMEOUT": "0.5"},
+        )
     assert "is locked by another process (waited 0.5 s)" in line
     conn = sqlite3.connect(path)
     assert conn.execute("SELECT id FROM entities").fetchall() == [("BOB",)]
@@ -292,8 +316,9 @@ def test_locked_sqlite_fails_in_one_line_and_writes_nothing(
 
 @pytest.mark.slow
 @pytest.mark.postgresql
-def test_locked_postgresql_fails_in_one_line(pg_schema_url: str,
-                                             monkeypatch: pytest.MonkeyPatch) -> None:
+def test_locked_postgresql_fails_in_one_line(
+    pg_schema_url: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """PostgreSQL: a table lock held by another session ends the wait after the lock
     timeout (lock_timeout), in one line, rolled back."""
     db_url = pg_schema_url
@@ -304,8 +329,11 @@ def test_locked_postgresql_fails_in_one_line(pg_schema_url: str,
         other.begin()
         other.exec_driver_sql("LOCK TABLE entities IN ACCESS EXCLUSIVE MODE")
         started = time.monotonic()
-        with pytest.raises(DatabaseLockedError, match=r"locked by another session \(waited "
-                                                      r"0.5 s\)"):
+        with pytest.raises(
+            DatabaseLockedError,
+            match=r"locked by another session \(waited "
+            r"0.5 s\)",
+        ):
             db.store().add_entity("BOB", "human", t_ns=0)
         assert time.monotonic() - started < 60  # ended by lock_timeout, not by the holder
         other.rollback()

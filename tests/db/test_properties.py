@@ -24,29 +24,69 @@ PROPS = ("IsOn", "IsNear")
 VALUES = ("true", "false", "maybe")
 _counter = itertools.count()
 
-facts = st.builds(Fact, st.sampled_from(SUBJECTS), st.sampled_from(PROPS),
-                  st.sampled_from(("", "T")), st.sampled_from(VALUES),
-                  st.one_of(st.none(), st.sampled_from((0.5, 1.5))),
-                  st.sampled_from((0.5, 1.0)), observability=st.just(1.0),
-                  property_type=st.just(""), sub_property=st.just(""),
-                  subject_owner_id=st.just(""), target_owner_id=st.just(""))
-operations = st.lists(st.one_of(
-    st.tuples(st.just("sync"), st.sampled_from(("p1", "p2")), st.lists(facts, max_size=5)),
-    st.tuples(st.just("assert"), facts),
-    st.tuples(st.just("retract"), st.sampled_from(PROPS), st.sampled_from((*SUBJECTS, None))),
-), max_size=12)
+facts = st.builds(
+    Fact,
+    st.sampled_from(SUBJECTS),
+    st.sampled_from(PROPS),
+    st.sampled_from(("", "T")),
+    st.sampled_from(VALUES),
+    st.one_of(st.none(), st.sampled_from((0.5, 1.5))),
+    st.sampled_from((0.5, 1.0)),
+    observability=st.just(1.0),
+    property_type=st.just(""),
+    sub_property=st.just(""),
+    subject_owner_id=st.just(""),
+    target_owner_id=st.just(""),
+)
+operations = st.lists(
+    st.one_of(
+        st.tuples(st.just("sync"), st.sampled_from(("p1", "p2")), st.lists(facts, max_size=5)),
+        st.tuples(st.just("assert"), facts),
+        st.tuples(st.just("retract"), st.sampled_from(PROPS), st.sampled_from((*SUBJECTS, None))),
+    ),
+    max_size=12,
+)
 
 
 def _key(f: Fact) -> tuple[str, ...]:
     return (f.subject_id, f.property, f.target_id)
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 @given(ops=operations)
 def test_random_sequences_keep_interval_invariants(db: toaster.Database, ops: list) -> None:
     """Store and a plain dict model agree after any sequence of writes."""
     from hypothesis import note
-    note("OPS " + repr([(o[0], o[1], [(f.subject_id, f.property, f.target_id, f.value_text, f.value_num, f.confidence) for f in o[2]]) if o[0]=="sync" else (o[0], tuple(o[1])[:6]) if o[0]=="assert" else o for o in ops]))
+
+    note(
+        "OPS "
+        + repr(
+            [
+                (
+                    o[0],
+                    o[1],
+                    [
+                        (
+                            f.subject_id,
+                            f.property,
+                            f.target_id,
+                            f.value_text,
+                            f.value_num,
+                            f.confidence,
+                        )
+                        for f in o[2]
+                    ],
+                )
+                if o[0] == "sync"
+                else (o[0], tuple(o[1])[:6])
+                if o[0] == "assert"
+                else o
+                for o in ops
+            ]
+        )
+    )
     store = db.store()
     agent = f"AG{next(_counter)}"
     store.add_entity(agent, "robot")

@@ -48,8 +48,13 @@ HOSTILE: list[tuple[str, str | tuple[str, str]]] = [
     ("begin-read-write", "BEGIN READ WRITE; DELETE FROM settings; COMMIT"),
     ("select-then-drop", "SELECT 1; DROP TABLE settings"),
     ("semicolon-in-comment", "SELECT 1 /* x */; DELETE FROM settings -- ;"),
-    ("carriage-return-comment", ("SELECT 1 -- x\n, load_extension('x')",
-                                 "SELECT 1 -- x\r, set_config('role', 'postgres', true)")),
+    (
+        "carriage-return-comment",
+        (
+            "SELECT 1 -- x\n, load_extension('x')",
+            "SELECT 1 -- x\r, set_config('role', 'postgres', true)",
+        ),
+    ),
     ("e-string-escape", "SELECT E'\\''; DELETE FROM settings; SELECT 1"),
     ("backslash-quote", "SELECT '\\'; DELETE FROM settings; --'"),
     ("dollar-quote", "SELECT $$ x $$; DELETE FROM settings"),
@@ -72,32 +77,59 @@ HOSTILE: list[tuple[str, str | tuple[str, str]]] = [
     ("set-config-quoted", "SELECT pg_catalog.\"set_config\"('role', 'postgres', false)"),
     ("set-config-comment", "SELECT set_config/**/('statement_timeout', '0', false)"),
     ("set-config-unicode", "SELECT U&\"\\0073et_config\"('role', 'postgres', true)"),
-    ("query-to-xml", "SELECT query_to_xml('SELECT set_config(''role'', ''postgres'', "
-                     "true)', true, false, '')"),
+    (
+        "query-to-xml",
+        "SELECT query_to_xml('SELECT set_config(''role'', ''postgres'', true)', true, false, '')",
+    ),
     ("ts-stat", "SELECT * FROM ts_stat('SELECT pg_advisory_lock(1)::text::tsvector')"),
     # SQL given as text to a function (where the statement check cannot see it)
-    ("query-to-xml-terminate", "SELECT query_to_xml('SELECT pg_terminate_backend({pid})', "
-                               "true, false, '')"),
-    ("query-to-xml-schema", "SELECT query_to_xml_and_xmlschema('SELECT pg_advisory_lock(1)',"
-                            " true, false, '')"),
+    (
+        "query-to-xml-terminate",
+        "SELECT query_to_xml('SELECT pg_terminate_backend({pid})', true, false, '')",
+    ),
+    (
+        "query-to-xml-schema",
+        "SELECT query_to_xml_and_xmlschema('SELECT pg_advisory_lock(1)', true, false, '')",
+    ),
     ("cursor-to-xml", "SELECT cursor_to_xml('c'::refcursor, 1, true, false, '')"),
-    ("ts-stat-terminate", "SELECT * FROM ts_stat('SELECT pg_terminate_backend({pid})::text"
-                          "::tsvector')"),
-    ("ts-rewrite-query", "SELECT ts_rewrite('a'::tsquery, 'SELECT ''a''::tsquery, "
-                         "pg_terminate_backend({pid})::text::tsquery')::text"),
-    ("crosstab", "SELECT * FROM crosstab('SELECT pg_terminate_backend({pid})::text, "
-                 "''a'', ''b''') AS t(a text, b text)"),
-    ("connectby", "SELECT * FROM connectby('settings', 'key', 'scope', 'x', 0) "
-                  "AS t(a text, b text, c int)"),
+    (
+        "ts-stat-terminate",
+        "SELECT * FROM ts_stat('SELECT pg_terminate_backend({pid})::text::tsvector')",
+    ),
+    (
+        "ts-rewrite-query",
+        "SELECT ts_rewrite('a'::tsquery, 'SELECT ''a''::tsquery, "
+        "pg_terminate_backend({pid})::text::tsquery')::text",
+    ),
+    (
+        "crosstab",
+        "SELECT * FROM crosstab('SELECT pg_terminate_backend({pid})::text, "
+        "''a'', ''b''') AS t(a text, b text)",
+    ),
+    (
+        "connectby",
+        "SELECT * FROM connectby('settings', 'key', 'scope', 'x', 0) AS t(a text, b text, c int)",
+    ),
     # toaster's own functions: the read-only wrapper (pg_temp), the triggers' functions
-    ("wrapper-terminate", "SELECT * FROM pg_temp.toaster_readonly_run('SELECT "
-                          "pg_terminate_backend({pid})::text', 100, 1000000) AS t(a text)"),
-    ("wrapper-quoted", """SELECT * FROM "pg_temp"."toaster_readonly_run"('SELECT """
-                       """pg_advisory_lock(1)::text', 100, 1000000) AS t(a text)"""),
-    ("wrapper-set-role", "SELECT * FROM pg_temp . toaster_readonly_run /* */ ('SELECT "
-                         "set_config(''role'', ''postgres'', false)', 1, 1000) AS t(a text)"),
-    ("wrapper-numbered", "SELECT * FROM pg_temp_1.toaster_readonly_run('SELECT 1', 1, 1000) "
-                         "AS t(a int)"),
+    (
+        "wrapper-terminate",
+        "SELECT * FROM pg_temp.toaster_readonly_run('SELECT "
+        "pg_terminate_backend({pid})::text', 100, 1000000) AS t(a text)",
+    ),
+    (
+        "wrapper-quoted",
+        """SELECT * FROM "pg_temp"."toaster_readonly_run"('SELECT """
+        """pg_advisory_lock(1)::text', 100, 1000000) AS t(a text)""",
+    ),
+    (
+        "wrapper-set-role",
+        "SELECT * FROM pg_temp . toaster_readonly_run /* */ ('SELECT "
+        "set_config(''role'', ''postgres'', false)', 1, 1000) AS t(a text)",
+    ),
+    (
+        "wrapper-numbered",
+        "SELECT * FROM pg_temp_1.toaster_readonly_run('SELECT 1', 1, 1000) AS t(a int)",
+    ),
     ("trigger-function", "SELECT toaster_guard()"),
     ("trigger-function-qualified", "SELECT public.toaster_belief_run()"),
     ("alter-system", "ALTER SYSTEM SET work_mem = '1GB'"),
@@ -116,8 +148,7 @@ HOSTILE: list[tuple[str, str | tuple[str, str]]] = [
     # other sessions and the server
     ("terminate", "SELECT pg_terminate_backend({pid})"),
     ("cancel", "SELECT pg_cancel_backend({pid})"),
-    ("terminate-from", "SELECT pg_terminate_backend(pid) FROM pg_stat_activity "
-                       "WHERE pid = {pid}"),
+    ("terminate-from", "SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE pid = {pid}"),
     ("reload-conf", "SELECT pg_reload_conf()"),
     ("advisory-lock", "SELECT pg_advisory_lock(4242)"),
     ("advisory-try", "SELECT pg_try_advisory_lock(4242)::text"),
@@ -139,8 +170,10 @@ HOSTILE: list[tuple[str, str | tuple[str, str]]] = [
     ("do-role", "DO $$ BEGIN PERFORM set_config('role', 'postgres', false); END $$"),
     ("call", "CALL pwned()"),
     ("writable-cte", "WITH d AS (DELETE FROM settings RETURNING *) SELECT * FROM d"),
-    ("writable-cte-insert", "WITH i AS (INSERT INTO properties VALUES ('A', 'k', 'v') "
-                            "RETURNING *) SELECT * FROM i"),
+    (
+        "writable-cte-insert",
+        "WITH i AS (INSERT INTO properties VALUES ('A', 'k', 'v') RETURNING *) SELECT * FROM i",
+    ),
     ("for-update", "SELECT * FROM settings FOR UPDATE"),
     ("for-share", "SELECT * FROM entities FOR SHARE"),
     ("explain-analyze-delete", "EXPLAIN ANALYZE DELETE FROM settings"),
@@ -168,12 +201,22 @@ HOSTILE: list[tuple[str, str | tuple[str, str]]] = [
     # memory and time
     ("zeroblob", ("SELECT zeroblob(1e9)", "SELECT repeat('x', 20000000)")),
     ("randomblob", ("SELECT randomblob(1000000000)", "SELECT lpad('', 20000000, 'x')")),
-    ("hex-huge", ("SELECT hex(zeroblob(10000000))",
-                  "SELECT string_agg(repeat('x', 100000), '') FROM generate_series(1, 200)")),
+    (
+        "hex-huge",
+        (
+            "SELECT hex(zeroblob(10000000))",
+            "SELECT string_agg(repeat('x', 100000), '') FROM generate_series(1, 200)",
+        ),
+    ),
     ("endless-count", _ENDLESS + "SELECT count(*) FROM c"),
     ("endless-sort", _ENDLESS + "SELECT x FROM c ORDER BY x DESC LIMIT 1"),
-    ("endless-wide-rows", (_ENDLESS + "SELECT x, hex(randomblob(2000)) FROM c",
-                           _ENDLESS + "SELECT x, repeat('x', 4000) FROM c")),
+    (
+        "endless-wide-rows",
+        (
+            _ENDLESS + "SELECT x, hex(randomblob(2000)) FROM c",
+            _ENDLESS + "SELECT x, repeat('x', 4000) FROM c",
+        ),
+    ),
 ]
 
 
@@ -181,10 +224,12 @@ HOSTILE: list[tuple[str, str | tuple[str, str]]] = [
 #: The current schema's tables, found through pg_depend (every table depends on its schema)
 #: by an index: listing them from pg_class reads all of it, slow when the server's catalog
 #: holds many dead rows (schemas made and dropped by tests, without autovacuum).
-_PG_TABLES = ("SELECT c.relname FROM pg_depend d JOIN pg_class c ON c.oid = d.objid "
-              "WHERE d.classid = 'pg_class'::regclass "
-              "AND d.refclassid = 'pg_namespace'::regclass "
-              "AND d.refobjid = current_schema()::regnamespace AND c.relkind IN ('r', 'p')")
+_PG_TABLES = (
+    "SELECT c.relname FROM pg_depend d JOIN pg_class c ON c.oid = d.objid "
+    "WHERE d.classid = 'pg_class'::regclass "
+    "AND d.refclassid = 'pg_namespace'::regclass "
+    "AND d.refobjid = current_schema()::regnamespace AND c.relkind IN ('r', 'p')"
+)
 #: Sessions that read each PostgreSQL database for :func:`dump`, one per URL (autocommit:
 #: each statement sees what is committed); closed at the end of the module.
 _OBSERVERS: dict[str, psycopg.Connection[Any]] = {}
@@ -205,13 +250,19 @@ def dump(url: str) -> dict[str, list[tuple[Any, ...]]]:
         pg = _OBSERVERS.get(url)
         if pg is None:
             pg = _OBSERVERS[url] = psycopg.connect(
-                url.replace("postgresql+psycopg://", "postgresql://"), autocommit=True)
-        return {name: sorted(pg.execute(f'SELECT * FROM "{name}"').fetchall(), key=repr)
-                for name in sorted(n for (n,) in pg.execute(_PG_TABLES))}
+                url.replace("postgresql+psycopg://", "postgresql://"), autocommit=True
+            )
+        return {
+            name: sorted(pg.execute(f'SELECT * FROM "{name}"').fetchall(), key=repr)
+            for name in sorted(n for (n,) in pg.execute(_PG_TABLES))
+        }
     with closing(sqlite3.connect(url.removeprefix("sqlite:///"))) as lite:
-        return {name: sorted(lite.execute(f'SELECT * FROM "{name}"').fetchall(), key=repr)
-                for name in sorted(n for (n,) in lite.execute(
-                    "SELECT name FROM sqlite_master WHERE type = 'table'"))}
+        return {
+            name: sorted(lite.execute(f'SELECT * FROM "{name}"').fetchall(), key=repr)
+            for name in sorted(
+                n for (n,) in lite.execute("SELECT name FROM sqlite_master WHERE type = 'table'")
+            )
+        }
 
 
 def files(root: Path) -> set[str]:
@@ -224,12 +275,23 @@ def server_state(db: toaster.Database) -> dict[str, Any]:
     with db.transaction() as conn:
         if db.dialect_name == "sqlite":
             run = conn.exec_driver_sql
-            return {"pragmas": [run(f"PRAGMA {p}").scalar() for p in (
-                "query_only", "user_version", "journal_mode", "foreign_keys",
-                "hard_heap_limit", "writable_schema")],
+            return {
+                "pragmas": [
+                    run(f"PRAGMA {p}").scalar()
+                    for p in (
+                        "query_only",
+                        "user_version",
+                        "journal_mode",
+                        "foreign_keys",
+                        "hard_heap_limit",
+                        "writable_schema",
+                    )
+                ],
                 "databases": [r[1] for r in run("PRAGMA database_list")],
                 "length": conn.connection.dbapi_connection.getlimit(  # type: ignore[union-attr]
-                    sqlite3.SQLITE_LIMIT_LENGTH)}
+                    sqlite3.SQLITE_LIMIT_LENGTH
+                ),
+            }
         row = conn.exec_driver_sql(
             "SELECT current_user, session_user, current_setting('statement_timeout'), "
             "current_setting('work_mem'), current_setting('transaction_read_only'), "
@@ -237,16 +299,34 @@ def server_state(db: toaster.Database) -> dict[str, Any]:
             "AND pid = pg_backend_pid()), (SELECT count(*) FROM pg_largeobject_metadata), "
             "(SELECT count(*) FROM pg_prepared_xacts), (SELECT count(*) FROM pg_prepared_statements "
             "WHERE name = 'pwned'), (SELECT count(*) FROM pg_cursors), "
-            "(SELECT count(*) FROM pg_listening_channels())").one()
-        return dict(zip(("user", "session", "timeout", "work_mem", "read_only", "advisory",
-                         "large_objects", "prepared_xacts", "prepared", "cursors", "listening"),
-                        row, strict=True))
+            "(SELECT count(*) FROM pg_listening_channels())"
+        ).one()
+        return dict(
+            zip(
+                (
+                    "user",
+                    "session",
+                    "timeout",
+                    "work_mem",
+                    "read_only",
+                    "advisory",
+                    "large_objects",
+                    "prepared_xacts",
+                    "prepared",
+                    "cursors",
+                    "listening",
+                ),
+                row,
+                strict=True,
+            )
+        )
 
 
 # ---------------------------------------------------------------------------- fixtures
 @pytest.fixture(scope="module", params=BACKENDS)
-def read_url(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory,
-             sqlite_template: Path) -> Iterator[str]:
+def read_url(
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory, sqlite_template: Path
+) -> Iterator[str]:
     """``db_url`` shared by this module's tests that only read (migrating a PostgreSQL schema
     per test is slow): a SQLite file in a folder of its own, or a PostgreSQL schema dropped
     afterwards. Each hostile case checks that the rows, the files (that folder's too) and
@@ -276,8 +356,9 @@ def other(read_db: toaster.Database) -> Iterator[psycopg.Connection[Any] | None]
     if read_db.dialect_name != "postgresql":
         yield None
         return
-    conn = psycopg.connect(PG_URL.replace("postgresql+psycopg://", "postgresql://"),
-                           autocommit=True)
+    conn = psycopg.connect(
+        PG_URL.replace("postgresql+psycopg://", "postgresql://"), autocommit=True
+    )
     try:
         yield conn
     finally:
@@ -293,9 +374,16 @@ def scratch(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     return tmp_path
 
 
-def expect_refused(db: toaster.Database, url: str, sql: str, root: Path,
-                   other: psycopg.Connection[Any] | None, *, must_raise: bool = True,
-                   **bounds: Any) -> ToasterError | None:
+def expect_refused(
+    db: toaster.Database,
+    url: str,
+    sql: str,
+    root: Path,
+    other: psycopg.Connection[Any] | None,
+    *,
+    must_raise: bool = True,
+    **bounds: Any,
+) -> ToasterError | None:
     """Run ``sql`` read-only; check it raised one line (unless not ``must_raise``) and left
     nothing behind."""
     roots = [root]
@@ -322,9 +410,13 @@ def expect_refused(db: toaster.Database, url: str, sql: str, root: Path,
 # ---------------------------------------------------------------------------- hostile
 @pytest.mark.slow
 @pytest.mark.parametrize("sql", [pytest.param(sql, id=name) for name, sql in HOSTILE])
-def test_hostile_statement_is_refused(read_db: toaster.Database, read_url: str,
-                                      scratch: Path, other: psycopg.Connection[Any] | None,
-                                      sql: str | tuple[str, str]) -> None:
+def test_hostile_statement_is_refused(
+    read_db: toaster.Database,
+    read_url: str,
+    scratch: Path,
+    other: psycopg.Connection[Any] | None,
+    sql: str | tuple[str, str],
+) -> None:
     """Each raises a one-line ToasterError and changes nothing, on both backends."""
     db = read_db
     if isinstance(sql, tuple):
@@ -334,9 +426,13 @@ def test_hostile_statement_is_refused(read_db: toaster.Database, read_url: str,
 
 
 @pytest.mark.slow
-def test_the_database_alone_stops_them(read_db: toaster.Database, read_url: str,
-                                       scratch: Path, other: psycopg.Connection[Any] | None,
-                                       monkeypatch: pytest.MonkeyPatch) -> None:
+def test_the_database_alone_stops_them(
+    read_db: toaster.Database,
+    read_url: str,
+    scratch: Path,
+    other: psycopg.Connection[Any] | None,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     """Defence in depth: with the statement check switched off, the database layers alone
     (authorizer, query_only, limits on SQLite; read-only transaction, reader role, wrapper
     and checks after on PostgreSQL) let no hostile statement leave a trace (some then run,
@@ -350,8 +446,16 @@ def test_the_database_alone_stops_them(read_db: toaster.Database, read_url: str,
         if isinstance(sql, tuple):
             sql = sql[db.dialect_name == "postgresql"]
         try:
-            expect_refused(db, read_url, sql.format(tmp=scratch, pid=pid), scratch, other,
-                           must_raise=False, timeout_s=1.0, max_bytes=BOUNDS["max_bytes"])
+            expect_refused(
+                db,
+                read_url,
+                sql.format(tmp=scratch, pid=pid),
+                scratch,
+                other,
+                must_raise=False,
+                timeout_s=1.0,
+                max_bytes=BOUNDS["max_bytes"],
+            )
         except AssertionError as exc:
             failures.append(f"{name}: {exc}")
     assert not failures
@@ -359,9 +463,13 @@ def test_the_database_alone_stops_them(read_db: toaster.Database, read_url: str,
 
 def test_the_load_test_statements_are_refused(read_db: toaster.Database) -> None:
     """The issue's examples are refused before they reach the database, as writes."""
-    for sql in ("COMMIT; DROP TABLE settings", "SET transaction_read_only = off",
-                "BEGIN READ WRITE", "ATTACH DATABASE 'x.db' AS x",
-                "WITH d AS (DELETE FROM settings) SELECT 1"):
+    for sql in (
+        "COMMIT; DROP TABLE settings",
+        "SET transaction_read_only = off",
+        "BEGIN READ WRITE",
+        "ATTACH DATABASE 'x.db' AS x",
+        "WITH d AS (DELETE FROM settings) SELECT 1",
+    ):
         with pytest.raises(ReadOnlyError, match="--write"):
             q.execute(read_db, sql)
 
@@ -384,10 +492,14 @@ def test_statement_runs_as_the_reader_role(read_db: toaster.Database) -> None:
     if read_db.dialect_name != "postgresql":
         pytest.skip("PostgreSQL roles")
     assert q.execute(read_db, "SELECT current_user::text, session_user::text").rows == [
-        (READER_ROLE, "postgres")]
-    attrs = q.execute(read_db, "SELECT rolsuper, rolcreaterole, rolcreatedb, rolcanlogin, "
-                               "rolbypassrls FROM pg_roles WHERE rolname = :r",
-                      {"r": READER_ROLE})
+        (READER_ROLE, "postgres")
+    ]
+    attrs = q.execute(
+        read_db,
+        "SELECT rolsuper, rolcreaterole, rolcreatedb, rolcanlogin, "
+        "rolbypassrls FROM pg_roles WHERE rolname = :r",
+        {"r": READER_ROLE},
+    )
     assert attrs.rows == [(False, False, False, False, False)]
     with read_db.transaction() as conn:
         assert conn.exec_driver_sql("SELECT current_user").scalar() == "postgres"
@@ -430,18 +542,22 @@ def plain_role_url(db: toaster.Database, db_url: str) -> Iterator[str]:
         run = conn.exec_driver_sql
         run(f"CREATE ROLE {role} LOGIN NOSUPERUSER NOCREATEROLE")
         run(f"GRANT USAGE ON SCHEMA {run('SELECT current_schema()').scalar()} TO {role}")
-        run(f"GRANT SELECT ON ALL TABLES IN SCHEMA "
-            f"{run('SELECT current_schema()').scalar()} TO {role}")
+        run(
+            f"GRANT SELECT ON ALL TABLES IN SCHEMA "
+            f"{run('SELECT current_schema()').scalar()} TO {role}"
+        )
     try:
         yield db_url.replace("postgres@", f"{role}@", 1)
     finally:
         with db.transaction() as conn:  # its sessions' temporary objects go when they end
-            conn.exec_driver_sql(f"SELECT pg_terminate_backend(pid) FROM pg_stat_activity "
-                                 f"WHERE usename = '{role}'")
+            conn.exec_driver_sql(
+                f"SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE usename = '{role}'"
+            )
         for _ in range(1200):  # up to 60 s: ending a session takes longer under load
             with db.transaction() as conn:
-                if not conn.exec_driver_sql(f"SELECT count(*) FROM pg_stat_activity "
-                                            f"WHERE usename = '{role}'").scalar():
+                if not conn.exec_driver_sql(
+                    f"SELECT count(*) FROM pg_stat_activity WHERE usename = '{role}'"
+                ).scalar():
                     break
             time.sleep(0.05)
         with db.transaction() as conn:
@@ -451,31 +567,42 @@ def plain_role_url(db: toaster.Database, db_url: str) -> Iterator[str]:
 
 @pytest.mark.slow
 @pytest.mark.postgresql
-def test_a_role_that_cannot_create_roles_falls_back(plain_role_url: str, scratch: Path,
-                                                   db_url: str) -> None:
+def test_a_role_that_cannot_create_roles_falls_back(
+    plain_role_url: str, scratch: Path, db_url: str
+) -> None:
     """Without CREATEROLE (and not the tables' owner), statements run as the connecting role,
     still in the read-only wrapper: reads work, the hostile ones are still refused, and its
     other session survives."""
     role = plain_role_url.split("//", 1)[1].split("@", 1)[0]
-    other = psycopg.connect(PG_URL.replace("postgresql+psycopg://", "postgresql://")
-                            .replace("postgres@", f"{role}@", 1), autocommit=True)
+    other = psycopg.connect(
+        PG_URL.replace("postgresql+psycopg://", "postgresql://").replace(
+            "postgres@", f"{role}@", 1
+        ),
+        autocommit=True,
+    )
     plain = toaster.connect(plain_role_url)
     try:
         assert q.execute(plain, "SELECT current_user::text").rows == [(role,)]
         assert q.execute(plain, "SELECT count(*) FROM settings").rows == [(0,)]
-        for sql in ("SELECT pg_terminate_backend({pid})", "SELECT set_config('role', "
-                    "'postgres', true)", "COMMIT; DELETE FROM settings",
-                    "SELECT pg_advisory_lock(1)", "SET ROLE toaster_reader"):
-            expect_refused(plain, plain_role_url, sql.format(pid=other.info.backend_pid),
-                           scratch, other)
+        for sql in (
+            "SELECT pg_terminate_backend({pid})",
+            "SELECT set_config('role', 'postgres', true)",
+            "COMMIT; DELETE FROM settings",
+            "SELECT pg_advisory_lock(1)",
+            "SET ROLE toaster_reader",
+        ):
+            expect_refused(
+                plain, plain_role_url, sql.format(pid=other.info.backend_pid), scratch, other
+            )
     finally:
         plain.close()
         other.close()
 
 
 def _admin() -> psycopg.Connection[Any]:
-    return psycopg.connect(PG_URL.replace("postgresql+psycopg://", "postgresql://"),
-                           autocommit=True)
+    return psycopg.connect(
+        PG_URL.replace("postgresql+psycopg://", "postgresql://"), autocommit=True
+    )
 
 
 @pytest.fixture(scope="module")
@@ -501,16 +628,19 @@ def owner_url() -> Iterator[str]:
 
 #: Finding 1 of issue 24, as reported: toaster's own wrapper, called by name, runs the SQL in
 #: its string literal, which the statement check does not read.
-WRAPPER_CALL = ("SELECT * FROM pg_temp.toaster_readonly_run('SELECT pg_terminate_backend(pid)"
-                "::text FROM pg_stat_activity WHERE application_name = ''victim''', 100, "
-                "1000000) AS t(a text)")
+WRAPPER_CALL = (
+    "SELECT * FROM pg_temp.toaster_readonly_run('SELECT pg_terminate_backend(pid)"
+    "::text FROM pg_stat_activity WHERE application_name = ''victim''', 100, "
+    "1000000) AS t(a text)"
+)
 
 
 @pytest.mark.slow
 @pytest.mark.postgresql
 @pytest.mark.parametrize("reader", [False, True], ids=["fallback", "reader-role"])
-def test_the_wrapper_cannot_be_called_by_a_statement(owner_url: str, reader: bool,
-                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+def test_the_wrapper_cannot_be_called_by_a_statement(
+    owner_url: str, reader: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """A role owning its database, without CREATEROLE, once ended its own other session
     through ``pg_temp.toaster_readonly_run('...')``. The check refuses pg_temp; with the
     check switched off, the wrapper refuses to run inside a statement (it reads the call
@@ -519,16 +649,23 @@ def test_the_wrapper_cannot_be_called_by_a_statement(owner_url: str, reader: boo
     owner = make_url(owner_url).username
     if reader:  # as an administrator would: the role, its grants, and the owner may take it
         admin_url = make_url(PG_URL).set(database=make_url(owner_url).database)
-        with psycopg.connect(admin_url.render_as_string(hide_password=False).replace(
-                "postgresql+psycopg://", "postgresql://")) as admin:
+        with psycopg.connect(
+            admin_url.render_as_string(hide_password=False).replace(
+                "postgresql+psycopg://", "postgresql://"
+            )
+        ) as admin:
             assert readonly_pg.ensure_reader_role(admin.cursor()) is None
             admin.execute(f"GRANT {READER_ROLE} TO {owner}")
-    victim = psycopg.connect(owner_url.replace("postgresql+psycopg://", "postgresql://"),
-                             application_name="victim", autocommit=True)
+    victim = psycopg.connect(
+        owner_url.replace("postgresql+psycopg://", "postgresql://"),
+        application_name="victim",
+        autocommit=True,
+    )
     try:
         with closing(toaster.connect(owner_url)) as db:
             assert q.execute(db, "SELECT current_user::text").rows == [
-                (READER_ROLE if reader else owner,)]
+                (READER_ROLE if reader else owner,)
+            ]
         runner = CliRunner()
         refused = runner.invoke(cli, ["--db", owner_url, "execute", "SQL", WRAPPER_CALL])
         assert (refused.exit_code, victim.execute("SELECT 1").fetchone()) == (1, (1,))
@@ -551,21 +688,36 @@ def test_toasters_own_functions_are_refused(read_db: toaster.Database) -> None:
     spelled, are refused by the statement check."""
     if read_db.dialect_name != "postgresql":
         pytest.skip("PostgreSQL functions")
-    names = [name for (name,) in q.execute(
-        read_db, "SELECT proname::text FROM pg_proc WHERE pronamespace = "
-                 "current_schema()::regnamespace").rows]
+    names = [
+        name
+        for (name,) in q.execute(
+            read_db,
+            "SELECT proname::text FROM pg_proc WHERE pronamespace = current_schema()::regnamespace",
+        ).rows
+    ]
     assert "toaster_guard" in names and "toaster_belief_run" in names
     schema = q.execute(read_db, "SELECT current_schema()::text").rows[0][0]
     for name in names:
-        for sql in (f"SELECT {name}()", f'SELECT "{schema}"."{name}"()',
-                    f"SELECT x FROM {schema}.{name}() AS x"):
+        for sql in (
+            f"SELECT {name}()",
+            f'SELECT "{schema}"."{name}"()',
+            f"SELECT x FROM {schema}.{name}() AS x",
+        ):
             with pytest.raises(ReadOnlyError, match=name):
                 check_statement(sql, "postgresql")
-    for spelling in ("pg_temp", '"pg_temp"', "PG_TEMP", "pg_temp_12", "pg_toast_temp_3",
-                     '"pg_temp_3"'):
+    for spelling in (
+        "pg_temp",
+        '"pg_temp"',
+        "PG_TEMP",
+        "pg_temp_12",
+        "pg_toast_temp_3",
+        '"pg_temp_3"',
+    ):
         with pytest.raises(ReadOnlyError, match="temporary schema"):
-            check_statement(f"SELECT * FROM {spelling}.toaster_readonly_run('SELECT 1', 1, "
-                            "1) AS t(a int)", "postgresql")
+            check_statement(
+                f"SELECT * FROM {spelling}.toaster_readonly_run('SELECT 1', 1, 1) AS t(a int)",
+                "postgresql",
+            )
 
 
 # ---------------------------------------------------------------------------- reads
@@ -577,9 +729,12 @@ def test_ordinary_reads_still_work(store: toaster.Store) -> None:
     pg = db.dialect_name == "postgresql"
     positional = "SELECT %s AS a, %s AS b" if pg else "SELECT ? AS a, ? AS b"
     assert q.execute(db, positional, ["x", 2]).rows == [("x", 2)]
-    named = q.execute(db, "SELECT subject_id, '50%; :no' AS s FROM current_facts "
-                          "WHERE agent_id = :agent AND property = :p;", {"agent": "PR2_ROBOT",
-                                                                          "p": "IsOn"})
+    named = q.execute(
+        db,
+        "SELECT subject_id, '50%; :no' AS s FROM current_facts "
+        "WHERE agent_id = :agent AND property = :p;",
+        {"agent": "PR2_ROBOT", "p": "IsOn"},
+    )
     assert (named.columns, named.rows) == (["subject_id", "s"], [("MUG", "50%; :no")])
     view = q.execute(db, 'SELECT target_id FROM "fact_table_PR2_ROBOT"')
     assert view.rows == [("TABLE",)] and not view.truncated
@@ -587,17 +742,20 @@ def test_ordinary_reads_still_work(store: toaster.Store) -> None:
     assert with_query.rows == [(3,)]
     assert q.execute(db, "EXPLAIN SELECT * FROM entities").rows
     if pg:
-        assert q.execute(db, "(SELECT 1 AS a) UNION ALL (SELECT 2) ORDER BY 1").rows == [
-            (1,), (2,)]
+        assert q.execute(db, "(SELECT 1 AS a) UNION ALL (SELECT 2) ORDER BY 1").rows == [(1,), (2,)]
         assert q.execute(db, "SELECT 2::int AS n, $t$;$t$ AS s, E'\\'' AS q").rows == [
-            (2, ";", "'")]
+            (2, ";", "'")
+        ]
         assert q.execute(db, "SHOW standard_conforming_strings").rows == [("on",)]
         assert q.execute(db, "TABLE store_state").rows
         assert q.execute(db, "EXPLAIN (ANALYZE, COSTS OFF) SELECT 1").rows
     else:
         assert q.execute(db, "PRAGMA table_info(settings)").rows
         assert q.execute(db, "SELECT name FROM pragma_table_info('settings')").rows == [
-            ("scope",), ("key",), ("value_json",)]
+            ("scope",),
+            ("key",),
+            ("value_json",),
+        ]
 
 
 def test_row_cap_truncates(read_db: toaster.Database) -> None:
@@ -610,8 +768,11 @@ def test_row_cap_truncates(read_db: toaster.Database) -> None:
 
 def test_byte_cap_and_timeout(read_db: toaster.Database) -> None:
     """Past max_bytes or timeout_s: a one-line error naming the option to raise."""
-    wide = "SELECT hex(randomblob(5000))" if read_db.dialect_name == "sqlite" else \
-        "SELECT repeat('x', 10000)"
+    wide = (
+        "SELECT hex(randomblob(5000))"
+        if read_db.dialect_name == "sqlite"
+        else "SELECT repeat('x', 10000)"
+    )
     with pytest.raises(ToasterError, match="--max-bytes"):
         q.execute(read_db, wide, max_bytes=4096)
     assert q.execute(read_db, wide, max_bytes=20000).rows
@@ -620,15 +781,17 @@ def test_byte_cap_and_timeout(read_db: toaster.Database) -> None:
 
 
 @pytest.mark.slow
-def test_sqlite_memory_is_bounded(read_db: toaster.Database,
-                                  monkeypatch: pytest.MonkeyPatch) -> None:
+def test_sqlite_memory_is_bounded(
+    read_db: toaster.Database, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """A sort of endless rows stops at SQLite's heap limit (lowered here to be quick)."""
     if read_db.dialect_name != "sqlite":
         pytest.skip("SQLite's heap limit")
     monkeypatch.setattr(readonly_sqlite, "SQLITE_HEAP_LIMIT", 96 * 2**20)
     with pytest.raises(ToasterError, match="memory"):
-        q.execute(read_db, _ENDLESS + "SELECT x, hex(randomblob(50)) FROM c ORDER BY 2",
-                  timeout_s=60)
+        q.execute(
+            read_db, _ENDLESS + "SELECT x, hex(randomblob(50)) FROM c ORDER BY 2", timeout_s=60
+        )
     assert server_state(read_db)["pragmas"][4] == 0  # hard_heap_limit given back
 
 
@@ -640,11 +803,15 @@ def test_rows_stream_in_batches(read_db: toaster.Database) -> None:
         assert rows.columns == ["x"]
         assert [x for (x,) in rows] == list(range(1, 1001))
     assert rows.truncated
-    wide = _ENDLESS + ("SELECT x, hex(randomblob(100)) FROM c LIMIT 5000"
-                       if read_db.dialect_name == "sqlite" else
-                       "SELECT x, repeat('x', 200) FROM c LIMIT 5000")
-    with pytest.raises(ToasterError, match="--max-bytes"), \
-            q.execute_stream(read_db, wide, max_bytes=100_000):
+    wide = _ENDLESS + (
+        "SELECT x, hex(randomblob(100)) FROM c LIMIT 5000"
+        if read_db.dialect_name == "sqlite"
+        else "SELECT x, repeat('x', 200) FROM c LIMIT 5000"
+    )
+    with (
+        pytest.raises(ToasterError, match="--max-bytes"),
+        q.execute_stream(read_db, wide, max_bytes=100_000),
+    ):
         pytest.fail("a refused statement gave rows")
 
 
@@ -653,12 +820,17 @@ def test_sqlite_printf_past_the_bound_is_refused(read_db: toaster.Database) -> N
     which would pass for an answer: read-only SQL refuses it, naming --max-bytes."""
     if read_db.dialect_name != "sqlite":
         pytest.skip("SQLite's printf")
-    for sql in ("SELECT printf('%.*c', 5000, 'x')", "SELECT format('%5000d', 1)",
-                "SELECT length(printf('%s-%.*c', 'a', 20000000, 'x'))"):
+    for sql in (
+        "SELECT printf('%.*c', 5000, 'x')",
+        "SELECT format('%5000d', 1)",
+        "SELECT length(printf('%s-%.*c', 'a', 20000000, 'x'))",
+    ):
         with pytest.raises(ToasterError, match="printf.*--max-bytes"):
             q.execute(read_db, sql, max_bytes=4096)
-    same = ("SELECT printf('%d-%s', 5, 'a'), printf(NULL), format('%.3c|%5.1f|%x', 'x', "
-            "2.25, x'41'), printf('%s', NULL), printf('%!.3g %q', 1e20, 'it''s')")
+    same = (
+        "SELECT printf('%d-%s', 5, 'a'), printf(NULL), format('%.3c|%5.1f|%x', 'x', "
+        "2.25, x'41'), printf('%s', NULL), printf('%!.3g %q', 1e20, 'it''s')"
+    )
     with closing(sqlite3.connect(":memory:")) as plain:
         assert q.execute(read_db, same, max_bytes=4096).rows == [plain.execute(same).fetchone()]
 
@@ -673,14 +845,16 @@ def test_a_long_function_call_stops_at_the_deadline(read_db: toaster.Database) -
     haystack = "replace(hex(zeroblob(2097152)), '0', 'a')"  # 4 MiB of 'a'
     needle = "replace(hex(zeroblob(1048576)), '0', 'a') || 'b'"  # 2 MiB of 'a', then 'b'
     with pytest.raises(ToasterError, match="--timeout"):
-        q.execute(read_db, f"SELECT instr({haystack}, {needle})", timeout_s=1.0,
-                  max_bytes=8 * 2**20)
+        q.execute(
+            read_db, f"SELECT instr({haystack}, {needle})", timeout_s=1.0, max_bytes=8 * 2**20
+        )
     assert q.execute(read_db, "SELECT 1").rows == [(1,)]
 
 
 @pytest.mark.slow
-def test_the_deadline_starts_when_the_worker_is_ready(read_url: str,
-                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+def test_the_deadline_starts_when_the_worker_is_ready(
+    read_url: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """The deadline bounds the statement, not the start of its process (seconds on a loaded
     machine): a worker that takes 3 s to start runs a statement under a 2 s deadline. One
     that does not start in time, or ends as it starts, is a one-line error."""
@@ -691,19 +865,25 @@ def test_the_deadline_starts_when_the_worker_is_ready(read_url: str,
     with closing(toaster.connect(read_url)) as db:  # a worker of its own
         assert q.execute(db, "SELECT 1", timeout_s=2.0).rows == [(1,)]
     monkeypatch.setattr(readonly_sqlite, "START_TIMEOUT_S", 0.5)
-    for child, message in ((slow, "did not start within 0.5 s"),
-                           ("raise SystemExit(3)", "ended as it started .exit status 3")):
+    for child, message in (
+        (slow, "did not start within 0.5 s"),
+        ("raise SystemExit(3)", "ended as it started .exit status 3"),
+    ):
         monkeypatch.setattr(readonly_sqlite, "_CHILD", child)
-        with closing(toaster.connect(read_url)) as db, \
-                pytest.raises(ToasterError, match=message) as error:
+        with (
+            closing(toaster.connect(read_url)) as db,
+            pytest.raises(ToasterError, match=message) as error,
+        ):
             q.execute(db, "SELECT 1")
         assert "\n" not in str(error.value)
 
 
 def test_in_memory_sqlite_is_refused_in_one_line() -> None:
     """The statement's process cannot open an in-memory database: one line, not a guess."""
-    with open_database("sqlite://", allow_memory=True) as db, \
-            pytest.raises(ToasterError, match="in-memory database"):
+    with (
+        open_database("sqlite://", allow_memory=True) as db,
+        pytest.raises(ToasterError, match="in-memory database"),
+    ):
         q.execute(db, "SELECT 1")
 
 
@@ -731,24 +911,34 @@ def peak_rss(tmp_path: Path, *args: str) -> tuple[subprocess.CompletedProcess[st
     if not Path("/proc/self/status").exists():
         pytest.skip("peak RSS is read from /proc (Linux)")
     out = tmp_path / "rss.json"
-    result = subprocess.run([sys.executable, "-c", _PEAK, str(out), *args],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-                            check=False)
+    result = subprocess.run(
+        [sys.executable, "-c", _PEAK, str(out), *args],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        check=False,
+    )
     own, children = json.loads(out.read_text())
     return result, own * 1024, children * 1024
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("fmt", ["tsv", "--json"])
-def test_a_result_at_the_bound_prints_with_bounded_memory(read_url: str, tmp_path: Path,
-                                                          fmt: str) -> None:
+def test_a_result_at_the_bound_prints_with_bounded_memory(
+    read_url: str, tmp_path: Path, fmt: str
+) -> None:
     """Piped output is written as rows arrive: printing ~30 MiB of rows (under --max-bytes
     32 MiB) holds one batch, so the process's peak RSS stays within half the bound of
     printing one row (it held every row, then every formatted cell, before)."""
     bound = 32 * 2**20
-    sql = ("WITH RECURSIVE c(x) AS (SELECT 1 UNION ALL SELECT x + 1 FROM c LIMIT 30000) "
-           "SELECT x, hex(randomblob(500)) FROM c") if read_url.startswith("sqlite") else \
-        "SELECT x, repeat(md5(x::text), 31) FROM generate_series(1, 30000) AS x"
+    sql = (
+        (
+            "WITH RECURSIVE c(x) AS (SELECT 1 UNION ALL SELECT x + 1 FROM c LIMIT 30000) "
+            "SELECT x, hex(randomblob(500)) FROM c"
+        )
+        if read_url.startswith("sqlite")
+        else "SELECT x, repeat(md5(x::text), 31) FROM generate_series(1, 30000) AS x"
+    )
     options = ["--max-bytes", str(bound), *([fmt] if fmt != "tsv" else [])]
     args = ["--db", read_url, "execute", "SQL"]
     base, base_own, _ = peak_rss(tmp_path, *args, "SELECT 1 AS one", *options)
@@ -764,36 +954,63 @@ def test_big_values_are_refused_before_they_are_held(read_url: str, tmp_path: Pa
     batch of 1000 rows was fetched, ~0.9 GB, before the size was looked at), in one line,
     with nothing printed and memory near that of printing one row."""
     bound = 2**20
-    sql = ("WITH RECURSIVE c(x) AS (SELECT 1 UNION ALL SELECT x + 1 FROM c LIMIT 1000) "
-           "SELECT randomblob(900000) FROM c") if read_url.startswith("sqlite") else \
-        "SELECT decode(repeat('ab', 450000), 'hex') FROM generate_series(1, 1000)"
+    sql = (
+        (
+            "WITH RECURSIVE c(x) AS (SELECT 1 UNION ALL SELECT x + 1 FROM c LIMIT 1000) "
+            "SELECT randomblob(900000) FROM c"
+        )
+        if read_url.startswith("sqlite")
+        else "SELECT decode(repeat('ab', 450000), 'hex') FROM generate_series(1, 1000)"
+    )
     args = ["--db", read_url, "execute", "SQL"]
     _, base_own, _ = peak_rss(tmp_path, *args, "SELECT 1 AS one")
     big, own, children = peak_rss(tmp_path, *args, sql, "--max-bytes", str(bound))
     assert big.returncode == 1 and len(big.stderr.splitlines()) == 1, big.stderr
     assert "--max-bytes" in big.stderr and "Traceback" not in big.stderr
-    assert max(own, children) < base_own + 64 * 2**20, (own >> 20, children >> 20,
-                                                        base_own >> 20)
+    assert max(own, children) < base_own + 64 * 2**20, (own >> 20, children >> 20, base_own >> 20)
 
 
 #: (id, SQLite SQL, PostgreSQL SQL or None, options, the option the message names)
 REFUSALS = [
-    ("result-bytes", _ENDLESS + "SELECT x, hex(randomblob(100)) FROM c",
-     _ENDLESS + "SELECT x, repeat('x', 200) FROM c", ["--max-bytes", "100000"], "--max-bytes"),
-    ("one-value", "SELECT randomblob(2000000)", "SELECT repeat('x', 2000000)",
-     ["--max-bytes", "1048576"], "--max-bytes"),
-    ("time", _ENDLESS + "SELECT count(*) FROM c", _ENDLESS + "SELECT count(*) FROM c",
-     ["--timeout", "0.5"], "--timeout"),
-    ("printf-null", "SELECT length(printf('%.*c', 1000000000, 'x'))", None,
-     ["--timeout", "2", "--max-bytes", "1048576"], "--max-bytes|--timeout"),
+    (
+        "result-bytes",
+        _ENDLESS + "SELECT x, hex(randomblob(100)) FROM c",
+        _ENDLESS + "SELECT x, repeat('x', 200) FROM c",
+        ["--max-bytes", "100000"],
+        "--max-bytes",
+    ),
+    (
+        "one-value",
+        "SELECT randomblob(2000000)",
+        "SELECT repeat('x', 2000000)",
+        ["--max-bytes", "1048576"],
+        "--max-bytes",
+    ),
+    (
+        "time",
+        _ENDLESS + "SELECT count(*) FROM c",
+        _ENDLESS + "SELECT count(*) FROM c",
+        ["--timeout", "0.5"],
+        "--timeout",
+    ),
+    (
+        "printf-null",
+        "SELECT length(printf('%.*c', 1000000000, 'x'))",
+        None,
+        ["--timeout", "2", "--max-bytes", "1048576"],
+        "--max-bytes|--timeout",
+    ),
 ]
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("sqlite_sql", "pg_sql", "options", "bound"),
-                         [pytest.param(*case[1:], id=case[0]) for case in REFUSALS])
-def test_cli_refusal_names_the_bound(read_url: str, sqlite_sql: str, pg_sql: str | None,
-                                     options: list[str], bound: str) -> None:
+@pytest.mark.parametrize(
+    ("sqlite_sql", "pg_sql", "options", "bound"),
+    [pytest.param(*case[1:], id=case[0]) for case in REFUSALS],
+)
+def test_cli_refusal_names_the_bound(
+    read_url: str, sqlite_sql: str, pg_sql: str | None, options: list[str], bound: str
+) -> None:
     """Each bound's refusal is one line naming the option that raises it, exit 1, nothing
     on stdout (no row is printed before a statement is known to pass). The reported case:
     printf() made a NULL past the length limit, printed as an empty answer with exit 0."""
@@ -815,8 +1032,14 @@ def test_bad_bounds_are_refused(read_db: toaster.Database) -> None:
 
 def test_bad_text_is_a_one_line_error(read_db: toaster.Database) -> None:
     """NUL, lone surrogates and empty statements: SQL errors, not tracebacks."""
-    for sql, params in (("SELECT '\x00'", None), ("SELECT '\ud800'", None), ("", None),
-                        (" ; ", None), ("SELECT :a", {"a": "\ud800"}), ("SELECT :a", {})):
+    for sql, params in (
+        ("SELECT '\x00'", None),
+        ("SELECT '\ud800'", None),
+        ("", None),
+        (" ; ", None),
+        ("SELECT :a", {"a": "\ud800"}),
+        ("SELECT :a", {}),
+    ):
         with pytest.raises(ToasterError, match="SQL error"):
             q.execute(read_db, sql, params)
 
@@ -831,24 +1054,27 @@ def test_read_only_needs_its_own_transaction(read_db: toaster.Database) -> None:
 def test_write_still_writes(db: toaster.Database) -> None:
     """--write runs the statement as before and bumps the cache epoch."""
     epoch = q.execute(db, "SELECT cache_epoch FROM store_state").rows[0][0]
-    q.execute(db, "INSERT INTO settings VALUES (:s, 'colour', '\"red\"')", {"s": "test"},
-              write=True)
-    assert q.execute(db, "SELECT scope, value_json FROM settings").rows == [
-        ("test", '"red"')]
+    q.execute(
+        db, "INSERT INTO settings VALUES (:s, 'colour', '\"red\"')", {"s": "test"}, write=True
+    )
+    assert q.execute(db, "SELECT scope, value_json FROM settings").rows == [("test", '"red"')]
     assert q.execute(db, "SELECT cache_epoch FROM store_state").rows == [(epoch + 1,)]
 
 
 # ---------------------------------------------------------------------------- tokenizer
-@pytest.mark.parametrize(("sql", "dialect", "kinds"), [
-    ("SELECT E'\\'' ;", "postgresql", ["word", "string", "semi"]),
-    ("SELECT $a$ ' $a$, $1", "postgresql", ["word", "string", "op", "param"]),
-    ("/* a /* b */ c */ x", "postgresql", ["word"]),
-    ("/* a /* b */ x", "sqlite", ["word"]),
-    ("-- a\r x\n y", "postgresql", ["word", "word"]),
-    ("-- a\r x\n y", "sqlite", ["word"]),
-    ("a[1:n]::int", "postgresql", ["word", "op", "number", "op", "word", "op", "op", "word"]),
-    ('"a""b" [c] `d` x\'ff\'', "sqlite", ["ident", "ident", "ident", "string"]),
-])
+@pytest.mark.parametrize(
+    ("sql", "dialect", "kinds"),
+    [
+        ("SELECT E'\\'' ;", "postgresql", ["word", "string", "semi"]),
+        ("SELECT $a$ ' $a$, $1", "postgresql", ["word", "string", "op", "param"]),
+        ("/* a /* b */ c */ x", "postgresql", ["word"]),
+        ("/* a /* b */ x", "sqlite", ["word"]),
+        ("-- a\r x\n y", "postgresql", ["word", "word"]),
+        ("-- a\r x\n y", "sqlite", ["word"]),
+        ("a[1:n]::int", "postgresql", ["word", "op", "number", "op", "word", "op", "op", "word"]),
+        ('"a""b" [c] `d` x\'ff\'', "sqlite", ["ident", "ident", "ident", "string"]),
+    ],
+)
 def test_tokenizer(sql: str, dialect: str, kinds: list[str]) -> None:
     """Quotes, dollar quotes, nested comments and identifiers as each database reads them."""
     assert [t.kind for t in tokenize(sql, dialect)] == kinds
@@ -867,13 +1093,16 @@ def test_cli_refusal_is_one_line(read_url: str) -> None:
     """``execute SQL`` prints one line and exits 1 on a refused statement; a truncated result
     says so on stderr."""
     runner = CliRunner()
-    refused = runner.invoke(cli, ["--db", read_url, "execute", "SQL",
-                                  "COMMIT; DROP TABLE settings"])
+    refused = runner.invoke(
+        cli, ["--db", read_url, "execute", "SQL", "COMMIT; DROP TABLE settings"]
+    )
     assert refused.exit_code == 1
     assert len(refused.output.strip().splitlines()) == 1
     assert "--write" in refused.output and "Traceback" not in refused.output
-    capped = runner.invoke(cli, ["--db", read_url, "execute", "SQL", "VALUES (1), (2), (3)",
-                                 "--max-rows", "2", "--csv"])
+    capped = runner.invoke(
+        cli,
+        ["--db", read_url, "execute", "SQL", "VALUES (1), (2), (3)", "--max-rows", "2", "--csv"],
+    )
     assert capped.exit_code == 0, capped.output
     assert capped.stdout.splitlines()[1:] == ["1", "2"]
     assert "--max-rows" in capped.stderr

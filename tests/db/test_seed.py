@@ -53,20 +53,32 @@ timeline:
     (row,) = q.history(db, "R")
     base = toaster.timeutil.parse_time("2026-01-01T00:00:00Z")
     assert (row.valid_from_ns - base, row.valid_to_ns - base, row.confidence) == (
-        1_000_000_000, 2_500_000_000, 0.5)
+        1_000_000_000,
+        2_500_000_000,
+        0.5,
+    )
 
 
-@pytest.mark.parametrize(("content", "message"), [
-    ("facts: [", "cannot read"),
-    ("- just a list", "top level must be a mapping"),
-    ("entitys: []", "unknown section"),
-    ("entities: [{id: R, kind: robot, self: true}]\nfacts: [{subject: R, property: P, "
-     "confidence: 2}]", r"facts\[0\]: invalid confidence 2"),
-    ("entities: [{id: R, kind: robot, self: true}]\ntimeline: [{at: soon, facts: []}]",
-     "invalid time 'soon'"),
-])
-def test_bad_files_write_nothing(db: toaster.Database, tmp_path: Path, content: str,
-                                 message: str) -> None:
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        ("facts: [", "cannot read"),
+        ("- just a list", "top level must be a mapping"),
+        ("entitys: []", "unknown section"),
+        (
+            "entities: [{id: R, kind: robot, self: true}]\nfacts: [{subject: R, property: P, "
+            "confidence: 2}]",
+            r"facts\[0\]: invalid confidence 2",
+        ),
+        (
+            "entities: [{id: R, kind: robot, self: true}]\ntimeline: [{at: soon, facts: []}]",
+            "invalid time 'soon'",
+        ),
+    ],
+)
+def test_bad_files_write_nothing(
+    db: toaster.Database, tmp_path: Path, content: str, message: str
+) -> None:
     """A malformed file fails with a one-line error and leaves the database unchanged."""
     path = tmp_path / "bad.yaml"
     path.write_text(content)

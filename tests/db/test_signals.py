@@ -74,8 +74,7 @@ def test_signal_points_give_the_number_over_time(store: toaster.Store) -> None:
         store.sync_snapshot("am", "PR2_ROBOT", i * S, [_distance(v)])
     store.sync_snapshot("am", "PR2_ROBOT", 9 * S, [])
     points = q.signal(store.db, "PR2_ROBOT", property="Distance")
-    assert [(p.t_ns // S, p.value_num) for p in points] == [(0, 2.0), (2, 2.3), (4, 1.0),
-                                                            (9, None)]
+    assert [(p.t_ns // S, p.value_num) for p in points] == [(0, 2.0), (2, 2.3), (4, 1.0), (9, None)]
 
 
 def _world(seed: int) -> tuple[World, np.ndarray, np.random.Generator]:
@@ -108,11 +107,24 @@ def test_batches_store_exactly_what_lists_store(db_url: str, tmp_path, seed: int
                 world.commit()
                 batch = monitor.compute_batch(world, t)
                 store.sync_snapshot("am", "R", t, batch if as_batch else as_facts(batch))
-            hist = sorted((r.subject_id, r.property, r.sub_property, r.target_id, r.value_text,
-                           r.value_num, r.confidence, r.valid_from_ns, r.valid_to_ns)
-                          for r in q.history(db, "R"))
-            events = sorted((e.kind, e.stamp_ns, e.subject_id, e.property, e.target_id,
-                             e.value_num) for e in q.events(db, "R"))
+            hist = sorted(
+                (
+                    r.subject_id,
+                    r.property,
+                    r.sub_property,
+                    r.target_id,
+                    r.value_text,
+                    r.value_num,
+                    r.confidence,
+                    r.valid_from_ns,
+                    r.valid_to_ns,
+                )
+                for r in q.history(db, "R")
+            )
+            events = sorted(
+                (e.kind, e.stamp_ns, e.subject_id, e.property, e.target_id, e.value_num)
+                for e in q.events(db, "R")
+            )
             points = q.signal(db, "R")
             samples = count(db, "SELECT COUNT(*) FROM fact_samples")
         results.append((hist, events, points, samples))
@@ -135,9 +147,25 @@ def test_get_info_value_at_a_past_time_gives_the_number_then(db_url: str) -> Non
             store.sync_snapshot("agent_monitor", "PR2_ROBOT", t0 + i * S, [_distance(value)])
     runner = CliRunner()
     for at, want in (("12:00:00.5", 1.0), ("12:00:01.5", 1.3), ("12:00:02.5", 1.8)):
-        result = runner.invoke(cli, ["--db", db_url, "get-info", "FACT", "VALUE", "--subject",
-                                     "BOB", "--property", "Distance", "--target", "MUG",
-                                     "--at", f"2026-11-22T{at}Z", "--json"])
+        result = runner.invoke(
+            cli,
+            [
+                "--db",
+                db_url,
+                "get-info",
+                "FACT",
+                "VALUE",
+                "--subject",
+                "BOB",
+                "--property",
+                "Distance",
+                "--target",
+                "MUG",
+                "--at",
+                f"2026-11-22T{at}Z",
+                "--json",
+            ],
+        )
         assert result.exit_code == 0, result.output
         assert json.loads(result.output.splitlines()[0])["value_num"] == want
 
@@ -173,8 +201,16 @@ def test_batch_refresh_of_a_fact_another_writer_ended_reopens_it(db_url: str) ->
 
     def batch(value: float) -> FactBatch:
         out = FactBatch(world)
-        out.add("Distance", np.array([0]), np.array([1]), value_text="medium",
-                value_num=np.array([value]), conf=0.9, obs=0.0, sub_property="3D")
+        out.add(
+            "Distance",
+            np.array([0]),
+            np.array([1]),
+            value_text="medium",
+            value_num=np.array([value]),
+            conf=0.9,
+            obs=0.0,
+            sub_property="3D",
+        )
         return out
 
     with toaster.connect(db_url) as db, toaster.connect(db_url) as other_db:
@@ -190,4 +226,6 @@ def test_batch_refresh_of_a_fact_another_writer_ended_reopens_it(db_url: str) ->
         (row,) = q.current_facts(db, "R")
         assert (row.value_num, row.valid_from_ns) == (2.0, 5 * S)
         assert [(r.valid_from_ns, r.valid_to_ns) for r in q.history(db, "R")] == [
-            (1 * S, 4 * S), (5 * S, None)]
+            (1 * S, 4 * S),
+            (5 * S, None),
+        ]

@@ -22,30 +22,44 @@ def test_snapshot_diff_opens_changes_refreshes_and_ends(store: toaster.Store) ->
     db = store.db
     dist = Fact("BOB", "Distance", "MUG", "far", 3.0, 0.9, sub_property="3D")
     assert store.sync_snapshot("am", "PR2_ROBOT", 10, [ON, dist]).appeared == 2
-    assert store.sync_snapshot("am", "PR2_ROBOT", 20, [ON, dist._replace(value_num=2.5)]).refreshed == 1
+    assert (
+        store.sync_snapshot("am", "PR2_ROBOT", 20, [ON, dist._replace(value_num=2.5)]).refreshed
+        == 1
+    )
     result = store.sync_snapshot("am", "PR2_ROBOT", 30, [ON, dist._replace(value_text="medium")])
     assert (result.changed, result.unchanged) == (1, 1)
     assert store.sync_snapshot("am", "PR2_ROBOT", 40, [ON]).ended == 1
 
     history = q.history(db, "PR2_ROBOT", property="Distance")
     assert [(r.value_text, r.value_num, r.valid_from_ns, r.valid_to_ns) for r in history] == [
-        ("far", 2.5, 10, 30), ("medium", 3.0, 30, 40)]
-    kinds = [(e.kind, e.stamp_ns, e.previous_text) for e in q.events(db, "PR2_ROBOT",
-                                                                      property="Distance")]
+        ("far", 2.5, 10, 30),
+        ("medium", 3.0, 30, 40),
+    ]
+    kinds = [
+        (e.kind, e.stamp_ns, e.previous_text)
+        for e in q.events(db, "PR2_ROBOT", property="Distance")
+    ]
     assert kinds == [("appeared", 10, None), ("changed", 30, "far"), ("ended", 40, None)]
     current = q.current_facts(db, "PR2_ROBOT")
     assert [(r.subject_id, r.property, r.target_id, r.valid_from_ns) for r in current] == [
-        ("MUG", "IsOn", "TABLE", 10)]
+        ("MUG", "IsOn", "TABLE", 10)
+    ]
     assert current[0].observability == 0.8 and current[0].property_type == "position"
 
 
 def test_unchanged_snapshot_writes_nothing(store: toaster.Store) -> None:
     """A repeated snapshot leaves facts and events untouched."""
     store.sync_snapshot("pdg", "PR2_ROBOT", 1, [ON])
-    before = count(store.db, "SELECT count(*) FROM events"), count(store.db, "SELECT count(*) FROM facts")
+    before = (
+        count(store.db, "SELECT count(*) FROM events"),
+        count(store.db, "SELECT count(*) FROM facts"),
+    )
     for t in range(2, 20):
         assert store.sync_snapshot("pdg", "PR2_ROBOT", t, [ON]).unchanged == 1
-    after = count(store.db, "SELECT count(*) FROM events"), count(store.db, "SELECT count(*) FROM facts")
+    after = (
+        count(store.db, "SELECT count(*) FROM events"),
+        count(store.db, "SELECT count(*) FROM facts"),
+    )
     assert before == after == (1, 1)
 
 
@@ -56,7 +70,8 @@ def test_sources_are_diffed_separately(store: toaster.Store) -> None:
     store.sync_snapshot("monitor", "PR2_ROBOT", 1, [moving])
     store.sync_snapshot("monitor", "PR2_ROBOT", 2, [])
     assert [(r.property, r.source) for r in q.current_facts(store.db, "PR2_ROBOT")] == [
-        ("IsOn", "areas")]
+        ("IsOn", "areas")
+    ]
 
 
 def test_source_adopts_an_open_fact_of_another_source(store: toaster.Store) -> None:
@@ -96,13 +111,25 @@ def test_assert_and_retract_with_wildcards(store: toaster.Store) -> None:
     assert store.assert_fact("PR2_ROBOT", ON._replace(confidence=0.5), t_ns=2) == "refreshed"
     assert store.assert_fact("PR2_ROBOT", ON._replace(value_text="false"), t_ns=3) == "changed"
     store.assert_fact("PR2_ROBOT", Fact("BOX", "IsOn", "TABLE"), t_ns=3, strict=False)
-    store.assert_fact("PR2_ROBOT", Fact("MUG", "IsMovingToward", "BOB", sub_property="direction"),
-                      t_ns=3, strict=False)
-    store.assert_fact("PR2_ROBOT", Fact("MUG", "IsMovingToward", "BOB", sub_property="distance"),
-                      t_ns=3, strict=False)
+    store.assert_fact(
+        "PR2_ROBOT",
+        Fact("MUG", "IsMovingToward", "BOB", sub_property="direction"),
+        t_ns=3,
+        strict=False,
+    )
+    store.assert_fact(
+        "PR2_ROBOT",
+        Fact("MUG", "IsMovingToward", "BOB", sub_property="distance"),
+        t_ns=3,
+        strict=False,
+    )
     # the original deleted both IsMovingToward facts here (no subProperty in its key)
-    assert store.retract_facts("PR2_ROBOT", "IsMovingToward", "MUG", "BOB",
-                               sub_property="direction", t_ns=4) == 1
+    assert (
+        store.retract_facts(
+            "PR2_ROBOT", "IsMovingToward", "MUG", "BOB", sub_property="direction", t_ns=4
+        )
+        == 1
+    )
     assert store.retract_facts("PR2_ROBOT", "IsOn", "NULL", "TABLE", t_ns=5) == 2
     left = [(r.property, r.sub_property) for r in q.current_facts(store.db, "PR2_ROBOT")]
     assert left == [("IsMovingToward", "distance")]
@@ -115,19 +142,27 @@ def test_events_record_user_events(store: toaster.Store) -> None:
     store.record_event("PR2_ROBOT", Fact("BOB", "PickUp", "MUG"), t_ns=42)
     (event,) = q.events(store.db, kind="event")
     assert (event.subject_id, event.property, event.target_id, event.stamp_ns) == (
-        "BOB", "PickUp", "MUG", 42)
+        "BOB",
+        "PickUp",
+        "MUG",
+        42,
+    )
 
 
-@pytest.mark.parametrize(("fact", "message"), [
-    (Fact("", "IsOn", "TABLE"), "invalid subject id ''"),
-    (Fact("MUG", "", "TABLE"), "invalid property ''"),
-    (Fact("MUG", "IsOn", "TABLE", confidence=1.5), "invalid confidence 1.5"),
-    (Fact("MUG", "IsOn", "TABLE", confidence=math.nan), "invalid confidence nan"),
-    (Fact("MUG", "IsOn", "TABLE", observability=-0.1), "invalid observability -0.1"),
-    (Fact("MUG", "IsOn", "TABLE", value_num=math.inf), "invalid numeric value inf"),
-])
-def test_bad_facts_are_refused_and_nothing_is_written(store: toaster.Store, fact: Fact,
-                                                      message: str) -> None:
+@pytest.mark.parametrize(
+    ("fact", "message"),
+    [
+        (Fact("", "IsOn", "TABLE"), "invalid subject id ''"),
+        (Fact("MUG", "", "TABLE"), "invalid property ''"),
+        (Fact("MUG", "IsOn", "TABLE", confidence=1.5), "invalid confidence 1.5"),
+        (Fact("MUG", "IsOn", "TABLE", confidence=math.nan), "invalid confidence nan"),
+        (Fact("MUG", "IsOn", "TABLE", observability=-0.1), "invalid observability -0.1"),
+        (Fact("MUG", "IsOn", "TABLE", value_num=math.inf), "invalid numeric value inf"),
+    ],
+)
+def test_bad_facts_are_refused_and_nothing_is_written(
+    store: toaster.Store, fact: Fact, message: str
+) -> None:
     """A bad fact in a snapshot fails the whole tick with a one-line error naming it."""
     good = Fact("BOX", "IsOn", "TABLE")
     with pytest.raises(InvalidInputError, match=message.replace("(", r"\(")):
@@ -157,14 +192,19 @@ def test_time_order_is_enforced(store: toaster.Store) -> None:
 
 def test_hostile_ids_are_stored_literally(store: toaster.Store) -> None:
     """Quotes, semicolons and SQL in ids are data, never code; per-agent views still work."""
-    weird = "Bob's \"robot\"; DROP TABLE facts; -- :x %s"
+    weird = 'Bob\'s "robot"; DROP TABLE facts; -- :x %s'
     store.add_entity(weird, "robot")
     store.add_entity("o'neil; DELETE", "object")
     fact = Fact("o'neil; DELETE", "Is'On", "%(x)s ?", value_text="'); --")
     store.sync_snapshot(weird, weird, 1, [fact])
     (row,) = q.current_facts(store.db, weird)
     assert (row.subject_id, row.property, row.target_id, row.value_text, row.source) == (
-        "o'neil; DELETE", "Is'On", "%(x)s ?", "'); --", weird)
+        "o'neil; DELETE",
+        "Is'On",
+        "%(x)s ?",
+        "'); --",
+        weird,
+    )
     agent = next(a for a in q.agents(store.db) if a.id == weird)
     quoted = '"' + agent.fact_view.replace('"', '""') + '"'
     result = q.execute(store.db, f"SELECT subject_id, target_id FROM {quoted}")

@@ -66,8 +66,9 @@ def _progress(path: str | None, ticks: int) -> None:
         Path(path).write_text(str(ticks), encoding="utf-8")
 
 
-def write(url: str, role: str, ticks: int, seed: int,
-          progress: str | None = None) -> dict[str, Any]:
+def write(
+    url: str, role: str, ticks: int, seed: int, progress: str | None = None
+) -> dict[str, Any]:
     """``role`` is ``ROBOT:source``: ``ticks`` ticks (or what :data:`TIMEOUT_S` allows)."""
     robot, source = role.split(":")
     rng = random.Random(seed)
@@ -103,8 +104,13 @@ def write(url: str, role: str, ticks: int, seed: int,
             latencies.append(time.perf_counter() - start)
             _progress(progress, len(latencies))
             time.sleep(PAUSE_S)
-    return {"role": role, "ticks": len(latencies), "failures": failures,
-            "latencies": latencies, "last": [list(f) for f in last]}
+    return {
+        "role": role,
+        "ticks": len(latencies),
+        "failures": failures,
+        "latencies": latencies,
+        "last": [list(f) for f in last],
+    }
 
 
 def read(url: str, ticks: int, seed: int) -> dict[str, Any]:
@@ -129,12 +135,24 @@ def read(url: str, ticks: int, seed: int) -> dict[str, Any]:
                     failures.append(f"read: {type(exc).__name__}: {exc}"[:300])
             latencies.append(time.perf_counter() - start)
             time.sleep(0.01)
-    return {"role": "reader", "ticks": len(latencies), "failures": failures,
-            "latencies": latencies, "last": []}
+    return {
+        "role": "reader",
+        "ticks": len(latencies),
+        "failures": failures,
+        "latencies": latencies,
+        "last": [],
+    }
 
 
-def run(url: str, robot: str, path: str, rate: float, ticks: int,
-        holders: str | None = None, pace: str = "") -> dict[str, Any]:
+def run(
+    url: str,
+    robot: str,
+    path: str,
+    rate: float,
+    ticks: int,
+    holders: str | None = None,
+    pace: str = "",
+) -> dict[str, Any]:
     """``toaster run PATH --rate RATE`` as robot ``robot`` (the library path of the command:
     load, register, tick) for at most ``ticks`` ticks, timing each tick. The scenario's self
     (its robot's body) is renamed ``robot``: each writer is its own robot in the same scene,
@@ -151,11 +169,18 @@ def run(url: str, robot: str, path: str, rate: float, ticks: int,
         if session.self_id != robot:  # the scene's robot body is this robot, under its id
             text = Path(path).read_text(encoding="utf-8")
             mine = Path(tmp) / Path(path).name
-            mine.write_text(re.sub(rf"\b{re.escape(session.self_id)}\b", robot, text),
-                            encoding="utf-8")
+            mine.write_text(
+                re.sub(rf"\b{re.escape(session.self_id)}\b", robot, text), encoding="utf-8"
+            )
             session = load_session(mine, store.areas(), holders=holders)
-        runner = Runner(session.world, session.sources, session.producers, store=store,
-                        agent_id=robot, config=session.config)
+        runner = Runner(
+            session.world,
+            session.sources,
+            session.producers,
+            store=store,
+            agent_id=robot,
+            config=session.config,
+        )
         try:
             session.register(store)
         except Exception as exc:
@@ -171,8 +196,13 @@ def run(url: str, robot: str, path: str, rate: float, ticks: int,
             except Exception as exc:
                 failures.append(f"tick {t}: {type(exc).__name__}: {exc}"[:300])
             latencies.append(time.perf_counter() - start)
-    return {"role": f"run:{robot}", "ticks": len(latencies), "failures": failures,
-            "latencies": latencies, "last": []}
+    return {
+        "role": f"run:{robot}",
+        "ticks": len(latencies),
+        "failures": failures,
+        "latencies": latencies,
+        "last": [],
+    }
 
 
 def main(argv: list[str]) -> None:

@@ -24,19 +24,29 @@ HUMANS = ("ANNE", "BOB")
 
 def _world(t: int) -> list[Fact]:
     bob_room = "HALL" if t in (3, 4) else "LAB"
-    facts = [Fact("ANNE", "IsInRoom", "HALL" if t >= 8 else "LAB",
-                  confidence=0.9 if t in (2, 3) else 1.0),
-             Fact("BOB", "IsInRoom", bob_room),
-             Fact("BOX", "IsInRoom", "LAB"),
-             Fact("MUG", "IsInRoom", "LAB")]
+    facts = [
+        Fact(
+            "ANNE", "IsInRoom", "HALL" if t >= 8 else "LAB", confidence=0.9 if t in (2, 3) else 1.0
+        ),
+        Fact("BOB", "IsInRoom", bob_room),
+        Fact("BOX", "IsInRoom", "LAB"),
+        Fact("MUG", "IsInRoom", "LAB"),
+    ]
     if t >= 2:
         facts.append(Fact("MUG", "IsIn", "BOX"))
     if t in (4, 5):
         facts.append(Fact("BOX", "IsClosed"))
     color = {1: "red", 2: "red", 3: "blue", 4: "green", 8: "yellow"}.get(t, "green")
     facts.append(Fact("MUG", "Color", value_text=color))
-    facts.append(Fact("MUG", "Temperature", value_text="warm",
-                      value_num=20.0 if t < 7 else 25.0, confidence=0.9 if t < 6 else 0.8))
+    facts.append(
+        Fact(
+            "MUG",
+            "Temperature",
+            value_text="warm",
+            value_num=20.0 if t < 7 else 25.0,
+            confidence=0.9 if t < 6 else 0.8,
+        )
+    )
     if t >= 6:
         facts.append(Fact("MUG", "IsVisibleBy", "ANNE", confidence=0.7))
     return facts

@@ -80,7 +80,7 @@ def test_downgrade_with_nested_holders_named_oddly(empty_url: str) -> None:
     from toaster import Fact
     from toaster.beliefs import api
 
-    odd = ["a:b %s", "c'd \"e\""]
+    odd = ["a:b %s", 'c\'d "e"']
     with toaster.connect(empty_url) as db:
         store = db.store()
         store.add_entity("R", "robot", is_self=True, t_ns=0)
@@ -108,12 +108,17 @@ def _timelines(db: toaster.Database) -> dict[str, Any]:
     """Every holder's history, events and as-of beliefs at each tick (write times left out)."""
     from toaster.beliefs import api
 
-    return {holder: (
-        sorted(row._replace(recorded_ns=0) for row in q.history(db, holder)),
-        sorted(row[1:17] for row in q.events(db, holder)),  # no id, no recorded_ns
-        [sorted(row._replace(recorded_ns=0) for row in q.beliefs_at(db, holder, t))
-         for t in TICKS],
-    ) for holder in ["R", *api.holders(db)]}
+    return {
+        holder: (
+            sorted(row._replace(recorded_ns=0) for row in q.history(db, holder)),
+            sorted(row[1:17] for row in q.events(db, holder)),  # no id, no recorded_ns
+            [
+                sorted(row._replace(recorded_ns=0) for row in q.beliefs_at(db, holder, t))
+                for t in TICKS
+            ],
+        )
+        for holder in ["R", *api.holders(db)]
+    }
 
 
 def _schema_matches(engine: Any) -> None:
@@ -140,23 +145,36 @@ def test_a_database_written_before_the_squash_upgrades(tmp_path: Path) -> None:
     migrate.upgrade(engine)
     _schema_matches(engine)
     with engine.connect() as conn:
-        assert conn.exec_driver_sql(
-            "SELECT * FROM fact_history ORDER BY fact_id, key_id").all() == before
-        views: dict[str, str] = dict(conn.exec_driver_sql(
-            "SELECT name, sql FROM sqlite_master WHERE type = 'view'").all())
+        assert (
+            conn.exec_driver_sql("SELECT * FROM fact_history ORDER BY fact_id, key_id").all()
+            == before
+        )
+        views: dict[str, str] = dict(
+            conn.exec_driver_sql("SELECT name, sql FROM sqlite_master WHERE type = 'view'").all()
+        )
         # Nested holders moved out of entities and agents into holders (revision 0008).
         nested = conn.exec_driver_sql("SELECT id, depth FROM holders WHERE depth >= 2").all()
         assert nested and all(">" in h for h, _ in nested)
-        assert conn.exec_driver_sql(
-            "SELECT count(*) FROM entities WHERE kind = 'belief' OR id LIKE '%>%'").scalar() == 0
+        assert (
+            conn.exec_driver_sql(
+                "SELECT count(*) FROM entities WHERE kind = 'belief' OR id LIKE '%>%'"
+            ).scalar()
+            == 0
+        )
         assert conn.exec_driver_sql("SELECT count(*) FROM agents WHERE id LIKE '%>%'").scalar() == 0
     engine.dispose()
     fresh = tmp_path / "fresh.db"
     with toaster.connect(f"sqlite:///{fresh}") as db:
         beliefs_story.first_half(db)
         with db.transaction() as conn:
-            assert dict(conn.exec_driver_sql(
-                "SELECT name, sql FROM sqlite_master WHERE type = 'view'").all()) == views
+            assert (
+                dict(
+                    conn.exec_driver_sql(
+                        "SELECT name, sql FROM sqlite_master WHERE type = 'view'"
+                    ).all()
+                )
+                == views
+            )
         expected = _timelines(db)
         beliefs_story.second_half(db)
         expected_after = _timelines(db)
@@ -174,8 +192,14 @@ def _assert_well_formed(rows: list[Any]) -> None:
     """Per key: intervals in order, none overlapping, at most the last one open."""
     by_key: dict[tuple[Any, ...], list[Any]] = {}
     for row in rows:
-        key = (row.subject_id, row.subject_owner_id, row.property, row.sub_property,
-               row.target_id, row.target_owner_id)
+        key = (
+            row.subject_id,
+            row.subject_owner_id,
+            row.property,
+            row.sub_property,
+            row.target_id,
+            row.target_owner_id,
+        )
         by_key.setdefault(key, []).append(row)
     for key, intervals in by_key.items():
         intervals.sort(key=lambda r: r.valid_from_ns)
@@ -193,11 +217,14 @@ def test_a_database_at_the_previous_head_upgrades(empty_url: str, tmp_path: Path
     engine = make_engine(empty_url)
     migrate.downgrade(engine, "0005")
     with engine.begin() as conn:
-        conn.exec_driver_sql("CREATE TABLE belief_rules (backend TEXT NOT NULL, step TEXT NOT "
-                             "NULL, sql_text TEXT NOT NULL, CONSTRAINT pk_belief_rules "
-                             "PRIMARY KEY (backend, step))")
-        conn.exec_driver_sql("INSERT INTO belief_rules VALUES ('sqlite', '99_clear', "
-                             "'DELETE FROM belief_changed')")
+        conn.exec_driver_sql(
+            "CREATE TABLE belief_rules (backend TEXT NOT NULL, step TEXT NOT "
+            "NULL, sql_text TEXT NOT NULL, CONSTRAINT pk_belief_rules "
+            "PRIMARY KEY (backend, step))"
+        )
+        conn.exec_driver_sql(
+            "INSERT INTO belief_rules VALUES ('sqlite', '99_clear', 'DELETE FROM belief_changed')"
+        )
     migrate.upgrade(engine)
     _schema_matches(engine)
     engine.dispose()
@@ -224,83 +251,50 @@ RELEASED_FROZEN = {
     "0013_triggers.json": "547f86302e3d674714215160c0860f974d44e24dbe1bd2ded68a79856a4007b5",
     "0014_triggers.json": "a7a9a5db02fb811c6b6286df5d1a33268b2de2a0e495f5e2033620ed543a825c",
     "0015_triggers.json": "4c713be8ba342c5d22b2af7c9948e6d9e5287ddf053170e60cf8d17bad2cf436",
-    "0016_units.json":
-        "15c95a258d87e77bdefa006aa8888c6c875b961ff5e7d3d43e7edb9757ef9eaf",
-    "0016/00_temp.json":
-        "c12335edcfede1317721389cc215aba4e9e86fb20460d49d0ddffc76eab4fa37",
-    "0016/10_focus.json":
-        "254378fcc680a1752759c80498a4992e1d433c0e7c8d5ee04da3d5ac7ab9a40a",
-    "0016/12_moves.json":
-        "ac1e88ee9b6020bc168d4bafc460ca474b221a312b4c0faf224d6e4ed3ff3481",
-    "0016/13_late.json":
-        "989f88d91ba75af8c7d32a628413ccb39c4759c0b480836027b597d3dbc4ca9d",
-    "0016/15_ungroup.json":
-        "19f03a072cd524aaecf983782f5b1aa9adcee3b1dfee34be66f1d829190d374e",
-    "0016/20_perceive_0_around.json":
-        "f90a8a7a1a448247b10f753caadbb2dc1351c9abf57f0b6ab8792adec730e3d6",
-    "0016/20_perceive_1_after.json":
-        "3dac6e5c4266bf2339851a3338f23e51ff20675b454d4cff6cca330b6757e2f6",
-    "0016/20_perceive_1_before.json":
-        "1d4d76fbb7e80c3433dbf889a2ce995b082de509893f9d09371c85425a16191f",
-    "0016/30_changes_0.json":
-        "c93645297c2c58ebd486d12bfb3fcfa3271909efcd5c8c763e07d32682cc7014",
-    "0016/30_changes_1.json":
-        "7fb0ff5472685c086f71cd27007108b6ceb0c59f2eda2d0d7baea6f1c739d69c",
-    "0016/32_expand.json":
-        "f93aa4c22aba6102ebfe04e956795739f61b3c0324cd4b46af04f85c8b34b0ed",
-    "0016/35_freeze.json":
-        "a06653c345157c8f1e6e003654d0517e5546d315bf938548bf47ace3de19baab",
-    "0016/40_refresh.json":
-        "cdded6aa39a2c7a2dc8a9fba6c46039c21e4aeab5b3c7f31153a93efea06f653",
-    "0016/42_keep_max.json":
-        "4c7b2bbeb60f165c946c372b3e31f31cbb950c991afdc3d58f1960aaf1f14631",
-    "0016/45_resolve.json":
-        "4901028b0bb87e920d0a5f32335df32ebc12d19daddbafed67ca8928d7e8fafd",
-    "0016/50_keys.json":
-        "678e2e336ab32997c7b1891518bb5d33ff12897a2b5d70aa8f88acbad179c3ec",
-    "0016/55_switch.json":
-        "6e60bbb61a42cf3043de9a7f559ab16aa93f8ac720bf66498e3d0ea2a0644bdb",
-    "0016/58_frozen.json":
-        "71a29bc52700a1c42347e40ede6f07c6e1f93108ce8b5305db46aa91643b72f7",
-    "0016/60_plan.json":
-        "7baa34fdc819ec26f5c3f39b87861e8bee67401f05dc2bc6c4959b44f545209a",
-    "0016/70_events.json":
-        "376ee5fe9161d59606d68839659c06489ca241e2f83510b8661f34e3fc9eebf9",
-    "0016/80_close.json":
-        "01e495902e6fedfc793de2fc23eec653c5893494cc2efe54022cb119215e6c2d",
-    "0016/85_refresh_rows.json":
-        "3ef801b0ad66d9100ade6b97d27cd4bbd6b752c6caa4a4915eb06e32b4238015",
-    "0016/90_follow.json":
-        "ed89a30b642f843b6ae5c6bd6e13f0c4527408ebd4f5622691d5b71701479f7e",
-    "0016/91_open.json":
-        "791f46867f49e64410049f01299d0d2c8b13bfabf03486b185968b78294841b9",
-    "0016/92_repconf.json":
-        "877a4ab34803186085a4c9dbf1c013a8caf54aec8853f55c0af0c4d8fef782a0",
-    "0016/94_keep_groups.json":
-        "5ba876db4d0e452ec3bc70c0e782fc266d46a130bc68084a7ce5d6c3812f574e",
-    "0016/96_regroup.json":
-        "b6c0b5ca5a7a4954b9316b4141b28c3f9a96e0a7882e1b86631c482cf7b49c69",
-    "0016/99_clear.json":
-        "5068a7e7332dbc0e5c344cf318c05cc9a9987e2c50f1bf69b072ad91a75f39ba",
-    "0016/holders.json":
-        "7adb6c895373dbdbc34800939eca530ddc0bf3b6c86cf358587ecd8fccd27ee6",
-    "0016/holders_seen.json":
-        "0a2385798a3cc7b406b737e8c2e648d6e800b4b16330626e3e815f7e43ce2cc0",
-    "0016/inbox.json":
-        "52c8e35406bc33088a740f10aa05824d5354a107eccf66f4164e44eb72b9fc6a",
-    "0016/pipeline.json":
-        "2cd0b616cefbf61ebcfc65a39112438ad253242fde55c8fb8a809498a12dd252",
-    "0016/reperceive.json":
-        "135c9e86cf9d73fb4d44164a57a78491b43c0dd872d94d3de0dfc431fdf1c4dd",
-    "0016/ungroup.json":
-        "3f38619715bb5f9b468e20ff9bcc93255a26f476ede03caac98d64b047e22a0a",
+    "0016_units.json": "15c95a258d87e77bdefa006aa8888c6c875b961ff5e7d3d43e7edb9757ef9eaf",
+    "0016/00_temp.json": "c12335edcfede1317721389cc215aba4e9e86fb20460d49d0ddffc76eab4fa37",
+    "0016/10_focus.json": "254378fcc680a1752759c80498a4992e1d433c0e7c8d5ee04da3d5ac7ab9a40a",
+    "0016/12_moves.json": "ac1e88ee9b6020bc168d4bafc460ca474b221a312b4c0faf224d6e4ed3ff3481",
+    "0016/13_late.json": "989f88d91ba75af8c7d32a628413ccb39c4759c0b480836027b597d3dbc4ca9d",
+    "0016/15_ungroup.json": "19f03a072cd524aaecf983782f5b1aa9adcee3b1dfee34be66f1d829190d374e",
+    "0016/20_perceive_0_around.json": "f90a8a7a1a448247b10f753caadbb2dc1351c9abf57f0b6ab8792adec730e3d6",
+    "0016/20_perceive_1_after.json": "3dac6e5c4266bf2339851a3338f23e51ff20675b454d4cff6cca330b6757e2f6",
+    "0016/20_perceive_1_before.json": "1d4d76fbb7e80c3433dbf889a2ce995b082de509893f9d09371c85425a16191f",
+    "0016/30_changes_0.json": "c93645297c2c58ebd486d12bfb3fcfa3271909efcd5c8c763e07d32682cc7014",
+    "0016/30_changes_1.json": "7fb0ff5472685c086f71cd27007108b6ceb0c59f2eda2d0d7baea6f1c739d69c",
+    "0016/32_expand.json": "f93aa4c22aba6102ebfe04e956795739f61b3c0324cd4b46af04f85c8b34b0ed",
+    "0016/35_freeze.json": "a06653c345157c8f1e6e003654d0517e5546d315bf938548bf47ace3de19baab",
+    "0016/40_refresh.json": "cdded6aa39a2c7a2dc8a9fba6c46039c21e4aeab5b3c7f31153a93efea06f653",
+    "0016/42_keep_max.json": "4c7b2bbeb60f165c946c372b3e31f31cbb950c991afdc3d58f1960aaf1f14631",
+    "0016/45_resolve.json": "4901028b0bb87e920d0a5f32335df32ebc12d19daddbafed67ca8928d7e8fafd",
+    "0016/50_keys.json": "678e2e336ab32997c7b1891518bb5d33ff12897a2b5d70aa8f88acbad179c3ec",
+    "0016/55_switch.json": "6e60bbb61a42cf3043de9a7f559ab16aa93f8ac720bf66498e3d0ea2a0644bdb",
+    "0016/58_frozen.json": "71a29bc52700a1c42347e40ede6f07c6e1f93108ce8b5305db46aa91643b72f7",
+    "0016/60_plan.json": "7baa34fdc819ec26f5c3f39b87861e8bee67401f05dc2bc6c4959b44f545209a",
+    "0016/70_events.json": "376ee5fe9161d59606d68839659c06489ca241e2f83510b8661f34e3fc9eebf9",
+    "0016/80_close.json": "01e495902e6fedfc793de2fc23eec653c5893494cc2efe54022cb119215e6c2d",
+    "0016/85_refresh_rows.json": "3ef801b0ad66d9100ade6b97d27cd4bbd6b752c6caa4a4915eb06e32b4238015",
+    "0016/90_follow.json": "ed89a30b642f843b6ae5c6bd6e13f0c4527408ebd4f5622691d5b71701479f7e",
+    "0016/91_open.json": "791f46867f49e64410049f01299d0d2c8b13bfabf03486b185968b78294841b9",
+    "0016/92_repconf.json": "877a4ab34803186085a4c9dbf1c013a8caf54aec8853f55c0af0c4d8fef782a0",
+    "0016/94_keep_groups.json": "5ba876db4d0e452ec3bc70c0e782fc266d46a130bc68084a7ce5d6c3812f574e",
+    "0016/96_regroup.json": "b6c0b5ca5a7a4954b9316b4141b28c3f9a96e0a7882e1b86631c482cf7b49c69",
+    "0016/99_clear.json": "5068a7e7332dbc0e5c344cf318c05cc9a9987e2c50f1bf69b072ad91a75f39ba",
+    "0016/holders.json": "7adb6c895373dbdbc34800939eca530ddc0bf3b6c86cf358587ecd8fccd27ee6",
+    "0016/holders_seen.json": "0a2385798a3cc7b406b737e8c2e648d6e800b4b16330626e3e815f7e43ce2cc0",
+    "0016/inbox.json": "52c8e35406bc33088a740f10aa05824d5354a107eccf66f4164e44eb72b9fc6a",
+    "0016/pipeline.json": "2cd0b616cefbf61ebcfc65a39112438ad253242fde55c8fb8a809498a12dd252",
+    "0016/reperceive.json": "135c9e86cf9d73fb4d44164a57a78491b43c0dd872d94d3de0dfc431fdf1c4dd",
+    "0016/ungroup.json": "3f38619715bb5f9b468e20ff9bcc93255a26f476ede03caac98d64b047e22a0a",
 }
 
 
 def test_released_frozen_triggers_never_change() -> None:
     frozen = Path(toaster.__file__).parent / "migrations" / "frozen"
-    found = {path.relative_to(frozen).as_posix(): hashlib.sha256(path.read_bytes()).hexdigest()
-             for path in frozen.rglob("*.json")}
+    found = {
+        path.relative_to(frozen).as_posix(): hashlib.sha256(path.read_bytes()).hexdigest()
+        for path in frozen.rglob("*.json")
+    }
     changed = sorted(name for name in RELEASED_FROZEN if found.get(name) != RELEASED_FROZEN[name])
     assert not changed, f"released frozen triggers changed: {changed} (write a new revision)"
     assert sorted(found) == sorted(RELEASED_FROZEN), "pin a new revision's frozen file here"
@@ -313,14 +307,17 @@ def test_the_package_ships_every_frozen_file() -> None:
     if not pyproject.exists():
         pytest.skip("an installed package: no pyproject.toml beside it")
     globs = tomllib.loads(pyproject.read_text(encoding="utf-8"))["tool"]["setuptools"][
-        "package-data"]["toaster"]
+        "package-data"
+    ]["toaster"]
     for path in (package / "migrations" / "frozen").rglob("*.json"):
         relative = path.relative_to(package)
-        assert any(relative.match(glob) and len(relative.parts) == len(Path(glob).parts)
-                   for glob in globs), relative
+        assert any(
+            relative.match(glob) and len(relative.parts) == len(Path(glob).parts) for glob in globs
+        ), relative
 
 
 # -- Revision 0016: the rule's triggers per unit ------------------------------------------------
+
 
 def _normal(sql: str) -> str:
     return re.sub(r"\s+", " ", sql).strip()
@@ -330,14 +327,22 @@ def _rule_objects(engine: Any) -> set[str]:
     """The SQL of the rule's triggers (SQLite) or the bodies of its functions (PostgreSQL)."""
     with engine.connect() as conn:
         if engine.dialect.name == "sqlite":
-            return {_normal(sql) for (sql,) in conn.exec_driver_sql(
-                "SELECT sql FROM sqlite_master WHERE type = 'trigger' "
-                "AND name NOT LIKE '%_guard_%' AND name <> 'agents_holder'")}
-        return {_normal(src) for (src,) in conn.exec_driver_sql(
-            "SELECT prosrc FROM pg_proc WHERE (left(proname, 13) = 'toaster_step_' OR proname IN "
-            "('toaster_belief_run', 'toaster_fact_inbox', 'toaster_settings_changed', "
-            "'toaster_agents_changed')) AND pronamespace = "
-            "(SELECT oid FROM pg_namespace WHERE nspname = current_schema())")}
+            return {
+                _normal(sql)
+                for (sql,) in conn.exec_driver_sql(
+                    "SELECT sql FROM sqlite_master WHERE type = 'trigger' "
+                    "AND name NOT LIKE '%_guard_%' AND name <> 'agents_holder'"
+                )
+            }
+        return {
+            _normal(src)
+            for (src,) in conn.exec_driver_sql(
+                "SELECT prosrc FROM pg_proc WHERE (left(proname, 13) = 'toaster_step_' OR proname IN "
+                "('toaster_belief_run', 'toaster_fact_inbox', 'toaster_settings_changed', "
+                "'toaster_agents_changed')) AND pronamespace = "
+                "(SELECT oid FROM pg_namespace WHERE nspname = current_schema())"
+            )
+        }
 
 
 def _frozen_objects(backend: str, create: list[str]) -> set[str]:
@@ -350,17 +355,23 @@ def _frozen_sets(backend: str) -> dict[str, set[str]]:
     """What revisions 0015 and 0016 install (their frozen files, not the package's rendering)."""
     frozen = Path(toaster.__file__).parent / "migrations" / "frozen"
     whole = json.loads((frozen / "0015_triggers.json").read_text(encoding="utf-8"))
-    return {"0015": _frozen_objects(backend, whole[backend]["create"]),
-            "0016": _frozen_objects(backend, frozen_triggers.unit_statements("0016", backend, "create"))}
+    return {
+        "0015": _frozen_objects(backend, whole[backend]["create"]),
+        "0016": _frozen_objects(
+            backend, frozen_triggers.unit_statements("0016", backend, "create")
+        ),
+    }
 
 
 #: Changes written as a plain SQL client would (fact_inbox): the installed rule runs them.
-_INBOX = [("assert", "MUG", "Color", "", "purple", 50), ("assert", "BOB", "IsInRoom", "HALL",
-                                                         "true", 60),
-          ("retract", "MUG", "IsIn", "BOX", "true", 70), ("assert", "BOX", "IsClosed", "",
-                                                         "true", 80),
-          ("assert", "MUG", "Color", "", "white", 90), ("assert", "BOB", "IsInRoom", "LAB",
-                                                        "true", 100)]
+_INBOX = [
+    ("assert", "MUG", "Color", "", "purple", 50),
+    ("assert", "BOB", "IsInRoom", "HALL", "true", 60),
+    ("retract", "MUG", "IsIn", "BOX", "true", 70),
+    ("assert", "BOX", "IsClosed", "", "true", 80),
+    ("assert", "MUG", "Color", "", "white", 90),
+    ("assert", "BOB", "IsInRoom", "LAB", "true", 100),
+]
 
 
 def _inbox_story(url: str, revision: str) -> list[Any]:
@@ -372,17 +383,24 @@ def _inbox_story(url: str, revision: str) -> list[Any]:
     migrate.downgrade(engine, revision)
     with engine.begin() as conn:
         for action, subject, prop, target, value, t in _INBOX:
-            conn.execute(text(
-                "INSERT INTO fact_inbox (action, agent_id, subject_id, property, target_id, "
-                "value_text, t_ns) VALUES (:a, 'R', :s, :p, :tg, :v, :t)"),
-                {"a": action, "s": subject, "p": prop, "tg": target or None, "v": value, "t": t})
+            conn.execute(
+                text(
+                    "INSERT INTO fact_inbox (action, agent_id, subject_id, property, target_id, "
+                    "value_text, t_ns) VALUES (:a, 'R', :s, :p, :tg, :v, :t)"
+                ),
+                {"a": action, "s": subject, "p": prop, "tg": target or None, "v": value, "t": t},
+            )
     with engine.connect() as conn:
-        rows = [sorted(tuple(row) for row in conn.exec_driver_sql(sql)) for sql in (
-            "SELECT agent_id, subject_id, property, target_id, value_text, value_num, "
-            "confidence, valid_from_ns, valid_to_ns, source FROM fact_history",
-            "SELECT agent_id, kind, stamp_ns, subject_id, property, target_id, value_text, "
-            "confidence, previous_text, source FROM event_log",
-            "SELECT holder_id, position, member_id FROM belief_chain")]
+        rows = [
+            sorted(tuple(row) for row in conn.exec_driver_sql(sql))
+            for sql in (
+                "SELECT agent_id, subject_id, property, target_id, value_text, value_num, "
+                "confidence, valid_from_ns, valid_to_ns, source FROM fact_history",
+                "SELECT agent_id, kind, stamp_ns, subject_id, property, target_id, value_text, "
+                "confidence, previous_text, source FROM event_log",
+                "SELECT holder_id, position, member_id FROM belief_chain",
+            )
+        ]
     engine.dispose()
     return rows
 

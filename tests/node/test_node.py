@@ -31,8 +31,16 @@ class Clock:
         return self.t
 
 
-def walk(node: LiveNode, clock: Clock, ticks: int, *, who: str = "bob", speed: float = 1.0,
-         x0: float = 0.0, stamp_shift: int = 0) -> dict:
+def walk(
+    node: LiveNode,
+    clock: Clock,
+    ticks: int,
+    *,
+    who: str = "bob",
+    speed: float = 1.0,
+    x0: float = 0.0,
+    stamp_shift: int = 0,
+) -> dict:
     """``who`` walks along +x; a cup stands ahead; returns the last tick's facts. Poses are
     stamped ``stamp_shift`` ns away from the tick (another clock)."""
     facts: dict = {}
@@ -71,7 +79,8 @@ def test_poses_become_stored_facts_and_a_second_connection_controls_the_node(db,
     control.monitor_clear(other)
     facts = walk(node, clock, 1, x0=0.7)
     assert {("bob", "IsInRoom", "kitchen"), ("cup", "IsInRoom", "kitchen")} <= props(
-        facts, "area_manager")
+        facts, "area_manager"
+    )
     assert props(facts, "agent_monitor") == set()
     assert stored(db, "IsMoving") == set()
     control.monitor_add(other, "bob")
@@ -119,11 +128,13 @@ def test_put_in_hand_and_set_entity_pose_from_another_connection(db, other):
     node.world.add_entity("bob", "human")
     node.world.add_entity("bob/rightHand", "joint", owner_id="bob", name="rightHand")
     node.api.push("bob", (1.0, 1.0, 0.0), t_ns=t)
-    node.api.push("bob/rightHand", (1.3, 1.0, 1.0), kind="joint", owner_id="bob",
-                  joint="rightHand", t_ns=t)
+    node.api.push(
+        "bob/rightHand", (1.3, 1.0, 1.0), kind="joint", owner_id="bob", joint="rightHand", t_ns=t
+    )
     node.tick(t)
-    control.submit(other, "set_entity_pose", {"id": "mug", "position": [5, 5, 0.8],
-                                              "kind": "object"})
+    control.submit(
+        other, "set_entity_pose", {"id": "mug", "position": [5, 5, 0.8], "kind": "object"}
+    )
     node.tick(clock.next())
     assert node.world.pos[node.world.row("mug")].tolist() == pytest.approx([5, 5, 0.8])
     control.put_in_hand(other, "mug", "bob", "rightHand")
@@ -147,13 +158,21 @@ def test_queries_are_answered_by_the_running_node_between_its_ticks(db, other):
     thread = threading.Thread(target=node.run, kwargs={"stop": stop})
     thread.start()
     try:
-        answer = control.ask(other, "get_relative_position", {"subject": "bob", "target": "cup"},
-                             timeout_s=ANSWER_TIMEOUT_S)
+        answer = control.ask(
+            other,
+            "get_relative_position",
+            {"subject": "bob", "target": "cup"},
+            timeout_s=ANSWER_TIMEOUT_S,
+        )
         assert answer["angle"] == pytest.approx(0.0, abs=1e-6)
         assert thread.is_alive() and not stop.is_set()
         with pytest.raises(InvalidInputError, match="nobody"):
-            control.ask(other, "get_relative_position", {"subject": "bob", "target": "nobody"},
-                        timeout_s=ANSWER_TIMEOUT_S)
+            control.ask(
+                other,
+                "get_relative_position",
+                {"subject": "bob", "target": "nobody"},
+                timeout_s=ANSWER_TIMEOUT_S,
+            )
     finally:
         stop.set()
         thread.join()
@@ -170,8 +189,7 @@ def test_a_query_with_no_node_fails_with_a_hint_and_leaves_nothing_behind(db):
 
 @pytest.mark.slow
 def test_commands_given_with_no_node_running_apply_at_the_next_start(db, other):
-    control.submit(other, "set_entity_pose", {"id": "box", "position": [2, 1],
-                                              "kind": "object"})
+    control.submit(other, "set_entity_pose", {"id": "box", "position": [2, 1], "kind": "object"})
     other.store().put_area("kitchen", ROOM)
     node = LiveNode(db)
     node.tick(Clock().next())
@@ -193,11 +211,21 @@ def test_a_restart_carries_on_the_open_intervals(db_url):
         # still present, still in the kitchen: those intervals go on (motion needs a speed
         # window again after a restart, so IsMoving may pause)
         for prop in ("isPresent", "IsInRoom"):
-            assert count(db, "SELECT COUNT(*) FROM events e JOIN fact_keys k ON k.id = e.key_id "
-                             "WHERE k.property = :p AND e.kind = 'ended'", p=prop) == 0
-            assert count(db, "SELECT COUNT(*) FROM facts f JOIN fact_keys k ON k.id = f.key_id "
-                             "WHERE k.property = :p AND k.agent_id = 'toaster'",
-                         p=prop) == (1 if prop == "isPresent" else 2)
+            assert (
+                count(
+                    db,
+                    "SELECT COUNT(*) FROM events e JOIN fact_keys k ON k.id = e.key_id "
+                    "WHERE k.property = :p AND e.kind = 'ended'",
+                    p=prop,
+                )
+                == 0
+            )
+            assert count(
+                db,
+                "SELECT COUNT(*) FROM facts f JOIN fact_keys k ON k.id = f.key_id "
+                "WHERE k.property = :p AND k.agent_id = 'toaster'",
+                p=prop,
+            ) == (1 if prop == "isPresent" else 2)
         assert count(db, "SELECT COUNT(*) FROM events WHERE kind = 'appeared'") >= appeared
 
 
@@ -216,7 +244,8 @@ def test_bad_poses_are_refused_with_a_reason_and_the_node_keeps_ticking(db):
     facts = walk(node, clock, 20, x0=5.0, stamp_shift=-60 * 10**9)
     assert node.world.pos[node.world.row("bob"), 0] == pytest.approx(5.0 + 19 * TICK / 1e9)
     assert {("bob", "isPresent", ""), ("bob", "IsMoving", "")} <= (
-        props(facts, "pdg") | props(facts, "agent_monitor"))
+        props(facts, "pdg") | props(facts, "agent_monitor")
+    )
     assert node.stats.warnings >= 1
 
 

@@ -16,13 +16,18 @@ from toaster.queries import current_facts
 
 pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
 
-ROOM = json.dumps({"shape": "polygon", "points": [[-1, -1], [6, -1], [6, 2], [-1, 2]],
-                   "area_type": "room"})
+ROOM = json.dumps(
+    {"shape": "polygon", "points": [[-1, -1], [6, -1], [6, 2], [-1, 2]], "area_type": "room"}
+)
 
 
 def toaster_cli(url: str, *args: str, ok: bool = True) -> subprocess.CompletedProcess[str]:
-    result = subprocess.run([sys.executable, "-m", "toaster", "--db", url, *args],
-                            capture_output=True, text=True, timeout=60)
+    result = subprocess.run(
+        [sys.executable, "-m", "toaster", "--db", url, *args],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     if ok:
         assert result.returncode == 0, result.stderr
     return result
@@ -36,22 +41,28 @@ def wait_for(check, timeout: float = 10.0) -> None:
 
 
 def test_serve_applies_cli_commands_answers_queries_and_stops_on_sigterm(db_url):
-    node = subprocess.Popen([sys.executable, "-m", "toaster", "--db", db_url, "serve",
-                             "--rate", "30"], stderr=subprocess.PIPE, text=True)
+    node = subprocess.Popen(
+        [sys.executable, "-m", "toaster", "--db", db_url, "serve", "--rate", "30"],
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         toaster_cli(db_url, "entity", "pose", "cup", "3", "0", "0.8")
         toaster_cli(db_url, "entity", "pose", "bob", "0", "0", "--kind", "human")
         toaster_cli(db_url, "area", "add", "kitchen", "--spec", ROOM)
         with toaster.connect(db_url) as db:
+
             def in_kitchen() -> bool:
                 rows = current_facts(db, "toaster", property="IsInRoom")
                 return {(r.subject_id, r.target_id) for r in rows} == {
-                    ("bob", "kitchen"), ("cup", "kitchen")}
+                    ("bob", "kitchen"),
+                    ("cup", "kitchen"),
+                }
+
             wait_for(in_kitchen)
         answer = toaster_cli(db_url, "relative-position", "bob", "cup", "--timeout", "10")
         assert json.loads(answer.stdout)["angle"] == pytest.approx(0.0, abs=1e-6)
-        bad = toaster_cli(db_url, "relative-position", "bob", "ghost", "--timeout", "10",
-                          ok=False)
+        bad = toaster_cli(db_url, "relative-position", "bob", "ghost", "--timeout", "10", ok=False)
         assert bad.returncode == 1
         assert "unknown entity 'ghost'" in bad.stderr
         assert "Traceback" not in bad.stderr

@@ -36,9 +36,16 @@ def test_a_watcher_gets_matching_events_committed_by_another_writer(db_url):
         thread.start()
         assert ready.wait(10)
         time.sleep(0.2)
-        store.sync_snapshot("s", "R", 2, [Fact("BOOK", "IsOn", "TABLE"),
-                                          Fact("CUP", "IsOn", "TABLE"),   # no match: C*
-                                          Fact("BOX", "IsIn", "TABLE")])  # no match: IsIn
+        store.sync_snapshot(
+            "s",
+            "R",
+            2,
+            [
+                Fact("BOOK", "IsOn", "TABLE"),
+                Fact("CUP", "IsOn", "TABLE"),  # no match: C*
+                Fact("BOX", "IsIn", "TABLE"),
+            ],
+        )  # no match: IsIn
         sent = time.monotonic()
         store.sync_snapshot("s", "R", 3, [Fact("BALL", "IsOn", "SHELF")])
         thread.join(10)

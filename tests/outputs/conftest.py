@@ -25,8 +25,11 @@ def _pg_admin() -> Any:
     import psycopg
 
     try:
-        return psycopg.connect(PG_URL.replace("postgresql+psycopg://", "postgresql://"),
-                               autocommit=True, connect_timeout=3)
+        return psycopg.connect(
+            PG_URL.replace("postgresql+psycopg://", "postgresql://"),
+            autocommit=True,
+            connect_timeout=3,
+        )
     except psycopg.OperationalError as exc:
         reason = f"PostgreSQL at {PG_URL} unreachable: {str(exc).strip().splitlines()[0]}"
         if os.environ.get("TOASTER_REQUIRE_POSTGRES") == "1":
@@ -69,16 +72,19 @@ def build_run(db: toaster.Database) -> None:
     store.assert_fact("bob", on_shelf._replace(confidence=0.6), t_ns=T0 + 16 * S)
     far = Fact("alice", "Distance", "mug", "far", 3.0, 0.9, property_type="position")
     store.sync_snapshot("monitor", "pr2", T0 + 1 * S, [far])
-    store.sync_snapshot("monitor", "pr2", T0 + 5 * S, [far._replace(value_text="close",
-                                                                    value_num=1.0)])
-    store.sync_snapshot("monitor", "pr2", T0 + 8 * S, [far._replace(value_text="reach",
-                                                                    value_num=0.4)])
+    store.sync_snapshot(
+        "monitor", "pr2", T0 + 5 * S, [far._replace(value_text="close", value_num=1.0)]
+    )
+    store.sync_snapshot(
+        "monitor", "pr2", T0 + 8 * S, [far._replace(value_text="reach", value_num=0.4)]
+    )
     store.sync_snapshot("monitor", "pr2", T0 + 14 * S, [])
     store.sync_snapshot("monitor", "pr2", T0 + 20 * S, [])
 
 
-def open_built(db_url: str, build: Callable[[toaster.Database], None]
-               ) -> Iterator[toaster.Database]:
+def open_built(
+    db_url: str, build: Callable[[toaster.Database], None]
+) -> Iterator[toaster.Database]:
     """Open ``db_url``, fill it with ``build``, yield it, close it (fixture body)."""
     db = toaster.connect(db_url)
     try:
@@ -103,8 +109,9 @@ def run_scenario(db: toaster.Database, name: str, seconds: float) -> list[tuple[
 
     session = load_session(str(files("toaster") / "examples" / name))
     store, world = db.store(), session.world
-    runner = Runner(world, session.sources, session.producers, store=store,
-                    agent_id=session.self_id)
+    runner = Runner(
+        world, session.sources, session.producers, store=store, agent_id=session.self_id
+    )
     session.register(store)
     frames: list[tuple[Any, ...]] = []
 
@@ -135,10 +142,21 @@ def require_gnuplot() -> str:
 
 def require_system_rosbag() -> None:
     """Debian's python3-rosbag under /usr/bin/python3 (skips without it, fails under CI)."""
-    probe = subprocess.run([SYSTEM_PYTHON, "-c", "import sys; sys.path.append("
-                            "'/usr/lib/python3/dist-packages'); import rosbag, genpy, "
-                            "tf2_msgs.msg, visualization_msgs.msg, rosgraph_msgs.msg"],
-                           capture_output=True, text=True, check=False)
-    require_tool(probe.returncode == 0, "Debian's python3-rosbag is not importable under "
-                 "/usr/bin/python3 (apt-get install python3-rosbag python3-tf2-msgs "
-                 "python3-visualization-msgs)")
+    probe = subprocess.run(
+        [
+            SYSTEM_PYTHON,
+            "-c",
+            "import sys; sys.path.append("
+            "'/usr/lib/python3/dist-packages'); import rosbag, genpy, "
+            "tf2_msgs.msg, visualization_msgs.msg, rosgraph_msgs.msg",
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    require_tool(
+        probe.returncode == 0,
+        "Debian's python3-rosbag is not importable under "
+        "/usr/bin/python3 (apt-get install python3-rosbag python3-tf2-msgs "
+        "python3-visualization-msgs)",
+    )

@@ -18,8 +18,20 @@ pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's 
 def test_plot_facts_command(run_db: toaster.Database, db_url: str, tmp_path: Path) -> None:
     """The command writes the picture and reports the false belief; .dat names the script."""
     run = CliRunner().invoke
-    done = run(plot_facts, [str(tmp_path / "mug.png"), "-s", "mug", "-p", "IsOn",
-                            "--to", str(T0 + 20 * S), "--db", db_url])
+    done = run(
+        plot_facts,
+        [
+            str(tmp_path / "mug.png"),
+            "-s",
+            "mug",
+            "-p",
+            "IsOn",
+            "--to",
+            str(T0 + 20 * S),
+            "--db",
+            db_url,
+        ],
+    )
     assert done.exit_code == 0, done.output
     assert "1 false-belief spans" in done.output
     assert (tmp_path / "mug.png").stat().st_size > 1000
@@ -27,15 +39,16 @@ def test_plot_facts_command(run_db: toaster.Database, db_url: str, tmp_path: Pat
     assert "gnuplot -p" in done.output
 
 
-def test_commands_fail_in_one_line(run_db: toaster.Database, db_url: str,
-                                   tmp_path: Path) -> None:
+def test_commands_fail_in_one_line(run_db: toaster.Database, db_url: str, tmp_path: Path) -> None:
     """Bad input ends with exit 1 and one line naming it."""
     run = CliRunner().invoke
     done = run(plot_facts, [str(tmp_path / "x.png"), "-a", "carol", "--db", db_url])
     assert done.exit_code == 1
     lines = done.output.strip().splitlines()
     assert len(lines) == 1
-    assert lines[0].startswith("Error: unknown agent 'carol': known agents are 'pr2', 'alice', 'bob'")
+    assert lines[0].startswith(
+        "Error: unknown agent 'carol': known agents are 'pr2', 'alice', 'bob'"
+    )
     done = run(export, ["memory", str(tmp_path / "x.txt"), "--db", db_url])
     assert done.exit_code == 1
     assert "unknown export file suffix" in done.output

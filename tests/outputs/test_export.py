@@ -43,8 +43,9 @@ def test_exports_read_into_pandas(run_db: toaster.Database, tmp_path: Path, fmt:
     assert_frame_equal(got, want)
     assert str(got.valid_to_ns.dtype) == "Int64"
     assert str(got.valid_from.dtype) == "datetime64[ns, UTC]"
-    assert list(got.valid_to_ns) == [pd.NA if r.valid_to_ns is None else r.valid_to_ns
-                                     for r in rows]
+    assert list(got.valid_to_ns) == [
+        pd.NA if r.valid_to_ns is None else r.valid_to_ns for r in rows
+    ]
     assert list(got.valid_from.astype("int64")) == [r.valid_from_ns for r in rows]
     assert set(got.subject_owner_id) == {""}
     fields = to_dataframe(rows)  # the fields only: exact integers, Int64 where None may be
@@ -97,10 +98,8 @@ def test_csv_has_no_nan_for_empty_text(run_db: toaster.Database, tmp_path: Path)
 
 def test_filters_and_errors(run_db: toaster.Database, tmp_path: Path) -> None:
     """Filters as in get-info; bad input names the value and the fix."""
-    rows = read_rows(export(run_db, "events", tmp_path / "e.jsonl", agent="alice").path,
-                     "events")
-    assert [(e.agent_id, e.kind, e.target_id) for e in rows] == [
-        ("alice", "appeared", "table")]
+    rows = read_rows(export(run_db, "events", tmp_path / "e.jsonl", agent="alice").path, "events")
+    assert [(e.agent_id, e.kind, e.target_id) for e in rows] == [("alice", "appeared", "table")]
     with pytest.raises(UnknownAgentError, match="unknown agent 'carol'"):
         export(run_db, "memory", tmp_path / "m.csv", agent="carol")
     with pytest.raises(InvalidInputError, match="unknown export file suffix of .*m.xlsx"):
@@ -127,8 +126,10 @@ def test_history_export_rebuilds_the_store(run_db: toaster.Database, tmp_path: P
             if opens:
                 store.assert_fact(r.agent_id, Fact(*r.to_fact()), t_ns=t_ns, source=r.source)
             else:
-                store.retract_facts(r.agent_id, r.property, r.subject_id, r.target_id,
-                                    t_ns=t_ns, source=r.source)
+                store.retract_facts(
+                    r.agent_id, r.property, r.subject_id, r.target_id, t_ns=t_ns, source=r.source
+                )
+
         def strip(rs: list) -> list:
             return sorted(r._replace(recorded_ns=0) for r in rs)
 

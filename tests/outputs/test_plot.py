@@ -27,8 +27,16 @@ def _spans(timeline: Timeline) -> set[tuple[str, str, int, int, str, float | Non
             ends = [c.t_ns for c in series.changes[1:]] + [timeline.until_ns]
             for change, end in zip(series.changes, ends, strict=True):
                 if change.value is not None:
-                    out.add((lane.label, series.agent, change.t_ns, end, change.value,
-                             change.confidence))
+                    out.add(
+                        (
+                            lane.label,
+                            series.agent,
+                            change.t_ns,
+                            end,
+                            change.value,
+                            change.confidence,
+                        )
+                    )
     return out
 
 
@@ -41,12 +49,24 @@ def test_step_data_matches_the_intervals_exactly(run_db: toaster.Database) -> No
     for row in history(run_db, since=since, until=until):
         label = " ".join(p for p in (row.subject_id, row.property, row.target_id) if p)
         end = until if row.valid_to_ns is None else min(row.valid_to_ns, until)
-        expected.add((label, row.agent_id, max(row.valid_from_ns, since), end, row.value_text,
-                      row.confidence))
+        expected.add(
+            (
+                label,
+                row.agent_id,
+                max(row.valid_from_ns, since),
+                end,
+                row.value_text,
+                row.confidence,
+            )
+        )
     assert _spans(timeline) == expected
     pr2 = next(lane for lane in timeline.lanes if lane.label == "alice Distance mug").series[0]
     assert [(c.t_ns - T0, c.value) for c in pr2.changes] == [
-        (1 * S, "far"), (5 * S, "close"), (8 * S, "reach"), (14 * S, None)]
+        (1 * S, "far"),
+        (5 * S, "close"),
+        (8 * S, "reach"),
+        (14 * S, None),
+    ]
 
 
 def test_false_belief_and_unawareness_stand_out(run_db: toaster.Database) -> None:
@@ -54,8 +74,9 @@ def test_false_belief_and_unawareness_stand_out(run_db: toaster.Database) -> Non
     bob, who never saw it there, is unaware until he learns it is on the shelf."""
     timeline = build_timeline(run_db, property="IsOn", until=T0 + 20 * S)
     assert timeline.reference == "pr2"
-    found = {(d.lane, d.agent, d.start_ns - T0, d.end_ns - T0, d.kind)
-             for d in timeline.divergences}
+    found = {
+        (d.lane, d.agent, d.start_ns - T0, d.end_ns - T0, d.kind) for d in timeline.divergences
+    }
     assert ("mug IsOn table", "alice", 10 * S, 20 * S, FALSE_BELIEF) in found
     assert ("mug IsOn table", "bob", 0, 10 * S, UNAWARE) in found
     assert ("mug IsOn shelf", "bob", 10 * S, 16 * S, UNAWARE) in found
@@ -74,8 +95,15 @@ def test_pictures_are_written(run_db: toaster.Database, tmp_path: Path, fmt: str
 def test_gnuplot_dat_has_one_line_per_change(run_db: toaster.Database, tmp_path: Path) -> None:
     """The .dat holds one line per change plus a closing line per series (not one every
     0.1 ms), with the level held *after* each change (the original inverted it)."""
-    out = plot_facts(run_db, tmp_path / "mug.dat", subject="mug", property="IsOn",
-                     target="table", since=T0, until=T0 + 20 * S)
+    out = plot_facts(
+        run_db,
+        tmp_path / "mug.dat",
+        subject="mug",
+        property="IsOn",
+        target="table",
+        since=T0,
+        until=T0 + 20 * S,
+    )
     assert out.companion is not None
     assert "with steps" in out.companion.read_text()
     blocks = [b for b in out.path.read_text().split("\n\n\n") if b.strip()]
@@ -84,10 +112,12 @@ def test_gnuplot_dat_has_one_line_per_change(run_db: toaster.Database, tmp_path:
         head = next(line for line in block.splitlines() if line.startswith("# fact:"))
         agent = head.split("agent: ")[1].split(" |")[0]
         rows[agent] = [line.split() for line in block.splitlines() if not line.startswith("#")]
-    assert [(int(r[1]) - T0, int(r[2])) for r in rows["pr2"]] == [
-        (0, 1), (10 * S, 0), (20 * S, 0)]
+    assert [(int(r[1]) - T0, int(r[2])) for r in rows["pr2"]] == [(0, 1), (10 * S, 0), (20 * S, 0)]
     assert [(int(r[1]) - T0, int(r[2]), r[4]) for r in rows["alice"]] == [
-        (0, 0, '"-"'), (2 * S, 1, '"true"'), (20 * S, 1, '"true"')]
+        (0, 0, '"-"'),
+        (2 * S, 1, '"true"'),
+        (20 * S, 1, '"true"'),
+    ]
     assert rows["alice"][1][3] == "0.8"
 
 
@@ -99,8 +129,9 @@ def test_gnuplot_draws_the_script(run_db: toaster.Database, tmp_path: Path) -> N
     out = plot_facts(run_db, tmp_path / "all.dat")
     assert out.companion is not None
     script = f"set terminal svg\nset output 'all.svg'\n{out.companion.read_text()}"
-    done = subprocess.run(["gnuplot"], input=script, text=True, cwd=tmp_path,
-                          capture_output=True, check=False)
+    done = subprocess.run(
+        ["gnuplot"], input=script, text=True, cwd=tmp_path, capture_output=True, check=False
+    )
     assert done.returncode == 0, done.stderr
     assert (tmp_path / "all.svg").stat().st_size > 1000
 
@@ -128,15 +159,17 @@ def test_bad_input_gives_one_line_errors(run_db: toaster.Database, tmp_path: Pat
         plot_facts(run_db, tmp_path / "x.csv", subject="teapot")
 
 
-def test_missing_matplotlib_names_the_extra(run_db: toaster.Database, tmp_path: Path,
-                                            monkeypatch: pytest.MonkeyPatch) -> None:
+def test_missing_matplotlib_names_the_extra(
+    run_db: toaster.Database, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Without matplotlib a picture fails with the pip command; data files still work."""
     for name in [m for m in sys.modules if m.split(".")[0] == "matplotlib"]:
         monkeypatch.delitem(sys.modules, name)
     monkeypatch.setitem(sys.modules, "matplotlib", None)
     monkeypatch.setitem(sys.modules, "matplotlib.figure", None)
-    with pytest.raises(MissingDependencyError,
-                       match=r"plot-facts needs matplotlib: pip install 'toaster\[plot\]'"):
+    with pytest.raises(
+        MissingDependencyError, match=r"plot-facts needs matplotlib: pip install 'toaster\[plot\]'"
+    ):
         plot_facts(run_db, tmp_path / "x.png")
     assert plot_facts(run_db, tmp_path / "x.dat").path.exists()
 
@@ -147,27 +180,32 @@ def test_shipped_scenario_plots(tmp_path: Path) -> None:
     try:
         run_scenario(db, "scenario_flat.yaml", 30)
         for name in ("flat.png", "flat.dat"):
-            out = plot_facts(db, tmp_path / name, subject=["alice", "mug"],
-                             property=["IsInRoom", "IsInHand", "IsAt"])
+            out = plot_facts(
+                db,
+                tmp_path / name,
+                subject=["alice", "mug"],
+                property=["IsInRoom", "IsInHand", "IsAt"],
+            )
             assert out.path.stat().st_size > 0
         timeline = out.timeline
         rows = history(db, subject=["alice", "mug"], property=["IsInRoom", "IsInHand", "IsAt"])
         # By default the agents are plotted, not the nested holders (alice>bob: name them).
         assert timeline.agents == ["pr2", "alice", "bob"]
         assert len(_spans(timeline)) == len([r for r in rows if ">" not in r.agent_id])
-        keys = {(lane.key.subject_id, lane.key.property, lane.key.target_id)
-                for lane in timeline.lanes}
+        keys = {
+            (lane.key.subject_id, lane.key.property, lane.key.target_id) for lane in timeline.lanes
+        }
         assert keys >= {("mug", "IsInHand", "alice"), ("alice", "IsInRoom", "Kitchen")}
-        nested = plot_facts(db, tmp_path / "nested.dat", subject="mug",
-                            agents=["pr2", "alice>bob"]).timeline
+        nested = plot_facts(
+            db, tmp_path / "nested.dat", subject="mug", agents=["pr2", "alice>bob"]
+        ).timeline
         assert nested.agents == ["pr2", "alice>bob"]
         assert any(span[1] == "alice>bob" for span in _spans(nested))
     finally:
         db.close()
 
 
-def test_numbers_of_the_run_get_their_own_panel(run_db: toaster.Database,
-                                                tmp_path: Path) -> None:
+def test_numbers_of_the_run_get_their_own_panel(run_db: toaster.Database, tmp_path: Path) -> None:
     """alice's Distance to the mug (3.0, 1.0, 0.4 m over three intervals) is drawn as one
     unbroken step line under its bars, and ends where the fact ends (14 s)."""
     from toaster.outputs.plotting.render import number_gid
@@ -175,8 +213,9 @@ def test_numbers_of_the_run_get_their_own_panel(run_db: toaster.Database,
     out = plot_facts(run_db, tmp_path / "run.svg", subject="alice", since=T0, until=T0 + 20 * S)
     lane = next(lane for lane in out.timeline.lanes if lane.label == "alice Distance mug")
     assert [s.agent for s in lane.signals] == ["pr2"]
-    (line,) = [ln for ax in out.figure.axes for ln in ax.lines
-               if ln.get_gid() == number_gid(lane, "pr2")]
+    (line,) = [
+        ln for ax in out.figure.axes for ln in ax.lines if ln.get_gid() == number_gid(lane, "pr2")
+    ]
     points = list(zip(line.get_xdata(), line.get_ydata(), strict=True))
     assert points[1:4] == [(1, 3.0), (5, 1.0), (8, 0.4)]
     assert points[-2][0] == 14
@@ -189,6 +228,7 @@ def test_the_most_relevant_facts_are_kept(run_db: toaster.Database, tmp_path: Pa
     """With a cap, false beliefs come first (alice's mug on the table), then the facts that
     change most (the robot's distance to alice, four values), and the result says how many
     matching facts were left out; 0 draws every fact."""
+
     def kept(max_facts: int) -> tuple[list[str], int]:
         out = plot_facts(run_db, tmp_path / "capped.csv", max_facts=max_facts)
         return [lane.label for lane in out.timeline.lanes], out.left_out
@@ -211,13 +251,16 @@ def test_progress_is_reported_per_panel(run_db: toaster.Database, tmp_path: Path
     panels = len(out.figure.axes)
     assert calls[0][0] == "reading facts" and calls[-1][0] == "saving"
     assert [c for c in calls if c[0] == "drawing"] == [
-        ("drawing", i, panels) for i in range(1, panels + 1)]
+        ("drawing", i, panels) for i in range(1, panels + 1)
+    ]
 
 
 def _changes(lane: object) -> int:
     """Changes of value and of number of a lane (the relevance rule's third criterion)."""
-    return (sum(len(s.changes) - 1 for s in lane.series)  # type: ignore[attr-defined]
-            + sum(len(g.points) - 1 for g in lane.signals))  # type: ignore[attr-defined]
+    return (
+        sum(len(s.changes) - 1 for s in lane.series)  # type: ignore[attr-defined]
+        + sum(len(g.points) - 1 for g in lane.signals)
+    )  # type: ignore[attr-defined]
 
 
 def test_unfiltered_plot_of_a_large_replay_is_capped(db_url: str, tmp_path: Path) -> None:
@@ -297,20 +340,29 @@ def test_gnuplot_runs_from_any_directory(run_db: toaster.Database, tmp_path: Pat
     x = out.timeline.axis.offset_s
     want = [(x(T0 + t * S), metres) for t, metres in ((1, 3.0), (5, 1.0), (8, 0.4), (14, 0.4))]
     script = out.companion.read_text()
-    runs = {"own folder": (tmp_path / "out", ["run.gp"], None),
-            "relative": (tmp_path / "elsewhere", ["../out/run.gp"], None),
-            "absolute": (tmp_path / "elsewhere", [str(out.companion)], None),
-            "stdin": (tmp_path / "elsewhere", ["-"], script)}
+    runs = {
+        "own folder": (tmp_path / "out", ["run.gp"], None),
+        "relative": (tmp_path / "elsewhere", ["../out/run.gp"], None),
+        "absolute": (tmp_path / "elsewhere", [str(out.companion)], None),
+        "stdin": (tmp_path / "elsewhere", ["-"], script),
+    }
     for name, (cwd, args, stdin) in runs.items():
         table = tmp_path / f"{name}.txt"
-        done = subprocess.run([gnuplot, "-e", f"set table '{table}'", *args], cwd=cwd,
-                              input=stdin, text=True, capture_output=True, check=False)
+        done = subprocess.run(
+            [gnuplot, "-e", f"set table '{table}'", *args],
+            cwd=cwd,
+            input=stdin,
+            text=True,
+            capture_output=True,
+            check=False,
+        )
         assert done.returncode == 0, (name, done.stderr)
         assert "Cannot find" not in done.stderr, (name, done.stderr)
         curves = _table_curves(table)
         number_panel = curves["pr2"][-1]
-        assert [(round(a, 6), b) for a, b in number_panel] == [
-            (round(a, 6), b) for a, b in want], name
+        assert [(round(a, 6), b) for a, b in number_panel] == [(round(a, 6), b) for a, b in want], (
+            name
+        )
 
 
 @pytest.fixture
@@ -328,8 +380,9 @@ def sally_anne_db(db_url: str) -> Iterator[toaster.Database]:
     yield from open_built(db_url, build)
 
 
-def test_legend_says_what_a_nested_holder_is(sally_anne_db: toaster.Database,
-                                             tmp_path: Path) -> None:
+def test_legend_says_what_a_nested_holder_is(
+    sally_anne_db: toaster.Database, tmp_path: Path
+) -> None:
     """A plot showing ANNE>SALLY says in its legend (picture) and title (gnuplot) that it is
     what Anne thinks Sally believes, beside what the red hatching means; without nested
     holders, no such line."""
@@ -340,11 +393,11 @@ def test_legend_says_what_a_nested_holder_is(sally_anne_db: toaster.Database,
     texts = [t.get_text() for t in legend.get_texts()]
     assert note in texts
     assert "false belief: holds a value ROBOT (reference) does not" in texts
-    assert any(d.agent == "ANNE>SALLY" and d.kind == FALSE_BELIEF
-               for d in out.timeline.divergences)
+    assert any(d.agent == "ANNE>SALLY" and d.kind == FALSE_BELIEF for d in out.timeline.divergences)
     dat = plot_facts(sally_anne_db, tmp_path / "sa.dat", subject="MARBLE", agents=agents)
     assert dat.companion is not None
     assert note in dat.companion.read_text()
-    plain = plot_facts(sally_anne_db, tmp_path / "plain.png", subject="MARBLE",
-                       agents=["ROBOT", "SALLY"])
+    plain = plot_facts(
+        sally_anne_db, tmp_path / "plain.png", subject="MARBLE", agents=["ROBOT", "SALLY"]
+    )
     assert not [t for t in plain.figure.legends[0].get_texts() if ">" in t.get_text()]

@@ -33,22 +33,27 @@ mcap_reader = pytest.importorskip("mcap.reader")
 mcap_ros2 = pytest.importorskip("mcap_ros2.decoder")
 
 AREAS = [("kitchen", [(0.0, 0.0), (3.0, 0.0), (3.0, 2.0), (0.0, 2.0)])]
-FIXED_TOPICS = {("/tf", "tf2_msgs/msg/TFMessage"),
-                (ENTITIES_TOPIC, "visualization_msgs/msg/MarkerArray"),
-                ("/toaster/areas", "visualization_msgs/msg/MarkerArray"),
-                (FACTS_TOPIC, "rcl_interfaces/msg/Log"),
-                ("/pdg/humanList", "toaster_msgs/msg/HumanListStamped"),
-                ("/pdg/robotList", "toaster_msgs/msg/RobotListStamped"),
-                ("/pdg/objectList", "toaster_msgs/msg/ObjectListStamped"),
-                ("/area_manager/areaList", "toaster_msgs/msg/AreaList")}
+FIXED_TOPICS = {
+    ("/tf", "tf2_msgs/msg/TFMessage"),
+    (ENTITIES_TOPIC, "visualization_msgs/msg/MarkerArray"),
+    ("/toaster/areas", "visualization_msgs/msg/MarkerArray"),
+    (FACTS_TOPIC, "rcl_interfaces/msg/Log"),
+    ("/pdg/humanList", "toaster_msgs/msg/HumanListStamped"),
+    ("/pdg/robotList", "toaster_msgs/msg/RobotListStamped"),
+    ("/pdg/objectList", "toaster_msgs/msg/ObjectListStamped"),
+    ("/area_manager/areaList", "toaster_msgs/msg/AreaList"),
+}
 
 
 def _frames() -> list[tuple[Any, ...]]:
     """alice walks along x for 5 s; bob leaves after 2 s; the areas come with the first frame."""
     out = []
     for k in range(6):
-        entities = [("pr2", "robot", 1.0, 1.0, 0.0, 0.5), ("alice", "human", 2 + k, 1, 0, 3.1),
-                    ("mug", "object", 1.5, 1.5, 0.75, 0.0)]
+        entities = [
+            ("pr2", "robot", 1.0, 1.0, 0.0, 0.5),
+            ("alice", "human", 2 + k, 1, 0, 3.1),
+            ("mug", "object", 1.5, 1.5, 0.75, 0.0),
+        ]
         if k < 3:
             entities.append(("bob", "human", 0.5, 0.5, 0.0, 0.0))
         out.append((T0 + k * S, entities, AREAS if k == 0 else None))
@@ -72,11 +77,13 @@ def _read(path: Path) -> list[tuple[str, str, int, Any]]:
     out = []
     with path.open("rb") as handle:
         for schema, channel, message in mcap_reader.make_reader(handle).iter_messages(
-                log_time_order=True):
+            log_time_order=True
+        ):
             if schema.id not in decoders:
                 decoders[schema.id] = _decoder(factory, channel.message_encoding, schema)
-            out.append((channel.topic, schema.name, message.log_time,
-                        decoders[schema.id](message.data)))
+            out.append(
+                (channel.topic, schema.name, message.log_time, decoders[schema.id](message.data))
+            )
     return out
 
 
@@ -94,20 +101,25 @@ def test_recording_replays_frames_and_facts(run_db: toaster.Database, tmp_path: 
     # /tf, pdg's lists, the area list and a belief channel per agent joined the three original
     # topics; no factList topic: this database's facts come from "user" and "monitor", none of
     # the four producers
-    beliefs = {(f"/toaster/beliefs/{a}", "toaster_recording/msg/Beliefs")
-               for a in ("pr2", "alice", "bob")}
+    beliefs = {
+        (f"/toaster/beliefs/{a}", "toaster_recording/msg/Beliefs") for a in ("pr2", "alice", "bob")
+    }
     assert {(t, s) for t, s, _, _ in messages} == FIXED_TOPICS | beliefs
     assert result.beliefs == sum(t.startswith("/toaster/beliefs/") for t, *_ in messages)
 
     def mug_on(agent: str, t_ns: int) -> set[str]:
         held = [m for stamp, m in _on(messages, f"/toaster/beliefs/{agent}") if stamp <= t_ns]
-        return {f.target_id for f in held[-1].facts if (f.subject_id, f.property) == ("mug",
-                                                                                     "IsOn")}
+        return {
+            f.target_id for f in held[-1].facts if (f.subject_id, f.property) == ("mug", "IsOn")
+        }
 
     # the robot saw the mug move to the shelf at 10 s; alice keeps her false belief (table);
     # bob only learns of the shelf at 16 s
-    assert [mug_on(a, T0 + 12 * S) for a in ("pr2", "alice", "bob")] == [{"shelf"}, {"table"},
-                                                                         set()]
+    assert [mug_on(a, T0 + 12 * S) for a in ("pr2", "alice", "bob")] == [
+        {"shelf"},
+        {"table"},
+        set(),
+    ]
     assert mug_on("bob", T0 + 17 * S) == {"shelf"}
     frames = [m for _, m in _on(messages, ENTITIES_TOPIC)]
     assert len(frames) == 6
@@ -118,8 +130,9 @@ def test_recording_replays_frames_and_facts(run_db: toaster.Database, tmp_path: 
     # bodies are drawn by toaster.outputs.markers: namespace = entity id, id 0 = the body
     alice = next(m for m in frames[5].markers if m.ns == "alice" and m.id == 0)
     assert alice.type == CYLINDER and alice.pose.position.x == pytest.approx(7.0)
-    outline = [m for _, a in _on(messages, "/toaster/areas") for m in a.markers
-               if m.type == LINE_STRIP]
+    outline = [
+        m for _, a in _on(messages, "/toaster/areas") for m in a.markers if m.type == LINE_STRIP
+    ]
     assert [(p.x, p.y) for p in outline[0].points] == [*AREAS[0][1], AREAS[0][1][0]]
     lines = [(stamp - T0, m.msg) for stamp, m in _on(messages, FACTS_TOPIC)]
     assert (10 * S, "pr2: mug IsOn table ended") in lines
@@ -130,20 +143,25 @@ def test_recording_replays_frames_and_facts(run_db: toaster.Database, tmp_path: 
 def test_tf_has_pdg_frame_names_and_full_poses(tmp_path: Path) -> None:
     """/tf: objects "<id>", agents "<id>/base", joints "<agent>/<joint>", parent map, no
     leading slash; roll, pitch and yaw all reach the quaternion."""
-    entities = [EntityPose("alice", "human", 1.0, 2.0, 0.0, 0.5),
-                EntityPose("alice/head", "joint", 1.0, 2.0, 1.6, 0.7, 0.1, -0.2,
-                           owner="alice", name="head"),
-                EntityPose("mug", "object", 3.0, 1.0, 0.8, 1.0, 0.3, 0.2),
-                ("pr2", "robot", 0.0, 0.0, 0.0, -1.0)]
+    entities = [
+        EntityPose("alice", "human", 1.0, 2.0, 0.0, 0.5),
+        EntityPose(
+            "alice/head", "joint", 1.0, 2.0, 1.6, 0.7, 0.1, -0.2, owner="alice", name="head"
+        ),
+        EntityPose("mug", "object", 3.0, 1.0, 0.8, 1.0, 0.3, 0.2),
+        ("pr2", "robot", 0.0, 0.0, 0.0, -1.0),
+    ]
     result = record(tmp_path / "tf", [(T0, entities, None)])
     ((stamp, tf),) = _on(_read(result.mcap), "/tf")
     poses = {tr.child_frame_id: tr for tr in tf.transforms}
     assert set(poses) == {"alice/base", "alice/head", "mug", "pr2/base"}
     assert {tr.header.frame_id for tr in tf.transforms} == {"map"}
     assert stamp == T0 and {tr.header.stamp.sec for tr in tf.transforms} == {T0 // S}
-    for frame, (x, y, z, roll, pitch, yaw) in {"mug": (3.0, 1.0, 0.8, 0.3, 0.2, 1.0),
-                                               "alice/head": (1.0, 2.0, 1.6, 0.1, -0.2, 0.7),
-                                               "pr2/base": (0, 0, 0, 0, 0, -1.0)}.items():
+    for frame, (x, y, z, roll, pitch, yaw) in {
+        "mug": (3.0, 1.0, 0.8, 0.3, 0.2, 1.0),
+        "alice/head": (1.0, 2.0, 1.6, 0.1, -0.2, 0.7),
+        "pr2/base": (0, 0, 0, 0, 0, -1.0),
+    }.items():
         t = poses[frame].transform
         assert (t.translation.x, t.translation.y, t.translation.z) == pytest.approx((x, y, z))
         q = (t.rotation.x, t.rotation.y, t.rotation.z, t.rotation.w)
@@ -153,17 +171,22 @@ def test_tf_has_pdg_frame_names_and_full_poses(tmp_path: Path) -> None:
 def test_shapes_use_entity_sizes(tmp_path: Path) -> None:
     """Boxes of the entities' sizes (defaults per kind otherwise), agents with a heading arrow,
     joints as small spheres."""
-    entities = [EntityPose("table", "object", 2.0, 0.0, 0.0, 0.0, size=(1.2, 0.8, 0.75)),
-                EntityPose("ball", "object", 2.0, 0.0, 0.8, 0.0),
-                {"id": "pr2", "kind": "robot", "x": 0, "y": 0, "z": 0, "yaw": 0,
-                 "size": [0.5, 0.5, 1.3]},
-                EntityPose("alice", "human", 1.0, 1.0, 0.0, 0.0),
-                EntityPose("alice/head", "joint", 1.0, 1.0, 1.6, 0.0, owner="alice")]
+    entities = [
+        EntityPose("table", "object", 2.0, 0.0, 0.0, 0.0, size=(1.2, 0.8, 0.75)),
+        EntityPose("ball", "object", 2.0, 0.0, 0.8, 0.0),
+        {"id": "pr2", "kind": "robot", "x": 0, "y": 0, "z": 0, "yaw": 0, "size": [0.5, 0.5, 1.3]},
+        EntityPose("alice", "human", 1.0, 1.0, 0.0, 0.0),
+        EntityPose("alice/head", "joint", 1.0, 1.0, 1.6, 0.0, owner="alice"),
+    ]
     result = record(tmp_path / "shapes", [(T0, entities, None)])
     ((_, array),) = _on(_read(result.mcap), ENTITIES_TOPIC)
     body = {m.ns: m for m in array.markers if m.id == 0 and m.ns}
-    assert {ns: m.type for ns, m in body.items()} == {"table": CUBE, "ball": CUBE, "pr2": CUBE,
-                                                      "alice": CYLINDER}
+    assert {ns: m.type for ns, m in body.items()} == {
+        "table": CUBE,
+        "ball": CUBE,
+        "pr2": CUBE,
+        "alice": CYLINDER,
+    }
     scale = {ns: (m.scale.x, m.scale.y, m.scale.z) for ns, m in body.items()}
     assert scale["table"] == pytest.approx((1.2, 0.8, 0.75))
     assert scale["ball"] == pytest.approx((0.2, 0.2, 0.2))  # no size: the object default
@@ -180,22 +203,36 @@ def test_shapes_use_entity_sizes(tmp_path: Path) -> None:
 def test_circles_and_owner_relative_areas(tmp_path: Path) -> None:
     """Circles as discs, polygons as outlines, areas owned by an entity moved and turned with
     it at every frame, each with its name; the area list carries their specs."""
-    areas = [("table_zone", {"shape": "circle", "center": [4.0, 1.0], "radius": 1.5}),
-             ("front", {"shape": "polygon", "owner": "pr2",
-                        "points": [[0, -1], [2, -1], [2, 1], [0, 1]]}),
-             *AREAS]
-    frames = [(T0 + k * S, [("pr2", "robot", float(k), 0.0, 0.0, k * math.pi / 2)],
-               areas if k == 0 else None) for k in range(2)]
+    areas = [
+        ("table_zone", {"shape": "circle", "center": [4.0, 1.0], "radius": 1.5}),
+        (
+            "front",
+            {"shape": "polygon", "owner": "pr2", "points": [[0, -1], [2, -1], [2, 1], [0, 1]]},
+        ),
+        *AREAS,
+    ]
+    frames = [
+        (
+            T0 + k * S,
+            [("pr2", "robot", float(k), 0.0, 0.0, k * math.pi / 2)],
+            areas if k == 0 else None,
+        )
+        for k in range(2)
+    ]
     messages = _read(record(tmp_path / "areas", frames).mcap)
     drawn = [m for _, m in _on(messages, "/toaster/areas")]
     assert len(drawn) == 2  # redrawn as the owner moved
     first = {(m.ns, m.type): m for m in drawn[0].markers}
     disc = first["table_zone", CYLINDER]
     assert (disc.pose.position.x, disc.pose.position.y, disc.scale.x) == (4.0, 1.0, 3.0)
-    assert {m.text for m in drawn[0].markers if m.type == TEXT} == {"table_zone", "front",
-                                                                   "kitchen"}
-    outlines = [next(m for m in d.markers if m.ns == "front" and m.type == LINE_STRIP)
-                for d in drawn]
+    assert {m.text for m in drawn[0].markers if m.type == TEXT} == {
+        "table_zone",
+        "front",
+        "kitchen",
+    }
+    outlines = [
+        next(m for m in d.markers if m.ns == "front" and m.type == LINE_STRIP) for d in drawn
+    ]
     corners = [[(round(p.x, 6), round(p.y, 6)) for p in m.points] for m in outlines]
     assert corners[0][:4] == [(0, -1), (2, -1), (2, 1), (0, 1)]
     assert corners[1][:4] == [(2, 0), (2, 2), (0, 2), (0, 0)]  # moved 1 m, turned 90°
@@ -228,8 +265,10 @@ def test_fact_lists_hold_the_current_facts(db_url: str, tmp_path: Path) -> None:
     where they changed (and at the first frame), as toaster_msgs/FactList."""
     db = _facts_db(db_url)
     try:
-        frames = [(T0 + k * S // 2, [("pr2", "robot", 0, 0, 0, 0)], AREAS if k == 0 else None)
-                  for k in range(9)]
+        frames = [
+            (T0 + k * S // 2, [("pr2", "robot", 0, 0, 0, 0)], AREAS if k == 0 else None)
+            for k in range(9)
+        ]
         result = record(tmp_path / "facts", frames, db=db)
     finally:
         db.close()
@@ -238,34 +277,60 @@ def test_fact_lists_hold_the_current_facts(db_url: str, tmp_path: Path) -> None:
     assert schemas == {"toaster_msgs/msg/FactList"}
 
     def held(topic: str) -> list[tuple[int, list[tuple[str, str, str, int]]]]:
-        return [(stamp - T0, [(field(f, "subjectId"), f.property, field(f, "targetId"),
-                               field(f, "timeStart") - T0) for f in field(msg, "factList")])
-                for stamp, msg in _on(messages, topic)]
+        return [
+            (
+                stamp - T0,
+                [
+                    (
+                        field(f, "subjectId"),
+                        f.property,
+                        field(f, "targetId"),
+                        field(f, "timeStart") - T0,
+                    )
+                    for f in field(msg, "factList")
+                ],
+            )
+            for stamp, msg in _on(messages, topic)
+        ]
 
     assert held("/pdg/factList") == [
         (0, [("alice", "isPresent", "", 0), ("pr2", "isPresent", "", 0)]),
-        (2 * S, [("pr2", "isPresent", "", 0)])]
-    assert held("/area_manager/factList") == [(0, []), (S, [("alice", "IsInRoom", "kitchen", S)]),
-                                              (3 * S, [])]
+        (2 * S, [("pr2", "isPresent", "", 0)]),
+    ]
+    assert held("/area_manager/factList") == [
+        (0, []),
+        (S, [("alice", "IsInRoom", "kitchen", S)]),
+        (3 * S, []),
+    ]
     fact = field(_on(messages, "/pdg/factList")[0][1], "factList")[0]
     assert (field(fact, "stringValue"), fact.confidence, fact.time, field(fact, "timeEnd")) == (
-        "true", 0.9, T0, 0)
+        "true",
+        0.9,
+        T0,
+        0,
+    )
     assert result.fact_lists == 5
     assert "/user/factList" not in {t for t, *_ in messages}
     # area_manager's facts say who is inside: the area list and the outline's colour follow
-    inside = [(stamp - T0, list(field(field(m, "areaList")[0], "insideEntities_")))
-              for stamp, m in _on(messages, "/area_manager/areaList")]
+    inside = [
+        (stamp - T0, list(field(field(m, "areaList")[0], "insideEntities_")))
+        for stamp, m in _on(messages, "/area_manager/areaList")
+    ]
     assert inside == [(0, []), (S, ["alice"]), (3 * S, [])]
-    colours = [next(m.color.r for m in a.markers if m.type == LINE_STRIP)
-               for _, a in _on(messages, "/toaster/areas")]
+    colours = [
+        next(m.color.r for m in a.markers if m.type == LINE_STRIP)
+        for _, a in _on(messages, "/toaster/areas")
+    ]
     assert colours[1] > colours[0] == colours[2]
 
 
 def test_ros2_field_names_decode_with_rosidl_rules(tmp_path: Path) -> None:
     """By default (toaster_names="ros2") recordings hold valid ROS 2 interfaces (snake_case
     fields) that mcap_ros2 (rosidl's parser, as Foxglove's) decodes."""
-    entities = [("alice", "human", 1.0, 2.0, 0.0, 0.5),
-                ("alice/head", "joint", 1.0, 2.0, 1.6, 0.5, 0, 0, None, "alice")]
+    entities = [
+        ("alice", "human", 1.0, 2.0, 0.0, 0.5),
+        ("alice/head", "joint", 1.0, 2.0, 1.6, 0.5, 0, 0, None, "alice"),
+    ]
     result = record(tmp_path / "ros2", [(T0, entities, AREAS)])
     with result.mcap.open("rb") as handle:
         reader = mcap_reader.make_reader(handle, decoder_factories=[mcap_ros2.DecoderFactory()])
@@ -309,7 +374,8 @@ def test_shipped_scenario_records(tmp_path: Path) -> None:
     assert result.frames == len(frames) == 101
     assert sum(t == FACTS_TOPIC for t, *_ in messages) == result.facts > 10
     assert {"/pdg/factList", "/area_manager/factList", "/agent_monitor/factList"} <= {
-        t for t, *_ in messages}
+        t for t, *_ in messages
+    }
 
 
 @pytest.mark.slow
@@ -322,11 +388,34 @@ def test_cli_record(run_db: toaster.Database, db_url: str, tmp_path: Path) -> No
 
     frames = tmp_path / "frames.jsonl"
     lines = [json.dumps({"t_ns": t, "entities": e, "areas": a}) for t, e, a in _frames()]
-    lines.append(json.dumps({"t_ns": T0 + 6 * S, "entities": [
-        {"id": "pr2", "kind": "robot", "x": 1, "y": 1, "z": 0, "yaw": 0.5, "size": [1, 1, 1]},
-        {"id": "pr2/head", "kind": "joint", "x": 1, "y": 1, "z": 1.2, "yaw": 0.5,
-         "owner": "pr2"}],
-        "areas": [["disc", {"shape": "circle", "center": [0, 0], "radius": 1}]]}))
+    lines.append(
+        json.dumps(
+            {
+                "t_ns": T0 + 6 * S,
+                "entities": [
+                    {
+                        "id": "pr2",
+                        "kind": "robot",
+                        "x": 1,
+                        "y": 1,
+                        "z": 0,
+                        "yaw": 0.5,
+                        "size": [1, 1, 1],
+                    },
+                    {
+                        "id": "pr2/head",
+                        "kind": "joint",
+                        "x": 1,
+                        "y": 1,
+                        "z": 1.2,
+                        "yaw": 0.5,
+                        "owner": "pr2",
+                    },
+                ],
+                "areas": [["disc", {"shape": "circle", "center": [0, 0], "radius": 1}]],
+            }
+        )
+    )
     frames.write_text("\n".join(lines) + "\n")
     out = tmp_path / "bag"
     done = CliRunner().invoke(record_cmd, [str(frames), str(out), "--db", db_url])
@@ -336,28 +425,36 @@ def test_cli_record(run_db: toaster.Database, db_url: str, tmp_path: Path) -> No
     assert {tr.child_frame_id for tr in tf.transforms} == {"pr2/base", "pr2/head"}
     # a .bag name is a ROS 1 bag; --agent picks the belief channels (and the events)
     ros1 = tmp_path / "run.bag"
-    done = CliRunner().invoke(record_cmd, [str(frames), str(ros1), "--db", db_url,
-                                           "--agent", "alice"])
+    done = CliRunner().invoke(
+        record_cmd, [str(frames), str(ros1), "--db", db_url, "--agent", "alice"]
+    )
     assert done.exit_code == 0, done.output
     assert f"to {ros1}" in done.output
     from rosbags.rosbag1 import Reader
 
     with Reader(ros1) as reader:
         topics = {c.topic: c.msgtype for c in reader.connections}
-        names = {m.name for c, _, raw in reader.messages(
-            [c for c in reader.connections if c.topic == FACTS_TOPIC])
-            for m in [reader_log(raw, c)]}
+        names = {
+            m.name
+            for c, _, raw in reader.messages(
+                [c for c in reader.connections if c.topic == FACTS_TOPIC]
+            )
+            for m in [reader_log(raw, c)]
+        }
     assert topics["/toaster/beliefs/alice"] == "toaster_recording/msg/Beliefs"
     assert topics[FACTS_TOPIC] == "rosgraph_msgs/msg/Log"
-    assert not any(t.startswith("/toaster/beliefs/") and t != "/toaster/beliefs/alice"
-                   for t in topics)
+    assert not any(
+        t.startswith("/toaster/beliefs/") and t != "/toaster/beliefs/alice" for t in topics
+    )
     assert names == {"toaster.alice"}
-    bad = CliRunner().invoke(record_cmd, [str(frames), str(tmp_path / "x.bag"), "--distro",
-                                          "humble", "--db", db_url])
+    bad = CliRunner().invoke(
+        record_cmd, [str(frames), str(tmp_path / "x.bag"), "--distro", "humble", "--db", db_url]
+    )
     assert bad.exit_code != 0 and "a .bag file is ROS 1" in bad.output
     assert not (tmp_path / "x.bag").exists()
-    typo = CliRunner().invoke(record_cmd, [str(frames), str(tmp_path / "y"), "--agent", "alic",
-                                           "--db", db_url])
+    typo = CliRunner().invoke(
+        record_cmd, [str(frames), str(tmp_path / "y"), "--agent", "alic", "--db", db_url]
+    )
     assert typo.exit_code != 0 and "unknown agent 'alic'" in typo.output
     assert not (tmp_path / "y").exists()
 
@@ -379,8 +476,11 @@ def test_bad_frames(tmp_path: Path) -> None:
         ([(2, [], None), (1, [], None)], {}, "frames out of time order"),
         ([(1, [("pr2", "robot", "here")], None)], {}, r"invalid entity pose .*\(id, kind, x, y, z"),
         ([(1, [(*pose, 0, 0, (1, -1, 1))], None)], {}, "invalid entity pose"),
-        ([(1, [("head", "joint", 0, 0, 1, 0, 0, 0, None, "bob")], None)], {},
-         "joint owner 'bob' is not a human or robot"),
+        (
+            [(1, [("head", "joint", 0, 0, 1, 0, 0, 0, None, "bob")], None)],
+            {},
+            "joint owner 'bob' is not a human or robot",
+        ),
         ([(1, [pose], [("a", [(0, 0), (1, 1)])])], {}, "a polygon needs at least 3 points"),
         ([(1, [pose], [("a", {"shape": "circle", "center": [0, 0]})])], {}, "radius"),
         ([(1, [pose], None)], {"distro": "foxy"}, "unknown ROS distro 'foxy': use one of humble"),
@@ -391,8 +491,10 @@ def test_bad_frames(tmp_path: Path) -> None:
         with pytest.raises(InvalidInputError, match=message):
             record(tmp_path / f"bad{k}", frames, **options)
         assert not (tmp_path / f"bad{k}").exists()
-    for options, message in (({"distro": "jazzy"}, r"a \.bag file is ROS 1"),
-                             ({"toaster_names": "ros2"}, "original's field names")):
+    for options, message in (
+        ({"distro": "jazzy"}, r"a \.bag file is ROS 1"),
+        ({"toaster_names": "ros2"}, "original's field names"),
+    ):
         with pytest.raises(InvalidInputError, match=message):
             record(tmp_path / "bad.bag", [(1, [pose], None)], **options)
         assert not (tmp_path / "bad.bag").exists()
@@ -410,8 +512,9 @@ def test_run_records_what_it_saw(tmp_path: Path) -> None:
 
     url = f"sqlite:///{tmp_path / 'run.db'}"
     scenario = Path(toaster.__file__).parent / "examples" / "scenario_flat.yaml"
-    result = CliRunner().invoke(cli, ["--db", url, "run", str(scenario), "--until", "2s",
-                                      "--record", str(tmp_path / "bag")])
+    result = CliRunner().invoke(
+        cli, ["--db", url, "run", str(scenario), "--until", "2s", "--record", str(tmp_path / "bag")]
+    )
     assert result.exit_code == 0, result.output
     messages = _read(next((tmp_path / "bag").glob("*.mcap")))
     topics = {topic for topic, *_ in messages}
@@ -419,8 +522,9 @@ def test_run_records_what_it_saw(tmp_path: Path) -> None:
     with toaster.connect(url) as db:
         stored = len(toaster.queries.events(db))
     assert sum(topic == FACTS_TOPIC for topic, *_ in messages) == stored
-    again = CliRunner().invoke(cli, ["--db", url, "run", str(scenario), "--record",
-                                     str(tmp_path / "bag")])
+    again = CliRunner().invoke(
+        cli, ["--db", url, "run", str(scenario), "--record", str(tmp_path / "bag")]
+    )
     assert again.exit_code == 1
     assert "exists" in again.output
 
@@ -431,8 +535,18 @@ def _self_facts(url: str) -> set[tuple[Any, ...]]:
     with toaster.connect(url) as db:
         (me,) = queries.agents(db, only_self=True)
         rows = queries.history(db, me.id)
-    return {(r.source, r.subject_id, r.property, r.target_id, r.value_text, r.valid_from_ns,
-             r.valid_to_ns) for r in rows}
+    return {
+        (
+            r.source,
+            r.subject_id,
+            r.property,
+            r.target_id,
+            r.value_text,
+            r.valid_from_ns,
+            r.valid_to_ns,
+        )
+        for r in rows
+    }
 
 
 @pytest.mark.slow
@@ -448,8 +562,19 @@ def test_recording_replays_as_input(tmp_path: Path, name: str) -> None:
 
     scenario = Path(toaster.__file__).parent / "examples" / "scenario_flat.yaml"
     bag, first, second = tmp_path / name, tmp_path / "a.db", tmp_path / "b.db"
-    run = CliRunner().invoke(cli, ["--db", f"sqlite:///{first}", "run", str(scenario),
-                                   "--until", "20s", "--record", str(bag)])
+    run = CliRunner().invoke(
+        cli,
+        [
+            "--db",
+            f"sqlite:///{first}",
+            "run",
+            str(scenario),
+            "--until",
+            "20s",
+            "--record",
+            str(bag),
+        ],
+    )
     assert run.exit_code == 0, run.output
     original, replay = load_session(scenario), load_session(bag)
     with toaster.connect(f"sqlite:///{second}") as db:  # the bag has poses, not area specs
@@ -471,8 +596,16 @@ def test_recording_replays_as_input(tmp_path: Path, name: str) -> None:
                 assert b.pos[row] == pytest.approx(a.pos[a.index[entity_id]]), (t, entity_id)
                 assert b.rpy[row] == pytest.approx(a.rpy[a.index[entity_id]]), (t, entity_id)
                 checked.add(entity_id)
-    assert checked == {"pr2", "pr2/head", "alice", "alice/head", "alice/rightHand", "mug",
-                       "book", "bob"}
+    assert checked == {
+        "pr2",
+        "pr2/head",
+        "alice",
+        "alice/head",
+        "alice/rightHand",
+        "mug",
+        "book",
+        "bob",
+    }
     # IsInHand is pdg's put_in_hand, not a pose: the only fact a replay cannot see
     expected = {f for f in _self_facts(f"sqlite:///{first}") if f[2] != "IsInHand"}
     assert {f[2] for f in expected} >= {"isPresent", "IsInRoom", "IsInArea", "IsMoving", "IsAt"}

@@ -34,8 +34,9 @@ HERE = Path(__file__).resolve().parent
 
 
 def _run(db_url: str, scenario: Path, out: Path, *extra: str) -> None:
-    done = CliRunner().invoke(cli, ["--db", db_url, "run", str(scenario), *extra,
-                                    "--record", str(out)])
+    done = CliRunner().invoke(
+        cli, ["--db", db_url, "run", str(scenario), *extra, "--record", str(out)]
+    )
     assert done.exit_code == 0, done.output
 
 
@@ -82,8 +83,11 @@ def test_sally_anne_scene_and_beliefs(db_url: str, tmp_path: Path) -> None:
 
     _, tf = topics["/tf"][0]
     frames = {tr.child_frame_id: tr for tr in tf.transforms}
-    assert set(frames) == ({i for i in declared if i not in agents}
-                           | {f"{a}/base" for a in agents} | {f"{a}/head" for a in agents})
+    assert set(frames) == (
+        {i for i in declared if i not in agents}
+        | {f"{a}/base" for a in agents}
+        | {f"{a}/head" for a in agents}
+    )
     assert {tr.header.frame_id for tr in tf.transforms} == {"map"}
     wall_tf = frames["WALL"].transform.translation
     assert (wall_tf.x, wall_tf.y, wall_tf.z) == pytest.approx(declared["WALL"]["position"])
@@ -94,36 +98,60 @@ def test_sally_anne_scene_and_beliefs(db_url: str, tmp_path: Path) -> None:
         if "size" in entity:
             body = bodies[entity_id]
             assert (body.scale.x, body.scale.y, body.scale.z) == pytest.approx(entity["size"])
-    wall, (x, y, z), (_, _, height) = bodies["WALL"], declared["WALL"]["position"], \
-        declared["WALL"]["size"]
+    wall, (x, y, z), (_, _, height) = (
+        bodies["WALL"],
+        declared["WALL"]["position"],
+        declared["WALL"]["size"],
+    )
     assert wall.type == CUBE  # a 4 m wall, not a ball: it hides the door side from the table
     assert (wall.pose.position.x, wall.pose.position.y, wall.pose.position.z) == pytest.approx(
-        (x, y, z + height / 2))
+        (x, y, z + height / 2)
+    )
     assert bodies["SALLY"].type == CYLINDER
 
-    beliefs = {topic.removeprefix("/toaster/beliefs/"): msgs for topic, msgs in topics.items()
-               if topic.startswith("/toaster/beliefs/")}
+    beliefs = {
+        topic.removeprefix("/toaster/beliefs/"): msgs
+        for topic, msgs in topics.items()
+        if topic.startswith("/toaster/beliefs/")
+    }
     assert {"ROBOT", "SALLY", "ANNE", "ANNE/SALLY", "SALLY/ANNE"} <= set(beliefs)
     first = {name: msgs[0][1] for name, msgs in beliefs.items()}
     assert [n for n, m in first.items() if m.is_self] == ["ROBOT"]
     assert (first["ANNE/SALLY"].holder, list(first["ANNE/SALLY"].chain)) == (
-        "ANNE>SALLY", ["ANNE", "SALLY"])
+        "ANNE>SALLY",
+        ["ANNE", "SALLY"],
+    )
     assert all(msgs[0][0] == 0 for msgs in beliefs.values())  # every channel from the start
     # 1.5 s: everyone saw the marble go into the basket
     assert {n: _marble_in(_at(beliefs[n], int(1.5 * S))) for n in ("ROBOT", "SALLY")} == {
-        "ROBOT": {"BASKET"}, "SALLY": {"BASKET"}}
+        "ROBOT": {"BASKET"},
+        "SALLY": {"BASKET"},
+    }
     # 10 s: Anne moved it into the box while Sally was behind the wall
-    held = {n: _marble_in(_at(beliefs[n], 10 * S)) for n in ("ROBOT", "ANNE", "SALLY",
-                                                             "ANNE/SALLY")}
-    assert held == {"ROBOT": {"BOX"}, "ANNE": {"BOX"}, "SALLY": {"BASKET"},
-                    "ANNE/SALLY": {"BASKET"}}
-    fact = next(f for f in _at(beliefs["SALLY"], 10 * S).facts if f.subject_id == "MARBLE"
-                and f.property == "IsIn")
+    held = {
+        n: _marble_in(_at(beliefs[n], 10 * S)) for n in ("ROBOT", "ANNE", "SALLY", "ANNE/SALLY")
+    }
+    assert held == {
+        "ROBOT": {"BOX"},
+        "ANNE": {"BOX"},
+        "SALLY": {"BASKET"},
+        "ANNE/SALLY": {"BASKET"},
+    }
+    fact = next(
+        f
+        for f in _at(beliefs["SALLY"], 10 * S).facts
+        if f.subject_id == "MARBLE" and f.property == "IsIn"
+    )
     assert fact.time_start == S and fact.time == _at_stamp(beliefs["SALLY"], 10 * S)
     # the channels change only when the beliefs do: no two equal messages in a row
     for msgs in beliefs.values():
-        sets = [sorted((f.subject_id, f.property, f.target_id, f.string_value, f.time_start)
-                       for f in m.facts) for _, m in msgs]
+        sets = [
+            sorted(
+                (f.subject_id, f.property, f.target_id, f.string_value, f.time_start)
+                for f in m.facts
+            )
+            for _, m in msgs
+        ]
         assert all(a != b for a, b in pairwise(sets))
 
 
@@ -151,23 +179,28 @@ def test_flat_areas_circles_and_owner_relative(tmp_path: Path) -> None:
         disc = first[name, CYLINDER]
         assert (disc.pose.position.x, disc.pose.position.y) == pytest.approx(spec["center"])
         assert (disc.scale.x, disc.scale.y) == pytest.approx((2 * spec["radius"],) * 2)
-    tf_at = {stamp: {tr.child_frame_id: tr.transform for tr in msg.transforms}
-             for stamp, msg in topics["/tf"]}
+    tf_at = {
+        stamp: {tr.child_frame_id: tr.transform for tr in msg.transforms}
+        for stamp, msg in topics["/tf"]
+    }
     front = areas["robot_front"]
     assert len(drawn) >= 2  # redrawn when the robot moved at 17 s
     for stamp, array in drawn:
         outline = next(m for m in array.markers if m.ns == "robot_front" and m.type == LINE_STRIP)
         pose = tf_at[stamp]["pr2/base"]
         c, s = math.cos(_yaw(pose.rotation)), math.sin(_yaw(pose.rotation))
-        expected = [v for px, py in front["points"]
-                    for v in (pose.translation.x + c * px - s * py,
-                              pose.translation.y + s * px + c * py)]
+        expected = [
+            v
+            for px, py in front["points"]
+            for v in (pose.translation.x + c * px - s * py, pose.translation.y + s * px + c * py)
+        ]
         assert [v for p in outline.points[:-1] for v in (p.x, p.y)] == pytest.approx(expected)
     assert _yaw(tf_at[drawn[-1][0]]["pr2/base"].rotation) == pytest.approx(-1.57)
 
 
-@pytest.mark.parametrize(("distro", "version"), [("humble", 5), ("iron", 8), ("jazzy", 9),
-                                                 ("kilted", 9)])
+@pytest.mark.parametrize(
+    ("distro", "version"), [("humble", 5), ("iron", 8), ("jazzy", 9), ("kilted", 9)]
+)
 def test_rosbags_reads_each_distro(tmp_path: Path, distro: str, version: int) -> None:
     """rosbags' reader opens the bag of every distro (it checks the metadata version it
     finds), which is that distro's, and decodes it with that distro's standard types."""
@@ -181,8 +214,9 @@ def test_rosbags_reads_each_distro(tmp_path: Path, distro: str, version: int) ->
     store = get_typestore(getattr(Stores, f"ROS2_{distro.upper()}"))
     with Reader(result.bag) as reader:
         assert reader.ros_distro == (distro if version >= 8 else None)
-        ((conn, stamp, raw),) = list(reader.messages(
-            connections=[c for c in reader.connections if c.topic == "/tf"]))
+        ((conn, stamp, raw),) = list(
+            reader.messages(connections=[c for c in reader.connections if c.topic == "/tf"])
+        )
         tf = store.deserialize_cdr(raw, conn.msgtype)
     assert stamp == 5 * S
     assert {tr.child_frame_id for tr in tf.transforms} == {"pr2/base", "cup"}
@@ -233,8 +267,12 @@ def test_ros1_bag_reads_with_debian_rosbag(tmp_path: Path) -> None:
     bag = tmp_path / "sally.bag"
     _run(f"sqlite:///{tmp_path / 'sally.db'}", SALLY, bag)
     messages_py = Path(toaster.__file__).parent / "ros1" / "messages.py"
-    done = subprocess.run([SYSTEM_PYTHON, "-c", _ROSBAG_SCRIPT, str(bag), str(messages_py)],
-                          capture_output=True, text=True, check=False)
+    done = subprocess.run(
+        [SYSTEM_PYTHON, "-c", _ROSBAG_SCRIPT, str(bag), str(messages_py)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert done.returncode == 0, done.stderr
     out = json.loads(done.stdout)
     types = out["types"]
@@ -266,8 +304,11 @@ def test_holder_topics_are_ros_names(tmp_path: Path) -> None:
         for holder in holders:
             rec.write_beliefs(S, holder, [toaster.Fact("mug", "IsOn", "table")])
     topics = _rosbags_read(path)
-    got = {msgs[0][1].holder: (topic, list(msgs[0][1].chain)) for topic, msgs in topics.items()
-           if topic.startswith("/toaster/beliefs/")}
+    got = {
+        msgs[0][1].holder: (topic, list(msgs[0][1].chain))
+        for topic, msgs in topics.items()
+        if topic.startswith("/toaster/beliefs/")
+    }
     assert set(got) == set(holders)
     names = [topic for topic, _ in got.values()]
     assert len(set(names)) == len(holders)
@@ -277,8 +318,11 @@ def test_holder_topics_are_ros_names(tmp_path: Path) -> None:
     assert got[f"anne{SEPARATOR}sally"] == ("/toaster/beliefs/anne/sally", ["anne", "sally"])
     assert got["alice-1"][0] == "/toaster/beliefs/x0alice_2d1"
     assert got["anne/sally"][0] == "/toaster/beliefs/x0anne_2fsally"
-    assert all(ros_id(topic.rsplit("/", 1)[1]) == holder for holder, (topic, _) in got.items()
-               if SEPARATOR not in holder)
+    assert all(
+        ros_id(topic.rsplit("/", 1)[1]) == holder
+        for holder, (topic, _) in got.items()
+        if SEPARATOR not in holder
+    )
 
 
 def test_failed_recording_leaves_nothing(tmp_path: Path) -> None:
@@ -286,8 +330,10 @@ def test_failed_recording_leaves_nothing(tmp_path: Path) -> None:
     from toaster.errors import InvalidInputError
 
     for path in (tmp_path / "half", tmp_path / "half.bag"):
-        with pytest.raises(InvalidInputError, match="a producer name is a ROS name"), \
-                Recorder(path) as rec:
+        with (
+            pytest.raises(InvalidInputError, match="a producer name is a ROS name"),
+            Recorder(path) as rec,
+        ):
             rec.write_frame(S, [("pr2", "robot", 0, 0, 0, 0)])
             rec.write_fact_list(S, "not a name", [])
         assert not path.exists()
@@ -305,9 +351,14 @@ def test_tf_rotation_roundtrip_ros1(tmp_path: Path) -> None:
     with Reader(result.file) as reader:
         for conn in reader.connections:
             store.register(get_types_from_msg(conn.msgdef.data, conn.msgtype))
-        ((conn, stamp, raw),) = list(reader.messages(
-            connections=[c for c in reader.connections if c.topic == "/tf"]))
+        ((conn, stamp, raw),) = list(
+            reader.messages(connections=[c for c in reader.connections if c.topic == "/tf"])
+        )
     (tr,) = store.deserialize_ros1(raw, conn.msgtype).transforms
-    q = (tr.transform.rotation.x, tr.transform.rotation.y, tr.transform.rotation.z,
-         tr.transform.rotation.w)
+    q = (
+        tr.transform.rotation.x,
+        tr.transform.rotation.y,
+        tr.transform.rotation.z,
+        tr.transform.rotation.w,
+    )
     assert stamp == 2 * S and q == pytest.approx(rpy_to_quat(0.3, 0.2, 1.0))

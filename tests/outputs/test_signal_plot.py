@@ -44,11 +44,16 @@ def build_signals(db: toaster.Database) -> None:
         store.add_entity(thing, "object", t_ns=T0)
     store.assert_fact("pr2", Fact("mug", "IsOn", "table", property_type="position"), t_ns=T0)
     dist = Fact("alice", "Distance", "mug", "close", 1.0, 0.9, property_type="position")
-    moving = Fact("alice", "IsMoving", "", "true", 0.5, 0.8, property_type="motion",
-                  sub_property="agent")
+    moving = Fact(
+        "alice", "IsMoving", "", "true", 0.5, 0.8, property_type="motion", sub_property="agent"
+    )
     for t_s, metres, speed in ((1, 1.0, 0.5), (2, 1.3, 0.5), (3, 1.8, 1.2), (3.5, 1.82, 1.2)):
-        store.sync_snapshot("monitor", "pr2", T0 + int(t_s * S),
-                            [dist._replace(value_num=metres), moving._replace(value_num=speed)])
+        store.sync_snapshot(
+            "monitor",
+            "pr2",
+            T0 + int(t_s * S),
+            [dist._replace(value_num=metres), moving._replace(value_num=speed)],
+        )
     store.sync_snapshot("monitor", "pr2", T0 + 5 * S, [])
     store.sync_snapshot("monitor", "pr2", T0 + 7 * S, [dist._replace(value_num=2.5)])
     store.sync_snapshot("monitor", "pr2", T0 + 9 * S, [])
@@ -66,7 +71,8 @@ def _same(got: list[float], expected: list[float | None]) -> bool:
     """Equal lists where None / NaN both mean 'no number'."""
     return len(got) == len(expected) and all(
         (e is None and math.isnan(g)) or (e is not None and g == e)
-        for g, e in zip(got, expected, strict=True))
+        for g, e in zip(got, expected, strict=True)
+    )
 
 
 def _line(figure: Any, gid: str) -> tuple[Any, Any]:
@@ -76,12 +82,12 @@ def _line(figure: Any, gid: str) -> tuple[Any, Any]:
 
 
 @pytest.mark.slow
-def test_number_line_holds_every_stored_value(signal_db: toaster.Database,
-                                              tmp_path: Path) -> None:
+def test_number_line_holds_every_stored_value(signal_db: toaster.Database, tmp_path: Path) -> None:
     """The Distance line steps through 1.0, 1.3, 1.8 m at 1, 2, 3 s (not only the last 1.8),
     breaks while the fact does not hold and comes back at 2.5 m; the y axis says metres."""
-    out = plot_facts(signal_db, tmp_path / "dist.png", property="Distance", since=SINCE,
-                     until=UNTIL)
+    out = plot_facts(
+        signal_db, tmp_path / "dist.png", property="Distance", since=SINCE, until=UNTIL
+    )
     assert out.path.read_bytes().startswith(b"\x89PNG")
     lane = next(lane for lane in out.timeline.lanes if lane.label == "alice Distance mug")
     line, ax = _line(out.figure, number_gid(lane, "pr2"))
@@ -107,12 +113,19 @@ def _svg_paths(svg: Path, gid: str) -> list[list[tuple[float, float]]]:
 
 
 @pytest.mark.slow
-def test_svg_line_is_drawn_at_the_stored_values(signal_db: toaster.Database,
-                                                tmp_path: Path) -> None:
+def test_svg_line_is_drawn_at_the_stored_values(
+    signal_db: toaster.Database, tmp_path: Path
+) -> None:
     """In the SVG file itself the number line has two runs (the gap), and its levels and
     steps sit where 1.0, 1.3, 1.8 m and 1, 2, 3 s put them on linear axes."""
-    out = plot_facts(signal_db, tmp_path / "dist.svg", property="Distance", agents=["pr2"],
-                     since=SINCE, until=UNTIL)
+    out = plot_facts(
+        signal_db,
+        tmp_path / "dist.svg",
+        property="Distance",
+        agents=["pr2"],
+        since=SINCE,
+        until=UNTIL,
+    )
     assert out.path.read_bytes().startswith(b"<?xml")
     lane = out.timeline.lanes[0]
     runs = _svg_paths(out.path, number_gid(lane, "pr2"))
@@ -136,8 +149,7 @@ def _number_blocks(dat: Path) -> dict[str, list[list[tuple[int, float, float]]]]
     """agent -> held stretches of (t_ns, value_num, confidence) of the '# numbers:' blocks."""
     out = {}
     for block in dat.read_text().split("\n\n\n"):
-        head = next((line for line in block.splitlines() if line.startswith("# numbers:")),
-                    None)
+        head = next((line for line in block.splitlines() if line.startswith("# numbers:")), None)
         if head is None:
             continue
         agent = head.split("agent: ")[1].split(" |")[0]
@@ -152,12 +164,19 @@ def _number_blocks(dat: Path) -> dict[str, list[list[tuple[int, float, float]]]]
 def test_dat_has_one_line_per_number(signal_db: toaster.Database, tmp_path: Path) -> None:
     """The .dat number block: one line per stored number at its time, each stretch closed at
     its end and followed by a blank line; the script draws it with steps and gnuplot runs it."""
-    out = plot_facts(signal_db, tmp_path / "dist.dat", subject="alice", property="Distance",
-                     since=SINCE, until=UNTIL)
+    out = plot_facts(
+        signal_db,
+        tmp_path / "dist.dat",
+        subject="alice",
+        property="Distance",
+        since=SINCE,
+        until=UNTIL,
+    )
     blocks = _number_blocks(out.path)
     assert blocks["pr2"] == [
         [(1 * S, 1.0, 0.9), (2 * S, 1.3, 0.9), (3 * S, 1.8, 0.9), (5 * S, 1.8, 0.9)],
-        [(7 * S, 2.5, 0.9), (9 * S, 2.5, 0.9)]]
+        [(7 * S, 2.5, 0.9), (9 * S, 2.5, 0.9)],
+    ]
     assert blocks["alice"] == [[(2 * S, 2.0, 0.9), (6 * S, 2.0, 0.9)]]
     assert "unit: m" in out.path.read_text()
     assert out.companion is not None
@@ -165,8 +184,14 @@ def test_dat_has_one_line_per_number(signal_db: toaster.Database, tmp_path: Path
     assert "using 1:3 with steps" in script
     assert "set ylabel 'Distance (m)' noenhanced" in script
     require_gnuplot()
-    done = subprocess.run(["gnuplot"], input=f"set terminal svg\nset output 'd.svg'\n{script}",
-                          text=True, cwd=tmp_path, capture_output=True, check=False)
+    done = subprocess.run(
+        ["gnuplot"],
+        input=f"set terminal svg\nset output 'd.svg'\n{script}",
+        text=True,
+        cwd=tmp_path,
+        capture_output=True,
+        check=False,
+    )
     assert done.returncode == 0, done.stderr
     assert (tmp_path / "d.svg").stat().st_size > 1000
 
@@ -179,8 +204,14 @@ def _csv_rows(path: Path) -> list[dict[str, str]]:
 def test_csv_has_one_row_per_number(signal_db: toaster.Database, tmp_path: Path) -> None:
     """The CSV's number rows are every stored number with its time (empty: not held); the
     state rows carry the number held when the state starts, not the interval's last one."""
-    out = plot_facts(signal_db, tmp_path / "dist.csv", property="Distance", agents=["pr2"],
-                     since=SINCE, until=UNTIL)
+    out = plot_facts(
+        signal_db,
+        tmp_path / "dist.csv",
+        property="Distance",
+        agents=["pr2"],
+        since=SINCE,
+        until=UNTIL,
+    )
     rows = _csv_rows(out.path)
     numbers = [(int(r["t_ns"]) - T0, r["value_num"]) for r in rows if r["kind"] == "number"]
     assert numbers == [(t * S, "" if v is None else str(v)) for t, v in PR2_DISTANCE]
@@ -200,15 +231,17 @@ def test_numbers_modes(signal_db: toaster.Database, tmp_path: Path) -> None:
     lane = next(lane for lane in out.timeline.lanes if lane.key.property == "IsMoving")
     line, _ = _line(out.figure, number_gid(lane, "pr2"))
     assert _same(list(line.get_ydata()), [None, 0.5, 1.2, None, None])
-    rows = _csv_rows(plot_facts(signal_db, tmp_path / "only.csv", numbers="only",
-                                since=SINCE, until=UNTIL).path)
+    rows = _csv_rows(
+        plot_facts(signal_db, tmp_path / "only.csv", numbers="only", since=SINCE, until=UNTIL).path
+    )
     assert {r["kind"] for r in rows} == {"number"}
     assert "mug IsOn table" not in {r["fact"] for r in rows}
     off = plot_facts(signal_db, tmp_path / "off.svg", numbers="off", since=SINCE, until=UNTIL)
     assert not any(line.get_gid() for ax in off.figure.axes for line in ax.lines)
     assert len(off.figure.axes) == 3  # Distance, IsMoving, IsOn bars
-    rows = _csv_rows(plot_facts(signal_db, tmp_path / "off.csv", numbers="off",
-                                since=SINCE, until=UNTIL).path)
+    rows = _csv_rows(
+        plot_facts(signal_db, tmp_path / "off.csv", numbers="off", since=SINCE, until=UNTIL).path
+    )
     assert {r["kind"] for r in rows} == {"state"}
     with pytest.raises(InvalidInputError, match="no numbers among the matching facts"):
         plot_facts(signal_db, tmp_path / "x.png", property="IsOn", numbers="only")
@@ -219,22 +252,41 @@ def test_numbers_modes(signal_db: toaster.Database, tmp_path: Path) -> None:
 @pytest.mark.slow
 def test_timeline_signals_are_clipped_to_the_window(signal_db: toaster.Database) -> None:
     """A window starting inside a stretch starts with the number held then (1.3 m at 2.5 s)."""
-    timeline = build_timeline(signal_db, property="Distance", agents=["pr2"],
-                              since=T0 + 2 * S + S // 2, until=T0 + 8 * S)
+    timeline = build_timeline(
+        signal_db, property="Distance", agents=["pr2"], since=T0 + 2 * S + S // 2, until=T0 + 8 * S
+    )
     (signal,) = timeline.lanes[0].signals
     assert [(p.t_ns - T0, p.value_num) for p in signal.points] == [
-        (2 * S + S // 2, 1.3), (3 * S, 1.8), (5 * S, None), (7 * S, 2.5)]
+        (2 * S + S // 2, 1.3),
+        (3 * S, 1.8),
+        (5 * S, None),
+        (7 * S, 2.5),
+    ]
     assert not build_timeline(signal_db, property="Distance", numbers=False).number_lanes
 
 
 @pytest.mark.slow
-def test_plot_facts_command_numbers(signal_db: toaster.Database, db_url: str,
-                                    tmp_path: Path) -> None:
+def test_plot_facts_command_numbers(
+    signal_db: toaster.Database, db_url: str, tmp_path: Path
+) -> None:
     """``toaster plot-facts out.csv --numbers only`` writes the number rows and says so."""
     out = tmp_path / "n.csv"
-    done = CliRunner().invoke(plot_command, [str(out), "--numbers", "only", "-p", "Distance",
-                                             "--from", str(T0), "--to", str(T0 + 10 * S),
-                                             "--db", db_url])
+    done = CliRunner().invoke(
+        plot_command,
+        [
+            str(out),
+            "--numbers",
+            "only",
+            "-p",
+            "Distance",
+            "--from",
+            str(T0),
+            "--to",
+            str(T0 + 10 * S),
+            "--db",
+            db_url,
+        ],
+    )
     assert done.exit_code == 0, done.output
     assert "1 facts, 1 with numbers" in done.output
     values = {r["value_num"] for r in _csv_rows(out) if r["agent"] == "pr2"}

@@ -16,14 +16,16 @@ class Scene:
         self.world = World()
         self.t = 10 * S
 
-    def add(self, eid: str, kind: str = "human", pos=(0.0, 0.0, 0.0), yaw: float = 0.0,
-            **joints: tuple) -> None:
+    def add(
+        self, eid: str, kind: str = "human", pos=(0.0, 0.0, 0.0), yaw: float = 0.0, **joints: tuple
+    ) -> None:
         self.world.add_entity(eid, kind)
         self.world.set_pose(eid, pos, self.t, (0.0, 0.0, yaw))
         for name, local in joints.items():
             self.world.add_entity(f"{eid}/{name}", "joint", owner_id=eid, name=name)
-            self.world.set_joint_local(f"{eid}/{name}", local[:3],
-                                       local[3] if len(local) > 3 else (0.0, 0.0, 0.0))
+            self.world.set_joint_local(
+                f"{eid}/{name}", local[:3], local[3] if len(local) > 3 else (0.0, 0.0, 0.0)
+            )
 
     def put(self, eid: str, pos, yaw: float = 0.0) -> None:
         self.world.set_pose(eid, pos, self.t, (0.0, 0.0, yaw))

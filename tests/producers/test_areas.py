@@ -18,16 +18,26 @@ def test_room_support_and_generic_area_facts(scene):
     scene.add("bob", pos=(1, 1, 0))
     scene.add("cup", "object", pos=(5, 5, 0.8))
     scene.step()
-    m = AreaManager({"kitchen": {"points": SQUARE, "area_type": "room"},
-                     "table": {"shape": "circle", "center": [5, 5], "radius": 0.5,
-                               "area_type": "support"},
-                     "zone": {"points": SQUARE, "area_type": "danger"}})
+    m = AreaManager(
+        {
+            "kitchen": {"points": SQUARE, "area_type": "room"},
+            "table": {"shape": "circle", "center": [5, 5], "radius": 0.5, "area_type": "support"},
+            "zone": {"points": SQUARE, "area_type": "danger"},
+        }
+    )
     facts = {(f.subject_id, f.property, f.target_id, f.sub_property) for f in facts_of(m, scene)}
-    assert facts == {("bob", "IsInRoom", "kitchen", "room"), ("cup", "IsAt", "table", "location"),
-                     ("bob", "IsInArea", "zone", "danger")}
+    assert facts == {
+        ("bob", "IsInRoom", "kitchen", "room"),
+        ("cup", "IsAt", "table", "location"),
+        ("bob", "IsInArea", "zone", "danger"),
+    }
     f = next(f for f in facts_of(m, scene) if f.property == "IsInRoom")
     assert (f.property_type, f.confidence, f.observability, f.value_text) == (
-        "position", 1.0, 0.8, "true")
+        "position",
+        1.0,
+        0.8,
+        "true",
+    )
 
 
 def test_hysteresis_enter_inner_leave_outer(scene):
@@ -44,8 +54,17 @@ def test_hysteresis_enter_inner_leave_outer(scene):
 
 def test_circle_hysteresis(scene):
     scene.add("bob", pos=(0, 0, 0))
-    m = AreaManager({"c": {"shape": "circle", "center": [0, 0], "radius": 1.0,
-                           "enter_hysteresis": 0.2, "leave_hysteresis": 0.2}})
+    m = AreaManager(
+        {
+            "c": {
+                "shape": "circle",
+                "center": [0, 0],
+                "radius": 1.0,
+                "enter_hysteresis": 0.2,
+                "leave_hysteresis": 0.2,
+            }
+        }
+    )
     seq = []
     for x in [0.9, 0.5, 1.1, 1.3, 0.9]:
         scene.put("bob", (x, 0, 0))
@@ -62,7 +81,8 @@ def test_owner_area_moves_and_turns_with_owner(scene):
     scene.step()
     f = facts_of(m, scene)
     assert [(x.subject_id, x.target_id, x.target_owner_id) for x in f] == [
-        ("bob", "front", "robot")]
+        ("bob", "front", "robot")
+    ]
     scene.put("robot", (10, 10, 0), yaw=math.pi / 2)  # turn left: front is now +y
     scene.step()
     assert facts_of(m, scene) == []
@@ -76,8 +96,17 @@ def test_owner_area_moves_and_turns_with_owner(scene):
 
 def test_owner_never_inside_its_own_area(scene):
     scene.add("robot", "robot", pos=(0, 0, 0), head=(0.5, 0, 1.4))
-    m = AreaManager({"around": {"shape": "circle", "center": [0, 0], "radius": 3,
-                                "owner": "robot", "entity_types": "all"}})
+    m = AreaManager(
+        {
+            "around": {
+                "shape": "circle",
+                "center": [0, 0],
+                "radius": 3,
+                "owner": "robot",
+                "entity_types": "all",
+            }
+        }
+    )
     scene.step()
     assert facts_of(m, scene) == []
 
@@ -95,15 +124,34 @@ def test_owner_z_shifts_band(scene):
     scene.add("drone", "robot", pos=(0, 0, 5))
     scene.add("bird", "object", pos=(0.5, 0, 5.2))
     scene.step()
-    m = AreaManager({"a": {"shape": "circle", "center": [0, 0], "radius": 1, "owner": "drone",
-                           "z_min": -0.5, "z_max": 0.5, "entity_types": "objects"}})
+    m = AreaManager(
+        {
+            "a": {
+                "shape": "circle",
+                "center": [0, 0],
+                "radius": 1,
+                "owner": "drone",
+                "z_min": -0.5,
+                "z_max": 0.5,
+                "entity_types": "objects",
+            }
+        }
+    )
     assert [f.subject_id for f in facts_of(m, scene)] == ["bird"]
 
 
-@pytest.mark.parametrize(("words", "expected"), [
-    ("human", {"bob"}), ("humans", {"bob"}), (["robot"], {"r2"}), ("agents", {"bob", "r2"}),
-    ("object", {"cup"}), ("entities", {"bob", "r2", "cup"}), ("joints", {"bob/head"}),
-])
+@pytest.mark.parametrize(
+    ("words", "expected"),
+    [
+        ("human", {"bob"}),
+        ("humans", {"bob"}),
+        (["robot"], {"r2"}),
+        ("agents", {"bob", "r2"}),
+        ("object", {"cup"}),
+        ("entities", {"bob", "r2", "cup"}),
+        ("joints", {"bob/head"}),
+    ],
+)
 def test_entity_type_filter_singular_and_plural(scene, words, expected):
     scene.add("bob", pos=(1, 1, 0), head=(0, 0, 1.7))
     scene.add("r2", "robot", pos=(2, 2, 0))
@@ -133,8 +181,17 @@ def test_is_facing_wraps_around_pi(scene):
     bearing = -3.13
     scene.add("bob", pos=(-2 * math.cos(bearing), -2 * math.sin(bearing), 0), yaw=3.1)
     scene.step()
-    m = AreaManager({"i": {"shape": "circle", "center": [0, 0], "radius": 3, "owner": "robot",
-                           "facts": ["interaction"]}})
+    m = AreaManager(
+        {
+            "i": {
+                "shape": "circle",
+                "center": [0, 0],
+                "radius": 3,
+                "owner": "robot",
+                "facts": ["interaction"],
+            }
+        }
+    )
     facing = facts_of(m, scene, "IsFacing")
     assert len(facing) == 1
     f = facing[0]
@@ -150,19 +207,45 @@ def test_area_density_subject_is_area_name(scene):
     for i in range(4):
         scene.add(f"h{i}", pos=(i * 2 + 0.5, 0, 0))
     scene.step()
-    m = AreaManager({"near": {"shape": "circle", "center": [0, 0], "radius": 3,
-                              "owner": "robot", "facts": "density", "entity_types": "humans"}})
+    m = AreaManager(
+        {
+            "near": {
+                "shape": "circle",
+                "center": [0, 0],
+                "radius": 3,
+                "owner": "robot",
+                "facts": "density",
+                "entity_types": "humans",
+            }
+        }
+    )
     (d,) = facts_of(m, scene, "AreaDensity")
     assert (d.subject_id, d.subject_owner_id, d.value_num) == ("near", "robot", 0.5)
     assert (d.property_type, d.sub_property, d.observability) == ("density", "ratio", 0.0)
 
 
 def test_import_original_area_record():
-    name, spec = area_from_original({
-        "name": "pushing", "myOwner": "spencer", "areaType": "", "factType": "",
-        "entityType": "human", "isCircle": False, "ray": 0.0, "center": {"x": 0, "y": 0, "z": 0},
-        "poly": [[-2, 1, 0], [0, 0, 0], [2, 1, 0], [2.5, -1, 0], [-2.5, -1, 0], [-2, 0, 0],
-                 [-2, 1, 0]]})
+    name, spec = area_from_original(
+        {
+            "name": "pushing",
+            "myOwner": "spencer",
+            "areaType": "",
+            "factType": "",
+            "entityType": "human",
+            "isCircle": False,
+            "ray": 0.0,
+            "center": {"x": 0, "y": 0, "z": 0},
+            "poly": [
+                [-2, 1, 0],
+                [0, 0, 0],
+                [2, 1, 0],
+                [2.5, -1, 0],
+                [-2.5, -1, 0],
+                [-2, 0, 0],
+                [-2, 1, 0],
+            ],
+        }
+    )
     assert name == "pushing"
     assert spec["owner"] == "spencer"
     assert len(spec["points"]) == 6
@@ -170,9 +253,20 @@ def test_import_original_area_record():
     assert spec["entity_types"] == ["human"]
 
 
-@pytest.mark.parametrize(("angle", "label"), [
-    (0.0, "ahead"), (0.6, "ahead right"), (-0.6, "ahead left"), (1.5, "right"), (-1.5, "left"),
-    (2.5, "back right"), (-2.5, "back left"), (math.pi, "back"), (-3.1, "back")])
+@pytest.mark.parametrize(
+    ("angle", "label"),
+    [
+        (0.0, "ahead"),
+        (0.6, "ahead right"),
+        (-0.6, "ahead left"),
+        (1.5, "right"),
+        (-1.5, "left"),
+        (2.5, "back right"),
+        (-2.5, "back left"),
+        (math.pi, "back"),
+        (-3.1, "back"),
+    ],
+)
 def test_direction_labels(angle, label):
     assert direction_label(angle) == label
 

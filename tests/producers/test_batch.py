@@ -20,11 +20,21 @@ def test_batch_diff_matches_tuple_diff():
         for j in ("head", "rightHand"):
             world.add_entity(f"e{i}/{j}", "joint", owner_id=f"e{i}", name=j)
             world.set_joint_local(f"e{i}/{j}", (0.2, 0.0, 1.7 if j == "head" else 1.0))
-    areas = {"room": {"points": [[0, 0], [5, 0], [5, 5], [0, 5]], "area_type": "room",
-                      "facts": ["density"], "enter_hysteresis": 0.2, "leave_hysteresis": 0.2},
-             "disc": {"shape": "circle", "center": [3, 3], "radius": 1.5},
-             "front": {"points": [[0, -1], [2, -1], [2, 1], [0, 1]], "owner": "e0",
-                       "facts": ["interaction", "density"]}}
+    areas = {
+        "room": {
+            "points": [[0, 0], [5, 0], [5, 5], [0, 5]],
+            "area_type": "room",
+            "facts": ["density"],
+            "enter_hysteresis": 0.2,
+            "leave_hysteresis": 0.2,
+        },
+        "disc": {"shape": "circle", "center": [3, 3], "radius": 1.5},
+        "front": {
+            "points": [[0, -1], [2, -1], [2, 1], [0, 1]],
+            "owner": "e0",
+            "facts": ["interaction", "density"],
+        },
+    }
     world.put_in_hand("e10", "e1", "rightHand")
     producers = [PerceptionFacts(), AreaManager(areas), AgentMonitor()]
     by_batch, by_list = SnapshotDiff(), SnapshotDiff()
@@ -44,5 +54,14 @@ def test_batch_diff_matches_tuple_diff():
             assert by_batch.apply(p.name, batch) == by_list.apply(p.name, facts)
             seen |= {f.property for f in facts}
         t += S // 10
-    assert {"isPresent", "IsInHand", "IsInRoom", "IsInArea", "AreaDensity",
-            "IsLookingToward", "IsMoving", "IsMovingToward", "Distance"} <= seen
+    assert {
+        "isPresent",
+        "IsInHand",
+        "IsInRoom",
+        "IsInArea",
+        "AreaDensity",
+        "IsLookingToward",
+        "IsMoving",
+        "IsMovingToward",
+        "Distance",
+    } <= seen

@@ -20,15 +20,24 @@ def dump(url):
 
     engine = create_engine(url)
     with engine.connect() as conn:
-        tables = [r[0] for r in conn.execute(text(
-            "SELECT name FROM sqlite_master WHERE type='table' AND (name LIKE '%fact%' "
-            "OR name LIKE '%event%')"))]
+        tables = [
+            r[0]
+            for r in conn.execute(
+                text(
+                    "SELECT name FROM sqlite_master WHERE type='table' AND (name LIKE '%fact%' "
+                    "OR name LIKE '%event%')"
+                )
+            )
+        ]
         out = {}
         for t in tables:  # the store's last column is its wall-clock write stamp: not compared
             rows = conn.execute(text(f"SELECT * FROM {t}"))
             cols = list(rows.keys())
-            keep = [i for i, k in enumerate(cols)
-                    if not (k.startswith("recorded") or k.endswith("wall_ns"))]
+            keep = [
+                i
+                for i, k in enumerate(cols)
+                if not (k.startswith("recorded") or k.endswith("wall_ns"))
+            ]
             out[t] = sorted(tuple(r[i] for i in keep) for r in rows)
         return out
 
@@ -37,8 +46,9 @@ def test_run_twice_into_fresh_databases_gives_same_facts(tmp_path):
     out = []
     for k in range(2):
         url = f"sqlite:///{tmp_path}/r{k}.db"
-        res = CliRunner().invoke(cli, ["run", str(EXAMPLES / "scenario_flat.yaml"), "--db", url,
-                                       "--until", "20s"])
+        res = CliRunner().invoke(
+            cli, ["run", str(EXAMPLES / "scenario_flat.yaml"), "--db", url, "--until", "20s"]
+        )
         assert res.exit_code == 0, res.output
         assert "ticks" in res.output
         assert "events" in res.output
@@ -50,8 +60,18 @@ def test_run_twice_into_fresh_databases_gives_same_facts(tmp_path):
 def test_area_commands(tmp_path):
     url = f"sqlite:///{tmp_path}/a.db"
     r = CliRunner()
-    res = r.invoke(cli, ["--db", url, "area", "add", "desk", "--spec",
-                         '{"shape": "circle", "center": [1, 2], "radius": 1}'])
+    res = r.invoke(
+        cli,
+        [
+            "--db",
+            url,
+            "area",
+            "add",
+            "desk",
+            "--spec",
+            '{"shape": "circle", "center": [1, 2], "radius": 1}',
+        ],
+    )
     assert res.exit_code == 0, res.output
     assert "desk" in r.invoke(cli, ["--db", url, "area", "list"]).output
     assert '"radius": 1.0' in r.invoke(cli, ["--db", url, "area", "show", "desk"]).output
@@ -64,8 +84,17 @@ def test_area_commands(tmp_path):
 
 @pytest.mark.skipif(not DATA.is_dir(), reason=f"shared data not found at {DATA}")
 def test_run_obsmat_into_database(tmp_path):
-    res = CliRunner().invoke(cli, ["run", str(DATA / "UCY/zara01/obsmat.txt"), "--db",
-                                   f"sqlite:///{tmp_path}/z.db", "--until", "60s"])
+    res = CliRunner().invoke(
+        cli,
+        [
+            "run",
+            str(DATA / "UCY/zara01/obsmat.txt"),
+            "--db",
+            f"sqlite:///{tmp_path}/z.db",
+            "--until",
+            "60s",
+        ],
+    )
     assert res.exit_code == 0, res.output
     print(res.output)
 
@@ -76,8 +105,13 @@ def test_a_crowd_recording_registers_its_people_without_views(tmp_path):
     import json
 
     tracks = tmp_path / "crowd.jsonl"
-    tracks.write_text("".join(json.dumps({"t_s": k * 0.1, "id": f"p{i}", "x": i, "y": k}) + "\n"
-                              for i in range(300) for k in range(2)))
+    tracks.write_text(
+        "".join(
+            json.dumps({"t_s": k * 0.1, "id": f"p{i}", "x": i, "y": k}) + "\n"
+            for i in range(300)
+            for k in range(2)
+        )
+    )
     url = f"sqlite:///{tmp_path}/crowd.db"
     res = CliRunner().invoke(cli, ["--db", url, "run", str(tracks), "--holders", "humans"])
     assert res.exit_code == 0, res.output
@@ -86,8 +120,9 @@ def test_a_crowd_recording_registers_its_people_without_views(tmp_path):
     assert "300 agent(s) have no per-agent views" in res.output
     res = CliRunner().invoke(cli, ["--db", url, "db", "views", "p7"])
     assert res.exit_code == 0 and "created the views of 1 agent(s)" in res.output
-    res = CliRunner().invoke(cli, ["--db", url, "execute", "SQL",
-                                   'SELECT count(*) FROM "fact_table_p7"'])
+    res = CliRunner().invoke(
+        cli, ["--db", url, "execute", "SQL", 'SELECT count(*) FROM "fact_table_p7"']
+    )
     assert res.exit_code == 0, res.output
     res = CliRunner().invoke(cli, ["--db", url, "db", "views"])
     assert "created the views of 299 agent(s)" in res.output  # p7 and the robot had theirs

@@ -18,8 +18,12 @@ TICK_30HZ = S // 30
 DEFAULT = make_config()["min_duration"]
 
 
-def moving_series(positions: np.ndarray, dt_ns: int, min_duration: float | None,
-                  hand_noise: np.ndarray | None = None) -> list[dict[str, float]]:
+def moving_series(
+    positions: np.ndarray,
+    dt_ns: int,
+    min_duration: float | None,
+    hand_noise: np.ndarray | None = None,
+) -> list[dict[str, float]]:
     """Per tick, {subject: value_num} of the IsMoving facts for a person (and its hand)."""
     world = World()
     world.add_entity("bob", "human")
@@ -34,8 +38,13 @@ def moving_series(positions: np.ndarray, dt_ns: int, min_duration: float | None,
         if hand_noise is not None:
             world.set_pose("bob/hand", p + (0.3, -0.2, 1.0) + hand_noise[k], t)
         world.commit()
-        out.append({f.subject_id: f.value_num for f in monitor.compute(world, t)
-                    if f.property == "IsMoving"})
+        out.append(
+            {
+                f.subject_id: f.value_num
+                for f in monitor.compute(world, t)
+                if f.property == "IsMoving"
+            }
+        )
         t += dt_ns
     return out
 
@@ -54,14 +63,17 @@ def standing(seconds: float, hz: int, seed: int = 0) -> np.ndarray:
 @pytest.mark.slow
 def test_standing_person_with_tracker_noise_stops_flickering():
     pos = standing(60, 30)
-    hand = np.column_stack([np.random.default_rng(9).normal(0, 0.02, (len(pos), 2)),
-                            np.zeros(len(pos))])
+    hand = np.column_stack(
+        [np.random.default_rng(9).normal(0, 0.02, (len(pos), 2)), np.zeros(len(pos))]
+    )
     raw = moving_series(pos, TICK_30HZ, 0.0, hand)
     debounced = moving_series(pos, TICK_30HZ, None, hand)
     raw_flips, flips_now = flips(raw), flips(debounced)
     hand_raw, hand_now = flips(raw, "bob/hand"), flips(debounced, "bob/hand")
-    print(f"\nstanding 60 s, 2 cm noise, 30 Hz: IsMoving flips {raw_flips} with min_duration 0, "
-          f"{flips_now} with {DEFAULT['IsMoving']} s; hand {hand_raw} → {hand_now}")
+    print(
+        f"\nstanding 60 s, 2 cm noise, 30 Hz: IsMoving flips {raw_flips} with min_duration 0, "
+        f"{flips_now} with {DEFAULT['IsMoving']} s; hand {hand_raw} → {hand_now}"
+    )
     assert raw_flips > 300  # the problem: ~0.11 m/s of speed noise vs a 0.12 m/s threshold
     assert flips_now <= 10
     assert hand_now <= 10 < hand_raw
@@ -112,15 +124,26 @@ def facing_flips(min_duration: float | None, seconds: float = 30) -> int:
     world = World()
     world.add_entity("robot", "robot")
     world.add_entity("bob", "human")
-    area = {"near": {"shape": "circle", "center": [0, 0], "radius": 3.0, "owner": "robot",
-                     "facts": ["interaction"]}}
+    area = {
+        "near": {
+            "shape": "circle",
+            "center": [0, 0],
+            "radius": 3.0,
+            "owner": "robot",
+            "facts": ["interaction"],
+        }
+    }
     config = None if min_duration is None else {"min_duration": {"IsFacing": min_duration}}
     manager = AreaManager(area, config)
     t, prev, count = 10 * S, False, 0
     for _ in range(int(seconds * 30)):
         world.set_pose("robot", (0, 0, 0), t)
-        world.set_pose("bob", (1.0, *rng.normal(0, 0.02, 1), 0),
-                       t, (0, 0, math.pi + 0.48 + rng.normal(0, 0.05)))
+        world.set_pose(
+            "bob",
+            (1.0, *rng.normal(0, 0.02, 1), 0),
+            t,
+            (0, 0, math.pi + 0.48 + rng.normal(0, 0.05)),
+        )
         world.commit()
         now = any(f.property == "IsFacing" for f in manager.compute(world, t))
         count += now != prev
@@ -132,8 +155,10 @@ def facing_flips(min_duration: float | None, seconds: float = 30) -> int:
 @pytest.mark.slow
 def test_is_facing_resists_noise_at_its_threshold():
     raw, debounced = facing_flips(0.0), facing_flips(None)
-    print(f"\nIsFacing at the edge of facing_angle, 3° yaw noise, 30 s at 30 Hz: {raw} flips with "
-          f"min_duration 0, {debounced} with {DEFAULT['IsFacing']} s")
+    print(
+        f"\nIsFacing at the edge of facing_angle, 3° yaw noise, 30 s at 30 Hz: {raw} flips with "
+        f"min_duration 0, {debounced} with {DEFAULT['IsFacing']} s"
+    )
     assert raw > 100
     assert debounced <= 5
 
@@ -142,8 +167,12 @@ def test_min_duration_is_validated_and_merged():
     cfg = make_config({"min_duration": {"IsMoving": "100ms"}})
     assert cfg["min_duration"] == {**DEFAULT, "IsMoving": 0.1}
     assert make_config()["min_duration"] == DEFAULT  # no shared dict was changed
-    for bad, word in (({"IsRunning": 1}, "IsRunning"), ({"IsMoving": -1}, "IsMoving"),
-                      ({"IsFacing": "soon"}, "IsFacing"), (0.3, "min_duration")):
+    for bad, word in (
+        ({"IsRunning": 1}, "IsRunning"),
+        ({"IsMoving": -1}, "IsMoving"),
+        ({"IsFacing": "soon"}, "IsFacing"),
+        (0.3, "min_duration"),
+    ):
         with pytest.raises(InvalidInputError, match=word) as err:
             make_config({"min_duration": bad})
         assert "\n" not in str(err.value)
@@ -214,8 +243,13 @@ def toward_series(min_duration: float, seed: int = 4) -> list[set[tuple[str, str
         x = 1.2 * k / 30 - 6.0
         world.set_pose("bob", (x + rng.normal(0, 0.02), rng.normal(0, 0.02), 0.0), t)
         world.commit()
-        out.append({(f.target_id, f.sub_property) for f in monitor.compute(world, t)
-                    if f.property == "IsMovingToward"})
+        out.append(
+            {
+                (f.target_id, f.sub_property)
+                for f in monitor.compute(world, t)
+                if f.property == "IsMovingToward"
+            }
+        )
         t += TICK_30HZ
     return out
 
@@ -224,6 +258,7 @@ def toward_series(min_duration: float, seed: int = 4) -> list[set[tuple[str, str
 def test_moving_toward_pairs_resist_noise_at_the_cone_edge():
     """IsMovingToward is debounced per (mover, target) pair: at the edge of the direction cone
     noise no longer makes the pair flip every few ticks; 0 keeps the raw flicker."""
+
     def pair_flips(series: list[set[tuple[str, str]]]) -> int:
         states = [("door", "direction") in s for s in series]
         return sum(a != b for a, b in itertools.pairwise(states))
@@ -252,9 +287,11 @@ def toward_births(hz: float, seconds: float = 4.0) -> list[tuple[int, float]]:
         x = 1.2 * k / hz
         world.set_pose("bob", (x + rng.normal(0, 0.02), rng.normal(0, 0.02), 0.0), t)
         world.commit()
-        now = ("door", "direction") in {(f.target_id, f.sub_property)
-                                        for f in monitor.compute(world, t)
-                                        if f.property == "IsMovingToward"}
+        now = ("door", "direction") in {
+            (f.target_id, f.sub_property)
+            for f in monitor.compute(world, t)
+            if f.property == "IsMovingToward"
+        }
         if entered is None and 10.0 - world.pos[world.row("bob"), 0] < 8.0:
             entered = t
         if now != reported:

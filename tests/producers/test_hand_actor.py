@@ -27,16 +27,32 @@ def _flat(timeline: list[dict[str, Any]], anne: tuple[float, float]) -> dict[str
     """A kitchen (x 0-5) beside a hall (x 5-10); Anne, her right hand 0.6 m in front of her,
     and Bob in the kitchen with the mug; no gaze facts (only rooms and hands perceive)."""
     return {
-        "name": "carried-mug", "self": "ROBOT", "rate": RATE, "duration": "5s",
+        "name": "carried-mug",
+        "self": "ROBOT",
+        "rate": RATE,
+        "duration": "5s",
         "config": {"monitored_agents": []},
-        "areas": {"KITCHEN": {"shape": "polygon", "area_type": "room",
-                              "points": [[0, 0], [5, 0], [5, 5], [0, 5]]},
-                  "HALL": {"shape": "polygon", "area_type": "room",
-                           "points": [[5, 0], [10, 0], [10, 5], [5, 5]]}},
+        "areas": {
+            "KITCHEN": {
+                "shape": "polygon",
+                "area_type": "room",
+                "points": [[0, 0], [5, 0], [5, 5], [0, 5]],
+            },
+            "HALL": {
+                "shape": "polygon",
+                "area_type": "room",
+                "points": [[5, 0], [10, 0], [10, 5], [5, 5]],
+            },
+        },
         "entities": [
             {"id": "ROBOT", "kind": "robot", "position": [0.5, 4.5, 0]},
-            {"id": "ANNE", "kind": "human", "position": [*anne, 0], "yaw": 0,
-             "joints": [{"name": "rightHand", "position": [0.6, -0.2, 1.0]}]},
+            {
+                "id": "ANNE",
+                "kind": "human",
+                "position": [*anne, 0],
+                "yaw": 0,
+                "joints": [{"name": "rightHand", "position": [0.6, -0.2, 1.0]}],
+            },
             {"id": "BOB", "kind": "human", "position": [1.0, 2.5, 0], "yaw": 0},
             {"id": "MUG", "position": [2.0, 1.0, 0.8]},
         ],
@@ -49,8 +65,13 @@ def _run(tmp_path: Path, url: str, scenario: dict[str, Any]) -> toaster.Database
     path.write_text(json.dumps(scenario))
     db = toaster.connect(url)
     session = load_session(path)
-    runner = Runner(session.world, session.sources, session.producers, store=db.store(),
-                    agent_id=session.self_id)
+    runner = Runner(
+        session.world,
+        session.sources,
+        session.producers,
+        store=db.store(),
+        agent_id=session.self_id,
+    )
     session.register(db.store())
     runner.run(session.start_ns, session.end_ns, session.rate_hz)
     return db
@@ -58,8 +79,7 @@ def _run(tmp_path: Path, url: str, scenario: dict[str, Any]) -> toaster.Database
 
 def _room(db: toaster.Database, holder: str, at: int) -> set[str]:
     """The rooms ``holder`` believes the mug is in at ``at``."""
-    return {r.target_id for r in api.beliefs(db, holder, at=at, subject="MUG",
-                                             property="IsInRoom")}
+    return {r.target_id for r in api.beliefs(db, holder, at=at, subject="MUG", property="IsInRoom")}
 
 
 def _in_hand(db: toaster.Database, holder: str, at: int) -> bool:
@@ -68,16 +88,29 @@ def _in_hand(db: toaster.Database, holder: str, at: int) -> bool:
 
 @pytest.mark.slow
 def test_the_holder_knows_where_it_passed_the_mug_the_other_saw_it_leave(
-        tmp_path: Path, db_url: str) -> None:
+    tmp_path: Path, db_url: str
+) -> None:
     """Anne, in the kitchen, takes the mug, passes it through the hatch into the hall, lets
     go of it there and walks back: she never was in the hall, yet knows the mug is there (she
     did it); Bob, who stayed in the kitchen, saw it leave and does not know where it went."""
-    db = _run(tmp_path, db_url, _flat([
-        {"at": "1s", "put_in_hand": "MUG", "agent": "ANNE", "hand": "rightHand"},
-        {"at": "2s", "move": "ANNE", "waypoints": [[4.6, 2.5]], "speed": 2},  # hand at x 5.2
-        {"at": "3s", "remove_from_hand": "MUG"},
-        {"at": "3.5s", "move": "ANNE", "waypoints": [[1.5, 2.5]], "speed": 2},
-    ], anne=(3.5, 2.5)))
+    db = _run(
+        tmp_path,
+        db_url,
+        _flat(
+            [
+                {"at": "1s", "put_in_hand": "MUG", "agent": "ANNE", "hand": "rightHand"},
+                {
+                    "at": "2s",
+                    "move": "ANNE",
+                    "waypoints": [[4.6, 2.5]],
+                    "speed": 2,
+                },  # hand at x 5.2
+                {"at": "3s", "remove_from_hand": "MUG"},
+                {"at": "3.5s", "move": "ANNE", "waypoints": [[1.5, 2.5]], "speed": 2},
+            ],
+            anne=(3.5, 2.5),
+        ),
+    )
     try:
         for at in (int(1.5 * S), int(2.8 * S), int(3.2 * S), 5 * S):
             assert api.belief_value(db, "ROBOT", "ANNE", "IsInRoom", "KITCHEN", at=at)
@@ -101,23 +134,33 @@ def test_the_holder_knows_where_it_passed_the_mug_the_other_saw_it_leave(
 
 
 @pytest.mark.slow
-def test_carried_out_of_the_room_the_holder_knows_at_every_tick(tmp_path: Path,
-                                                               db_url: str) -> None:
+def test_carried_out_of_the_room_the_holder_knows_at_every_tick(
+    tmp_path: Path, db_url: str
+) -> None:
     """Anne walks into the hall with the mug in hand (the hand crosses the door before her):
     at every tick she believes it is where the robot sees it; Bob, staying in the kitchen,
     sees it leave and then believes it in no room."""
-    db = _run(tmp_path, db_url, _flat([
-        {"at": "1s", "put_in_hand": "MUG", "agent": "ANNE", "hand": "rightHand"},
-        {"at": "2s", "move": "ANNE", "waypoints": [[8.0, 2.5]], "speed": 1},
-    ], anne=(3.45, 2.5)))  # never on the door line (x 5) at a tick: in one room at a time
+    db = _run(
+        tmp_path,
+        db_url,
+        _flat(
+            [
+                {"at": "1s", "put_in_hand": "MUG", "agent": "ANNE", "hand": "rightHand"},
+                {"at": "2s", "move": "ANNE", "waypoints": [[8.0, 2.5]], "speed": 1},
+            ],
+            anne=(3.45, 2.5),
+        ),
+    )  # never on the door line (x 5) at a tick: in one room at a time
     try:
         crossed = []
         for tick in range(RATE, 5 * RATE + 1):
             at = tick * S // RATE
             robot, anne = _room(db, "ROBOT", at), _room(db, "ANNE", at)
             assert anne == robot, at
-            anne_in = {r.target_id for r in api.beliefs(db, "ROBOT", at=at, subject="ANNE",
-                                                       property="IsInRoom")}
+            anne_in = {
+                r.target_id
+                for r in api.beliefs(db, "ROBOT", at=at, subject="ANNE", property="IsInRoom")
+            }
             if robot == {"HALL"} and anne_in == {"KITCHEN"}:
                 crossed.append(at)  # the mug in the hall, Anne not yet: only acting tells her
             assert _room(db, "BOB", at) == (set() if robot == {"HALL"} else {"KITCHEN"}), at

@@ -38,8 +38,7 @@ def rows(db_url: str, sql: str) -> list[tuple]:
 
 def agents(db_url: str) -> dict[str, bool]:
     """Registered agents (not the "a>b" chains the belief rules add for second-order beliefs)."""
-    return {a: bool(s) for a, s in rows(db_url, "SELECT id, is_self FROM agents")
-            if ">" not in a}
+    return {a: bool(s) for a, s in rows(db_url, "SELECT id, is_self FROM agents") if ">" not in a}
 
 
 def humans(db_url: str) -> set[str]:
@@ -50,8 +49,7 @@ def humans(db_url: str) -> set[str]:
 @pytest.mark.shared_data
 def test_tracks_have_no_human_holders_by_default(db_url: str) -> None:
     run(db_url, zara01(), "--until", "5s")
-    assert rows(db_url, "SELECT id, is_self FROM agents") in ([("toaster", True)],
-                                                               [("toaster", 1)])
+    assert rows(db_url, "SELECT id, is_self FROM agents") in ([("toaster", True)], [("toaster", 1)])
     assert len(humans(db_url)) == 148  # still entities
     facts = rows(db_url, "SELECT count(*) FROM facts")[0][0]
     assert facts > 0
@@ -78,8 +76,9 @@ def test_holders_ids(db_url: str) -> None:
 @pytest.mark.slow
 @pytest.mark.shared_data
 def test_unknown_holder_is_refused_before_writing(db_url: str) -> None:
-    done = CliRunner().invoke(cli, ["run", str(zara01()), "--db", db_url,
-                                    "--holders", "ped1,ped9999"])
+    done = CliRunner().invoke(
+        cli, ["run", str(zara01()), "--db", db_url, "--holders", "ped1,ped9999"]
+    )
     assert done.exit_code == 1
     lines = done.output.strip().splitlines()
     assert len(lines) == 1
@@ -114,8 +113,11 @@ def test_holders_choices_are_checked(tmp_path: Path) -> None:
     assert load_session(flat).belief_holders == "humans"
     assert load_session(flat, holders=["alice"]).belief_holders == ("alice",)
     assert load_session(flat, holders="None").belief_holders == "none"
-    for bad, message in ((",", "no belief holders given"), ("mug", "'mug' is not a human"),
-                         (["alice", 3], "give none, humans or a list of ids")):
+    for bad, message in (
+        (",", "no belief holders given"),
+        ("mug", "'mug' is not a human"),
+        (["alice", 3], "give none, humans or a list of ids"),
+    ):
         with pytest.raises(InvalidInputError, match=message) as info:
             load_session(flat, holders=bad)
         assert "\n" not in str(info.value)
@@ -127,9 +129,11 @@ def test_holders_choices_are_checked(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 def test_fps_with_a_scenario_is_one_line_error(db_url: str) -> None:
-    done = CliRunner().invoke(cli, ["run", str(EXAMPLES / "scenario_flat.yaml"), "--db", db_url,
-                                    "--fps", "25"])
+    done = CliRunner().invoke(
+        cli, ["run", str(EXAMPLES / "scenario_flat.yaml"), "--db", db_url, "--fps", "25"]
+    )
     assert done.exit_code == 1
     assert done.output.strip().splitlines() == [
         "Error: --fps is for obsmat .txt recordings (frame numbers): scenario_flat.yaml gives "
-        "its own times; use --rate for ticks per second"]
+        "its own times; use --rate for ticks per second"
+    ]

@@ -9,8 +9,11 @@ S = 1_000_000_000
 
 
 def props(facts, prop, sub=None):
-    return {(f.subject_id, f.target_id): f for f in facts
-            if f.property == prop and (sub is None or f.sub_property == sub)}
+    return {
+        (f.subject_id, f.target_id): f
+        for f in facts
+        if f.property == prop and (sub is None or f.sub_property == sub)
+    }
 
 
 def test_looking_toward_and_at_from_head_joint(scene):
@@ -67,7 +70,8 @@ def test_is_moving_body_with_speed_and_confidence(scene):
     direction = props(facts, "IsMovingToward", "direction")
     assert set(direction) == {("bob", "door")}
     assert direction[("bob", "door")].confidence == pytest.approx(
-        1 - abs(math.atan2(0.5, 5 - 0.9)), abs=1e-6)
+        1 - abs(math.atan2(0.5, 5 - 0.9)), abs=1e-6
+    )
     dist = props(facts, "IsMovingToward", "distance")
     assert set(dist) == {("bob", "door")}
     assert 0.9 < dist[("bob", "door")].confidence <= 1.0
@@ -110,7 +114,11 @@ def test_joints_distance_labels_and_joint_motion(scene):
     assert ("bob/rightHand", "wall") not in dist  # "out" is not emitted by default
     d = dist[("bob/rightHand", "table")]
     assert (d.subject_owner_id, d.property_type, d.sub_property, d.confidence) == (
-        "bob", "position", "3D", 0.9)
+        "bob",
+        "position",
+        "3D",
+        0.9,
+    )
     moving = props(facts, "IsMoving", "joint")
     assert moving[("bob/rightHand", "")].confidence == pytest.approx(0.5 * 3.6 / 20)
     toward = props(facts, "IsMovingToward", "distance")
@@ -141,8 +149,10 @@ def test_monitored_agents_configurable(scene):
     scene.add("bob", pos=(0, 0, 0))
     scene.add("r2", "robot", pos=(3, 0, 0))
     walk(scene, "bob", (0, 0), (1, 0), 5)
-    assert props(AgentMonitor({"monitored_agents": ["r2"]}).compute(scene.world, scene.t),
-                 "IsMoving") == {}
+    assert (
+        props(AgentMonitor({"monitored_agents": ["r2"]}).compute(scene.world, scene.t), "IsMoving")
+        == {}
+    )
     with pytest.raises(InvalidInputError, match="monitored_agents"):
         AgentMonitor({"monitored_agents": "cats"}).compute(scene.world, scene.t)
     with pytest.raises(InvalidInputError, match="unknown threshold"):

@@ -14,8 +14,11 @@ from toaster.world import World, read_obsmat
 DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "eth-ucy-opentraj"
 SCENES = {"hotel": DATA / "ETH" / "seq_hotel", "zara01": DATA / "UCY" / "zara01"}
 
-pytestmark = [pytest.mark.shared_data, pytest.mark.slow,
-              pytest.mark.skipif(not DATA.is_dir(), reason=f"shared data not found at {DATA}")]
+pytestmark = [
+    pytest.mark.shared_data,
+    pytest.mark.slow,
+    pytest.mark.skipif(not DATA.is_dir(), reason=f"shared data not found at {DATA}"),
+]
 
 
 def destinations(folder: Path) -> np.ndarray:
@@ -52,11 +55,16 @@ def replay(folder: Path) -> dict:
         for f in facts:
             if f.property == "IsMoving" and f.subject_id in seen_now:
                 moving[(t, f.subject_id)] = True
-            elif (f.property == "IsMovingToward" and f.sub_property == "direction"
-                  and f.target_id.startswith("dest") and f.subject_id in seen_now):
+            elif (
+                f.property == "IsMovingToward"
+                and f.sub_property == "direction"
+                and f.target_id.startswith("dest")
+                and f.subject_id in seen_now
+            ):
                 among.setdefault((t, f.subject_id), set()).add(f.target_id)
-                scores[f.subject_id] = max(scores.get(f.subject_id, (0.0, "")),
-                                           (f.confidence, f.target_id))
+                scores[f.subject_id] = max(
+                    scores.get(f.subject_id, (0.0, "")), (f.confidence, f.target_id)
+                )
         for eid, (_, dest) in scores.items():
             best[(t, eid)] = dest
     t_of = (raw[:, 0].astype(np.int64) * 40_000_000).tolist()
@@ -75,22 +83,32 @@ def replay(folder: Path) -> dict:
     # only destinations within IsMovingToward's range can be targets (relevance)
     reach = monitor.config["toward_range"]
     dest_xy = {f"dest{k}": xy for k, xy in enumerate(dests)}
-    moving_keys = [(t, p) for t, p, x, y in zip(t_of, ped, raw[:, 2], raw[:, 4], strict=True)
-                   if moving[(t, p)] and np.hypot(*(dest_xy[goal[p]] - (x, y))) < reach]
+    moving_keys = [
+        (t, p)
+        for t, p, x, y in zip(t_of, ped, raw[:, 2], raw[:, 4], strict=True)
+        if moving[(t, p)] and np.hypot(*(dest_xy[goal[p]] - (x, y))) < reach
+    ]
     inside = [goal[p] in among.get((t, p), ()) for t, p in moving_keys]
-    return {"agreement": float(np.mean((computed == annotated)[~first])),
-            "agreement_all": float(np.mean(computed == annotated)), "samples": int((~first).sum()),
-            "among": float(np.mean(inside)), "moving": len(moving_keys),
-            "toward_samples": len(hits), "toward_hits": float(np.mean(hits)) if hits else 0.0}
+    return {
+        "agreement": float(np.mean((computed == annotated)[~first])),
+        "agreement_all": float(np.mean(computed == annotated)),
+        "samples": int((~first).sum()),
+        "among": float(np.mean(inside)),
+        "moving": len(moving_keys),
+        "toward_samples": len(hits),
+        "toward_hits": float(np.mean(hits)) if hits else 0.0,
+    }
 
 
 @pytest.mark.parametrize("scene", ["hotel", "zara01"])
 def test_is_moving_agrees_with_annotated_velocity(scene):
     result = replay(SCENES[scene])
-    print(f"\n{scene}: IsMoving agreement {result['agreement']:.2%} on {result['samples']} "
-          f"samples with a previous sample ({result['agreement_all']:.2%} counting each track's "
-          f"first sample, which has no motion yet); final destination among "
-          f"IsMovingToward(direction) targets on {result['among']:.1%} of {result['moving']} "
-          f"moving samples whose destination is in range, the most confident on {result['toward_hits']:.1%}")
+    print(
+        f"\n{scene}: IsMoving agreement {result['agreement']:.2%} on {result['samples']} "
+        f"samples with a previous sample ({result['agreement_all']:.2%} counting each track's "
+        f"first sample, which has no motion yet); final destination among "
+        f"IsMovingToward(direction) targets on {result['among']:.1%} of {result['moving']} "
+        f"moving samples whose destination is in range, the most confident on {result['toward_hits']:.1%}"
+    )
     assert result["agreement"] >= 0.97
     assert result["among"] > 0.3  # a report more than an oracle: see docs/producers.md

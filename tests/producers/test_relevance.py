@@ -57,8 +57,9 @@ def ticks(world, pos, yaw, velocity, rng, count: int = 12):
     t = 10 * S
     for _ in range(count):
         pos[:, :2] += velocity / 30
-        rpy = np.column_stack([np.zeros(len(pos)), np.zeros(len(pos)),
-                               yaw + rng.normal(0, 0.05, len(pos))])
+        rpy = np.column_stack(
+            [np.zeros(len(pos)), np.zeros(len(pos)), yaw + rng.normal(0, 0.05, len(pos))]
+        )
         world.observe("test", np.arange(len(pos)), np.full(len(pos), t), pos, rpy)
         world.commit()
         yield t
@@ -83,8 +84,11 @@ def test_indexed_facts_equal_dense_facts_within_range(monkeypatch, seed):
         got = indexed.compute(world, t)
         monkeypatch.setattr(relevance, "DENSE_MAX_PAIRS", 10**12)  # every pair, dense
         everything = dense.compute(world, t)
-        want = [f for f in everything
-                if not (f.property == "IsMovingToward" and planar(world, f) >= 8.0)]
+        want = [
+            f
+            for f in everything
+            if not (f.property == "IsMovingToward" and planar(world, f) >= 8.0)
+        ]
         assert got == want  # same facts, same values, same order
         cut += len(everything) - len(got)
         for f in got:
@@ -99,14 +103,15 @@ def test_distance_and_looking_pairs_are_every_pair_in_range(monkeypatch):
     monitor = AgentMonitor(NO_DEBOUNCE)
     for t in ticks(world, pos, yaw, velocity, rng, 8):
         facts = monitor.compute(world, t)
-    distance = {(f.subject_id, f.target_id): f.value_num for f in facts
-                if f.property == "Distance"}
+    distance = {(f.subject_id, f.target_id): f.value_num for f in facts if f.property == "Distance"}
     joints = sorted({world.index[s] for s, _ in distance})
     targets = np.flatnonzero(world.kind[: world.n] != 3)
     d = np.linalg.norm(world.pos[joints][:, None] - world.pos[targets][None], axis=2)
     ji, ti = np.nonzero(d < 8.0)
-    assert distance == {(world.ids[joints[j]], world.ids[targets[k]]): d[j, k]
-                        for j, k in zip(ji.tolist(), ti.tolist(), strict=True)}
+    assert distance == {
+        (world.ids[joints[j]], world.ids[targets[k]]): d[j, k]
+        for j, k in zip(ji.tolist(), ti.tolist(), strict=True)
+    }
     looked = {(f.subject_id, f.target_id) for f in facts if f.property == "IsLookingToward"}
     assert looked
     for agent, target in looked:
@@ -116,8 +121,9 @@ def test_distance_and_looking_pairs_are_every_pair_in_range(monkeypatch):
         assert np.linalg.norm(point - world.pos[head]) <= 2.0
 
 
-def walk_toward(target_x: float, config: dict | None = None, kind: str = "object"
-                ) -> set[tuple[str, str]]:
+def walk_toward(
+    target_x: float, config: dict | None = None, kind: str = "object"
+) -> set[tuple[str, str]]:
     """Bob walks along +x at 1 m/s toward a "door" (of ``kind``) at target_x; (sub_property,
     target) pairs."""
     world = World()

@@ -20,8 +20,9 @@ def run_into_store(path: Path, url: str) -> object:
     store = db.store()
     session = load_session(path)
     world = session.world
-    runner = Runner(world, session.sources, session.producers, store=store,
-                    agent_id=session.self_id)
+    runner = Runner(
+        world, session.sources, session.producers, store=store, agent_id=session.self_id
+    )
     session.register(store)
     runner.run(session.start_ns, session.end_ns, session.rate_hz)
     return db

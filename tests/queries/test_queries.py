@@ -32,9 +32,14 @@ def test_as_of_matches_intervals_at_every_instant(timeline: toaster.Store) -> No
     db = timeline.db
     history = q.history(db, "PR2_ROBOT")
     for t in range(0, 70, 5):
-        expected = sorted((r.subject_id, r.property, r.target_id) for r in history
-                          if r.valid_from_ns <= t and (r.valid_to_ns is None or t < r.valid_to_ns))
-        got = sorted((r.subject_id, r.property, r.target_id) for r in q.beliefs_at(db, "PR2_ROBOT", t))
+        expected = sorted(
+            (r.subject_id, r.property, r.target_id)
+            for r in history
+            if r.valid_from_ns <= t and (r.valid_to_ns is None or t < r.valid_to_ns)
+        )
+        got = sorted(
+            (r.subject_id, r.property, r.target_id) for r in q.beliefs_at(db, "PR2_ROBOT", t)
+        )
         assert got == expected, t
 
 
@@ -53,7 +58,10 @@ def test_memory_and_windows(timeline: toaster.Store) -> None:
     """Memory holds closed intervals; windows keep the intervals that overlap them."""
     db = timeline.db
     assert [(r.subject_id, r.target_id) for r in q.memory(db, "PR2_ROBOT")] == [
-        ("MUG", "TABLE"), ("BOB", ""), ("BOX", "TABLE")]
+        ("MUG", "TABLE"),
+        ("BOB", ""),
+        ("BOX", "TABLE"),
+    ]
     window = q.history(db, "PR2_ROBOT", since=31, until=45)
     assert [(r.subject_id, r.valid_from_ns) for r in window] == [("MUG", 10), ("BOX", 40)]
     assert [r.subject_id for r in q.history(db, subject=["BOB", "BOX"])] == ["BOB", "BOX"]
@@ -64,8 +72,11 @@ def test_events_window_and_order(timeline: toaster.Store) -> None:
     db = timeline.db
     window = q.events(db, "PR2_ROBOT", since=30, until=50)
     assert [(e.stamp_ns, e.kind, e.subject_id) for e in window] == [
-        (30, "ended", "BOB"), (40, "appeared", "BOX"), (50, "ended", "MUG"),
-        (50, "appeared", "MUG")]
+        (30, "ended", "BOB"),
+        (40, "appeared", "BOX"),
+        (50, "ended", "MUG"),
+        (50, "appeared", "MUG"),
+    ]
     latest = q.events(db, kind="ended", newest_first=True, limit=1)
     assert [(e.stamp_ns, e.subject_id) for e in latest] == [(60, "BOX")]
 
@@ -90,8 +101,13 @@ def test_execute_is_read_only_unless_write(timeline: toaster.Store) -> None:
     assert q.execute(db, "SELECT count(*) FROM events").rows == [(7,)]
     with pytest.raises(ToasterError, match="events is kept by toaster's store"):
         q.execute(db, "DELETE FROM events WHERE stamp_ns < :t", {"t": 30}, write=True)
-    q.execute(db, "INSERT INTO fact_inbox (action, agent_id, subject_id, property, t_ns) "
-              "VALUES ('retract', 'PR2_ROBOT', 'MUG', 'IsOn', :t)", {"t": 70}, write=True)
+    q.execute(
+        db,
+        "INSERT INTO fact_inbox (action, agent_id, subject_id, property, t_ns) "
+        "VALUES ('retract', 'PR2_ROBOT', 'MUG', 'IsOn', :t)",
+        {"t": 70},
+        write=True,
+    )
     assert q.execute(db, "SELECT count(*) FROM events").rows == [(8,)]
     with pytest.raises(ToasterError, match="SQL error"):
         q.execute(db, "SELEC nonsense")
@@ -99,22 +115,38 @@ def test_execute_is_read_only_unless_write(timeline: toaster.Store) -> None:
 
 def test_are_in_table_with_wildcards(timeline: toaster.Store) -> None:
     """ARE_IN_TABLE answers per fact, with 'NULL' wildcards not inverted (original bug)."""
-    answers = q.are_in_table(timeline.db, "PR2_ROBOT", [
-        ON_SHELF, ON_TABLE, Fact("MUG", "IsOn", "NULL"), Fact("NULL", "IsOn", "SHELF"),
-        Fact("NULL", "IsOn", "TABLE")])
+    answers = q.are_in_table(
+        timeline.db,
+        "PR2_ROBOT",
+        [
+            ON_SHELF,
+            ON_TABLE,
+            Fact("MUG", "IsOn", "NULL"),
+            Fact("NULL", "IsOn", "SHELF"),
+            Fact("NULL", "IsOn", "TABLE"),
+        ],
+    )
     assert answers == [True, False, True, True, False]
 
 
 def test_ontology_descendants(store: toaster.Store) -> None:
     """LEAVE walks the tree recursively and returns instantiated individuals with their flag."""
-    for cls, ind, inst in [("thing", "container", False), ("container", "mug", False),
-                           ("mug", "RED_MUG", True), ("mug", "BLUE_MUG", True),
-                           ("container", "box", False), ("box", "BOX1", True),
-                           ("box", "container", False)]:  # a cycle must not loop forever
+    for cls, ind, inst in [
+        ("thing", "container", False),
+        ("container", "mug", False),
+        ("mug", "RED_MUG", True),
+        ("mug", "BLUE_MUG", True),
+        ("container", "box", False),
+        ("box", "BOX1", True),
+        ("box", "container", False),
+    ]:  # a cycle must not loop forever
         store.add_ontology(cls, ind, inst)
     leaves = q.descendants(store.db, "container")
     assert [(r.entity_class, r.individual, r.instantiated) for r in leaves] == [
-        ("box", "BOX1", True), ("mug", "BLUE_MUG", True), ("mug", "RED_MUG", True)]
+        ("box", "BOX1", True),
+        ("mug", "BLUE_MUG", True),
+        ("mug", "RED_MUG", True),
+    ]
     everything = q.descendants(store.db, "thing", instantiated_only=False)
     assert ("container", "mug", False) in everything
     assert [r.individual for r in q.ontology(store.db, "mug")] == ["BLUE_MUG", "RED_MUG"]
@@ -126,13 +158,18 @@ def test_properties_and_entities(store: toaster.Store) -> None:
     store.set_property("MUG", "height", 0.12)
     store.set_property("MUG", "color", "blue")
     assert [(p.key, p.value) for p in q.properties(store.db, "MUG")] == [
-        ("color", "blue"), ("height", "0.12")]
+        ("color", "blue"),
+        ("height", "0.12"),
+    ]
     with pytest.raises(toaster.errors.UnknownEntityError, match="'CUP'"):
         store.set_property("CUP", "color", "red")
     assert store.remove_property("MUG", "color") == 1
     assert {e.kind for e in q.entities(store.db, kind="human")} == {"human"}
     assert {a.id: a.is_self for a in q.agents(store.db)} == {
-        "PR2_ROBOT": True, "BOB": False, "ANNE": False}
+        "PR2_ROBOT": True,
+        "BOB": False,
+        "ANNE": False,
+    }
 
 
 def test_to_dataframe(timeline: toaster.Store) -> None:

@@ -24,22 +24,26 @@ HERE = Path(__file__).resolve().parent
 #: How long to wait for a connection or a message: generous, a loaded machine is slow.
 CONNECT_S = 60.0
 _spec = importlib.util.spec_from_file_location(
-    "toaster_ros1_messages", HERE.parents[1] / "src" / "toaster" / "ros1" / "messages.py")
+    "toaster_ros1_messages", HERE.parents[1] / "src" / "toaster" / "ros1" / "messages.py"
+)
 messages = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(messages)
 REGISTRY = messages.load()
 
 
 def msg_class(type_name: str):
-    return messages.message_class(type_name if "/" in type_name else f"toaster_msgs/{type_name}",
-                                  REGISTRY)
+    return messages.message_class(
+        type_name if "/" in type_name else f"toaster_msgs/{type_name}", REGISTRY
+    )
 
 
 def stamped(data):
     """A copy of ``data`` with every "now" stamp replaced by the current time in ns."""
     if isinstance(data, dict):
-        return {k: (rospy.Time.now().to_nsec() if k == "stamp" and v == "now" else stamped(v))
-                for k, v in data.items()}
+        return {
+            k: (rospy.Time.now().to_nsec() if k == "stamp" and v == "now" else stamped(v))
+            for k, v in data.items()
+        }
     if isinstance(data, list):
         return [stamped(v) for v in data]
     return data
@@ -56,8 +60,9 @@ class Client:
     def publisher(self, topic: str, type_name: str):
         if topic not in self.publishers:
             latch = topic == "/tf_static"
-            self.publishers[topic] = rospy.Publisher(topic, msg_class(type_name),
-                                                     queue_size=10, latch=latch)
+            self.publishers[topic] = rospy.Publisher(
+                topic, msg_class(type_name), queue_size=10, latch=latch
+            )
         return self.publishers[topic]
 
     def call(self, cmd):
@@ -133,8 +138,11 @@ class Client:
                 if left <= 0:
                     return {"ok": False, "error": f"no message on {topic}"}
                 self.cond.wait(left)
-            return {"ok": True, "msg": self.received[topic][-1],
-                    "count": self.received[topic + "#"]}
+            return {
+                "ok": True,
+                "msg": self.received[topic][-1],
+                "count": self.received[topic + "#"],
+            }
 
 
 def main() -> None:

@@ -47,9 +47,16 @@ def ros_unavailable() -> str | None:
         return f"{ROSCORE} is missing"
     if not Path(SYSTEM_PYTHON).exists():
         return f"{SYSTEM_PYTHON} is missing"
-    probe = subprocess.run([SYSTEM_PYTHON, "-c", "import rospy, genpy, tf2_msgs.msg, "
-                            "visualization_msgs.msg, geometry_msgs.msg"],
-                           capture_output=True, text=True, check=False)
+    probe = subprocess.run(
+        [
+            SYSTEM_PYTHON,
+            "-c",
+            "import rospy, genpy, tf2_msgs.msg, visualization_msgs.msg, geometry_msgs.msg",
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     if probe.returncode != 0:
         lines = probe.stderr.strip().splitlines()
         return f"rospy is not importable ({lines[-1] if lines else 'unknown error'})"
@@ -61,8 +68,10 @@ def require_ros() -> None:
     reason = ros_unavailable()
     if reason is None:
         return
-    message = (f"ROS 1 is not installed: {reason} (apt-get install --no-install-recommends "
-               "ros-core python3-rospy python3-tf2-msgs python3-visualization-msgs ...)")
+    message = (
+        f"ROS 1 is not installed: {reason} (apt-get install --no-install-recommends "
+        "ros-core python3-rospy python3-tf2-msgs python3-visualization-msgs ...)"
+    )
     if os.environ.get("CI"):
         pytest.fail(message + "; CI must install it (.ci/run)")
     pytest.skip(message)
@@ -92,8 +101,12 @@ class NodeProcess:
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "toaster", "--db", url, "serve", "--ros1", *args],
             cwd=log.parent,  # files the node writes (plot_fact/) land beside its log
-            env=env, stdout=subprocess.PIPE, stderr=self.err, text=True,
-            start_new_session=True)
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=self.err,
+            text=True,
+            start_new_session=True,
+        )
         deadline = time.monotonic() + 60
         while "(Ctrl-C stops)" not in self.stderr():  # printed once the bridge is up
             if self.proc.poll() is not None or time.monotonic() > deadline:
@@ -130,13 +143,13 @@ def node_args() -> list[str]:
 
 
 @pytest.fixture(scope="module")
-def node(ros_env: dict[str, str], node_args: list[str],
-         tmp_path_factory: pytest.TempPathFactory) -> Iterator[NodeProcess]:
+def node(
+    ros_env: dict[str, str], node_args: list[str], tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[NodeProcess]:
     """The module's ``toaster serve --ros1`` on a SQLite file in a folder of its own (its log
     there too), stopped at the end; it must have stopped cleanly, with no traceback."""
     tmp = tmp_path_factory.mktemp("ros1_node")
-    proc = NodeProcess(ros_env, f"sqlite:///{tmp / 'toaster.db'}", node_args,
-                       tmp / "node.log")
+    proc = NodeProcess(ros_env, f"sqlite:///{tmp / 'toaster.db'}", node_args, tmp / "node.log")
     yield proc
     out = proc.close()
     assert "stopped after" in out, out[-2000:]
@@ -155,10 +168,15 @@ class RosClient:
     """The rospy client process: call services, publish, read topics."""
 
     def __init__(self, env: dict[str, str]) -> None:
-        self.proc = subprocess.Popen([SYSTEM_PYTHON, str(HERE / "client.py")], env=env,
-                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                     stderr=subprocess.PIPE, text=True,
-                                     start_new_session=True)
+        self.proc = subprocess.Popen(
+            [SYSTEM_PYTHON, str(HERE / "client.py")],
+            env=env,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            start_new_session=True,
+        )
         first = self._read()
         assert first.get("ready"), first
 
@@ -185,10 +203,18 @@ class RosClient:
     def call_raw(self, service: str, srv_type: str, **request: Any) -> dict[str, Any]:
         return self.send("call", service=service, type=srv_type, request=request)
 
-    def publish(self, topic: str, msg_type: str, msg: dict[str, Any], *, rate: float = 0.0,
-                key: str | None = None) -> None:
-        answer = self.send("publish", topic=topic, type=msg_type, msg=msg, rate=rate,
-                           key=key or topic)
+    def publish(
+        self,
+        topic: str,
+        msg_type: str,
+        msg: dict[str, Any],
+        *,
+        rate: float = 0.0,
+        key: str | None = None,
+    ) -> None:
+        answer = self.send(
+            "publish", topic=topic, type=msg_type, msg=msg, rate=rate, key=key or topic
+        )
         assert answer["ok"], answer
 
     def stop(self, key: str) -> None:
@@ -197,8 +223,9 @@ class RosClient:
     def subscribe(self, topic: str, msg_type: str, *, connected: bool = False) -> None:
         """Subscribe; ``connected``: return once a publisher is connected (what it sends
         next is received)."""
-        answer = self.send("subscribe", topic=topic, type=msg_type,
-                           connected=TIMEOUT if connected else 0)
+        answer = self.send(
+            "subscribe", topic=topic, type=msg_type, connected=TIMEOUT if connected else 0
+        )
         assert answer["ok"], answer
 
     def latest(self, topic: str, *, after: int = 0) -> dict[str, Any]:

@@ -191,11 +191,20 @@ def test_a_one_megabyte_id_and_nan_poses_through_services_are_refused(
 def cup_and_bob(client: RosClient, db: toaster.Database) -> None:
     """A cup and bob on the node's lists, whichever tests of this module ran before."""
     header = {"stamp": "now", "frame_id": "map"}
-    client.publish("/toaster_simu/objectList", "ObjectListStamped",
-                   {"header": header, "objectList": [entity("cup", 1.0)]}, rate=10, key="cup")
-    client.publish("/toaster_simu/humanList", "HumanListStamped",
-                   {"header": header, "humanList": [{"meAgent": entity("bob", 0.0)}]},
-                   rate=10, key="bob")
+    client.publish(
+        "/toaster_simu/objectList",
+        "ObjectListStamped",
+        {"header": header, "objectList": [entity("cup", 1.0)]},
+        rate=10,
+        key="cup",
+    )
+    client.publish(
+        "/toaster_simu/humanList",
+        "HumanListStamped",
+        {"header": header, "humanList": [{"meAgent": entity("bob", 0.0)}]},
+        rate=10,
+        key="bob",
+    )
     wait_for(lambda: known(db, "cup") and known(db, "bob"), "cup and bob registered")
 
 

@@ -55,24 +55,31 @@ def tf_msg(*edges: tuple[str, str, tuple[float, float, float], float, int]) -> A
 @pytest.mark.slow
 def test_tf_chain_is_composed_up_to_map(reg: Any) -> None:
     tree = TfTree()
-    frames = mapping.read_frame_map({"cup_link": {"id": "cup"},
-                                     "hand": {"kind": "joint", "owner": "bob",
-                                              "joint": "rightHand"},
-                                     "lost": {"id": "ghost", "kind": "human"}})
-    changed, bad = tree.update(tf_msg(("map", "table", (1.0, 0.0, 0.5), math.pi / 2, 5),
-                                      ("/table", "cup_link", (1.0, 0.0, 0.1), 0.0, 7),
-                                      ("map", "hand", (0.0, 0.0, 1.0), 0.0, 0),
-                                      ("odom", "lost", (0.0, 0.0, 0.0), 0.0, 0)))
+    frames = mapping.read_frame_map(
+        {
+            "cup_link": {"id": "cup"},
+            "hand": {"kind": "joint", "owner": "bob", "joint": "rightHand"},
+            "lost": {"id": "ghost", "kind": "human"},
+        }
+    )
+    changed, bad = tree.update(
+        tf_msg(
+            ("map", "table", (1.0, 0.0, 0.5), math.pi / 2, 5),
+            ("/table", "cup_link", (1.0, 0.0, 0.1), 0.0, 7),
+            ("map", "hand", (0.0, 0.0, 1.0), 0.0, 0),
+            ("odom", "lost", (0.0, 0.0, 0.0), 0.0, 0),
+        )
+    )
     assert not bad and changed == {"table", "cup_link", "hand", "lost"}
     updates, lost = mapping.tf_updates(tree, frames, changed)
     by_id = {u.entity_id: u for u in updates}
     cup = by_id["cup"]
     assert cup.position == pytest.approx((1.0, 1.0, 0.6)) and cup.t_ns == 7
     assert mapping.quat(type("Q", (), dict(zip("xyzw", cup.quat, strict=True)))()) == (
-        pytest.approx(mapping.rpy_to_quat(0.0, 0.0, math.pi / 2)))
+        pytest.approx(mapping.rpy_to_quat(0.0, 0.0, math.pi / 2))
+    )
     hand = by_id["bob/rightHand"]
-    assert (hand.kind, hand.owner_id, hand.joint, hand.t_ns) == ("joint", "bob", "rightHand",
-                                                                 None)
+    assert (hand.kind, hand.owner_id, hand.joint, hand.t_ns) == ("joint", "bob", "rightHand", None)
     assert lost == ["lost"]
     _, bad = tree.update(tf_msg(("map", "x", (math.nan, 0.0, 0.0), 0.0, 0)))
     assert bad and "finite" in bad[0]
@@ -84,14 +91,22 @@ def test_poses_of_one_call_come_from_the_same_messages(reg: Any) -> None:
     tf_updates call comes from the same message (each moves a human's body and its head
     together), never one from each."""
     tree = TfTree()
-    frames = mapping.read_frame_map({f"h{i}": {"id": f"h{i}", "kind": "human"} for i in range(40)}
-                                    | {f"h{i}_head": {"kind": "joint", "owner": f"h{i}",
-                                                      "joint": "head"} for i in range(40)})
+    frames = mapping.read_frame_map(
+        {f"h{i}": {"id": f"h{i}", "kind": "human"} for i in range(40)}
+        | {f"h{i}_head": {"kind": "joint", "owner": f"h{i}", "joint": "head"} for i in range(40)}
+    )
 
     def message(x: float) -> Any:
-        return tf_msg(*[edge for i in range(40) for edge in (
-            ("map", f"h{i}", (x, float(i), 0.0), 0.0, 1), ("map", f"h{i}_head", (x, float(i),
-                                                                                1.7), 0.0, 1))])
+        return tf_msg(
+            *[
+                edge
+                for i in range(40)
+                for edge in (
+                    ("map", f"h{i}", (x, float(i), 0.0), 0.0, 1),
+                    ("map", f"h{i}_head", (x, float(i), 1.7), 0.0, 1),
+                )
+            ]
+        )
 
     moves = [message(0.0), message(1.6)]
     tree.update(moves[0])
@@ -108,8 +123,9 @@ def test_poses_of_one_call_come_from_the_same_messages(reg: Any) -> None:
     publisher = threading.Thread(target=publish)
     publisher.start()
     try:
-        seen = [{u.position[0] for u in mapping.tf_updates(tree, frames, frames)[0]}
-                for _ in range(300)]
+        seen = [
+            {u.position[0] for u in mapping.tf_updates(tree, frames, frames)[0]} for _ in range(300)
+        ]
     finally:
         stop.set()
         publisher.join()
@@ -125,10 +141,13 @@ def test_the_same_functions_read_ros2_messages() -> None:
     stamp = time_cls(sec=3, nanosec=5)
     assert mapping.stamp_ns(stamp) == 3_000_000_005
     tr = types["geometry_msgs/msg/TransformStamped"](
-        header=header_cls(stamp=stamp, frame_id="map"), child_frame_id="cup_link",
+        header=header_cls(stamp=stamp, frame_id="map"),
+        child_frame_id="cup_link",
         transform=types["geometry_msgs/msg/Transform"](
             translation=types["geometry_msgs/msg/Vector3"](x=1.0, y=2.0, z=3.0),
-            rotation=types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)))
+            rotation=types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+        ),
+    )
     tree = TfTree()
     changed, _ = tree.update(types["tf2_msgs/msg/TFMessage"](transforms=[tr]))
     updates, _ = mapping.tf_updates(tree, mapping.read_frame_map({"cup_link": "cup"}), changed)
@@ -137,15 +156,21 @@ def test_the_same_functions_read_ros2_messages() -> None:
 
 def test_frame_map_files_and_errors(tmp_path: Path) -> None:
     path = tmp_path / "frames.yaml"
-    path.write_text("frames:\n  /base_link: {id: pr2, kind: robot}\n  head_cam: {kind: joint, "
-                    "owner: pr2, joint: head}\n")
+    path.write_text(
+        "frames:\n  /base_link: {id: pr2, kind: robot}\n  head_cam: {kind: joint, "
+        "owner: pr2, joint: head}\n"
+    )
     frames = mapping.read_frame_map(path)
     assert frames["base_link"] == mapping.FrameTarget("pr2", "robot")
     assert frames["head_cam"].entity_id == "pr2/head"
     (tmp_path / "f.json").write_text('{"mug_frame": {"id": "mug"}}')
     assert mapping.read_frame_map(tmp_path / "f.json")["mug_frame"].kind == "object"
-    for bad in ({"f": {"id": "x", "kind": "table"}}, {"f": {"kind": "joint", "joint": "h"}},
-                {"f": {"kind": "human"}}, ["f"]):
+    for bad in (
+        {"f": {"id": "x", "kind": "table"}},
+        {"f": {"kind": "joint", "joint": "h"}},
+        {"f": {"kind": "human"}},
+        ["f"],
+    ):
         with pytest.raises(InvalidInputError):
             mapping.read_frame_map(bad)  # type: ignore[arg-type]
     (tmp_path / "bad.yaml").write_text("frames: [unclosed")
@@ -176,16 +201,28 @@ def test_pose_stamped_in_another_frame_and_bad_poses(reg: Any) -> None:
 def test_entity_lists_hri_frames_and_ids(reg: Any) -> None:
     from toaster.ros1.messages import to_msg
 
-    human = {"meAgent": {"meEntity": {"id": "bob", "time": 9, "pose": {
-        "position": {"x": 1, "y": 2, "z": 0}, "orientation": {"w": 1}}},
-        "skeletonNames": ["head"], "skeletonJoint": [{"meEntity": {"id": "j", "pose": {
-            "position": {"x": 1, "y": 2, "z": 1.7}}}}]}}
+    human = {
+        "meAgent": {
+            "meEntity": {
+                "id": "bob",
+                "time": 9,
+                "pose": {"position": {"x": 1, "y": 2, "z": 0}, "orientation": {"w": 1}},
+            },
+            "skeletonNames": ["head"],
+            "skeletonJoint": [
+                {"meEntity": {"id": "j", "pose": {"position": {"x": 1, "y": 2, "z": 1.7}}}}
+            ],
+        }
+    }
     bad = {"meAgent": {"meEntity": {"id": "nan", "pose": {"position": {"x": math.nan}}}}}
-    msg = to_msg(reg.msg("HumanListStamped"), {"header": {"stamp": 4}, "humanList": [human, bad]},
-                 reg)
+    msg = to_msg(
+        reg.msg("HumanListStamped"), {"header": {"stamp": 4}, "humanList": [human, bad]}, reg
+    )
     updates, problems = mapping.list_updates(msg)
     assert [(u.entity_id, u.kind, u.owner_id, u.joint, u.t_ns) for u in updates] == [
-        ("bob", "human", "", "", 9), ("bob/head", "joint", "bob", "head", 4)]
+        ("bob", "human", "", "", 9),
+        ("bob/head", "joint", "bob", "head", 4),
+    ]
     assert updates[1].quat == mapping.IDENTITY and "nan" in problems[0]
     assert mapping.hri_target("face_7") == mapping.FrameTarget("7/head", "joint", "7", "head")
     assert mapping.hri_target("body_7") == mapping.FrameTarget("7", "human")
@@ -195,8 +232,9 @@ def test_entity_lists_hri_frames_and_ids(reg: Any) -> None:
 
 
 def test_facts_and_areas_survive_the_wire(reg: Any) -> None:
-    fact = Fact("bob/rightHand", "Distance", "cup", "close", 0.12, 0.9, 0.0, "position", "3D",
-                "bob", "")
+    fact = Fact(
+        "bob/rightHand", "Distance", "cup", "close", 0.12, 0.9, 0.0, "position", "3D", "bob", ""
+    )
     msg = reg.msg("Fact")(**mapping.fact_fields(fact, 42))
     buf = io.BytesIO()
     msg.serialize(buf)
@@ -206,13 +244,29 @@ def test_facts_and_areas_survive_the_wire(reg: Any) -> None:
     assert mapping.fact_from_msg(reg.msg("Fact")(subjectId="a", property="p")).value_text == "true"
     from toaster.ros1.messages import to_msg
 
-    area = to_msg(reg.msg("Area"), {"name": "desk", "isCircle": True, "ray": 0.5,
-                                    "height": 1.0, "center": {"x": 1, "y": 2, "z": 0.5},
-                                    "enterHysteresis": 0.1, "entityType": "humans",
-                                    "factType": "interaction", "myOwner": "pr2"}, reg)
+    area = to_msg(
+        reg.msg("Area"),
+        {
+            "name": "desk",
+            "isCircle": True,
+            "ray": 0.5,
+            "height": 1.0,
+            "center": {"x": 1, "y": 2, "z": 0.5},
+            "enterHysteresis": 0.1,
+            "entityType": "humans",
+            "factType": "interaction",
+            "myOwner": "pr2",
+        },
+        reg,
+    )
     name, spec = mapping.area_from_msg(area)
     assert (name, spec["shape"], spec["radius"], spec["height"], spec["owner"]) == (
-        "desk", "circle", 0.5, 1.0, "pr2")
+        "desk",
+        "circle",
+        0.5,
+        1.0,
+        "pr2",
+    )
     assert spec["center"] == [1.0, 2.0, 0.5] and spec["facts"] == ["interaction"]
     fields = mapping.area_fields(name, spec, 3, ["bob"])
     assert (fields["id"], fields["ray"], fields["insideEntities_"]) == (3, 0.5, ["bob"])
@@ -252,19 +306,32 @@ def test_world_as_frames_lists_and_markers() -> None:
     cup = next(m for m in arrays["marker_object"] if m["type"] == markers.CUBE and m["ns"] == "cup")
     assert cup["scale"] == {"x": 0.1, "y": 0.1, "z": 0.12}
     assert any(m["type"] == markers.SPHERE_LIST for m in arrays["marker_human"])
-    areas = {"front": {"shape": "polygon", "points": [[0, -1], [2, -1], [2, 1], [0, 1]],
-                       "owner": "bob", "z_min": None},
-             "mat": {"shape": "circle", "center": [3, 3], "radius": 0.5}}
+    areas = {
+        "front": {
+            "shape": "polygon",
+            "points": [[0, -1], [2, -1], [2, 1], [0, 1]],
+            "owner": "bob",
+            "z_min": None,
+        },
+        "mat": {"shape": "circle", "center": [3, 3], "radius": 0.5},
+    }
     world.rpy[world.index["bob"], 2] = math.pi / 2
     drawn = markers.area_markers(world, areas, {"mat"}, 5)
     front = next(m for m in drawn if m["ns"] == "front" and m["type"] == markers.LINE_STRIP)
     assert front["points"][1]["x"] == pytest.approx(1.0) and front["points"][1]["y"] == (
-        pytest.approx(2.0))
+        pytest.approx(2.0)
+    )
     mat = next(m for m in drawn if m["ns"] == "mat" and m["type"] == markers.CYLINDER)
     assert mat["scale"]["x"] == 1.0 and mat["color"]["a"] == 0.5
-    motion = markers.motion_markers(world, [
-        Fact("bob", "IsMoving", "", "true", 1.2, 0.8),
-        Fact("bob", "IsLookingAt", "cup", "", 0.1), Fact("ghost", "IsMoving", "")], 5)
+    motion = markers.motion_markers(
+        world,
+        [
+            Fact("bob", "IsMoving", "", "true", 1.2, 0.8),
+            Fact("bob", "IsLookingAt", "cup", "", 0.1),
+            Fact("ghost", "IsMoving", ""),
+        ],
+        5,
+    )
     assert [m["ns"] for m in motion[1:]] == ["IsMoving", "IsLookingAt"]
     assert motion[2]["points"][0]["z"] == pytest.approx(1.7)  # from bob's head
 

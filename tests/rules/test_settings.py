@@ -19,25 +19,42 @@ revision = importlib.import_module("toaster.migrations.versions.0011_holder_grou
 
 SALLY_ANNE = resources.files("toaster") / "examples" / "beliefs_sally_anne.yaml"
 #: A value other than the default for each setting.
-OTHER = {"enabled": False, "depth": 1, "copresence": ["IsNear"], "containment": ["IsUnder"],
-         "visibility": {"Sees": "subject"}, "closed": "IsShut", "refute_by_target": [],
-         "self_perception": True, "share_rows": False,
-         "attention": {"IsInRoom": ["IsLookingToward"]}, "trust": "witnesses",
-         "distrust": ["ANNE"], "group_holders": False}
+OTHER = {
+    "enabled": False,
+    "depth": 1,
+    "copresence": ["IsNear"],
+    "containment": ["IsUnder"],
+    "visibility": {"Sees": "subject"},
+    "closed": "IsShut",
+    "refute_by_target": [],
+    "self_perception": True,
+    "share_rows": False,
+    "attention": {"IsInRoom": ["IsLookingToward"]},
+    "trust": "witnesses",
+    "distrust": ["ANNE"],
+    "group_holders": False,
+}
 
 
 def delete_row(db: toaster.Database, key: str) -> None:
     """What a user of plain SQL does: delete the settings row."""
     with db.transaction(write=True) as conn:
-        conn.execute(sa.text("DELETE FROM settings WHERE scope = 'beliefs' AND key = :k"),
-                     {"k": key})
+        conn.execute(
+            sa.text("DELETE FROM settings WHERE scope = 'beliefs' AND key = :k"), {"k": key}
+        )
 
 
 def marble_beliefs(db: toaster.Database) -> dict[str, set[str]]:
     scenario.replay(db, SALLY_ANNE)
     at = 4_000_000_000  # Sally out of the room, the marble moved to the box
-    return {holder: {r.target_id for r in api.beliefs(db, holder, property="IsIn", at=at)
-                     if r.subject_id == "MARBLE"} for holder in ("SALLY", "ANNE")}
+    return {
+        holder: {
+            r.target_id
+            for r in api.beliefs(db, holder, property="IsIn", at=at)
+            if r.subject_id == "MARBLE"
+        }
+        for holder in ("SALLY", "ANNE")
+    }
 
 
 def test_every_setting_has_a_kind_and_a_database_default(db: toaster.Database) -> None:
@@ -53,8 +70,9 @@ def test_a_deleted_setting_row_means_the_default(db: toaster.Database, key: str)
     delete_row(db, key)
     assert api.config(db)[key] == default
     with db.transaction() as conn:  # the rule statements read the same view
-        stored = conn.execute(sa.text("SELECT value_json FROM belief_settings WHERE key = :k"),
-                              {"k": key}).scalar_one()
+        stored = conn.execute(
+            sa.text("SELECT value_json FROM belief_settings WHERE key = :k"), {"k": key}
+        ).scalar_one()
     assert json.loads(stored) == default
 
 

@@ -18,10 +18,33 @@ from toaster.rules import pipeline, sqltext, triggers
 BACKENDS = ("sqlite", "postgresql")
 #: What the other backend writes and this one must not see.
 FOREIGN = {
-    "sqlite": ("LEAST(", "GREATEST(", "::", "IS DISTINCT FROM", "ON COMMIT", "CAST(:",
-               "LATERAL", "json_array_elements", "#>>", "bigint", "float8", "ANALYZE"),
-    "postgresql": ("MIN(1.0", "MAX(l.", "INDEXED BY", "INSERT OR", "json_extract", "json_each(",
-                   "temp.", "CROSS JOIN belief", "CROSS JOIN fact", " REAL", "IS NOT sf"),
+    "sqlite": (
+        "LEAST(",
+        "GREATEST(",
+        "::",
+        "IS DISTINCT FROM",
+        "ON COMMIT",
+        "CAST(:",
+        "LATERAL",
+        "json_array_elements",
+        "#>>",
+        "bigint",
+        "float8",
+        "ANALYZE",
+    ),
+    "postgresql": (
+        "MIN(1.0",
+        "MAX(l.",
+        "INDEXED BY",
+        "INSERT OR",
+        "json_extract",
+        "json_each(",
+        "temp.",
+        "CROSS JOIN belief",
+        "CROSS JOIN fact",
+        " REAL",
+        "IS NOT sf",
+    ),
 }
 beliefs_revision = importlib.import_module("toaster.migrations.versions.0003_beliefs")
 
@@ -55,10 +78,17 @@ def test_both_backends_declare_the_same_macros() -> None:
 
 
 def test_the_pipeline_runs_every_step_and_only_postgresql_makes_scratch_tables() -> None:
-    used = {part.name for block in pipeline.blocks() for part in block.body
-            if isinstance(part, pipeline.Step)}
+    used = {
+        part.name
+        for block in pipeline.blocks()
+        for part in block.body
+        if isinstance(part, pipeline.Step)
+    }
     assert used | {"00_temp", "95_materialize", "99_clear"} == set(sqltext.STEPS) | {
-        "holders", "reperceive", "holders_seen"}
+        "holders",
+        "reperceive",
+        "holders_seen",
+    }
     assert pipeline.statements(sqltext.render("00_temp", "sqlite")) == []
     assert len(pipeline.statements(sqltext.render("00_temp", "postgresql"))) == 9 + 2
 
@@ -70,16 +100,28 @@ def test_the_triggers_of_a_database_at_head_are_the_rendered_ones(db: toaster.Da
     backend = db.engine.dialect.name
     with db.transaction() as conn:
         if backend == "sqlite":
-            stored = {_normal(row[0]) for row in conn.execute(text(
-                "SELECT sql FROM sqlite_master WHERE type = 'trigger' "
-                "AND name NOT LIKE '%_guard_%' AND name <> 'agents_holder'"))}
+            stored = {
+                _normal(row[0])
+                for row in conn.execute(
+                    text(
+                        "SELECT sql FROM sqlite_master WHERE type = 'trigger' "
+                        "AND name NOT LIKE '%_guard_%' AND name <> 'agents_holder'"
+                    )
+                )
+            }
         else:
-            stored = {_normal(row[0]) for row in conn.execute(text(
-                "SELECT prosrc FROM pg_proc WHERE (left(proname, 13) = 'toaster_step_' OR "
-                "proname IN ('toaster_belief_run', 'toaster_fact_inbox', "
-                "'toaster_settings_changed', 'toaster_agents_changed')) "
-                "AND pronamespace = "
-                "(SELECT oid FROM pg_namespace WHERE nspname = current_schema())"))}
+            stored = {
+                _normal(row[0])
+                for row in conn.execute(
+                    text(
+                        "SELECT prosrc FROM pg_proc WHERE (left(proname, 13) = 'toaster_step_' OR "
+                        "proname IN ('toaster_belief_run', 'toaster_fact_inbox', "
+                        "'toaster_settings_changed', 'toaster_agents_changed')) "
+                        "AND pronamespace = "
+                        "(SELECT oid FROM pg_namespace WHERE nspname = current_schema())"
+                    )
+                )
+            }
     rendered = triggers.ddl(backend)
     if backend == "postgresql":  # the bodies of the functions
         rendered = [r.split("$fn$")[1] for r in rendered if "$fn$" in r]
@@ -108,7 +150,8 @@ def test_sections_and_arguments() -> None:
     assert sqltext.expand(sql, "sqlite") == "a :t '$' :x"
     assert sqltext.expand(sql, "postgresql") == "b CAST(:t AS bigint) '$' :x"
     assert sqltext.expand("{{setting_text(closed)}}", "postgresql") == (
-        "(CAST((SELECT value_json FROM belief_settings WHERE key = 'closed') AS json) #>> '{}')")
+        "(CAST((SELECT value_json FROM belief_settings WHERE key = 'closed') AS json) #>> '{}')"
+    )
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -117,7 +160,8 @@ def test_the_beliefs_revision_froze_the_views_of_the_followed_period(backend: st
     it must be what the one followed-period definition renders."""
     frozen = beliefs_revision.views(backend)
     assert [(n, _normal(b)) for n, b in frozen] == [
-        (n, _normal(b)) for n, b in sqltext.views(backend)]
+        (n, _normal(b)) for n, b in sqltext.views(backend)
+    ]
 
 
 @pytest.mark.slow
@@ -128,14 +172,18 @@ def test_the_views_of_a_database_at_head_are_the_rendered_ones(db: toaster.Datab
     with db.transaction(write=True) as conn:
         for name, body in sqltext.views(backend):
             if backend == "sqlite":
-                stored = conn.execute(text("SELECT sql FROM sqlite_master WHERE name = :n"),
-                                      {"n": name}).scalar_one()
+                stored = conn.execute(
+                    text("SELECT sql FROM sqlite_master WHERE name = :n"), {"n": name}
+                ).scalar_one()
                 assert _normal(stored) == _normal(f"CREATE VIEW {name} AS {body}")
                 continue
             conn.exec_driver_sql(f"CREATE TEMP VIEW check_{name} AS {body}")
-            stored, rendered = (conn.execute(text("SELECT pg_get_viewdef(CAST(:n AS regclass))"),
-                                             {"n": n}).scalar_one()
-                                for n in (name, f"check_{name}"))
+            stored, rendered = (
+                conn.execute(
+                    text("SELECT pg_get_viewdef(CAST(:n AS regclass))"), {"n": n}
+                ).scalar_one()
+                for n in (name, f"check_{name}")
+            )
             assert stored == rendered
             conn.exec_driver_sql(f"DROP VIEW check_{name}")
 
@@ -166,9 +214,19 @@ def test_every_frozen_unit_file_is_in_its_revisions_manifest() -> None:
 
 def test_a_step_unit_per_step_instance_and_no_name_shared_with_a_block() -> None:
     units = triggers.step_units()
-    assert len(units) == len({part for block in pipeline.blocks() for part in block.body
-                              if isinstance(part, pipeline.Step)})
-    assert triggers.unit_name(pipeline.Step("20_perceive", (("everything", "1"), (
-        "phase", "'before'")))) == "20_perceive_1_before"
+    assert len(units) == len(
+        {
+            part
+            for block in pipeline.blocks()
+            for part in block.body
+            if isinstance(part, pipeline.Step)
+        }
+    )
+    assert (
+        triggers.unit_name(
+            pipeline.Step("20_perceive", (("everything", "1"), ("phase", "'before'")))
+        )
+        == "20_perceive_1_before"
+    )
     assert not {block.name for block in pipeline.blocks()} & set(triggers.units())
     assert all(re.fullmatch(r"\w+", unit) for unit in triggers.units())

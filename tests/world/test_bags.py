@@ -24,15 +24,18 @@ pytest.importorskip("rosbags")
 def _header(store, t_ns: int, frame: str = "map"):
     time_t = store.types["builtin_interfaces/msg/Time"]
     return store.types["std_msgs/msg/Header"](
-        stamp=time_t(sec=t_ns // 10**9, nanosec=t_ns % 10**9), frame_id=frame)
+        stamp=time_t(sec=t_ns // 10**9, nanosec=t_ns % 10**9), frame_id=frame
+    )
 
 
 def _pose(store, x: float, y: float, z: float, yaw: float):
     t = store.types
     return t["geometry_msgs/msg/Pose"](
         position=t["geometry_msgs/msg/Point"](x=x, y=y, z=z),
-        orientation=t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(yaw / 2),
-                                                      w=math.cos(yaw / 2)))
+        orientation=t["geometry_msgs/msg/Quaternion"](
+            x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)
+        ),
+    )
 
 
 def write_eth_bag(obsmat: Path, out: Path, seconds: float) -> None:
@@ -45,8 +48,9 @@ def write_eth_bag(obsmat: Path, out: Path, seconds: float) -> None:
     source = read_obsmat(obsmat)
     end = source.start_ns + int(seconds * 1e9)
     with Writer(out) as writer:
-        conn = writer.add_connection("/pdg/humanList", "toaster_msgs/msg/HumanListStamped",
-                                     typestore=store)
+        conn = writer.add_connection(
+            "/pdg/humanList", "toaster_msgs/msg/HumanListStamped", typestore=store
+        )
         for stamp in sorted(set(source.t.tolist())):
             if stamp > end:
                 break
@@ -56,30 +60,45 @@ def write_eth_bag(obsmat: Path, out: Path, seconds: float) -> None:
                     continue
                 x, y, z = source.pos[i]
                 entity = t["toaster_msgs/msg/Entity"](
-                    id=source.ids[i], name=source.ids[i], time=stamp,
+                    id=source.ids[i],
+                    name=source.ids[i],
+                    time=stamp,
                     pose=_pose(store, float(x), float(y), float(z), float(source.rpy[i][2])),
-                    inArea=np.zeros(0, np.uint32))
-                agent = t["toaster_msgs/msg/Agent"](meEntity=entity, mobility=0, busyHands=[],
-                                                    hasObjects=[], skeletonNames=[],
-                                                    skeletonJoint=[])
+                    inArea=np.zeros(0, np.uint32),
+                )
+                agent = t["toaster_msgs/msg/Agent"](
+                    meEntity=entity,
+                    mobility=0,
+                    busyHands=[],
+                    hasObjects=[],
+                    skeletonNames=[],
+                    skeletonJoint=[],
+                )
                 humans.append(t["toaster_msgs/msg/Human"](meAgent=agent, age=0))
-            msg = t["toaster_msgs/msg/HumanListStamped"](header=_header(store, stamp),
-                                                         humanList=humans)
+            msg = t["toaster_msgs/msg/HumanListStamped"](
+                header=_header(store, stamp), humanList=humans
+            )
             writer.write(conn, stamp, store.serialize_ros1(msg, conn.msgtype))
 
 
 def run(db_path: Path, *args: str) -> subprocess.CompletedProcess[str]:
-    result = subprocess.run([sys.executable, "-m", "toaster", "--db", f"sqlite:///{db_path}",
-                             "run", *args], capture_output=True, text=True, timeout=300)
+    result = subprocess.run(
+        [sys.executable, "-m", "toaster", "--db", f"sqlite:///{db_path}", "run", *args],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     return result
 
 
 def intervals(db_path: Path) -> set[tuple]:
     with toaster.connect(f"sqlite:///{db_path}") as db, db.transaction() as conn:
-        return set(conn.exec_driver_sql(
-            "SELECT k.subject_id, k.property, k.sub_property, k.target_id, f.value_text, "
-            "f.valid_from_ns, f.valid_to_ns FROM facts f JOIN fact_keys k ON k.id = f.key_id"
-        ).all())
+        return set(
+            conn.exec_driver_sql(
+                "SELECT k.subject_id, k.property, k.sub_property, k.target_id, f.value_text, "
+                "f.valid_from_ns, f.valid_to_ns FROM facts f JOIN fact_keys k ON k.id = f.key_id"
+            ).all()
+        )
 
 
 def test_an_eth_bag_replays_to_the_same_facts_as_the_obsmat_file(tmp_path):
@@ -105,26 +124,32 @@ def write_tf_bag(out: Path) -> None:
 
     def transform(parent: str, child: str, x: float, stamp: int):
         return t["geometry_msgs/msg/TransformStamped"](
-            header=_header(store, stamp, parent), child_frame_id=child,
+            header=_header(store, stamp, parent),
+            child_frame_id=child,
             transform=t["geometry_msgs/msg/Transform"](
                 translation=t["geometry_msgs/msg/Vector3"](x=x, y=0.0, z=0.0),
-                rotation=t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)))
+                rotation=t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+            ),
+        )
 
     with Writer(out, version=8, storage_plugin=StoragePlugin.MCAP) as writer:
         tf = writer.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=store)
-        cup = writer.add_connection("/cup_pose", "geometry_msgs/msg/PoseStamped",
-                                    typestore=store)
+        cup = writer.add_connection("/cup_pose", "geometry_msgs/msg/PoseStamped", typestore=store)
         start = 10**9
         for k in range(90):  # 3 s at 30 Hz, 1 m/s
             stamp = start + k * 33_333_333
-            msg = t["tf2_msgs/msg/TFMessage"](transforms=[
-                transform("map", "odom", 1.0, stamp),
-                transform("odom", "bob_base", k / 30, stamp),
-                transform("map", "unmapped", 0.0, stamp)])
+            msg = t["tf2_msgs/msg/TFMessage"](
+                transforms=[
+                    transform("map", "odom", 1.0, stamp),
+                    transform("odom", "bob_base", k / 30, stamp),
+                    transform("map", "unmapped", 0.0, stamp),
+                ]
+            )
             writer.write(tf, stamp, store.serialize_cdr(msg, tf.msgtype))
             x = float("nan") if k == 40 else 3.0
-            pose = t["geometry_msgs/msg/PoseStamped"](header=_header(store, stamp),
-                                                      pose=_pose(store, x, 0.0, 0.8, 0.0))
+            pose = t["geometry_msgs/msg/PoseStamped"](
+                header=_header(store, stamp), pose=_pose(store, x, 0.0, 0.8, 0.0)
+            )
             writer.write(cup, stamp, store.serialize_cdr(pose, cup.msgtype))
 
 
@@ -134,8 +159,7 @@ def test_a_ros2_bag_with_tf_and_pose_topics_through_a_frame_map(tmp_path):
     frames = tmp_path / "frames.yaml"
     frames.write_text("bob_base: {id: bob, kind: human}\n")
     db_path = tmp_path / "t.db"
-    result = run(db_path, str(bag), "--tf-map", str(frames), "--pose-topic",
-                 "/cup_pose=cup:object")
+    result = run(db_path, str(bag), "--tf-map", str(frames), "--pose-topic", "/cup_pose=cup:object")
     assert result.returncode == 0, result.stderr
     with toaster.connect(f"sqlite:///{db_path}") as db:
         from toaster.queries import history

@@ -15,9 +15,17 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "src" / "toaster" / "examples"
 DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
 
 
-@pytest.mark.parametrize(("angle", "wrapped"), [
-    (math.pi, math.pi), (-math.pi, math.pi), (3 * math.pi, math.pi), (0.0, 0.0),
-    (2 * math.pi + 0.1, 0.1), (-math.pi - 0.1, math.pi - 0.1)])
+@pytest.mark.parametrize(
+    ("angle", "wrapped"),
+    [
+        (math.pi, math.pi),
+        (-math.pi, math.pi),
+        (3 * math.pi, math.pi),
+        (0.0, 0.0),
+        (2 * math.pi + 0.1, 0.1),
+        (-math.pi - 0.1, math.pi - 0.1),
+    ],
+)
 def test_wrap_angle(angle, wrapped):
     assert wrap_angle(angle) == pytest.approx(wrapped)
 
@@ -30,8 +38,7 @@ def test_newest_then_most_confident_wins_and_sources_switch_off():
     assert w.pos[0, 0] == 1
     w.observe("lidar", ["bob"], [10], [[3, 0, 0]], conf=np.array([0.9]))  # same t, surer
     assert w.pos[0, 0] == 3
-    w.observe("cam", ["bob", "bob"], [11, 11], [[4, 0, 0], [5, 0, 0]],
-              conf=np.array([0.9, 0.2]))
+    w.observe("cam", ["bob", "bob"], [11, 11], [[4, 0, 0], [5, 0, 0]], conf=np.array([0.9, 0.2]))
     assert w.pos[0, 0] == 4
     w.set_source_enabled("cam", False)
     w.observe("cam", ["bob"], [20], [[9, 0, 0]])
@@ -91,19 +98,42 @@ def test_scenario_move_hand_enter_leave():
     assert w.pos[w.row("mug")] == pytest.approx(w.pos[w.row("alice/rightHand")])  # released
 
 
-@pytest.mark.parametrize(("doc", "message"), [
-    ({"entities": [{"id": "bob", "kind": "human"}], "timeline": [{"at": "1s", "move": "bob"}]},
-     "waypoints"),
-    ({"entities": [{"id": "bob", "kind": "human"}],
-      "timeline": [{"at": "1s", "set_pose": "ann", "position": [0, 0]}]}, "unknown entity 'ann'"),
-    ({"entities": [{"id": "bob", "kind": "human"}], "timeline": [{"at": "1 parsec",
-                                                                  "leave": "bob"}]}, "parsec"),
-    ({"entities": [{"id": "bob", "kind": "cat"}]}, "kind 'cat'"),
-    ({"entities": [{"id": "bob", "position": [0, "north"]}]}, "non-number"),
-    ({"entities": [{"id": "bob", "kind": "human"}], "timeline": [
-        {"at": "1s", "move": "bob", "waypoints": [[1, 1]], "speed": "fast"}]}, "speed 'fast'"),
-    ({"nothing": 1}, "'entities' list"),
-])
+@pytest.mark.parametrize(
+    ("doc", "message"),
+    [
+        (
+            {
+                "entities": [{"id": "bob", "kind": "human"}],
+                "timeline": [{"at": "1s", "move": "bob"}],
+            },
+            "waypoints",
+        ),
+        (
+            {
+                "entities": [{"id": "bob", "kind": "human"}],
+                "timeline": [{"at": "1s", "set_pose": "ann", "position": [0, 0]}],
+            },
+            "unknown entity 'ann'",
+        ),
+        (
+            {
+                "entities": [{"id": "bob", "kind": "human"}],
+                "timeline": [{"at": "1 parsec", "leave": "bob"}],
+            },
+            "parsec",
+        ),
+        ({"entities": [{"id": "bob", "kind": "cat"}]}, "kind 'cat'"),
+        ({"entities": [{"id": "bob", "position": [0, "north"]}]}, "non-number"),
+        (
+            {
+                "entities": [{"id": "bob", "kind": "human"}],
+                "timeline": [{"at": "1s", "move": "bob", "waypoints": [[1, 1]], "speed": "fast"}],
+            },
+            "speed 'fast'",
+        ),
+        ({"nothing": 1}, "'entities' list"),
+    ],
+)
 def test_bad_scenarios_give_one_line_errors(tmp_path, doc, message):
     path = tmp_path / "bad.json"
     path.write_text(json.dumps(doc))
@@ -121,8 +151,10 @@ def test_malformed_yaml(tmp_path):
 
 def test_generic_tracks_csv_and_jsonl(tmp_path):
     csv = tmp_path / "t.csv"
-    csv.write_text("t_s,id,kind,x,y,z,yaw\n0.0,bob,human,0,0,0,0\n0.5,bob,human,1,0,0,0\n"
-                   "0.5,cup,object,2,2,0.8,0\n")
+    csv.write_text(
+        "t_s,id,kind,x,y,z,yaw\n0.0,bob,human,0,0,0,0\n0.5,bob,human,1,0,0,0\n"
+        "0.5,cup,object,2,2,0.8,0\n"
+    )
     src = read_tracks(csv)
     assert (src.start_ns, src.end_ns) == (0, S // 2)
     jl = tmp_path / "t.jsonl"
@@ -138,8 +170,7 @@ def run_file(path):
     s = load_session(path)
     r = Runner(s.world, s.sources, s.producers, agent_id=s.self_id)
     seen = []
-    r.run(s.start_ns, s.end_ns, s.rate_hz,
-          on_tick=lambda t: seen.append(r.diff._last.copy()))
+    r.run(s.start_ns, s.end_ns, s.rate_hz, on_tick=lambda t: seen.append(r.diff._last.copy()))
     return r.stats, seen
 
 
@@ -153,8 +184,9 @@ def test_examples_run_deterministically(name):
     assert snaps_a == snaps_b
 
 
-needs_data = pytest.mark.skipif(not (DATA / "eth-ucy-opentraj").is_dir(),
-                                reason=f"shared data not found at {DATA}")
+needs_data = pytest.mark.skipif(
+    not (DATA / "eth-ucy-opentraj").is_dir(), reason=f"shared data not found at {DATA}"
+)
 
 
 @needs_data
@@ -169,9 +201,19 @@ def test_obsmat_reader():
 def test_quaternions_are_accepted_in_scenarios_and_tracks(tmp_path):
     """ROS gives orientations as quaternions: scenario poses and track rows take them."""
     half = math.sqrt(0.5)
-    sc = load_scenario_text(tmp_path, {
-        "entities": [{"id": "bob", "kind": "human", "position": [0, 0],
-                      "orientation": [0, 0, half, half]}]})
+    sc = load_scenario_text(
+        tmp_path,
+        {
+            "entities": [
+                {
+                    "id": "bob",
+                    "kind": "human",
+                    "position": [0, 0],
+                    "orientation": [0, 0, half, half],
+                }
+            ]
+        },
+    )
     w = World()
     src = ScenarioSource(sc)
     src.setup(w)
@@ -185,8 +227,9 @@ def test_quaternions_are_accepted_in_scenarios_and_tracks(tmp_path):
     with pytest.raises(FileFormatError, match="line 2: quaternion"):
         read_tracks(csv_path)
     with pytest.raises(FileFormatError, match="orientation"):
-        load_scenario_text(tmp_path, {"entities": [{"id": "bob", "kind": "human",
-                                                    "orientation": [0, 0, 1]}]})
+        load_scenario_text(
+            tmp_path, {"entities": [{"id": "bob", "kind": "human", "orientation": [0, 0, 1]}]}
+        )
 
 
 def load_scenario_text(tmp_path, doc):

@@ -35,12 +35,21 @@ ROBOT, SALLY, ANNE = "ROBOT", "SALLY", "ANNE"
 MARBLE = "MARBLE"
 PLACES = ("IsOn", "IsIn")
 #: What the story shows of the robot's events: (subject, property, target or None = any).
-SEEN = ((MARBLE, "IsOn", None), (MARBLE, "IsIn", None), ("BASKET", "IsClosed", None),
-        ("BOX", "IsClosed", None), (SALLY, "CanSee", "BASKET"))
+SEEN = (
+    (MARBLE, "IsOn", None),
+    (MARBLE, "IsIn", None),
+    ("BASKET", "IsClosed", None),
+    ("BOX", "IsClosed", None),
+    (SALLY, "CanSee", "BASKET"),
+)
 #: Moments of the scenario's timeline (times since its start, as ``--at`` takes them) the
 #: story asks about.
-MOMENTS = (("2s", "Sally walks out"), ("8s", "Anne has moved the marble"),
-           ("13s", "Sally is back, boxes closed"), ("15s", "Sally has opened the basket"))
+MOMENTS = (
+    ("2s", "Sally walks out"),
+    ("8s", "Anne has moved the marble"),
+    ("13s", "Sally is back, boxes closed"),
+    ("15s", "Sally has opened the basket"),
+)
 #: The plain SQL the story runs (read-only) on the belief tables: where each holder thinks
 #: the marble is, and when. ``ANNE>SALLY`` is Anne's model of Sally's beliefs.
 SQL = """SELECT agent_id, property, target_id, valid_from_ns, valid_to_ns
@@ -107,8 +116,13 @@ def check_picture(picture: str | Path) -> Path:
     return path
 
 
-def run_demo(db: Database, picture: str | Path, *, time_style: str = "auto",
-             on_tick: Callable[[int, int], None] | None = None) -> Demo:
+def run_demo(
+    db: Database,
+    picture: str | Path,
+    *,
+    time_style: str = "auto",
+    on_tick: Callable[[int, int], None] | None = None,
+) -> Demo:
     """Run the spatial Sally-Anne scenario into ``db`` (which must hold no facts), ask it what
     Sally believes, run the demo's SQL read-only and draw the marble's timeline to ``picture``
     (a ``.dat`` gnuplot file beside it when matplotlib, the ``plot`` extra, is missing).
@@ -128,15 +142,32 @@ def run_demo(db: Database, picture: str | Path, *, time_style: str = "auto",
     with scenario_file() as path:
         report = run_file(path, db, progress=on_tick)
     frame = db.time_frame(time_style)
-    seen = tuple(e for e in q.events(db, ROBOT, subject=[s for s, _, _ in SEEN])
-                 if any(e.subject_id == s and e.property == p and t in (None, e.target_id)
-                        for s, p, t in SEEN))
+    seen = tuple(
+        e
+        for e in q.events(db, ROBOT, subject=[s for s, _, _ in SEEN])
+        if any(
+            e.subject_id == s and e.property == p and t in (None, e.target_id) for s, p, t in SEEN
+        )
+    )
     moments = tuple(_moment(db, frame.parse(at), what) for at, what in MOMENTS)
     result = q.execute(db, SQL)
     out, companion, timeline, note = _picture(db, picture)
     false = tuple(d for d in timeline.divergences if d.agent == SALLY and d.kind == "false_belief")
-    return Demo(where, path, report.stats, report.wall_s, frame, seen, moments, SQL, result, out,
-                companion, false, note)
+    return Demo(
+        where,
+        path,
+        report.stats,
+        report.wall_s,
+        frame,
+        seen,
+        moments,
+        SQL,
+        result,
+        out,
+        companion,
+        false,
+        note,
+    )
 
 
 def _moment(db: Database, t_ns: int, what: str) -> Moment:
@@ -146,8 +177,11 @@ def _moment(db: Database, t_ns: int, what: str) -> Moment:
         rows = api.beliefs(db, agent, about, at=t_ns, subject=MARBLE, property=list(PLACES))
         return tuple(f"{r.property} {r.target_id}" for r in rows)
 
-    false = tuple(d for d in api.false_beliefs(db, SALLY, at=t_ns)
-                  if d.subject_id == MARBLE and d.property in PLACES and d.value_a is not None)
+    false = tuple(
+        d
+        for d in api.false_beliefs(db, SALLY, at=t_ns)
+        if d.subject_id == MARBLE and d.property in PLACES and d.value_a is not None
+    )
     return Moment(t_ns, what, places(ROBOT), places(SALLY), places(ANNE, SALLY), false)
 
 
@@ -157,9 +191,14 @@ def _picture(db: Database, picture: Path) -> tuple[Path, Path | None, Any, str]:
     from toaster.outputs.plotting import plot_facts
 
     def plot(path: Path) -> Any:
-        return plot_facts(db, path, subject=MARBLE, property=list(PLACES),
-                          agents=[ROBOT, SALLY, ANNE],
-                          title="Where is the marble? (red hatching: Sally's false belief)")
+        return plot_facts(
+            db,
+            path,
+            subject=MARBLE,
+            property=list(PLACES),
+            agents=[ROBOT, SALLY, ANNE],
+            title="Where is the marble? (red hatching: Sally's false belief)",
+        )
 
     try:
         result = plot(picture)
@@ -173,8 +212,10 @@ def _picture(db: Database, picture: Path) -> tuple[Path, Path | None, Any, str]:
 def _columns(rows: list[list[str]], indent: str = "   ") -> list[str]:
     """Rows of cells as aligned text columns."""
     widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
-    return [indent + "  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True))
-            .rstrip() for row in rows]
+    return [
+        indent + "  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip()
+        for row in rows
+    ]
 
 
 def _cell(name: str, value: Any, frame: TimeFrame) -> str:
@@ -187,37 +228,50 @@ def _cell(name: str, value: Any, frame: TimeFrame) -> str:
 
 def _story(demo: Demo) -> Iterator[str]:
     show, stats = demo.frame.show, demo.stats
-    yield (f"Sally-Anne from geometry: {demo.scenario.name} run into {demo.where}, "
-           f"{stats.ticks} ticks in {demo.seconds:.1f} s")
-    times = ("seconds since the scenario's start" if demo.frame.elapsed
-             else "dates (UTC)")
+    yield (
+        f"Sally-Anne from geometry: {demo.scenario.name} run into {demo.where}, "
+        f"{stats.ticks} ticks in {demo.seconds:.1f} s"
+    )
+    times = "seconds since the scenario's start" if demo.frame.elapsed else "dates (UTC)"
     yield f"({stats.facts} facts computed, {stats.events} changes stored; times are {times})"
     yield ""
     yield "1. What the robot sees: facts from boxes, poses and lines of sight (+ begins, - ends)"
     sign = {"appeared": "+", "ended": "-", "changed": "~"}
-    yield from _columns([[show(e.stamp_ns), sign.get(e.kind, e.kind),
-                          " ".join(filter(None, (e.subject_id, e.property, e.target_id)))]
-                         for e in demo.seen])
+    yield from _columns(
+        [
+            [
+                show(e.stamp_ns),
+                sign.get(e.kind, e.kind),
+                " ".join(filter(None, (e.subject_id, e.property, e.target_id))),
+            ]
+            for e in demo.seen
+        ]
+    )
     yield ""
     yield "2. Where each one thinks the marble is (Sally's beliefs, kept by the database)"
     rows = [["time", "moment", "ROBOT", "SALLY", "ANNE>SALLY", ""]]
     for m in demo.moments:
         flag = "<- Sally's false belief" if m.false else ""
-        rows.append([show(m.t_ns), m.what, _place(m.robot), _place(m.sally),
-                     _place(m.anne_on_sally), flag])
+        rows.append(
+            [show(m.t_ns), m.what, _place(m.robot), _place(m.sally), _place(m.anne_on_sally), flag]
+        )
     yield from _columns(rows)
     yield "   (ANNE>SALLY: what Anne thinks Sally believes; nowhere: no belief about it)"
     for d in demo.divergences:
         lane = d.lane.removeprefix(f"{MARBLE} ")
-        yield (f"   Sally's false belief: the marble {lane} from {show(d.start_ns)} (Anne moves it "
-               "while Sally is away)")
+        yield (
+            f"   Sally's false belief: the marble {lane} from {show(d.start_ns)} (Anne moves it "
+            "while Sally is away)"
+        )
         yield f"   to {show(d.end_ns)} (Sally opens the basket and finds it empty)."
     yield ""
     yield "3. The same from plain SQL (read-only, the library's execute path):"
     yield from ("   " + line for line in demo.sql.splitlines())
     columns = demo.result.columns
-    cells = [[_cell(n, v, demo.frame) for n, v in zip(columns, row, strict=True)]
-             for row in demo.result.rows]
+    cells = [
+        [_cell(n, v, demo.frame) for n, v in zip(columns, row, strict=True)]
+        for row in demo.result.rows
+    ]
     yield ""
     yield from _columns([list(columns), *cells])
     yield ""
@@ -236,15 +290,22 @@ def _place(places: tuple[str, ...]) -> str:
 
 def _next_commands(demo: Demo) -> Iterator[str]:
     opt = f"--db {demo.where} "  # (a hidden password shows as ***: put yours)
-    sql = ("SELECT agent_id, target_id, valid_from_ns, valid_to_ns FROM fact_history "
-           "WHERE subject_id = 'MARBLE' AND property = 'IsIn'")
+    sql = (
+        "SELECT agent_id, target_id, valid_from_ns, valid_to_ns FROM fact_history "
+        "WHERE subject_id = 'MARBLE' AND property = 'IsIn'"
+    )
     yield "Go further:"
-    yield from _columns([
-        [f"toaster {opt}beliefs diff SALLY --at 10s", "# all Sally gets wrong 10 s in"],
-        [f"toaster {opt}beliefs show ANNE --about SALLY --at 10s", "# Anne's model of Sally"],
-        [f"toaster {opt}get-info EVENT --agent SALLY --subject MARBLE",
-         "# how her beliefs changed"],
-        [f"toaster {opt}plot-facts marble.png --subject MARBLE", "# everything about it"],
-    ], indent="  ")
+    yield from _columns(
+        [
+            [f"toaster {opt}beliefs diff SALLY --at 10s", "# all Sally gets wrong 10 s in"],
+            [f"toaster {opt}beliefs show ANNE --about SALLY --at 10s", "# Anne's model of Sally"],
+            [
+                f"toaster {opt}get-info EVENT --agent SALLY --subject MARBLE",
+                "# how her beliefs changed",
+            ],
+            [f"toaster {opt}plot-facts marble.png --subject MARBLE", "# everything about it"],
+        ],
+        indent="  ",
+    )
     yield f'  toaster {opt}execute SQL "{sql}"'
     yield f"  toaster --db sqlite:///sally.db run {demo.scenario}"

@@ -38,8 +38,7 @@ class RunReport:
     recording: Any = None
 
 
-def needed_extras(path: str | Path, record_dir: str | Path | None = None
-                  ) -> list[tuple[str, str]]:
+def needed_extras(path: str | Path, record_dir: str | Path | None = None) -> list[tuple[str, str]]:
     """The optional extras a run of ``path`` needs, as ``(extra, feature)``: reading a ROS bag
     and writing a recording need ``rosbag``."""
     from toaster.world.bags import is_bag
@@ -52,8 +51,9 @@ def needed_extras(path: str | Path, record_dir: str | Path | None = None
     return needs
 
 
-def check_run(path: str | Path, *, record_dir: str | Path | None = None,
-              rate_hz: float | None = None) -> float | None:
+def check_run(
+    path: str | Path, *, record_dir: str | Path | None = None, rate_hz: float | None = None
+) -> float | None:
     """Refuse what would fail later, before anything is read or written: a recording folder
     that exists, a missing extra, a bad rate. Returns the checked rate."""
     from toaster.extras import require
@@ -67,13 +67,21 @@ def check_run(path: str | Path, *, record_dir: str | Path | None = None,
     return None if rate_hz is None else check_rate(rate_hz, "--rate")
 
 
-def run_file(path: str | Path, db: Database | None = None, *, rate_hz: float | None = None,
-             until_ns: int | None = None, realtime: bool = False, fps: float | None = None,
-             holders: str | None = None, config: Mapping[str, Any] | None = None,
-             tf_map: str | Path | None = None,
-             pose_topics: Mapping[str, tuple[str, str]] | None = None,
-             record_dir: str | Path | None = None,
-             progress: Progress | None = None) -> RunReport:
+def run_file(
+    path: str | Path,
+    db: Database | None = None,
+    *,
+    rate_hz: float | None = None,
+    until_ns: int | None = None,
+    realtime: bool = False,
+    fps: float | None = None,
+    holders: str | None = None,
+    config: Mapping[str, Any] | None = None,
+    tf_map: str | Path | None = None,
+    pose_topics: Mapping[str, tuple[str, str]] | None = None,
+    record_dir: str | Path | None = None,
+    progress: Progress | None = None,
+) -> RunReport:
     """Tick ``path`` into ``db`` (None: compute only) and report what happened.
 
     Args:
@@ -94,13 +102,24 @@ def run_file(path: str | Path, db: Database | None = None, *, rate_hz: float | N
     path = Path(path)
     rate_hz = check_run(path, record_dir=record_dir, rate_hz=rate_hz)
     store = db.store() if db is not None else None
-    session = load_session(path, store.areas() if store is not None else None, fps=fps,
-                           holders=holders, config=config, tf_map=tf_map,
-                           pose_topics=pose_topics)
-    end = session.end_ns if until_ns is None else min(session.end_ns,
-                                                      session.start_ns + until_ns)
-    runner = Runner(session.world, session.sources, session.producers, store=store,
-                    agent_id=session.self_id, config=session.config)
+    session = load_session(
+        path,
+        store.areas() if store is not None else None,
+        fps=fps,
+        holders=holders,
+        config=config,
+        tf_map=tf_map,
+        pose_topics=pose_topics,
+    )
+    end = session.end_ns if until_ns is None else min(session.end_ns, session.start_ns + until_ns)
+    runner = Runner(
+        session.world,
+        session.sources,
+        session.producers,
+        store=store,
+        agent_id=session.self_id,
+        config=session.config,
+    )
     if store is not None:
         session.register(store)
     hz = rate_hz or session.rate_hz

@@ -27,9 +27,18 @@ if TYPE_CHECKING:  # what the lazy names below are, for type checkers
 
 _API, _SCENARIO = "toaster.beliefs.api", "toaster.beliefs.scenario"
 _HOMES = {
-    "beliefs": _API, "belief_value": _API, "false_beliefs": _API, "belief_history": _API,
-    "holders": _API, "self_agent": _API, "configure": _API, "reset": _API, "BeliefDiff": _API,
-    "Scenario": _SCENARIO, "replay": _SCENARIO, "replay_and_check": _SCENARIO,
+    "beliefs": _API,
+    "belief_value": _API,
+    "false_beliefs": _API,
+    "belief_history": _API,
+    "holders": _API,
+    "self_agent": _API,
+    "configure": _API,
+    "reset": _API,
+    "BeliefDiff": _API,
+    "Scenario": _SCENARIO,
+    "replay": _SCENARIO,
+    "replay_and_check": _SCENARIO,
 }
 __all__ = sorted(_HOMES)
 

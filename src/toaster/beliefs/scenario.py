@@ -55,8 +55,15 @@ if TYPE_CHECKING:
     from toaster.db.database import Database
 
 SOURCE = "scenario"
-_FACT_FIELDS = ("subject", "property", "target", "value", "value_num", "confidence",
-                "observability")
+_FACT_FIELDS = (
+    "subject",
+    "property",
+    "target",
+    "value",
+    "value_num",
+    "confidence",
+    "observability",
+)
 
 
 @dataclass
@@ -95,8 +102,17 @@ class Scenario:
 
 
 _STEP_KEYS = ("t", "t_ns", "rooms", "inside", "onto", "facts", "end", "actor", "tell")
-_EXPECT_KEYS = ("t", "agent", "about", "subject", "property", "target", "value", "held",
-                "confidence")
+_EXPECT_KEYS = (
+    "t",
+    "agent",
+    "about",
+    "subject",
+    "property",
+    "target",
+    "value",
+    "held",
+    "confidence",
+)
 
 
 def _bad(where: str, value: object, fix: str) -> FileFormatError:
@@ -122,8 +138,12 @@ def _ids(where: str, raw: object, what: str) -> list[str]:
 def _seconds_ns(where: str, value: object) -> int:
     """Seconds (a finite number) as nanoseconds in the database's range."""
     try:
-        ok = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(
-            value) and 0 <= value <= MAX_NS / 1e9
+        ok = (
+            isinstance(value, int | float)
+            and not isinstance(value, bool)
+            and math.isfinite(value)
+            and 0 <= value <= MAX_NS / 1e9
+        )
     except OverflowError:
         ok = False
     if not ok:
@@ -136,8 +156,7 @@ def _time(where: str, raw: dict[str, Any]) -> int:
         value = raw["t_ns"]
         if isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= MAX_NS:
             return value
-        raise _bad(where, value, "t_ns must be an integer number of nanoseconds from 0 "
-                   "to 2^63-1")
+        raise _bad(where, value, "t_ns must be an integer number of nanoseconds from 0 to 2^63-1")
     value = raw.get("t")
     if not isinstance(value, int | float) or isinstance(value, bool):
         raise _bad(where, value, "give t (seconds) or t_ns (integer nanoseconds) for every step")
@@ -157,20 +176,30 @@ def _fact(where: str, raw: object) -> Fact:
     if isinstance(raw, list | tuple) and 2 <= len(raw) <= 4:
         raw = dict(zip(("subject", "property", "target", "value"), raw, strict=False))
     if not isinstance(raw, dict) or "subject" not in raw or "property" not in raw:
-        raise _bad(where, raw, "write a fact as [SUBJECT, PROPERTY, TARGET] or "
-                   "{subject: S, property: P, target: T, value: V, confidence: C}")
+        raise _bad(
+            where,
+            raw,
+            "write a fact as [SUBJECT, PROPERTY, TARGET] or "
+            "{subject: S, property: P, target: T, value: V, confidence: C}",
+        )
     unknown = set(raw) - set(_FACT_FIELDS)
     if unknown:
-        raise _bad(where, sorted(map(str, unknown))[0],
-                   f"fact fields are {', '.join(_FACT_FIELDS)}")
+        raise _bad(
+            where, sorted(map(str, unknown))[0], f"fact fields are {', '.join(_FACT_FIELDS)}"
+        )
     target = raw.get("target")
     try:
-        return check_fact(Fact(_id(where, raw["subject"], "subject"),
-                               _id(where, raw["property"], "property"),
-                               "" if target in (None, "") else _id(where, target, "target"),
-                               _scalar(where, raw.get("value", "true"), "value"),
-                               raw.get("value_num"), raw.get("confidence", 1.0),
-                               raw.get("observability", 1.0)))
+        return check_fact(
+            Fact(
+                _id(where, raw["subject"], "subject"),
+                _id(where, raw["property"], "property"),
+                "" if target in (None, "") else _id(where, target, "target"),
+                _scalar(where, raw.get("value", "true"), "value"),
+                raw.get("value_num"),
+                raw.get("confidence", 1.0),
+                raw.get("observability", 1.0),
+            )
+        )
     except InvalidInputError as exc:
         if isinstance(exc, FileFormatError):
             raise
@@ -183,18 +212,28 @@ def _mapping(where: str, raw: object) -> dict[str, str | None]:
         return {}
     if not isinstance(raw, dict):
         raise _bad(where, raw, "give a mapping ENTITY: PLACE (null = none)")
-    return {_id(where, k, "entity"): (None if v is None else _id(where, v, "place"))
-            for k, v in raw.items()}
+    return {
+        _id(where, k, "entity"): (None if v is None else _id(where, v, "place"))
+        for k, v in raw.items()
+    }
 
 
 def _tells(where: str, raw: object, agents: set[str]) -> list[Telling]:
     items = [] if raw is None else raw if isinstance(raw, list) else [raw]
     tells = []
     for item in items:
-        if (not isinstance(item, dict) or not isinstance(item.get("speaker"), str)
-                or "fact" not in item or set(item) - {"speaker", "listeners", "public", "fact"}):
-            raise _bad(where, item, "write a telling as {speaker: ID, listeners: [ID, ...], "
-                       "fact: [SUBJECT, PROPERTY, TARGET]} (or public: true for the room)")
+        if (
+            not isinstance(item, dict)
+            or not isinstance(item.get("speaker"), str)
+            or "fact" not in item
+            or set(item) - {"speaker", "listeners", "public", "fact"}
+        ):
+            raise _bad(
+                where,
+                item,
+                "write a telling as {speaker: ID, listeners: [ID, ...], "
+                "fact: [SUBJECT, PROPERTY, TARGET]} (or public: true for the room)",
+            )
         speaker = _agent(where, item["speaker"], agents, "speaker")
         listeners = item.get("listeners")
         if not isinstance(item.get("public", False), bool):
@@ -203,9 +242,15 @@ def _tells(where: str, raw: object, agents: set[str]) -> list[Telling]:
             listeners = None
         elif not isinstance(listeners, list) or not listeners:
             raise _bad(where, listeners, "give listeners: [ID, ...] or public: true")
-        tells.append(Telling(speaker, _fact(where, item["fact"]),
-                             None if listeners is None else
-                             [_agent(where, v, agents, "listener") for v in listeners]))
+        tells.append(
+            Telling(
+                speaker,
+                _fact(where, item["fact"]),
+                None
+                if listeners is None
+                else [_agent(where, v, agents, "listener") for v in listeners],
+            )
+        )
     return tells
 
 
@@ -213,8 +258,11 @@ def _agent(where: str, value: object, agents: set[str], what: str) -> str:
     """An id of the scenario's self or agents."""
     agent = _id(where, value, what)
     if agent not in agents:
-        raise _bad(where, agent, f"the {what} must be the self or one of the agents "
-                   f"({', '.join(sorted(agents))})")
+        raise _bad(
+            where,
+            agent,
+            f"the {what} must be the self or one of the agents ({', '.join(sorted(agents))})",
+        )
     return agent
 
 
@@ -234,14 +282,21 @@ def _step(where: str, raw: object, agents: set[str]) -> Step:
     step.facts = [_fact(where, f) for f in facts]
     ends = raw.get("end") or []
     if not isinstance(ends, list):
-        raise _bad(where, ends, "end is a list of [SUBJECT, PROPERTY] or [SUBJECT, PROPERTY, "
-                   "TARGET]")
+        raise _bad(
+            where, ends, "end is a list of [SUBJECT, PROPERTY] or [SUBJECT, PROPERTY, TARGET]"
+        )
     for item in ends:
         if not isinstance(item, list | tuple) or not 2 <= len(item) <= 3:
-            raise _bad(where, item, "end a fact with [SUBJECT, PROPERTY] or "
-                       "[SUBJECT, PROPERTY, TARGET]")
-        step.end.append((_id(where, item[0], "subject"), _id(where, item[1], "property"),
-                         _id(where, item[2], "target") if len(item) == 3 else None))
+            raise _bad(
+                where, item, "end a fact with [SUBJECT, PROPERTY] or [SUBJECT, PROPERTY, TARGET]"
+            )
+        step.end.append(
+            (
+                _id(where, item[0], "subject"),
+                _id(where, item[1], "property"),
+                _id(where, item[2], "target") if len(item) == 3 else None,
+            )
+        )
     actor = raw.get("actor")
     if actor is not None:
         actor = _agent(where, actor, agents, "actor")
@@ -253,21 +308,30 @@ def _step(where: str, raw: object, agents: set[str]) -> Step:
 def _expectation(where: str, raw: object, holders: set[str]) -> dict[str, Any]:
     """One expectation, checked: ids, t (seconds), held (bool), value, confidence."""
     if not isinstance(raw, dict) or not {"agent", "subject", "property"} <= set(raw):
-        raise _bad(where, raw, "write an expectation as {t: 4, agent: A, subject: S, "
-                   "property: P, target: T[, about: B, held: false, value: V]}")
+        raise _bad(
+            where,
+            raw,
+            "write an expectation as {t: 4, agent: A, subject: S, "
+            "property: P, target: T[, about: B, held: false, value: V]}",
+        )
     unknown = set(raw) - set(_EXPECT_KEYS)
     if unknown:
-        raise _bad(where, sorted(map(str, unknown))[0],
-                   f"an expectation has {', '.join(_EXPECT_KEYS)}")
-    out: dict[str, Any] = {key: _id(where, raw[key], key)
-                           for key in ("agent", "subject", "property")}
+        raise _bad(
+            where, sorted(map(str, unknown))[0], f"an expectation has {', '.join(_EXPECT_KEYS)}"
+        )
+    out: dict[str, Any] = {
+        key: _id(where, raw[key], key) for key in ("agent", "subject", "property")
+    }
     _agent(where, out["agent"], holders, "agent")
     if raw.get("target") not in (None, ""):
         out["target"] = _id(where, raw["target"], "target")
     about = raw.get("about")
     if about is not None:
-        out["about"] = (_agent(where, about, holders, "about") if not isinstance(about, list)
-                        else [_agent(where, a, holders, "about") for a in about])
+        out["about"] = (
+            _agent(where, about, holders, "about")
+            if not isinstance(about, list)
+            else [_agent(where, a, holders, "about") for a in about]
+        )
     if "t" in raw:
         out["t_ns"] = _seconds_ns(where, raw["t"])
     if "held" in raw:
@@ -317,9 +381,15 @@ def parse(data: object, name: str = "scenario") -> Scenario:
     if not isinstance(expect, list):
         raise _bad(name, expect, "expect is a list of expectations")
     title = data.get("name", name)
-    return Scenario(_scalar(name, title, "name"), self_agent, agents, objects, dict(settings),
-                    steps, [_expectation(f"{name}: expectation {i}", e, holders)
-                            for i, e in enumerate(expect, 1)])
+    return Scenario(
+        _scalar(name, title, "name"),
+        self_agent,
+        agents,
+        objects,
+        dict(settings),
+        steps,
+        [_expectation(f"{name}: expectation {i}", e, holders) for i, e in enumerate(expect, 1)],
+    )
 
 
 def load(path: str | Path) -> Scenario:
@@ -351,8 +421,9 @@ class Replayer:
                 self.store.add_entity(obj, "object", t_ns=0)
 
     def _drop(self, subject: str, properties: tuple[str, ...]) -> None:
-        for key in [k for k, f in self.state.items()
-                    if f.subject_id == subject and f.property in properties]:
+        for key in [
+            k for k, f in self.state.items() if f.subject_id == subject and f.property in properties
+        ]:
             del self.state[key]
 
     def apply(self, step: Step) -> None:
@@ -368,16 +439,23 @@ class Replayer:
                 fact = Fact(entity, place[0], place[1])
                 self.state[fact_key(fact)] = fact
         for subject, prop, target in step.end:
-            for key in [k for k, f in self.state.items() if f.subject_id == subject
-                        and f.property == prop and (target is None or f.target_id == target)]:
+            for key in [
+                k
+                for k, f in self.state.items()
+                if f.subject_id == subject
+                and f.property == prop
+                and (target is None or f.target_id == target)
+            ]:
                 del self.state[key]
         for fact in step.facts:
             self.state[fact_key(fact)] = fact
-        self.store.sync_snapshot(SOURCE, self.scenario.self_agent, step.t_ns,
-                                 list(self.state.values()), actor=step.actor)
+        self.store.sync_snapshot(
+            SOURCE, self.scenario.self_agent, step.t_ns, list(self.state.values()), actor=step.actor
+        )
         for telling in step.tells:
-            tell(self.db, telling.speaker, telling.fact, listeners=telling.listeners,
-                 t_ns=step.t_ns)
+            tell(
+                self.db, telling.speaker, telling.fact, listeners=telling.listeners, t_ns=step.t_ns
+            )
 
     def run(self) -> None:
         """Set up and replay every step, in one transaction (all or nothing)."""
@@ -393,27 +471,42 @@ def check(db: Database, scenario: Scenario) -> list[str]:
     end = scenario.steps[-1].t_ns if scenario.steps else 0
     for i, exp in enumerate(scenario.expect, 1):
         t_ns = exp.get("t_ns", round(exp["t"] * 1e9) if "t" in exp else end)
-        row = api.belief_value(db, exp["agent"], exp["subject"], exp["property"],
-                               exp.get("target", ""), about=exp.get("about"), at=t_ns)
+        row = api.belief_value(
+            db,
+            exp["agent"],
+            exp["subject"],
+            exp["property"],
+            exp.get("target", ""),
+            about=exp.get("about"),
+            at=t_ns,
+        )
         held = row is not None and row.value_text == str(exp.get("value", row.value_text))
         who = exp["agent"] + (f" about {exp['about']}" if exp.get("about") else "")
         what = f"{exp['subject']} {exp['property']} {exp.get('target', '')}".strip()
         if held != exp.get("held", True):
-            failures.append(f"expectation {i}: {who} at t={t_ns / 1e9:g}s: {what} "
-                            f"{'held' if held else 'not held'}, expected the opposite")
-        elif (row is not None and held and "confidence" in exp
-              and abs(row.confidence - exp["confidence"]) > 1e-9):
-            failures.append(f"expectation {i}: {who}: {what} confidence {row.confidence:g}, "
-                            f"expected {exp['confidence']:g}")
+            failures.append(
+                f"expectation {i}: {who} at t={t_ns / 1e9:g}s: {what} "
+                f"{'held' if held else 'not held'}, expected the opposite"
+            )
+        elif (
+            row is not None
+            and held
+            and "confidence" in exp
+            and abs(row.confidence - exp["confidence"]) > 1e-9
+        ):
+            failures.append(
+                f"expectation {i}: {who}: {what} confidence {row.confidence:g}, "
+                f"expected {exp['confidence']:g}"
+            )
     return failures
 
 
-def replay_and_check(db: Database, path_or_scenario: str | Path | Scenario
-                     ) -> tuple[Scenario, list[str]]:
+def replay_and_check(
+    db: Database, path_or_scenario: str | Path | Scenario
+) -> tuple[Scenario, list[str]]:
     """:func:`replay` then :func:`check`, in one transaction: an error in either (an
     expectation about a holder deeper than the depth setting...) writes nothing."""
-    sc = (path_or_scenario if isinstance(path_or_scenario, Scenario)
-          else load(path_or_scenario))
+    sc = path_or_scenario if isinstance(path_or_scenario, Scenario) else load(path_or_scenario)
     with db.store().transaction():
         Replayer(db, sc).run()
         return sc, check(db, sc)
@@ -421,7 +514,6 @@ def replay_and_check(db: Database, path_or_scenario: str | Path | Scenario
 
 def replay(db: Database, path_or_scenario: str | Path | Scenario) -> Scenario:
     """Load (if needed) and replay a scenario into ``db``; return it."""
-    sc = (path_or_scenario if isinstance(path_or_scenario, Scenario)
-          else load(path_or_scenario))
+    sc = path_or_scenario if isinstance(path_or_scenario, Scenario) else load(path_or_scenario)
     Replayer(db, sc).run()
     return sc

@@ -35,8 +35,14 @@ if TYPE_CHECKING:
 TELLS = "Tells"
 
 
-def tell(db: Database, speaker: str, fact: Fact, *, listeners: Sequence[str] | None = None,
-         t_ns: int | None = None) -> list[str]:
+def tell(
+    db: Database,
+    speaker: str,
+    fact: Fact,
+    *,
+    listeners: Sequence[str] | None = None,
+    t_ns: int | None = None,
+) -> list[str]:
     """``speaker`` tells ``fact`` to ``listeners`` (None: everyone in its room) at ``t_ns``
     (default now), in one transaction; returns the holders that learnt it."""
     fact = check_fact(fact)
@@ -49,25 +55,30 @@ def tell(db: Database, speaker: str, fact: Fact, *, listeners: Sequence[str] | N
         agents = store.agents()
         for who in (speaker, *(listeners or ())):
             if who not in agents or ">" in who:
-                msg = (f"unknown agent {who!r} in a telling: speakers and listeners are "
-                       "registered agents (toaster set-info ENTITY --id ID --type human)")
+                msg = (
+                    f"unknown agent {who!r} in a telling: speakers and listeners are "
+                    "registered agents (toaster set-info ENTITY --id ID --type human)"
+                )
                 raise InvalidInputError(msg)
         settings = cfg.read(conn)
         self_id = _self_or_none(agents)
         if listeners is None and self_id is None:
-            msg = ("a public telling needs the rooms of the one self agent, and there is not "
-                   "exactly one: name the listeners")
+            msg = (
+                "a public telling needs the rooms of the one self agent, and there is not "
+                "exactly one: name the listeners"
+            )
             raise InvalidInputError(msg)
-        heard = (list(listeners) if listeners is not None
-                 else _in_room_with(conn, self_id or "", speaker, settings["copresence"], t))
+        heard = (
+            list(listeners)
+            if listeners is not None
+            else _in_room_with(conn, self_id or "", speaker, settings["copresence"], t)
+        )
         hearers = sorted({speaker, *heard})
         told = [who for who in sorted(set(heard)) if who != speaker]
-        trusting = {who: _trusts(conn, settings, who, speaker, fact.subject_id, t)
-                    for who in told}
+        trusting = {who: _trusts(conn, settings, who, speaker, fact.subject_id, t) for who in told}
         learners = [who for who in told if trusting[who]]
         if settings["depth"] >= 2:
-            learners += [holder_id(a, c) for a in hearers for c in told
-                         if a != c and trusting[c]]
+            learners += [holder_id(a, c) for a in hearers for c in told if a != c and trusting[c]]
             learners += [holder_id(a, speaker) for a in hearers if a != speaker]
         holders = set(conn.execute(text("SELECT id FROM holders")).scalars())  # the rule's own
         learners = [h for h in dict.fromkeys(learners) if h in holders]
@@ -76,14 +87,23 @@ def tell(db: Database, speaker: str, fact: Fact, *, listeners: Sequence[str] | N
             _learn(store, conn, holder, fact, t, f"told:{speaker}", fact.property in places)
         if self_id is not None:  # the robot remembers who told whom what
             for listener in told or [""]:
-                store.record_event(self_id, Fact(speaker, TELLS, listener, _said(fact)),
-                                   t_ns=t, source="tell")
+                store.record_event(
+                    self_id, Fact(speaker, TELLS, listener, _said(fact)), t_ns=t, source="tell"
+                )
     return learners
 
 
 def _said(fact: Fact) -> str:
-    return " ".join(p for p in (fact.subject_id, fact.property, fact.target_id,
-                                fact.value_text if fact.value_text != "true" else "") if p)
+    return " ".join(
+        p
+        for p in (
+            fact.subject_id,
+            fact.property,
+            fact.target_id,
+            fact.value_text if fact.value_text != "true" else "",
+        )
+        if p
+    )
 
 
 def _self_or_none(agents: dict[str, bool]) -> str | None:
@@ -91,36 +111,46 @@ def _self_or_none(agents: dict[str, bool]) -> str | None:
     return selves[0] if len(selves) == 1 else None
 
 
-def _in_room_with(conn: Connection, self_id: str, speaker: str, rooms: list[str],
-                  t: int) -> list[str]:
+def _in_room_with(
+    conn: Connection, self_id: str, speaker: str, rooms: list[str], t: int
+) -> list[str]:
     """The agents the self agent believes, at ``t``, in a room with ``speaker``."""
     if not rooms:
         return []
     marks = ", ".join(f":p{i}" for i in range(len(rooms)))
     params: dict[str, Any] = {f"p{i}": p for i, p in enumerate(rooms)}
-    held = (f"SELECT k.subject_id, k.target_id FROM fact_keys k JOIN facts f ON f.key_id = k.id "
-            f"WHERE k.agent_id = :self AND k.property IN ({marks}) AND f.value_text = 'true' "
-            f"AND f.valid_from_ns <= :t AND (f.valid_to_ns IS NULL OR f.valid_to_ns > :t)")
-    rows = conn.execute(text(
-        f"WITH at_t AS ({held}) SELECT DISTINCT o.subject_id FROM at_t s "
-        f"JOIN at_t o ON o.target_id = s.target_id JOIN agents a ON a.id = o.subject_id "
-        f"WHERE s.subject_id = :speaker AND NOT a.is_self"),
-        {**params, "self": self_id, "t": t, "speaker": speaker}).scalars()
+    held = (
+        f"SELECT k.subject_id, k.target_id FROM fact_keys k JOIN facts f ON f.key_id = k.id "
+        f"WHERE k.agent_id = :self AND k.property IN ({marks}) AND f.value_text = 'true' "
+        f"AND f.valid_from_ns <= :t AND (f.valid_to_ns IS NULL OR f.valid_to_ns > :t)"
+    )
+    rows = conn.execute(
+        text(
+            f"WITH at_t AS ({held}) SELECT DISTINCT o.subject_id FROM at_t s "
+            f"JOIN at_t o ON o.target_id = s.target_id JOIN agents a ON a.id = o.subject_id "
+            f"WHERE s.subject_id = :speaker AND NOT a.is_self"
+        ),
+        {**params, "self": self_id, "t": t, "speaker": speaker},
+    ).scalars()
     return list(rows)
 
 
 def _last_news(conn: Connection, holder: str, subject: str, t: int) -> int:
     """When ``holder`` last saw a change about ``subject`` (at or before ``t``; what it was
     told does not count)."""
-    found = conn.execute(text(
-        "SELECT MAX(stamp_ns) FROM event_log WHERE agent_id = :h AND subject_id = :s "
-        "AND stamp_ns <= :t AND kind <> 'event' AND source NOT LIKE 'told:%'"),
-        {"h": holder, "s": subject, "t": t}).scalar()
+    found = conn.execute(
+        text(
+            "SELECT MAX(stamp_ns) FROM event_log WHERE agent_id = :h AND subject_id = :s "
+            "AND stamp_ns <= :t AND kind <> 'event' AND source NOT LIKE 'told:%'"
+        ),
+        {"h": holder, "s": subject, "t": t},
+    ).scalar()
     return -1 if found is None else int(found)
 
 
-def _trusts(conn: Connection, settings: dict[str, Any], listener: str, speaker: str,
-            subject: str, t: int) -> bool:
+def _trusts(
+    conn: Connection, settings: dict[str, Any], listener: str, speaker: str, subject: str, t: int
+) -> bool:
     if speaker in settings["distrust"]:
         return False
     if settings["trust"] == "witnesses":
@@ -128,16 +158,20 @@ def _trusts(conn: Connection, settings: dict[str, Any], listener: str, speaker: 
     return True
 
 
-def _learn(store: Store, conn: Connection, holder: str, fact: Fact, t: int, source: str,
-           place: bool) -> None:
+def _learn(
+    store: Store, conn: Connection, holder: str, fact: Fact, t: int, source: str, place: bool
+) -> None:
     """``holder`` believes ``fact`` from ``t``; a place replaces the others of the subject."""
     if place:
-        others = conn.execute(text(
-            "SELECT DISTINCT k.target_id FROM current_facts k WHERE k.agent_id = :h "
-            "AND k.subject_id = :s AND k.property = :p AND k.target_id <> :tg"),
-            {"h": holder, "s": fact.subject_id, "p": fact.property,
-             "tg": fact.target_id}).scalars()
+        others = conn.execute(
+            text(
+                "SELECT DISTINCT k.target_id FROM current_facts k WHERE k.agent_id = :h "
+                "AND k.subject_id = :s AND k.property = :p AND k.target_id <> :tg"
+            ),
+            {"h": holder, "s": fact.subject_id, "p": fact.property, "tg": fact.target_id},
+        ).scalars()
         for target in list(others):
-            store.retract_facts(holder, fact.property, fact.subject_id, target, t_ns=t,
-                                source=source)
+            store.retract_facts(
+                holder, fact.property, fact.subject_id, target, t_ns=t, source=source
+            )
     store.assert_fact(holder, fact, t_ns=t, source=source, strict=False)

@@ -27,11 +27,17 @@ class ToasterGroup(click.Group):
 
 
 @click.group(cls=ToasterGroup, context_settings={"help_option_names": ["-h", "--help"]})
-@click.option("--time", "time_style", envvar="TOASTER_TIME", default="auto", show_default=True,
-              type=click.Choice(TIME_STYLES, case_sensitive=False),
-              help="Show times as seconds since the data's start (+12.500 s), as UTC dates, "
-                   "or auto: elapsed for simulated data (starting in 1970), dates otherwise "
-                   "(env TOASTER_TIME; docs/time.md).")
+@click.option(
+    "--time",
+    "time_style",
+    envvar="TOASTER_TIME",
+    default="auto",
+    show_default=True,
+    type=click.Choice(TIME_STYLES, case_sensitive=False),
+    help="Show times as seconds since the data's start (+12.500 s), as UTC dates, "
+    "or auto: elapsed for simulated data (starting in 1970), dates otherwise "
+    "(env TOASTER_TIME; docs/time.md).",
+)
 @click.option("--debug", is_flag=True, help="Show tracebacks for errors.")
 @click.version_option(package_name="toaster")
 @click.pass_context
@@ -63,9 +69,30 @@ def _register() -> None:
     from toaster.cli.tolerance import tolerance
     from toaster.cli.watch import watch
 
-    for command in (area, beliefs, db_group, demo, entity, execute, export, get_info, hand,
-                    monitor, plot_facts, pointing_cmd, record, relative_position, relpos, run,
-                    serve, set_info, stream, tell_cmd, tolerance, watch):
+    for command in (
+        area,
+        beliefs,
+        db_group,
+        demo,
+        entity,
+        execute,
+        export,
+        get_info,
+        hand,
+        monitor,
+        plot_facts,
+        pointing_cmd,
+        record,
+        relative_position,
+        relpos,
+        run,
+        serve,
+        set_info,
+        stream,
+        tell_cmd,
+        tolerance,
+        watch,
+    ):
         cli.add_command(command)
     add_db_option(cli)
     guard(cli)

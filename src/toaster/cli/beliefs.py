@@ -36,13 +36,23 @@ def beliefs() -> None:
 @click.option("--target")
 @listing_options
 @click.pass_obj
-def show(app: Any, agent: str, about: str | None, at: str | None, subject: str | None,
-         property: str | None, target: str | None, fmt: str | None, limit: int | None) -> None:
+def show(
+    app: Any,
+    agent: str,
+    about: str | None,
+    at: str | None,
+    subject: str | None,
+    property: str | None,
+    target: str | None,
+    fmt: str | None,
+    limit: int | None,
+) -> None:
     """What AGENT believes (now or --at TIME)."""
     from toaster.beliefs import api
 
-    rows = api.beliefs(app.db, agent, _about(about), at=_at(at), subject=subject,
-                       property=property, target=target)
+    rows = api.beliefs(
+        app.db, agent, _about(about), at=_at(at), subject=subject, property=property, target=target
+    )
     emit(rows, fmt, limit=limit, empty=f"({agent} believes nothing that matches)")
 
 
@@ -55,13 +65,23 @@ def show(app: Any, agent: str, about: str | None, at: str | None, subject: str |
 @click.option("--at", "at", metavar="TIME")
 @listing_options
 @click.pass_obj
-def value(app: Any, agent: str, subject: str, property: str, target: str,
-          about: str | None, at: str | None, fmt: str | None, limit: int | None) -> None:
+def value(
+    app: Any,
+    agent: str,
+    subject: str,
+    property: str,
+    target: str,
+    about: str | None,
+    at: str | None,
+    fmt: str | None,
+    limit: int | None,
+) -> None:
     """One belief of AGENT: its value and interval, or that it is not held."""
     from toaster.beliefs import api
 
-    row = api.belief_value(app.db, agent, subject, property, target, about=_about(about),
-                           at=_at(at))
+    row = api.belief_value(
+        app.db, agent, subject, property, target, about=_about(about), at=_at(at)
+    )
     emit([row] if row else [], fmt, limit=limit, empty="(not believed)")
 
 
@@ -72,8 +92,15 @@ def value(app: Any, agent: str, subject: str, property: str, target: str,
 @click.option("--at", "at", metavar="TIME")
 @listing_options
 @click.pass_obj
-def diff(app: Any, agent: str, other: str | None, about: str | None, at: str | None,
-         fmt: str | None, limit: int | None) -> None:
+def diff(
+    app: Any,
+    agent: str,
+    other: str | None,
+    about: str | None,
+    at: str | None,
+    fmt: str | None,
+    limit: int | None,
+) -> None:
     """False-belief report: where AGENT and OTHER disagree (value_a = AGENT's)."""
     from toaster.beliefs import api
 
@@ -88,8 +115,15 @@ def diff(app: Any, agent: str, other: str | None, about: str | None, at: str | N
 @click.option("--agent", "agents", multiple=True, help="Only these holders (repeatable).")
 @listing_options
 @click.pass_obj
-def history(app: Any, subject: str, property: str, target: str | None,
-            agents: tuple[str, ...], fmt: str | None, limit: int | None) -> None:
+def history(
+    app: Any,
+    subject: str,
+    property: str,
+    target: str | None,
+    agents: tuple[str, ...],
+    fmt: str | None,
+    limit: int | None,
+) -> None:
     """Every interval of one belief across the robot, the agents and nested holders."""
     from toaster.beliefs import api
 
@@ -104,15 +138,21 @@ def holders(app: Any, fmt: str | None, limit: int | None) -> None:
     """Belief holders other than the self agent (first order, then nested A>B)."""
     from toaster.beliefs import api
 
-    emit([(holder,) for holder in api.holders(app.db)], fmt, columns=["holder"], limit=limit,
-         empty="(no belief holder but the robot)")
+    emit(
+        [(holder,) for holder in api.holders(app.db)],
+        fmt,
+        columns=["holder"],
+        limit=limit,
+        empty="(no belief holder but the robot)",
+    )
 
 
 @beliefs.command("config")
 @click.argument("key", required=False)
 @click.argument("value", required=False)
-@click.option("--reset", is_flag=True,
-              help="Put KEY (or, without KEY, every setting) back to its default.")
+@click.option(
+    "--reset", is_flag=True, help="Put KEY (or, without KEY, every setting) back to its default."
+)
 @click.pass_obj
 def config(app: Any, key: str | None, value: str | None, reset: bool) -> None:
     """Show the rule settings, or set KEY to VALUE (JSON: depth 1, enabled false...)."""
@@ -123,8 +163,11 @@ def config(app: Any, key: str | None, value: str | None, reset: bool) -> None:
         if value is not None:
             raise click.UsageError("--reset takes KEY alone (no VALUE)")
         settings = api.reset(app.db, *([key] if key else []))
-        say(f"beliefs.{key} = {json.dumps(settings[key])} (default)" if key
-            else "every beliefs setting is back to its default")
+        say(
+            f"beliefs.{key} = {json.dumps(settings[key])} (default)"
+            if key
+            else "every beliefs setting is back to its default"
+        )
         return
     if key is None:
         click.echo(json.dumps(api.config(app.db), indent=2, sort_keys=True))
@@ -160,18 +203,36 @@ def replay(app: Any, scenario: str, check: bool) -> None:
 @click.argument("subject")
 @click.argument("property")
 @click.argument("target", required=False, default="")
-@click.option("--to", "listeners", multiple=True, metavar="AGENT",
-              help="A listener (repeatable); none: everyone in SPEAKER's room hears it.")
+@click.option(
+    "--to",
+    "listeners",
+    multiple=True,
+    metavar="AGENT",
+    help="A listener (repeatable); none: everyone in SPEAKER's room hears it.",
+)
 @click.option("--value", default="true", show_default=True)
 @click.option("--at", "at", metavar="TIME", help="When (default now).")
 @click.pass_obj
-def tell_cmd(app: Any, speaker: str, subject: str, property: str, target: str,
-             listeners: tuple[str, ...], value: str, at: str | None) -> None:
+def tell_cmd(
+    app: Any,
+    speaker: str,
+    subject: str,
+    property: str,
+    target: str,
+    listeners: tuple[str, ...],
+    value: str,
+    at: str | None,
+) -> None:
     """SPEAKER tells SUBJECT PROPERTY [TARGET]: listeners who trust SPEAKER believe it, and
     everyone who hears it knows they were told (toaster.beliefs.tell)."""
     from toaster.beliefs.tell import tell
     from toaster.model import Fact
 
-    learnt = tell(app.db, speaker, Fact(subject, property, target, value),
-                  listeners=list(listeners) or None, t_ns=_at(at))
+    learnt = tell(
+        app.db,
+        speaker,
+        Fact(subject, property, target, value),
+        listeners=list(listeners) or None,
+        t_ns=_at(at),
+    )
     say(f"told: {', '.join(learnt) or 'nobody (no listener, or none trusts ' + speaker + ')'}")

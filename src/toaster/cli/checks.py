@@ -44,8 +44,9 @@ def _check(param: click.Parameter, value: Any) -> None:
         raise InvalidInputError(msg)
 
 
-def _checked(callback: Callable[..., Any], params: list[click.Parameter],
-             path: str) -> Callable[..., Any]:
+def _checked(
+    callback: Callable[..., Any], params: list[click.Parameter], path: str
+) -> Callable[..., Any]:
     checked = [p for p in params if p.name and not isinstance(p.type, click.Path | click.File)]
 
     @functools.wraps(callback)
@@ -80,8 +81,9 @@ def guard(command: click.Command, path: str | None = None) -> None:
             guard(sub, f"{path} {name}" if path else name)
 
 
-def parse_time_option(value: str | None, flag: str, *, frame: TimeFrame | None = None
-                      ) -> int | None:
+def parse_time_option(
+    value: str | None, flag: str, *, frame: TimeFrame | None = None
+) -> int | None:
     """``--at`` / ``--from`` / ``--to`` text as ns (None stays None); errors name ``flag``.
 
     A duration (``12.5s``) counts from the start of ``frame``, by default the data of the

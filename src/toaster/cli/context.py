@@ -22,9 +22,11 @@ if TYPE_CHECKING:
 #: The environment variable naming the database (same name as :data:`toaster.db.engine.ENV_VAR`,
 #: not imported: ``toaster --help`` does not load SQLAlchemy).
 ENV_VAR = "TOASTER_DB"
-DB_HELP = ("Database: sqlite:///FILE.db or postgresql://USER@HOST/DB. Accepted before or after "
-           f"any command; it wins over ${ENV_VAR}; without either, sqlite:///toaster.db in the "
-           "working directory (created on first use).")
+DB_HELP = (
+    "Database: sqlite:///FILE.db or postgresql://USER@HOST/DB. Accepted before or after "
+    f"any command; it wins over ${ENV_VAR}; without either, sqlite:///toaster.db in the "
+    "working directory (created on first use)."
+)
 
 
 class AppContext:
@@ -90,8 +92,9 @@ def _take_db(ctx: click.Context, _param: click.Parameter, value: str | None) -> 
 
 def db_option() -> click.Option:
     """The one ``--db`` declaration (a fresh Option per command; see :func:`add_db_option`)."""
-    return click.Option(["--db"], metavar="URL", expose_value=False, is_eager=True,
-                        callback=_take_db, help=DB_HELP)
+    return click.Option(
+        ["--db"], metavar="URL", expose_value=False, is_eager=True, callback=_take_db, help=DB_HELP
+    )
 
 
 def add_db_option(command: click.Command) -> None:
@@ -109,7 +112,8 @@ def one_line(ctx: click.Context, exc: Exception) -> click.ClickException | None:
     handler did not see. None: let it through (a bug, ``--debug``, click's own exits)."""
     app = ctx.find_object(AppContext)
     if isinstance(exc, click.ClickException | click.exceptions.Exit | click.Abort) or (
-            app is not None and app.debug):
+        app is not None and app.debug
+    ):
         return None
     if isinstance(exc, ToasterError):
         return click.ClickException(str(exc))

@@ -11,13 +11,21 @@ import click
 from toaster.cli.output import emit, listing_options
 from toaster.errors import InvalidInputError
 
-_WAIT = click.option("--timeout", type=float, default=2.0, show_default=True,
-                     help="Seconds to wait for the running node's answer.")
+_WAIT = click.option(
+    "--timeout",
+    type=float,
+    default=2.0,
+    show_default=True,
+    help="Seconds to wait for the running node's answer.",
+)
 
 
 def _show_monitor(state: Any) -> None:
-    agents = "(producers' default: humans)" if state.agents is None else (
-        ", ".join(state.agents) or "(nobody)")
+    agents = (
+        "(producers' default: humans)"
+        if state.agents is None
+        else (", ".join(state.agents) or "(nobody)")
+    )
     click.echo(f"monitored agents: {agents}")
     if state.excluded:
         click.echo(f"except: {', '.join(state.excluded)}")
@@ -65,8 +73,12 @@ def monitor_all(app: Any, which: str, off: bool) -> None:
 
 
 @monitor.command("clear")
-@click.option("--joints", "joints_only", is_flag=True,
-              help="Only forget joint choices (remove_all_joints_to_agent).")
+@click.option(
+    "--joints",
+    "joints_only",
+    is_flag=True,
+    help="Only forget joint choices (remove_all_joints_to_agent).",
+)
 @click.pass_obj
 def monitor_clear(app: Any, joints_only: bool) -> None:
     """Monitor nobody (remove_all_agents)."""
@@ -90,8 +102,9 @@ def monitor_list(app: Any) -> None:
 @click.argument("state", required=False, type=click.Choice(["on", "off"]))
 @listing_options
 @click.pass_obj
-def stream(app: Any, name: str | None, state: str | None, fmt: str | None,
-           limit: int | None) -> None:
+def stream(
+    app: Any, name: str | None, state: str | None, fmt: str | None, limit: int | None
+) -> None:
     """Switch input stream NAME on or off (manage_stream); no arguments: list them."""
     from toaster.node import control
 
@@ -136,7 +149,7 @@ def hand_remove(app: Any, object_id: str) -> None:
     with app.db.transaction() as conn:  # checked first: a failed command writes nothing
         held = object_id in control.read_state(conn).in_hand
     if not held or not control.remove_from_hand(app.db, object_id):
-        msg = f"{object_id!r} is in no hand: see `toaster execute \"SELECT * FROM settings\"`"
+        msg = f'{object_id!r} is in no hand: see `toaster execute "SELECT * FROM settings"`'
         raise InvalidInputError(msg)
     click.echo(f"{object_id} released")
 
@@ -150,13 +163,30 @@ def entity() -> None:
 @click.argument("entity_id", metavar="ID")
 @click.argument("position", nargs=-1, type=float, required=True)
 @click.option("--yaw", type=float, default=0.0, help="Heading in radians.")
-@click.option("--quat", type=float, nargs=4, default=None, metavar="X Y Z W",
-              help="Orientation as a quaternion (instead of --yaw).")
-@click.option("--kind", default="object", show_default=True,
-              type=click.Choice(["human", "robot", "object"]), help="Kind, if it is new.")
+@click.option(
+    "--quat",
+    type=float,
+    nargs=4,
+    default=None,
+    metavar="X Y Z W",
+    help="Orientation as a quaternion (instead of --yaw).",
+)
+@click.option(
+    "--kind",
+    default="object",
+    show_default=True,
+    type=click.Choice(["human", "robot", "object"]),
+    help="Kind, if it is new.",
+)
 @click.pass_obj
-def entity_pose(app: Any, entity_id: str, position: tuple[float, ...], yaw: float,
-                quat: tuple[float, float, float, float] | None, kind: str) -> None:
+def entity_pose(
+    app: Any,
+    entity_id: str,
+    position: tuple[float, ...],
+    yaw: float,
+    quat: tuple[float, float, float, float] | None,
+    kind: str,
+) -> None:
     """Set ID's pose to X Y [Z] (set_entity_pose); applied by the running node or the next."""
     from toaster.model import MAX_COORD
     from toaster.node import control
@@ -168,8 +198,7 @@ def entity_pose(app: Any, entity_id: str, position: tuple[float, ...], yaw: floa
     if any(abs(v) > MAX_COORD for v in (*position, yaw, *(quat or ()))):
         msg = f"the pose of {entity_id!r} must lie within ±{MAX_COORD:g} m (and radians)"
         raise InvalidInputError(msg)
-    args: dict[str, Any] = {"id": entity_id, "position": list(position), "yaw": yaw,
-                            "kind": kind}
+    args: dict[str, Any] = {"id": entity_id, "position": list(position), "yaw": yaw, "kind": kind}
     if quat is not None:
         try:
             args["rpy"] = list(quaternion_to_rpy(*quat))
@@ -181,8 +210,12 @@ def entity_pose(app: Any, entity_id: str, position: tuple[float, ...], yaw: floa
 
 @entity.command("add")
 @click.argument("entity_id", metavar="ID")
-@click.option("--kind", default="object", show_default=True,
-              type=click.Choice(["human", "robot", "object", "joint"]))
+@click.option(
+    "--kind",
+    default="object",
+    show_default=True,
+    type=click.Choice(["human", "robot", "object", "joint"]),
+)
 @click.option("--owner", default="", help="The agent of a joint.")
 @click.pass_obj
 def entity_add(app: Any, entity_id: str, kind: str, owner: str) -> None:
@@ -207,8 +240,12 @@ def entity_remove(app: Any, entity_id: str) -> None:
 @click.command("pointing")
 @click.argument("agent")
 @click.option("--joint", default="rightHand", show_default=True, help="The pointing joint.")
-@click.option("--ago", default=None, metavar="T",
-              help="As the agent pointed this long ago (pointing_time), e.g. 500ms.")
+@click.option(
+    "--ago",
+    default=None,
+    metavar="T",
+    help="As the agent pointed this long ago (pointing_time), e.g. 500ms.",
+)
 @_WAIT
 @click.pass_obj
 def pointing_cmd(app: Any, agent: str, joint: str, ago: str | None, timeout: float) -> None:
@@ -219,8 +256,9 @@ def pointing_cmd(app: Any, agent: str, joint: str, ago: str | None, timeout: flo
 
     args: dict[str, Any] = {"agent": agent, "joint": joint}
     if ago is not None:
-        args["t_ns"] = check_ns(now_ns() - parse_duration_option(ago, "--ago"),
-                                f"--ago {ago!r}: the time")
+        args["t_ns"] = check_ns(
+            now_ns() - parse_duration_option(ago, "--ago"), f"--ago {ago!r}: the time"
+        )
     answer = control.ask(app.db, "pointing", args, timeout)
     for entity_id, confidence in answer:
         click.echo(f"{entity_id}\t{confidence:.3f}")
@@ -231,20 +269,30 @@ def pointing_cmd(app: Any, agent: str, joint: str, ago: str | None, timeout: flo
 @click.command("relative-position")
 @click.argument("subject")
 @click.argument("target")
-@click.option("--from", "viewer", default=None,
-              help="Seen from this agent: where TARGET is relative to SUBJECT "
-                   "(get_multiple_relative_position).")
+@click.option(
+    "--from",
+    "viewer",
+    default=None,
+    help="Seen from this agent: where TARGET is relative to SUBJECT "
+    "(get_multiple_relative_position).",
+)
 @_WAIT
 @click.pass_obj
-def relative_position(app: Any, subject: str, target: str, viewer: str | None,
-                      timeout: float) -> None:
+def relative_position(
+    app: Any, subject: str, target: str, viewer: str | None, timeout: float
+) -> None:
     """Where TARGET is for SUBJECT: front, left, back, right (asks the running node)."""
     from toaster.node import control
 
     if viewer is None:
-        answer = control.ask(app.db, "get_relative_position",
-                             {"subject": subject, "target": target}, timeout)
+        answer = control.ask(
+            app.db, "get_relative_position", {"subject": subject, "target": target}, timeout
+        )
     else:
-        answer = control.ask(app.db, "get_multiple_relative_position",
-                             {"agent": viewer, "object": subject, "target": target}, timeout)
+        answer = control.ask(
+            app.db,
+            "get_multiple_relative_position",
+            {"agent": viewer, "object": subject, "target": target},
+            timeout,
+        )
     click.echo(json.dumps(answer))

@@ -15,8 +15,9 @@ if TYPE_CHECKING:
 _SHOWN = 10
 
 
-def _engine(ctx: click.Context, *, create: bool = False,
-            revision: str = "head") -> tuple[Engine, str | None]:
+def _engine(
+    ctx: click.Context, *, create: bool = False, revision: str = "head"
+) -> tuple[Engine, str | None]:
     """The engine on ``--db`` and its revision; refuses what is not a toaster database."""
     from toaster.db.database import open_engine
 
@@ -90,27 +91,33 @@ def check(ctx: click.Context) -> None:
             with engine.connect() as conn:
                 rows = conn.exec_driver_sql(f"PRAGMA quick_check({_SHOWN})").scalars().all()
             if rows != ["ok"]:
-                msg = (f"database {engine.url.database!r} is corrupted: {'; '.join(rows)}: "
-                       "restore it from a backup")
+                msg = (
+                    f"database {engine.url.database!r} is corrupted: {'; '.join(rows)}: "
+                    "restore it from a backup"
+                )
                 raise DatabaseOpenError(msg)
         migrate.check_at_head(engine, url_hint=ctx.obj.url or "")
     finally:
         engine.dispose()
     db = ctx.obj.db
     views = set(inspect(db.connection).get_view_names())
-    without = [agent.id for agent in agents(db)
-               if not {agent.fact_view, agent.memory_view, agent.events_view} <= views]
+    without = [
+        agent.id
+        for agent in agents(db)
+        if not {agent.fact_view, agent.memory_view, agent.events_view} <= views
+    ]
     with db.transaction() as conn:
         found = violations(conn, limit=_SHOWN)
     if found:
         lines = "\n".join(found[:_SHOWN]) + ("\n..." if len(found) > _SHOWN else "")
         msg = f"the temporal invariants do not hold (toaster.db.invariants):\n{lines}"
         raise InvariantViolationError(msg)
-    say(f"ok: database at revision {migrate.head_revision()}, {len(views)} views, "
-        "invariants hold")
+    say(f"ok: database at revision {migrate.head_revision()}, {len(views)} views, invariants hold")
     if without:  # recordings register their people without: not an error
-        say(f"{len(without)} agent(s) have no per-agent views (such as {without[0]!r}): "
-            "`toaster db views` creates them")
+        say(
+            f"{len(without)} agent(s) have no per-agent views (such as {without[0]!r}): "
+            "`toaster db views` creates them"
+        )
 
 
 @db_group.command()

@@ -13,10 +13,14 @@ DEMO_PICTURE = "toaster-demo.png"
 
 
 @click.command()
-@click.option("--picture", type=click.Path(dir_okay=False, path_type=Path),
-              default=DEMO_PICTURE, show_default=True, metavar="FILE",
-              help="Where to draw the marble's timeline (.png, .svg, .pdf; .dat or .csv for "
-                   "data).")
+@click.option(
+    "--picture",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=DEMO_PICTURE,
+    show_default=True,
+    metavar="FILE",
+    help="Where to draw the marble's timeline (.png, .svg, .pdf; .dat or .csv for data).",
+)
 @click.pass_obj
 def demo(app: Any, picture: Path) -> None:
     """Geometry -> facts -> Sally's false belief -> SQL -> a timeline picture.
@@ -38,9 +42,12 @@ def demo(app: Any, picture: Path) -> None:
 
         with Progress(transient=True) as bar:
             task = bar.add_task("Sally-Anne", total=None)
-            result = run_demo(app.db, picture, time_style=app.time_style,
-                              on_tick=lambda done, total: bar.update(task, completed=done,
-                                                                     total=total))
+            result = run_demo(
+                app.db,
+                picture,
+                time_style=app.time_style,
+                on_tick=lambda done, total: bar.update(task, completed=done, total=total),
+            )
     else:
         result = run_demo(app.db, picture, time_style=app.time_style)
     click.echo(result.story())

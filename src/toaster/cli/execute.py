@@ -19,25 +19,49 @@ NAMES = ("SQL", "ARE_IN_TABLE", "EMPTY", "PRINT")
 @click.command()
 @click.argument("command", type=click.Choice(NAMES, case_sensitive=False))
 @click.argument("argument", required=False)
-@click.option("--write", is_flag=True,
-              help="SQL: run any SQL (several statements, writes, settings) as the "
-                   "connecting role, without the read-only bounds.")
-@click.option("--param", "params", multiple=True, metavar="NAME=VALUE",
-              help="SQL: a bound parameter for :NAME (repeatable).")
-@click.option("--max-rows", type=click.IntRange(1, 2**31 - 2),
-              default=readonly.DEFAULT_MAX_ROWS, show_default=True,
-              help="SQL, read-only: show at most this many rows (a note says when more).")
-@click.option("--max-bytes", type=click.IntRange(1024), default=readonly.DEFAULT_MAX_BYTES,
-              show_default=True, help="SQL, read-only: fail past this many bytes of values.")
-@click.option("--timeout", "timeout_s", type=click.FloatRange(0, 1e6, min_open=True),
-              default=readonly.DEFAULT_TIMEOUT_S, show_default=True, metavar="SECONDS",
-              help="SQL, read-only: fail past this many seconds.")
+@click.option(
+    "--write",
+    is_flag=True,
+    help="SQL: run any SQL (several statements, writes, settings) as the "
+    "connecting role, without the read-only bounds.",
+)
+@click.option(
+    "--param",
+    "params",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="SQL: a bound parameter for :NAME (repeatable).",
+)
+@click.option(
+    "--max-rows",
+    type=click.IntRange(1, 2**31 - 2),
+    default=readonly.DEFAULT_MAX_ROWS,
+    show_default=True,
+    help="SQL, read-only: show at most this many rows (a note says when more).",
+)
+@click.option(
+    "--max-bytes",
+    type=click.IntRange(1024),
+    default=readonly.DEFAULT_MAX_BYTES,
+    show_default=True,
+    help="SQL, read-only: fail past this many bytes of values.",
+)
+@click.option(
+    "--timeout",
+    "timeout_s",
+    type=click.FloatRange(0, 1e6, min_open=True),
+    default=readonly.DEFAULT_TIMEOUT_S,
+    show_default=True,
+    metavar="SECONDS",
+    help="SQL, read-only: fail past this many seconds.",
+)
 @fact_options
 @click.option("--yes", is_flag=True, help="EMPTY: do not ask for confirmation.")
 @listing_options
 @click.pass_obj
-def execute(app: Any, command: str, argument: str | None, fmt: str | None, limit: int | None,
-            **opts: Any) -> None:
+def execute(
+    app: Any, command: str, argument: str | None, fmt: str | None, limit: int | None, **opts: Any
+) -> None:
     """Run SQL or one of the original's maintenance commands.
 
     \b
@@ -81,19 +105,27 @@ def _sql(call: Call) -> None:
         if not result.columns:
             say(f"ok ({result.rowcount} row(s) affected)")
             return
-        emit_rows(itertools.islice(result.rows, call.limit), call.fmt, columns=result.columns,
-                  frame=command_frame() if shows_times else None)
+        emit_rows(
+            itertools.islice(result.rows, call.limit),
+            call.fmt,
+            columns=result.columns,
+            frame=command_frame() if shows_times else None,
+        )
         return
-    max_rows = opts["max_rows"] if call.limit is None else max(1, min(opts["max_rows"],
-                                                                      call.limit))
+    max_rows = opts["max_rows"] if call.limit is None else max(1, min(opts["max_rows"], call.limit))
     frame = command_frame() if shows_times else None
-    with q.execute_stream(call.db, call.argument, bound, max_rows=max_rows,
-                          max_bytes=opts["max_bytes"], timeout_s=opts["timeout_s"]) as rows:
+    with q.execute_stream(
+        call.db,
+        call.argument,
+        bound,
+        max_rows=max_rows,
+        max_bytes=opts["max_bytes"],
+        timeout_s=opts["timeout_s"],
+    ) as rows:
         if not rows.columns:
             say("ok (0 row(s) affected)")
             return
-        emit_rows(itertools.islice(rows, call.limit), call.fmt, columns=rows.columns,
-                  frame=frame)
+        emit_rows(itertools.islice(rows, call.limit), call.fmt, columns=rows.columns, frame=frame)
     if rows.truncated and (call.limit is None or call.limit > max_rows):
         say(f"note: only the first {max_rows} rows are shown: add a LIMIT, or raise --max-rows")
 
@@ -107,8 +139,12 @@ def _are_in_table(call: Call) -> None:
     call.db.store().check_agent(agent)
     if not (opts["subject"] and opts["property"]):
         raise click.UsageError("ARE_IN_TABLE needs --subject and --property")
-    fact = Fact(opts["subject"], opts["property"], opts["target"] or "",
-                sub_property=opts["sub_property"] or "")
+    fact = Fact(
+        opts["subject"],
+        opts["property"],
+        opts["target"] or "",
+        sub_property=opts["sub_property"] or "",
+    )
     answer = q.are_in_table(call.db, agent, [fact])[0]
     click.echo("true" if answer else "false")
     if not answer:
@@ -153,4 +189,8 @@ def _print(call: Call) -> None:
 
 #: execute COMMAND -> what runs it
 COMMANDS: dict[str, Callable[[Call], None]] = {
-    "SQL": _sql, "ARE_IN_TABLE": _are_in_table, "EMPTY": _empty, "PRINT": _print}
+    "SQL": _sql,
+    "ARE_IN_TABLE": _are_in_table,
+    "EMPTY": _empty,
+    "PRINT": _print,
+}

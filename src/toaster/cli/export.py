@@ -18,12 +18,25 @@ from toaster.cli.plot import _many, parse_window, window_options
 @click.option("--property", "-p", "prop", multiple=True, help="Property (repeatable).")
 @click.option("--target", "-t", multiple=True, help="Target id (repeatable).")
 @window_options
-@click.option("--format", "fmt", type=click.Choice(["csv", "jsonl", "parquet"]),
-              help="Output format (default: from OUTPUT's suffix).")
+@click.option(
+    "--format",
+    "fmt",
+    type=click.Choice(["csv", "jsonl", "parquet"]),
+    help="Output format (default: from OUTPUT's suffix).",
+)
 @click.pass_obj
-def export(app: Any, kind: str, output: str, agent: tuple[str, ...], subject: tuple[str, ...],
-           prop: tuple[str, ...], target: tuple[str, ...], since: str | None,
-           until: str | None, fmt: str | None) -> None:
+def export(
+    app: Any,
+    kind: str,
+    output: str,
+    agent: tuple[str, ...],
+    subject: tuple[str, ...],
+    prop: tuple[str, ...],
+    target: tuple[str, ...],
+    since: str | None,
+    until: str | None,
+    fmt: str | None,
+) -> None:
     """Write KIND (facts = current, memory, history, events) to OUTPUT (.csv, .jsonl, .parquet).
 
     One row per interval or event, every field, times in integer ns. Parquet keeps the types
@@ -35,33 +48,62 @@ def export(app: Any, kind: str, output: str, agent: tuple[str, ...], subject: tu
 
     db = app.db
     lo, hi = parse_window(since, until)
-    result = write(db, kind, output, format=fmt, agent=_many(agent),
-                   subject=_many(subject), property=_many(prop), target=_many(target),
-                   since=lo, until=hi)
+    result = write(
+        db,
+        kind,
+        output,
+        format=fmt,
+        agent=_many(agent),
+        subject=_many(subject),
+        property=_many(prop),
+        target=_many(target),
+        since=lo,
+        until=hi,
+    )
     click.echo(f"wrote {result.rows} {kind} rows to {result.path} ({result.format})")
 
 
 @click.command("record")
 @click.argument("frames", type=click.Path(exists=True, dir_okay=False))
 @click.argument("output", type=click.Path())
-@click.option("--agent", "-a", multiple=True,
-              help="Agent (or nested holder A>B) whose events and beliefs to record "
-                   "(repeatable; default: all).")
+@click.option(
+    "--agent",
+    "-a",
+    multiple=True,
+    help="Agent (or nested holder A>B) whose events and beliefs to record "
+    "(repeatable; default: all).",
+)
 @window_options
 @click.option("--frame-id", default="map", show_default=True, help="Fixed frame of the markers.")
-@click.option("--distro", help="ROS distro: message definitions and container: humble (rosbag2 "
-              "metadata version 5), iron (8), jazzy, kilted (9), noetic (a ROS 1 .bag). "
-              "Default: noetic if OUTPUT ends in .bag, else humble.")
-@click.option("--toaster-names", type=click.Choice(["ros2", "ros1"]),
-              help="toaster_msgs field names: ros2 (snake_case, decoded by Foxglove and ROS 2 "
-              "tools; the default of ROS 2 bags) or ros1 (the original's camelCase; the only "
-              "one of ROS 1 bags); toaster run reads both.")
-@click.option("--no-facts", is_flag=True, help="Leave the database out (events, fact lists "
-              "and beliefs).")
+@click.option(
+    "--distro",
+    help="ROS distro: message definitions and container: humble (rosbag2 "
+    "metadata version 5), iron (8), jazzy, kilted (9), noetic (a ROS 1 .bag). "
+    "Default: noetic if OUTPUT ends in .bag, else humble.",
+)
+@click.option(
+    "--toaster-names",
+    type=click.Choice(["ros2", "ros1"]),
+    help="toaster_msgs field names: ros2 (snake_case, decoded by Foxglove and ROS 2 "
+    "tools; the default of ROS 2 bags) or ros1 (the original's camelCase; the only "
+    "one of ROS 1 bags); toaster run reads both.",
+)
+@click.option(
+    "--no-facts", is_flag=True, help="Leave the database out (events, fact lists and beliefs)."
+)
 @click.pass_obj
-def record(app: Any, frames: str, output: str, agent: tuple[str, ...], since: str | None,
-           until: str | None, frame_id: str, distro: str | None, toaster_names: str | None,
-           no_facts: bool) -> None:
+def record(
+    app: Any,
+    frames: str,
+    output: str,
+    agent: tuple[str, ...],
+    since: str | None,
+    until: str | None,
+    frame_id: str,
+    distro: str | None,
+    toaster_names: str | None,
+    no_facts: bool,
+) -> None:
     """Record FRAMES (JSON lines of poses) and the database's facts into the bag OUTPUT.
 
     Each line of FRAMES: {"t_ns": ..., "entities": [[id, kind, x, y, z, yaw], ...],
@@ -81,8 +123,18 @@ def record(app: Any, frames: str, output: str, agent: tuple[str, ...], since: st
         raise FileFormatError(msg) from None
     db = app.db
     lo, hi = parse_window(since, until)
-    result = write(output, poses, db=None if no_facts else db,
-                   agent=_many(agent), since=lo, until=hi, frame_id=frame_id,
-                   distro=distro, toaster_names=toaster_names)
-    click.echo(f"wrote {result.frames} frames, {result.facts} fact lines and "
-               f"{result.beliefs} belief states to {result.file}")
+    result = write(
+        output,
+        poses,
+        db=None if no_facts else db,
+        agent=_many(agent),
+        since=lo,
+        until=hi,
+        frame_id=frame_id,
+        distro=distro,
+        toaster_names=toaster_names,
+    )
+    click.echo(
+        f"wrote {result.frames} frames, {result.facts} fact lines and "
+        f"{result.beliefs} belief states to {result.file}"
+    )

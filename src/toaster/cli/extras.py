@@ -20,8 +20,11 @@ def _plot_facts(kw: dict[str, Any]) -> list[Need]:
 def _export(kw: dict[str, Any]) -> list[Need]:
     from toaster.outputs.export import export_format
 
-    return ([("export", "export to parquet")]
-            if export_format(kw["output"], kw["fmt"]) == "parquet" else [])
+    return (
+        [("export", "export to parquet")]
+        if export_format(kw["output"], kw["fmt"]) == "parquet"
+        else []
+    )
 
 
 def _run(kw: dict[str, Any]) -> list[Need]:

@@ -17,15 +17,17 @@ SET_TYPES = ("ENTITY", "FACT", "EVENT", "ONTOLOGY", "PROPERTY")
 
 def fact_options(func: Any) -> Any:
     """Options naming a fact (subject, property, target and the rest of its key)."""
-    for name, help_text in reversed((
-        ("--agent", "Agent holding the belief (default: the self agent)."),
-        ("--subject", "Subject id ('NULL' = any)."),
-        ("--property", "Property, e.g. IsOn."),
-        ("--target", "Target id ('NULL' = any, empty = none)."),
-        ("--sub-property", "Sub-property, e.g. 3D."),
-        ("--subject-owner", "Owner of the subject (joints)."),
-        ("--target-owner", "Owner of the target."),
-    )):
+    for name, help_text in reversed(
+        (
+            ("--agent", "Agent holding the belief (default: the self agent)."),
+            ("--subject", "Subject id ('NULL' = any)."),
+            ("--property", "Property, e.g. IsOn."),
+            ("--target", "Target id ('NULL' = any, empty = none)."),
+            ("--sub-property", "Sub-property, e.g. 3D."),
+            ("--subject-owner", "Owner of the subject (joints)."),
+            ("--target-owner", "Owner of the target."),
+        )
+    ):
         func = click.option(name, help=help_text)(func)
     return func
 
@@ -47,8 +49,9 @@ def _self_agent(db: Any, agent: str | None) -> str:
 @click.option("--to", "until", metavar="TIME", help="Window end (FACT, EVENT).")
 @listing_options
 @click.pass_obj
-def get_info(app: Any, info_type: str, sub_type: str, fmt: str | None, limit: int | None,
-             **opts: Any) -> None:
+def get_info(
+    app: Any, info_type: str, sub_type: str, fmt: str | None, limit: int | None, **opts: Any
+) -> None:
     """Read facts, events, ontology, entities, agents or properties.
 
     \b
@@ -64,11 +67,15 @@ def get_info(app: Any, info_type: str, sub_type: str, fmt: str | None, limit: in
     kind, sub = info_type.upper(), sub_type.upper()
     readers = READERS[kind]
     if sub not in readers:
-        raise click.UsageError(f"unknown {kind} subtype {sub!r}: use one of "
-                               f"{', '.join(readers)}")
-    ask = Ask(app.db, opts, limit, parse_time_option(opts["at"], "--at"),
-              parse_time_option(opts["since"], "--from"),
-              parse_time_option(opts["until"], "--to"))
+        raise click.UsageError(f"unknown {kind} subtype {sub!r}: use one of {', '.join(readers)}")
+    ask = Ask(
+        app.db,
+        opts,
+        limit,
+        parse_time_option(opts["at"], "--at"),
+        parse_time_option(opts["since"], "--from"),
+        parse_time_option(opts["until"], "--to"),
+    )
     rows, empty = readers[sub](ask)
     emit(rows, fmt, limit=limit, empty=empty)
 
@@ -117,9 +124,17 @@ def _fact_value(ask: Ask) -> Rows:
     agent = ask.agent(self_by_default=True)
     ask.need("FACT VALUE", subject="--subject", property="--property")
     o = ask.opts
-    row = _q().fact_value(ask.db, agent, o["subject"], o["property"], o["target"] or "",
-                         at=ask.at, sub_property=o["sub_property"],
-                         subject_owner=o["subject_owner"], target_owner=o["target_owner"])
+    row = _q().fact_value(
+        ask.db,
+        agent,
+        o["subject"],
+        o["property"],
+        o["target"] or "",
+        at=ask.at,
+        sub_property=o["sub_property"],
+        subject_owner=o["subject_owner"],
+        target_owner=o["target_owner"],
+    )
     return ([row] if row else []), "(the fact does not hold)"
 
 
@@ -132,19 +147,28 @@ def _fact_current(ask: Ask) -> Rows:
 
 def _fact_old(ask: Ask) -> Rows:
     ask.without_at("FACT OLD")
-    return _q().memory(ask.db, ask.agent(), since=ask.since, until=ask.until, limit=ask.limit,
-                      **ask.key), NO_ROWS
+    return _q().memory(
+        ask.db, ask.agent(), since=ask.since, until=ask.until, limit=ask.limit, **ask.key
+    ), NO_ROWS
 
 
 def _fact_all(ask: Ask) -> Rows:
     ask.without_at("FACT ALL")
-    return _q().history(ask.db, ask.agent(), since=ask.since, until=ask.until, limit=ask.limit,
-                       **ask.key), NO_ROWS
+    return _q().history(
+        ask.db, ask.agent(), since=ask.since, until=ask.until, limit=ask.limit, **ask.key
+    ), NO_ROWS
 
 
 def _events(ask: Ask) -> Rows:
-    return _q().events(ask.db, ask.agent(), since=ask.since, until=ask.until,
-                      kind=ask.opts["kind"], limit=ask.limit, **ask.key), NO_ROWS
+    return _q().events(
+        ask.db,
+        ask.agent(),
+        since=ask.since,
+        until=ask.until,
+        kind=ask.opts["kind"],
+        limit=ask.limit,
+        **ask.key,
+    ), NO_ROWS
 
 
 def _ontology(ask: Ask) -> Rows:
@@ -182,8 +206,7 @@ def _q() -> Any:
 
 #: get-info TYPE -> SUBTYPE -> the reader answering it
 READERS: dict[str, dict[str, Callable[[Ask], Rows]]] = {
-    "FACT": {"ALL": _fact_all, "CURRENT": _fact_current, "OLD": _fact_old,
-             "VALUE": _fact_value},
+    "FACT": {"ALL": _fact_all, "CURRENT": _fact_current, "OLD": _fact_old, "VALUE": _fact_value},
     "EVENT": {"ALL": _events},
     "ONTOLOGY": {"ALL": _ontology, "VALUE": _ontology_value, "LEAVE": _ontology_leave},
     "ID": {"ALL": _entities, "VALUE": _entities},
@@ -194,17 +217,27 @@ READERS: dict[str, dict[str, Callable[[Ask], Rows]]] = {
 
 
 @click.command("set-info")
-@click.argument("info_type", metavar="TYPE", required=False,
-                type=click.Choice(SET_TYPES, case_sensitive=False))
-@click.option("--file", "files", multiple=True, type=click.Path(dir_okay=False),
-              help="A JSON/YAML batch or one of the original's XML seeds (repeatable; each "
-                   "file is one transaction).")
+@click.argument(
+    "info_type", metavar="TYPE", required=False, type=click.Choice(SET_TYPES, case_sensitive=False)
+)
+@click.option(
+    "--file",
+    "files",
+    multiple=True,
+    type=click.Path(dir_okay=False),
+    help="A JSON/YAML batch or one of the original's XML seeds (repeatable; each "
+    "file is one transaction).",
+)
 @click.option("--add/--remove", default=True, help="Add (default) or remove.")
 @fact_options
 @click.option("--id", "entity_id", help="Entity id (ENTITY, PROPERTY).")
 @click.option("--name", default="", help="Entity name (default: the id).")
-@click.option("--type", "entity_kind", default="object",
-              help="Entity kind: human, robot, object, joint, area...")
+@click.option(
+    "--type",
+    "entity_kind",
+    default="object",
+    help="Entity kind: human, robot, object, joint, area...",
+)
 @click.option("--owner", default="", help="Owner of the entity (joints).")
 @click.option("--self/--not-self", "is_self", default=None, help="Mark the agent as self.")
 @click.option("--value", help="Symbolic value (FACT, default 'true') or property value.")
@@ -219,8 +252,9 @@ READERS: dict[str, dict[str, Callable[[Ask], Rows]]] = {
 @click.option("--at", "at", metavar="TIME", help="When (default now).")
 @click.option("--actor", help="FACT: the agent who made the change (it perceives it anywhere).")
 @click.pass_obj
-def set_info(app: Any, info_type: str | None, files: tuple[str, ...], add: bool,
-             **opts: Any) -> None:
+def set_info(
+    app: Any, info_type: str | None, files: tuple[str, ...], add: bool, **opts: Any
+) -> None:
     """Write entities, facts, events, ontology rows or properties (one transaction).
 
     \b
@@ -252,8 +286,14 @@ def _set_entity(store: Any, add: bool, opts: dict[str, Any]) -> str:
     if not add:
         store.remove_entity(entity_id)
         return f"entity {entity_id!r} removed"
-    store.add_entity(entity_id, opts["entity_kind"], opts["name"], opts["owner"],
-                     is_self=opts["is_self"], t_ns=opts["at"])
+    store.add_entity(
+        entity_id,
+        opts["entity_kind"],
+        opts["name"],
+        opts["owner"],
+        is_self=opts["is_self"],
+        t_ns=opts["at"],
+    )
     return f"entity {entity_id!r} saved"
 
 
@@ -262,9 +302,21 @@ def _fact(opts: dict[str, Any]) -> Any:
     from toaster.db.seed import fact_from_mapping
 
     _need(opts, "subject", "--subject")
-    row = {k: opts[k] for k in ("subject", "property", "target", "sub_property",
-                                "subject_owner", "target_owner", "confidence",
-                                "observability", "property_type") if opts[k] is not None}
+    row = {
+        k: opts[k]
+        for k in (
+            "subject",
+            "property",
+            "target",
+            "sub_property",
+            "subject_owner",
+            "target_owner",
+            "confidence",
+            "observability",
+            "property_type",
+        )
+        if opts[k] is not None
+    }
     row["value"] = opts["value"] if opts["value"] is not None else "true"
     if opts["num"] is not None:
         row["num"] = opts["num"]
@@ -275,11 +327,17 @@ def _set_fact(store: Any, add: bool, opts: dict[str, Any]) -> str:
     agent = _self_agent(store.db, opts["agent"])
     _need(opts, "property", "--property")
     if not add:
-        n = store.retract_facts(agent, opts["property"], opts["subject"], opts["target"],
-                                sub_property=opts["sub_property"],
-                                subject_owner_id=opts["subject_owner"],
-                                target_owner_id=opts["target_owner"], t_ns=opts["at"],
-                                actor=opts["actor"])
+        n = store.retract_facts(
+            agent,
+            opts["property"],
+            opts["subject"],
+            opts["target"],
+            sub_property=opts["sub_property"],
+            subject_owner_id=opts["subject_owner"],
+            target_owner_id=opts["target_owner"],
+            t_ns=opts["at"],
+            actor=opts["actor"],
+        )
         return f"{n} fact(s) ended for {agent}"
     outcome = store.assert_fact(agent, _fact(opts), t_ns=opts["at"], actor=opts["actor"])
     return f"fact {outcome} for {agent}"
@@ -298,8 +356,9 @@ def _set_ontology(store: Any, add: bool, opts: dict[str, Any]) -> str:
     entity_class = _need(opts, "entity_class", "--class")
     if not add:
         return f"{store.remove_ontology(entity_class, opts['individual'])} ontology row(s) removed"
-    store.add_ontology(entity_class, _need(opts, "individual", "--individual"),
-                       opts["instantiated"])
+    store.add_ontology(
+        entity_class, _need(opts, "individual", "--individual"), opts["instantiated"]
+    )
     return "ontology row saved"
 
 
@@ -316,8 +375,11 @@ def _set_property(store: Any, add: bool, opts: dict[str, Any]) -> str:
 
 #: set-info TYPE -> the writer doing it (returns the status line)
 WRITERS: dict[str, Callable[[Any, bool, dict[str, Any]], str]] = {
-    "ENTITY": _set_entity, "FACT": _set_fact, "EVENT": _set_event,
-    "ONTOLOGY": _set_ontology, "PROPERTY": _set_property,
+    "ENTITY": _set_entity,
+    "FACT": _set_fact,
+    "EVENT": _set_event,
+    "ONTOLOGY": _set_ontology,
+    "PROPERTY": _set_property,
 }
 
 

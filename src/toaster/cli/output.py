@@ -28,30 +28,67 @@ if TYPE_CHECKING:
 
 #: Columns shown in tables per row type (JSON and CSV always carry every field).
 TABLE_COLUMNS = {
-    "FactRow": ("agent_id", "subject_id", "subject_owner_id", "property", "sub_property",
-                "target_id", "target_owner_id", "value_text", "value_num", "confidence",
-                "valid_from_ns", "valid_to_ns", "source"),
-    "EventRow": ("stamp_ns", "agent_id", "kind", "subject_id", "subject_owner_id", "property",
-                 "sub_property", "target_id", "target_owner_id", "value_text", "previous_text",
-                 "confidence", "source"),
+    "FactRow": (
+        "agent_id",
+        "subject_id",
+        "subject_owner_id",
+        "property",
+        "sub_property",
+        "target_id",
+        "target_owner_id",
+        "value_text",
+        "value_num",
+        "confidence",
+        "valid_from_ns",
+        "valid_to_ns",
+        "source",
+    ),
+    "EventRow": (
+        "stamp_ns",
+        "agent_id",
+        "kind",
+        "subject_id",
+        "subject_owner_id",
+        "property",
+        "sub_property",
+        "target_id",
+        "target_owner_id",
+        "value_text",
+        "previous_text",
+        "confidence",
+        "source",
+    ),
 }
 #: Key columns a terminal table leaves out when they are empty in every row.
 OPTIONAL_KEYS = frozenset({"subject_owner_id", "sub_property", "target_owner_id"})
-_HEADERS = {"subject_id": "subject", "target_id": "target", "value_text": "value",
-            "value_num": "num", "valid_from_ns": "from", "valid_to_ns": "to", "stamp_ns": "time",
-            "agent_id": "agent", "previous_text": "previous", "entity_id": "entity",
-            "subject_owner_id": "subject_owner", "target_owner_id": "target_owner"}
+_HEADERS = {
+    "subject_id": "subject",
+    "target_id": "target",
+    "value_text": "value",
+    "value_num": "num",
+    "valid_from_ns": "from",
+    "valid_to_ns": "to",
+    "stamp_ns": "time",
+    "agent_id": "agent",
+    "previous_text": "previous",
+    "entity_id": "entity",
+    "subject_owner_id": "subject_owner",
+    "target_owner_id": "target_owner",
+}
 
 
 def listing_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """Add ``--limit N``, ``--json`` and ``--csv`` (keyword arguments ``limit`` and ``fmt``) to
     a command that lists rows; print them with :func:`emit` (or :class:`RowWriter`)."""
-    func = click.option("--csv", "fmt", flag_value="csv",
-                        help="Comma-separated values, every field (times in ns).")(func)
-    func = click.option("--json", "fmt", flag_value="json",
-                        help="JSON lines, one object per row (times in ns).")(func)
-    return click.option("--limit", type=_RowCount(0, 2**63 - 1), metavar="N",
-                        help="At most N rows.")(func)
+    func = click.option(
+        "--csv", "fmt", flag_value="csv", help="Comma-separated values, every field (times in ns)."
+    )(func)
+    func = click.option(
+        "--json", "fmt", flag_value="json", help="JSON lines, one object per row (times in ns)."
+    )(func)
+    return click.option(
+        "--limit", type=_RowCount(0, 2**63 - 1), metavar="N", help="At most N rows."
+    )(func)
 
 
 class _RowCount(click.IntRange):
@@ -66,9 +103,16 @@ def mode(fmt: str | None) -> str:
     return fmt or ("table" if sys.stdout.isatty() else "tsv")
 
 
-def emit(rows: Sequence[Any], fmt: str | None, *, columns: Sequence[str] | None = None,
-         title: str | None = None, empty: str = "(no rows)", limit: int | None = None,
-         frame: TimeFrame | None = None) -> None:
+def emit(
+    rows: Sequence[Any],
+    fmt: str | None,
+    *,
+    columns: Sequence[str] | None = None,
+    title: str | None = None,
+    empty: str = "(no rows)",
+    limit: int | None = None,
+    frame: TimeFrame | None = None,
+) -> None:
     """Print rows (NamedTuples, or tuples with ``columns``): at most ``limit``, as ``fmt``
     says (see :func:`mode`); ``empty`` is said when there is none (on stderr when piped).
 
@@ -80,8 +124,14 @@ def emit(rows: Sequence[Any], fmt: str | None, *, columns: Sequence[str] | None 
     if columns is None:
         columns = list(rows[0]._fields) if rows else []
     how = mode(fmt)
-    listing = Listing(type(rows[0]).__name__ if rows else "", list(columns),
-                      [tuple(r) for r in rows], title, empty, frame)
+    listing = Listing(
+        type(rows[0]).__name__ if rows else "",
+        list(columns),
+        [tuple(r) for r in rows],
+        title,
+        empty,
+        frame,
+    )
     _WRITERS[how](listing)
 
 
@@ -101,8 +151,10 @@ class Listing(NamedTuple):
         index = [self.columns.index(name) for name in shown]
         frame = self.frame if self.frame is not None else _frame_for(shown)
         cell = _cell if terminal else _tsv_cell
-        cells = [[cell(name, record[i], frame) for name, i in zip(shown, index, strict=True)]
-                 for record in self.records]
+        cells = [
+            [cell(name, record[i], frame) for name, i in zip(shown, index, strict=True)]
+            for record in self.records
+        ]
         return [_HEADERS.get(name, name) for name in shown], cells
 
 
@@ -144,8 +196,7 @@ def _table(out: Listing) -> None:
         click.echo(out.empty)
         return
     headers, cells = out.cells(terminal=True)
-    table = Table(title=None if out.title is None else Text(visible(out.title)),
-                  show_lines=False)
+    table = Table(title=None if out.title is None else Text(visible(out.title)), show_lines=False)
     for header in headers:
         table.add_column(header, overflow="fold")
     for line in cells:
@@ -155,17 +206,26 @@ def _table(out: Listing) -> None:
 
 #: output mode (:func:`mode`) -> how rows are printed
 _WRITERS: dict[str, Callable[[Listing], None]] = {
-    "json": _json, "csv": _csv, "tsv": _tsv, "table": _table}
+    "json": _json,
+    "csv": _csv,
+    "tsv": _tsv,
+    "table": _table,
+}
 
 
-def shown_columns(kind: str, columns: Sequence[str], records: Sequence[tuple[Any, ...]], *,
-                  terminal: bool) -> list[str]:
+def shown_columns(
+    kind: str, columns: Sequence[str], records: Sequence[tuple[Any, ...]], *, terminal: bool
+) -> list[str]:
     """The columns a table of ``kind`` rows shows (:data:`TABLE_COLUMNS`, else all); on a
     terminal, optional key columns empty in every row are left out."""
     shown = [c for c in TABLE_COLUMNS.get(kind, columns) if c in columns]
     if terminal:
-        shown = [c for c in shown if c not in OPTIONAL_KEYS
-                 or any(record[columns.index(c)] not in (None, "") for record in records)]
+        shown = [
+            c
+            for c in shown
+            if c not in OPTIONAL_KEYS
+            or any(record[columns.index(c)] not in (None, "") for record in records)
+        ]
     return shown
 
 
@@ -197,8 +257,7 @@ class RowWriter:
     """Rows printed as they come (``watch``), in the same formats as :func:`emit`; on a
     terminal each row is ``line(row)``."""
 
-    def __init__(self, fmt: str | None, columns: Sequence[str],
-                 line: Callable[[Any], str]) -> None:
+    def __init__(self, fmt: str | None, columns: Sequence[str], line: Callable[[Any], str]) -> None:
         self.how = mode(fmt)
         self.columns = list(columns)
         self.line = line
@@ -215,14 +274,18 @@ class RowWriter:
             kind = type(row).__name__
             shown = shown_columns(kind, self.columns, [record], terminal=False)
             if not self._started:
-                header = (self.columns if self.how == "csv"
-                          else [_HEADERS.get(name, name) for name in shown])
+                header = (
+                    self.columns
+                    if self.how == "csv"
+                    else [_HEADERS.get(name, name) for name in shown]
+                )
                 self._emit(header)
             if self.how == "csv":
                 self._emit(record)
             else:
-                self._emit([_tsv_cell(name, record[self.columns.index(name)], frame)
-                            for name in shown])
+                self._emit(
+                    [_tsv_cell(name, record[self.columns.index(name)], frame) for name in shown]
+                )
         self._started = True
         sys.stdout.flush()
 
@@ -233,15 +296,19 @@ class RowWriter:
             click.echo("\t".join(visible(str(v)) for v in values))
 
 
-def emit_rows(rows: Iterable[tuple[Any, ...]], fmt: str | None, *, columns: Sequence[str],
-              frame: TimeFrame | None = None) -> None:
+def emit_rows(
+    rows: Iterable[tuple[Any, ...]],
+    fmt: str | None,
+    *,
+    columns: Sequence[str],
+    frame: TimeFrame | None = None,
+) -> None:
     """Print tuples under ``columns`` as :func:`emit` does, each as it comes when piped
     (JSON, CSV, tab-separated lines, by :class:`RowWriter`: one row is held at a time); a
     terminal table needs them all (it sizes its columns to them). Blobs are shown in hex as
     PostgreSQL prints them (``\\x0a1b``). ``*_ns`` times are shown through ``frame`` (look it
     up before a transaction that yields the rows is opened)."""
-    records = (tuple("\\x" + v.hex() if isinstance(v, bytes) else v for v in row)
-               for row in rows)
+    records = (tuple("\\x" + v.hex() if isinstance(v, bytes) else v for v in row) for row in rows)
     if mode(fmt) == "table":
         emit(list(records), fmt, columns=columns, frame=frame)
         return

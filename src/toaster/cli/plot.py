@@ -13,10 +13,12 @@ from toaster.outputs.plotting.select import MAX_FACTS
 
 def window_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """``--from``/``--to`` (aliases ``--since``/``--until``), parsed with toaster's time rules."""
-    func = click.option("--to", "--until", "until", metavar="TIME",
-                        help="Window end (ns, ISO date, 'now').")(func)
-    return click.option("--from", "--since", "since", metavar="TIME",
-                        help="Window start (ns, ISO date, 'now').")(func)
+    func = click.option(
+        "--to", "--until", "until", metavar="TIME", help="Window end (ns, ISO date, 'now')."
+    )(func)
+    return click.option(
+        "--from", "--since", "since", metavar="TIME", help="Window start (ns, ISO date, 'now')."
+    )(func)
 
 
 def parse_window(since: str | None, until: str | None) -> tuple[int | None, int | None]:
@@ -35,26 +37,56 @@ def _many(values: tuple[str, ...]) -> list[str] | None:
 @click.option("--subject", "-s", multiple=True, help="Subject id (repeat for several).")
 @click.option("--property", "-p", "prop", multiple=True, help="Property, e.g. IsOn (repeatable).")
 @click.option("--target", "-t", multiple=True, help="Target id (repeatable).")
-@click.option("--agent", "-a", multiple=True,
-              help="Agent whose beliefs to show (repeatable; default: every agent).")
+@click.option(
+    "--agent",
+    "-a",
+    multiple=True,
+    help="Agent whose beliefs to show (repeatable; default: every agent).",
+)
 @click.option("--reference", help="Agent the others are compared with (default: the robot).")
 @window_options
-@click.option("--format", "fmt", type=click.Choice(["png", "svg", "pdf", "dat", "csv"]),
-              help="Output format (default: from OUTPUT's suffix).")
+@click.option(
+    "--format",
+    "fmt",
+    type=click.Choice(["png", "svg", "pdf", "dat", "csv"]),
+    help="Output format (default: from OUTPUT's suffix).",
+)
 @click.option("--title", help="Title of the picture.")
-@click.option("--numbers", type=click.Choice(["both", "only", "off"]), default="both",
-              show_default=True,
-              help="Facts with a number (Distance, IsMoving speed, angles): also draw the "
-                   "number over time (both), only the numbers (only), or the bars only (off).")
-@click.option("--max-facts", "--max-rows", "max_facts", type=click.IntRange(min=0),
-              default=MAX_FACTS, show_default=True, metavar="N",
-              help="Draw at most N facts, the most relevant (false beliefs, then the "
-                   "reference agent's, then those that change most); 0 = every fact.")
+@click.option(
+    "--numbers",
+    type=click.Choice(["both", "only", "off"]),
+    default="both",
+    show_default=True,
+    help="Facts with a number (Distance, IsMoving speed, angles): also draw the "
+    "number over time (both), only the numbers (only), or the bars only (off).",
+)
+@click.option(
+    "--max-facts",
+    "--max-rows",
+    "max_facts",
+    type=click.IntRange(min=0),
+    default=MAX_FACTS,
+    show_default=True,
+    metavar="N",
+    help="Draw at most N facts, the most relevant (false beliefs, then the "
+    "reference agent's, then those that change most); 0 = every fact.",
+)
 @click.pass_obj
-def plot_facts(app: Any, output: str, subject: tuple[str, ...], prop: tuple[str, ...],
-               target: tuple[str, ...], agent: tuple[str, ...], reference: str | None,
-               since: str | None, until: str | None, fmt: str | None, title: str | None,
-               numbers: str, max_facts: int) -> None:
+def plot_facts(
+    app: Any,
+    output: str,
+    subject: tuple[str, ...],
+    prop: tuple[str, ...],
+    target: tuple[str, ...],
+    agent: tuple[str, ...],
+    reference: str | None,
+    since: str | None,
+    until: str | None,
+    fmt: str | None,
+    title: str | None,
+    numbers: str,
+    max_facts: int,
+) -> None:
     """Draw the timeline of facts to OUTPUT (.png, .svg, .pdf, .dat for gnuplot, .csv).
 
     One row per agent and fact: value changes, confidence, and where an agent's belief
@@ -72,24 +104,44 @@ def plot_facts(app: Any, output: str, subject: tuple[str, ...], prop: tuple[str,
 
     db = app.db
     lo, hi = parse_window(since, until)
-    result = _with_progress(partial(
-        plot, db, output, subject=_many(subject), property=_many(prop), target=_many(target),
-        agents=_many(agent), since=lo, until=hi, reference=reference, format=fmt, title=title,
-        numbers=numbers, max_facts=max_facts, frame=command_frame()))
+    result = _with_progress(
+        partial(
+            plot,
+            db,
+            output,
+            subject=_many(subject),
+            property=_many(prop),
+            target=_many(target),
+            agents=_many(agent),
+            since=lo,
+            until=hi,
+            reference=reference,
+            format=fmt,
+            title=title,
+            numbers=numbers,
+            max_facts=max_facts,
+            frame=command_frame(),
+        )
+    )
     timeline = result.timeline
     false = sum(d.kind == "false_belief" for d in timeline.divergences)
     with_numbers = len(timeline.number_lanes) if numbers != "off" else 0
     facts = with_numbers if numbers == "only" else len(timeline.lanes)
-    click.echo(f"wrote {result.path} ({facts} facts, {with_numbers} with numbers, "
-               f"{len(timeline.agents)} agents, {false} false-belief spans)")
+    click.echo(
+        f"wrote {result.path} ({facts} facts, {with_numbers} with numbers, "
+        f"{len(timeline.agents)} agents, {false} false-belief spans)"
+    )
     if result.companion is not None:
         click.echo(f"draw it with: gnuplot -p {shell_word(str(result.companion))}")
     if result.left_out:
-        click.echo(f"plot-facts: drew the {facts} most relevant facts; {result.left_out} more "
-                   "matched and were left out (false beliefs come first, then facts "
-                   f"{visible(timeline.reference)} holds, then those that change most). Choose "
-                   "with --subject, --property, --target, --agent or --from/--to, or draw more "
-                   "with --max-facts N (0 = all).", err=True)
+        click.echo(
+            f"plot-facts: drew the {facts} most relevant facts; {result.left_out} more "
+            "matched and were left out (false beliefs come first, then facts "
+            f"{visible(timeline.reference)} holds, then those that change most). Choose "
+            "with --subject, --property, --target, --agent or --from/--to, or draw more "
+            "with --max-facts N (0 = all).",
+            err=True,
+        )
 
 
 def _with_progress(plot: Callable[..., Any]) -> Any:

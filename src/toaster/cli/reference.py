@@ -45,8 +45,9 @@ Rules every command follows:
 """
 
 
-def commands(command: click.Command, ctx: click.Context) -> Iterator[tuple[click.Command,
-                                                                             click.Context]]:
+def commands(
+    command: click.Command, ctx: click.Context
+) -> Iterator[tuple[click.Command, click.Context]]:
     """``command`` and every subcommand below it (by name), each with its context."""
     yield command, ctx
     if isinstance(command, click.Group):
@@ -54,9 +55,12 @@ def commands(command: click.Command, ctx: click.Context) -> Iterator[tuple[click
             sub = command.commands[name]
             if sub.hidden:
                 continue
-            yield from commands(sub, click.Context(sub, info_name=name, parent=ctx,
-                                                   terminal_width=WIDTH,
-                                                   max_content_width=WIDTH))
+            yield from commands(
+                sub,
+                click.Context(
+                    sub, info_name=name, parent=ctx, terminal_width=WIDTH, max_content_width=WIDTH
+                ),
+            )
 
 
 def _anchor(path: str) -> str:
@@ -67,15 +71,22 @@ def render() -> str:
     """The reference as Markdown: the rules, a contents list, each command's help."""
     from toaster.cli import cli
 
-    root = click.Context(cli, info_name="toaster", terminal_width=WIDTH,
-                         max_content_width=WIDTH, **cli.context_settings)
+    root = click.Context(
+        cli,
+        info_name="toaster",
+        terminal_width=WIDTH,
+        max_content_width=WIDTH,
+        **cli.context_settings,
+    )
     found = list(commands(cli, root))
     lines = [HEADER, "## Contents", ""]
     for command, ctx in found:
         depth = ctx.command_path.count(" ")
         summary = command.get_short_help_str(limit=WIDTH)
-        lines.append(f"{'  ' * depth}- [`{ctx.command_path}`](#{_anchor(ctx.command_path)})"
-                     + (f": {summary}" if depth else ""))
+        lines.append(
+            f"{'  ' * depth}- [`{ctx.command_path}`](#{_anchor(ctx.command_path)})"
+            + (f": {summary}" if depth else "")
+        )
     for command, ctx in found:
         text = "\n".join(line.rstrip() for line in command.get_help(ctx).splitlines())
         lines += ["", f"## {ctx.command_path}", "", "```text", text, "```"]

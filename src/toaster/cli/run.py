@@ -19,33 +19,62 @@ from toaster.errors import InvalidInputError
 
 
 @click.command("run")
-@click.argument("path", metavar="SCENARIO_OR_RECORDING",
-                type=click.Path(exists=True, path_type=Path))
+@click.argument(
+    "path", metavar="SCENARIO_OR_RECORDING", type=click.Path(exists=True, path_type=Path)
+)
 @click.option("--rate", type=float, help="Ticks per second (default: the file's, 30 / 2.5 Hz).")
 @click.option("--until", "until", metavar="T", help="Stop after this much input time (20s).")
 @click.option("--realtime", is_flag=True, help="Pace ticks to the wall clock.")
-@click.option("--fps", type=float, metavar="FPS", help="Frame rate of an obsmat file's frame "
-              "numbers (default 25, as ETH/UCY); checked against its annotated velocities.")
-@click.option("--holders", metavar="none|humans|ID[,ID...]", help="Humans that hold beliefs "
-              "(store agents). Default: a scenario's config belief_holders, else humans; none "
-              "for recordings.")
-@click.option("--config", "config_file", type=click.Path(exists=True, dir_okay=False,
-                                                         path_type=Path),
-              metavar="FILE", help="Producer thresholds (YAML/JSON mapping, e.g. "
-              "toward_range_humans: 3.6) laid over the file's own config.")
+@click.option(
+    "--fps",
+    type=float,
+    metavar="FPS",
+    help="Frame rate of an obsmat file's frame "
+    "numbers (default 25, as ETH/UCY); checked against its annotated velocities.",
+)
+@click.option(
+    "--holders",
+    metavar="none|humans|ID[,ID...]",
+    help="Humans that hold beliefs "
+    "(store agents). Default: a scenario's config belief_holders, else humans; none "
+    "for recordings.",
+)
+@click.option(
+    "--config",
+    "config_file",
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    metavar="FILE",
+    help="Producer thresholds (YAML/JSON mapping, e.g. "
+    "toward_range_humans: 3.6) laid over the file's own config.",
+)
 @ros_input_options
 @click.option("--no-db", is_flag=True, help="Compute only; write nothing.")
-@click.option("--record", "record_dir", type=click.Path(path_type=Path), metavar="DIR",
-              help="Also write the run as a rosbag2/MCAP recording in the new folder DIR, or "
-                   "as a ROS 1 bag if DIR ends in .bag (/tf, shapes, areas, pdg's entity "
-                   "lists, the producers' fact lists, each agent's beliefs, the facts' events; "
-                   "docs/recordings.md) for Foxglove, Lichtblick, RViz or `toaster run DIR`; "
-                   "needs toaster[rosbag].")
+@click.option(
+    "--record",
+    "record_dir",
+    type=click.Path(path_type=Path),
+    metavar="DIR",
+    help="Also write the run as a rosbag2/MCAP recording in the new folder DIR, or "
+    "as a ROS 1 bag if DIR ends in .bag (/tf, shapes, areas, pdg's entity "
+    "lists, the producers' fact lists, each agent's beliefs, the facts' events; "
+    "docs/recordings.md) for Foxglove, Lichtblick, RViz or `toaster run DIR`; "
+    "needs toaster[rosbag].",
+)
 @click.pass_obj
-def run(app: Any, path: Path, rate: float | None, until: str | None, realtime: bool,
-        fps: float | None, holders: str | None, config_file: Path | None,
-        tf_map: Path | None, pose_topics: tuple[str, ...], no_db: bool,
-        record_dir: Path | None) -> None:
+def run(
+    app: Any,
+    path: Path,
+    rate: float | None,
+    until: str | None,
+    realtime: bool,
+    fps: float | None,
+    holders: str | None,
+    config_file: Path | None,
+    tf_map: Path | None,
+    pose_topics: tuple[str, ...],
+    no_db: bool,
+    record_dir: Path | None,
+) -> None:
     """Tick a scenario (.yaml/.json), recording (obsmat .txt, .csv, .jsonl) or ROS bag
     (.bag, .mcap, .db3 or a rosbag2 folder) into the store.
 
@@ -58,17 +87,26 @@ def run(app: Any, path: Path, rate: float | None, until: str | None, realtime: b
     rate = check_run(path, record_dir=record_dir, rate_hz=rate)  # before the database opens
     until_ns = None if until is None else parse_duration_option(until, "--until")
     config = read_config_file(config_file) if config_file is not None else None
-    go = functools.partial(run_file, path, None if no_db else app.db, rate_hz=rate,
-                           until_ns=until_ns, realtime=realtime, fps=fps, holders=holders,
-                           config=config, tf_map=tf_map,
-                           pose_topics=parse_pose_topics(pose_topics), record_dir=record_dir)
+    go = functools.partial(
+        run_file,
+        path,
+        None if no_db else app.db,
+        rate_hz=rate,
+        until_ns=until_ns,
+        realtime=realtime,
+        fps=fps,
+        holders=holders,
+        config=config,
+        tf_map=tf_map,
+        pose_topics=parse_pose_topics(pose_topics),
+        record_dir=record_dir,
+    )
     if sys.stderr.isatty():
         from rich.progress import Progress
 
         with Progress(transient=True) as bar:
             task = bar.add_task(path.name, total=None)
-            _report(go(progress=lambda done, total: bar.update(task, completed=done,
-                                                               total=total)))
+            _report(go(progress=lambda done, total: bar.update(task, completed=done, total=total)))
     else:
         _report(go())
 
@@ -76,17 +114,25 @@ def run(app: Any, path: Path, rate: float | None, until: str | None, realtime: b
 def _report(report: Any) -> None:
     """The run's summary: ticks, speed, facts and events, time per stage, the recording."""
     stats, wall = report.stats, report.wall_s
-    click.echo(f"{report.name}: {stats.ticks} ticks over {report.input_s:.1f} s of input in "
-               f"{wall:.2f} s ({report.input_s / wall if wall else 0:.0f}× real time)")
-    click.echo(f"facts: {stats.facts} emitted; events: {stats.events} (appeared "
-               f"{stats.appeared}, changed {stats.changed}, ended {stats.ended})")
+    click.echo(
+        f"{report.name}: {stats.ticks} ticks over {report.input_s:.1f} s of input in "
+        f"{wall:.2f} s ({report.input_s / wall if wall else 0:.0f}× real time)"
+    )
+    click.echo(
+        f"facts: {stats.facts} emitted; events: {stats.events} (appeared "
+        f"{stats.appeared}, changed {stats.changed}, ended {stats.ended})"
+    )
     for name, seconds in sorted(stats.seconds.items(), key=lambda kv: -kv[1]):
-        click.echo(f"  {name:<14} {seconds * 1e3:9.1f} ms  "
-                   f"({seconds / max(stats.ticks, 1) * 1e3:.3f} ms/tick)")
+        click.echo(
+            f"  {name:<14} {seconds * 1e3:9.1f} ms  "
+            f"({seconds / max(stats.ticks, 1) * 1e3:.3f} ms/tick)"
+        )
     if report.recording is not None:
         result = report.recording
-        click.echo(f"recording: {result.file} ({result.frames} frames, {result.facts} fact "
-                   f"lines, {result.beliefs} belief states)")
+        click.echo(
+            f"recording: {result.file} ({result.frames} frames, {result.facts} fact "
+            f"lines, {result.beliefs} belief states)"
+        )
 
 
 @click.group("area")
@@ -96,13 +142,20 @@ def area() -> None:
 
 @area.command("add")
 @click.argument("name")
-@click.option("--spec", "spec_text", help='JSON spec, e.g. \'{"shape": "circle", '
-              '"center": [1, 2], "radius": 1.5, "area_type": "support"}\'.')
-@click.option("--file", "spec_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="A YAML/JSON file holding the spec.")
+@click.option(
+    "--spec",
+    "spec_text",
+    help='JSON spec, e.g. \'{"shape": "circle", '
+    '"center": [1, 2], "radius": 1.5, "area_type": "support"}\'.',
+)
+@click.option(
+    "--file",
+    "spec_file",
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    help="A YAML/JSON file holding the spec.",
+)
 @click.pass_obj
-def area_add(app: Any, name: str, spec_text: str | None, spec_file: Path | None
-             ) -> None:
+def area_add(app: Any, name: str, spec_text: str | None, spec_file: Path | None) -> None:
     """Add or replace area NAME (see docs/producers.md for the spec)."""
     from toaster.documents import parse_text, read_document
     from toaster.world.scenario import check_area
@@ -110,10 +163,13 @@ def area_add(app: Any, name: str, spec_text: str | None, spec_file: Path | None
     if (spec_text is None) == (spec_file is None):
         msg = "give the area as --spec JSON or --file PATH (exactly one)"
         raise InvalidInputError(msg)
-    raw = (read_document(spec_file, "area spec") if spec_file is not None
-           else parse_text(spec_text or "", "area spec --spec", json_only=True))
+    raw = (
+        read_document(spec_file, "area spec")
+        if spec_file is not None
+        else parse_text(spec_text or "", "area spec --spec", json_only=True)
+    )
     if not isinstance(raw, dict):
-        msg = "an area spec is a mapping such as {\"shape\": \"polygon\", \"points\": [...]}"
+        msg = 'an area spec is a mapping such as {"shape": "polygon", "points": [...]}'
         raise InvalidInputError(msg)
     spec = check_area(name, raw, "area")
     app.db.store().put_area(name, spec, spec["owner"])
@@ -153,9 +209,15 @@ class AreaRow(NamedTuple):
 @click.pass_obj
 def area_list(app: Any, fmt: str | None, limit: int | None) -> None:
     """List stored areas (name, shape, type, owner)."""
-    rows = [AreaRow(name, str(spec.get("shape", "")), str(spec.get("area_type", "")),
-                    str(spec.get("owner", "")))
-            for name, spec in sorted(app.db.store().areas().items())]
+    rows = [
+        AreaRow(
+            name,
+            str(spec.get("shape", "")),
+            str(spec.get("area_type", "")),
+            str(spec.get("owner", "")),
+        )
+        for name, spec in sorted(app.db.store().areas().items())
+    ]
     emit(rows, fmt, limit=limit, empty="(no area)")
 
 
@@ -172,13 +234,17 @@ def area_show(app: Any, name: str) -> None:
 
 
 @click.command("relpos")
-@click.argument("path", metavar="SCENARIO",
-                type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.argument(
+    "path", metavar="SCENARIO", type=click.Path(exists=True, dir_okay=False, path_type=Path)
+)
 @click.option("--at", "at", default="0s", metavar="T", help="Scenario time (2.5s; default 0s).")
 @click.option("--viewer", required=True, help="The agent whose viewpoint is used.")
 @click.option("--object", "object_id", required=True, help="The entity to locate.")
-@click.option("--reference", default=None, help="Locate it relative to this entity "
-              "(default: relative to the viewer).")
+@click.option(
+    "--reference",
+    default=None,
+    help="Locate it relative to this entity (default: relative to the viewer).",
+)
 def relpos(path: Path, at: str, viewer: str, object_id: str, reference: str | None) -> None:
     """Where an object is from an agent's viewpoint: left/right, in front/behind, above/below."""
     from toaster.producers import Runner, load_session
@@ -189,8 +255,11 @@ def relpos(path: Path, at: str, viewer: str, object_id: str, reference: str | No
     session = load_session(path)
     t_ns = check_ns(session.start_ns + offset, f"--at {at!r}: the scenario time")
     Runner(session.world, session.sources, []).tick(t_ns)
-    words, (fwd, left, up) = relative_position_from(session.world, viewer, object_id, reference,
-                                                    config=session.config)
+    words, (fwd, left, up) = relative_position_from(
+        session.world, viewer, object_id, reference, config=session.config
+    )
     where = ", ".join(words) or "same place"
-    click.echo(f"{object_id}: {where} (relative to {reference or viewer}, from {viewer}'s "
-               f"viewpoint; forward {fwd:+.2f} m, left {left:+.2f} m, up {up:+.2f} m)")
+    click.echo(
+        f"{object_id}: {where} (relative to {reference or viewer}, from {viewer}'s "
+        f"viewpoint; forward {fwd:+.2f} m, left {left:+.2f} m, up {up:+.2f} m)"
+    )

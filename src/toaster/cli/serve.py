@@ -15,28 +15,70 @@ from toaster.errors import InvalidInputError
 
 
 @click.command("serve")
-@click.option("--rate", type=float, default=30.0, show_default=True,
-              help="Ticks per second (the original's nodes run at 30 Hz).")
-@click.option("--config", "config_file", metavar="FILE",
-              type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="Producer thresholds (YAML/JSON mapping).")
-@click.option("--self", "self_id", default="toaster", show_default=True,
-              help="The robot whose perception the world state is.")
-@click.option("--holders", default="none", show_default=True, metavar="none|humans|ID[,ID...]",
-              help="Humans that hold beliefs (store agents).")
-@click.option("--seconds", type=float, default=None,
-              help="Stop after this many seconds (default: until SIGINT/SIGTERM).")
-@click.option("--status-every", "status_every", type=float, default=10.0, show_default=True,
-              metavar="S", help="Log a status line every S seconds (uptime, ticks, overruns, "
-              "dropped inputs, warnings, tick times since the last line); with --ros1 also "
-              "on /toaster/status. 0: none.")
-@click.option("--ros1", is_flag=True, help="Bridge to ROS 1 (needs Debian's ROS 1 packages; "
-              "see docs/ros1.md).")
+@click.option(
+    "--rate",
+    type=float,
+    default=30.0,
+    show_default=True,
+    help="Ticks per second (the original's nodes run at 30 Hz).",
+)
+@click.option(
+    "--config",
+    "config_file",
+    metavar="FILE",
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    help="Producer thresholds (YAML/JSON mapping).",
+)
+@click.option(
+    "--self",
+    "self_id",
+    default="toaster",
+    show_default=True,
+    help="The robot whose perception the world state is.",
+)
+@click.option(
+    "--holders",
+    default="none",
+    show_default=True,
+    metavar="none|humans|ID[,ID...]",
+    help="Humans that hold beliefs (store agents).",
+)
+@click.option(
+    "--seconds",
+    type=float,
+    default=None,
+    help="Stop after this many seconds (default: until SIGINT/SIGTERM).",
+)
+@click.option(
+    "--status-every",
+    "status_every",
+    type=float,
+    default=10.0,
+    show_default=True,
+    metavar="S",
+    help="Log a status line every S seconds (uptime, ticks, overruns, "
+    "dropped inputs, warnings, tick times since the last line); with --ros1 also "
+    "on /toaster/status. 0: none.",
+)
+@click.option(
+    "--ros1",
+    is_flag=True,
+    help="Bridge to ROS 1 (needs Debian's ROS 1 packages; see docs/ros1.md).",
+)
 @ros_input_options
 @click.pass_obj
-def serve(app: Any, rate: float, config_file: Path | None, self_id: str, holders: str,
-          seconds: float | None, status_every: float, ros1: bool, tf_map: Path | None,
-          pose_topics: tuple[str, ...]) -> None:
+def serve(
+    app: Any,
+    rate: float,
+    config_file: Path | None,
+    self_id: str,
+    holders: str,
+    seconds: float | None,
+    status_every: float,
+    ros1: bool,
+    tf_map: Path | None,
+    pose_topics: tuple[str, ...],
+) -> None:
     """Run toaster live: poses in, facts and beliefs stored and published every tick.
 
     Change it while it runs from another shell: `toaster area add`, `toaster monitor`,
@@ -63,8 +105,9 @@ def serve(app: Any, rate: float, config_file: Path | None, self_id: str, holders
     choice: str | list[str] = holders
     if holders not in ("none", "humans"):
         choice = [h.strip() for h in holders.split(",") if h.strip()]
-    logging.basicConfig(stream=sys.stderr, level=logging.WARNING,
-                        format="toaster serve: %(message)s")
+    logging.basicConfig(
+        stream=sys.stderr, level=logging.WARNING, format="toaster serve: %(message)s"
+    )
     # status lines at INFO on a handler of their own (rospy's set-up raises the root's level)
     status = logging.getLogger("toaster.node.status")
     handler = logging.StreamHandler(sys.stderr)
@@ -85,10 +128,13 @@ def serve(app: Any, rate: float, config_file: Path | None, self_id: str, holders
         if bridge is not None:
             bridge.shutdown()
     p50 = sorted(stats.tick_ms)[len(stats.tick_ms) // 2] if stats.tick_ms else 0.0
-    click.echo(f"toaster serve: stopped after {stats.ticks} ticks ({stats.overruns} overran "
-               f"{1e3 / rate:.1f} ms; median {p50:.1f} ms, worst {stats.worst_ms:.1f} ms); "
-               f"{stats.commands} commands, {stats.warnings} warnings; dropped "
-               f"{node.drops.summary()}", err=True)
+    click.echo(
+        f"toaster serve: stopped after {stats.ticks} ticks ({stats.overruns} overran "
+        f"{1e3 / rate:.1f} ms; median {p50:.1f} ms, worst {stats.worst_ms:.1f} ms); "
+        f"{stats.commands} commands, {stats.warnings} warnings; dropped "
+        f"{node.drops.summary()}",
+        err=True,
+    )
     faults = node.faults.summary()  # only when something failed (docs/live.md, "Faults")
     if faults:
         click.echo(f"toaster serve: {faults}", err=True)

@@ -16,8 +16,9 @@ from toaster.cli.output import emit, listing_options
 @click.argument("value", required=False)
 @listing_options
 @click.pass_obj
-def tolerance(app: Any, property: str | None, value: str | None, fmt: str | None,
-              limit: int | None) -> None:
+def tolerance(
+    app: Any, property: str | None, value: str | None, fmt: str | None, limit: int | None
+) -> None:
     """List the tolerances of continuous values (of PROPERTY), or set PROPERTY's to VALUE.
 
     VALUE is JSON: a number (the value's tolerance, in the property's unit) or
@@ -34,7 +35,12 @@ def tolerance(app: Any, property: str | None, value: str | None, fmt: str | None
             rows = [(property, *table["*"])]  # no own: the rest's
         emit(rows, fmt, columns=["property", *tol.Tolerance._fields], limit=limit)
         return
-    parsed = parse_json_option(value, "VALUE", usage=(
-        f"VALUE {value!r} is not JSON: give 0.05 or '{{\"value\": 0.05, \"confidence\": 0.05}}'"))
+    parsed = parse_json_option(
+        value,
+        "VALUE",
+        usage=(
+            f'VALUE {value!r} is not JSON: give 0.05 or \'{{"value": 0.05, "confidence": 0.05}}\''
+        ),
+    )
     store.put_setting(tol.SCOPE, property, parsed)
     click.echo(f"tolerance {property} = {json.dumps(store.tolerances()[property]._asdict())}")

@@ -16,13 +16,17 @@ if TYPE_CHECKING:
     from toaster.db.writer.changes import ChangeSet, Rule, SyncResult
     from toaster.db.writer.store import RuleFactory, Store
 
-_HOMES = {"Database": "toaster.db.database", "open_database": "toaster.db.database",
-          "ChangeSet": "toaster.db.writer.changes", "Rule": "toaster.db.writer.changes",
-          "RuleFactory": "toaster.db.writer.store", "Store": "toaster.db.writer.store",
-          "SyncResult": "toaster.db.writer.changes"}
+_HOMES = {
+    "Database": "toaster.db.database",
+    "open_database": "toaster.db.database",
+    "ChangeSet": "toaster.db.writer.changes",
+    "Rule": "toaster.db.writer.changes",
+    "RuleFactory": "toaster.db.writer.store",
+    "Store": "toaster.db.writer.store",
+    "SyncResult": "toaster.db.writer.changes",
+}
 
-__all__ = ["ChangeSet", "Database", "Rule", "RuleFactory", "Store", "SyncResult",
-           "open_database"]
+__all__ = ["ChangeSet", "Database", "Rule", "RuleFactory", "Store", "SyncResult", "open_database"]
 
 if not TYPE_CHECKING:  # hidden from type checkers, so that a misspelt name stays an error
     __getattr__, __dir__ = _exports(__name__, _HOMES)

@@ -39,8 +39,14 @@ from toaster.model import (
 )
 from toaster.timeutil import check_ns, now_ns
 
-_PLURALS = {"humans": "human", "robots": "robot", "objects": "object", "joints": "joint",
-            "areas": "area", "agents": "agent"}
+_PLURALS = {
+    "humans": "human",
+    "robots": "robot",
+    "objects": "object",
+    "joints": "joint",
+    "areas": "area",
+    "agents": "agent",
+}
 
 
 def normalise_kind(kind: object) -> str:
@@ -61,13 +67,21 @@ def _entity_values(entity_id: str, kind: str, name: str, owner_id: str) -> dict[
 
 
 def _wants_agent(kind: str, agent: bool | None, is_self: bool | None = None) -> bool:
-    return agent if agent is not None else (kind in AGENT_KINDS or kind == "agent"
-                                            or bool(is_self))
+    return agent if agent is not None else (kind in AGENT_KINDS or kind == "agent" or bool(is_self))
 
 
-def upsert_entity(conn: Connection, entity_id: str, kind: str, name: str, owner_id: str, *,
-                  is_self: bool | None, agent: bool | None, t_ns: int | None,
-                  views: bool = True) -> None:
+def upsert_entity(
+    conn: Connection,
+    entity_id: str,
+    kind: str,
+    name: str,
+    owner_id: str,
+    *,
+    is_self: bool | None,
+    agent: bool | None,
+    t_ns: int | None,
+    views: bool = True,
+) -> None:
     """Insert or update an entity; register it as an agent when it is one (with its
     per-agent views unless ``views`` is false: see :func:`register_agent`)."""
     values = _entity_values(entity_id, kind, name, owner_id)
@@ -79,37 +93,45 @@ def upsert_entity(conn: Connection, entity_id: str, kind: str, name: str, owner_
         register_agent(conn, entity_id, is_self=is_self, t_ns=stamp, views=views)
 
 
-def upsert_entities(conn: Connection, rows: list[tuple[str, str, str, str, bool | None]], *,
-                    t_ns: int, views: bool) -> None:
+def upsert_entities(
+    conn: Connection, rows: list[tuple[str, str, str, str, bool | None]], *, t_ns: int, views: bool
+) -> None:
     """:func:`upsert_entity` of many ``(id, kind, name, owner_id, agent)`` rows (none self)
     in a few statements: a recording's thousands of people register in about a second."""
     check_ns(t_ns, "registration time")
-    checked = [(entity_id, _entity_values(entity_id, kind, name, owner), agent)
-               for entity_id, kind, name, owner, agent in rows]
+    checked = [
+        (entity_id, _entity_values(entity_id, kind, name, owner), agent)
+        for entity_id, kind, name, owner, agent in rows
+    ]
     if not checked:
         return
     statement = insert_with_conflicts(conn.dialect.name)(s.entities)
     statement = statement.on_conflict_do_update(
-        index_elements=["id"], set_={c: statement.excluded[c] for c in ("name", "kind",
-                                                                         "owner_id")})
-    conn.execute(statement, [{"id": entity_id, "created_ns": t_ns, **values}
-                             for entity_id, values, _ in checked])
-    wanted = [entity_id for entity_id, values, agent in checked
-              if _wants_agent(values["kind"], agent)]
+        index_elements=["id"], set_={c: statement.excluded[c] for c in ("name", "kind", "owner_id")}
+    )
+    conn.execute(
+        statement,
+        [{"id": entity_id, "created_ns": t_ns, **values} for entity_id, values, _ in checked],
+    )
+    wanted = [
+        entity_id for entity_id, values, agent in checked if _wants_agent(values["kind"], agent)
+    ]
     if wanted:
         register_agents(conn, wanted, t_ns=t_ns, views=views)
 
 
-def upsert(conn: Connection, table: Any, keys: list[str], values: dict[str, Any],
-           **insert_only: Any) -> Any:
+def upsert(
+    conn: Connection, table: Any, keys: list[str], values: dict[str, Any], **insert_only: Any
+) -> Any:
     """``INSERT ... ON CONFLICT (keys) DO UPDATE SET values`` in ``conn``'s dialect (both
     backends spell it alike); ``insert_only`` columns are set by the insert alone."""
     statement = insert_with_conflicts(conn.dialect.name)(table).values(**insert_only, **values)
     return statement.on_conflict_do_update(index_elements=keys, set_=values)
 
 
-def register_agent(conn: Connection, agent_id: str, *, is_self: bool | None,
-                   t_ns: int, views: bool = True) -> None:
+def register_agent(
+    conn: Connection, agent_id: str, *, is_self: bool | None, t_ns: int, views: bool = True
+) -> None:
     """Make an entity an agent (idempotent, also against concurrent registrations) and
     create its per-agent views (``views``; a recording's thousands of people are registered
     without them: each view is DDL, which grows the schema every later statement parses;
@@ -121,8 +143,9 @@ def register_agent(conn: Connection, agent_id: str, *, is_self: bool | None,
     """
     agents = s.agents.c
     known = conn.execute(select(agents.num).where(agents.id == agent_id)).first() is not None
-    if not known and register_agents(conn, [agent_id], t_ns=t_ns, views=views,
-                                      is_self=bool(is_self)):
+    if not known and register_agents(
+        conn, [agent_id], t_ns=t_ns, views=views, is_self=bool(is_self)
+    ):
         return
     if is_self is not None:  # known, or registered by another process meanwhile
         conn.execute(update(s.agents).where(agents.id == agent_id).values(is_self=is_self))
@@ -136,8 +159,9 @@ def lock_registrations(conn: Connection) -> None:
     backend_for(conn.dialect.name).lock_registrations(conn)
 
 
-def register_agents(conn: Connection, agent_ids: list[str], *, t_ns: int,
-                    views: bool, is_self: bool = False) -> list[str]:
+def register_agents(
+    conn: Connection, agent_ids: list[str], *, t_ns: int, views: bool, is_self: bool = False
+) -> list[str]:
     """:func:`register_agent` of many agents in a few statements; return those it
     registered (the others were agents already)."""
     agents = s.agents.c
@@ -145,14 +169,19 @@ def register_agents(conn: Connection, agent_ids: list[str], *, t_ns: int,
     lock_registrations(conn)
     known: set[str] = set()
     for start in range(0, len(unique), 500):  # (SQLite's bound parameters are limited)
-        chunk = unique[start:start + 500]
+        chunk = unique[start : start + 500]
         known.update(conn.execute(select(agents.id).where(agents.id.in_(chunk))).scalars())
     new = [a for a in unique if a not in known]
     if not new:
         return new
     first = conn.execute(select(func.coalesce(func.max(agents.num), 0))).scalar_one() + 1
-    conn.execute(insert(s.agents), [{"id": a, "num": first + i, "is_self": is_self,
-                                     "registered_ns": t_ns} for i, a in enumerate(new)])
+    conn.execute(
+        insert(s.agents),
+        [
+            {"id": a, "num": first + i, "is_self": is_self, "registered_ns": t_ns}
+            for i, a in enumerate(new)
+        ],
+    )
     if views:
         for i, agent_id in enumerate(new):
             create_agent_views(conn, agent_id, first + i)
@@ -180,9 +209,14 @@ def create_missing_views(conn: Connection, agent_ids: list[str] | None = None) -
 def nested_holders_of(conn: Connection, agent_id: str) -> list[str]:
     """The nested holders whose chain names ``agent_id`` (``A>B`` for A and for B)."""
     chain = s.belief_chain.c
-    return list(conn.execute(select(chain.holder_id).distinct()
-                             .where(chain.member_id == agent_id)
-                             .order_by(chain.holder_id)).scalars())
+    return list(
+        conn.execute(
+            select(chain.holder_id)
+            .distinct()
+            .where(chain.member_id == agent_id)
+            .order_by(chain.holder_id)
+        ).scalars()
+    )
 
 
 def remove_entity(conn: Connection, entity_id: str) -> None:
@@ -204,23 +238,42 @@ def check_entities(conn: Connection, ids: list[str]) -> None:
     wanted = [i for i in ids if i]
     if not wanted:
         return
-    found = set(conn.execute(select(s.entities.c.id).where(
-        s.entities.c.id.in_(bindparam("ids", expanding=True))), {"ids": wanted}).scalars())
+    found = set(
+        conn.execute(
+            select(s.entities.c.id).where(s.entities.c.id.in_(bindparam("ids", expanding=True))),
+            {"ids": wanted},
+        ).scalars()
+    )
     for entity_id in wanted:
         if entity_id not in found:
-            msg = (f"unknown entity {entity_id!r}: register it first with "
-                   f"`toaster set-info ENTITY --id {entity_id} --type object` (or human, robot...)")
+            msg = (
+                f"unknown entity {entity_id!r}: register it first with "
+                f"`toaster set-info ENTITY --id {entity_id} --type object` (or human, robot...)"
+            )
             raise UnknownEntityError(msg)
 
 
-def open_facts_matching(conn: Connection, agent_id: str, prop: str,
-                        filters: dict[str, str | None]) -> list[tuple[int, Fact, int]]:
+def open_facts_matching(
+    conn: Connection, agent_id: str, prop: str, filters: dict[str, str | None]
+) -> list[tuple[int, Fact, int]]:
     """Current facts of an agent with this property and the non-wildcard key fields."""
     k, f = s.fact_keys.c, s.facts.c
     query = (
-        select(k.id, k.subject_id, k.property, k.target_id, f.value_text, f.value_num,
-               f.confidence, f.observability, k.property_type, k.sub_property,
-               k.subject_owner_id, k.target_owner_id, f.valid_from_ns)
+        select(
+            k.id,
+            k.subject_id,
+            k.property,
+            k.target_id,
+            f.value_text,
+            f.value_num,
+            f.confidence,
+            f.observability,
+            k.property_type,
+            k.sub_property,
+            k.subject_owner_id,
+            k.target_owner_id,
+            f.valid_from_ns,
+        )
         .select_from(s.fact_keys.join(s.facts, s.facts.c.key_id == k.id))
         .where(k.agent_id == agent_id, k.property == prop, f.valid_to_ns.is_(None))
     )
@@ -241,8 +294,11 @@ def empty_facts(conn: Connection, agent_id: str | None) -> None:
         return
     keys = select(s.fact_keys.c.id).where(s.fact_keys.c.agent_id == agent_id)
     conn.execute(delete(s.events).where(s.events.c.agent_id == agent_id))
-    conn.execute(delete(s.fact_samples).where(s.fact_samples.c.fact_id.in_(
-        select(s.facts.c.id).where(s.facts.c.key_id.in_(keys)))))
+    conn.execute(
+        delete(s.fact_samples).where(
+            s.fact_samples.c.fact_id.in_(select(s.facts.c.id).where(s.facts.c.key_id.in_(keys)))
+        )
+    )
     conn.execute(delete(s.facts).where(s.facts.c.key_id.in_(keys)))
     conn.execute(delete(s.fact_keys).where(s.fact_keys.c.agent_id == agent_id))
 
@@ -259,24 +315,33 @@ def _as_bool(value: object, what: str) -> bool:
     raise InvalidInputError(msg)
 
 
-def upsert_ontology(conn: Connection, entity_class: str, individual: str,
-                    instantiated: object) -> None:
+def upsert_ontology(
+    conn: Connection, entity_class: str, individual: str, instantiated: object
+) -> None:
     """Insert or update one class-tree edge."""
     check_id(entity_class, "ontology class")
     check_id(individual, "ontology individual")
     flag = _as_bool(instantiated, "instantiated flag")
     table = s.ontology
-    conn.execute(upsert(conn, table, ["entity_class", "individual"], {"instantiated": flag},
-                        entity_class=entity_class, individual=individual))
+    conn.execute(
+        upsert(
+            conn,
+            table,
+            ["entity_class", "individual"],
+            {"instantiated": flag},
+            entity_class=entity_class,
+            individual=individual,
+        )
+    )
 
 
 def delete_ontology(conn: Connection, entity_class: str, individual: str | None) -> int:
     """Delete one edge or all edges of a class."""
-    query = delete(s.ontology).where(s.ontology.c.entity_class == check_id(entity_class,
-                                                                           "ontology class"))
+    query = delete(s.ontology).where(
+        s.ontology.c.entity_class == check_id(entity_class, "ontology class")
+    )
     if individual is not None:
-        query = query.where(s.ontology.c.individual == check_id(individual,
-                                                                "ontology individual"))
+        query = query.where(s.ontology.c.individual == check_id(individual, "ontology individual"))
     return conn.execute(query).rowcount
 
 
@@ -285,21 +350,24 @@ def upsert_property(conn: Connection, entity_id: str, key: str, value: object) -
     check_id(key, "property key")
     check_entities(conn, [check_id(entity_id, "entity id")])
     if not isinstance(value, str | int | float) or (
-            isinstance(value, float) and not math.isfinite(value)):
-        msg = (f"invalid value {shown(value)} for property {key!r} of {entity_id!r}: "
-               "give text or a finite number")
+        isinstance(value, float) and not math.isfinite(value)
+    ):
+        msg = (
+            f"invalid value {shown(value)} for property {key!r} of {entity_id!r}: "
+            "give text or a finite number"
+        )
         raise InvalidInputError(msg)
     table = s.properties
     stored = str(value).lower() if isinstance(value, bool) else str(value)
     check_text(stored, f"value of property {key!r} of {entity_id!r}")
-    conn.execute(upsert(conn, table, ["entity_id", "key"], {"value": stored},
-                        entity_id=entity_id, key=key))
+    conn.execute(
+        upsert(conn, table, ["entity_id", "key"], {"value": stored}, entity_id=entity_id, key=key)
+    )
 
 
 def delete_property(conn: Connection, entity_id: str, key: str | None) -> int:
     """Delete one property or all properties of an entity."""
-    query = delete(s.properties).where(s.properties.c.entity_id == check_id(entity_id,
-                                                                            "entity id"))
+    query = delete(s.properties).where(s.properties.c.entity_id == check_id(entity_id, "entity id"))
     if key is not None:
         query = query.where(s.properties.c.key == check_id(key, "property key"))
     return conn.execute(query).rowcount
@@ -310,15 +378,23 @@ def put_area(conn: Connection, area_id: str, spec: dict[str, Any], owner_id: str
     check_id(area_id, "area id")
     check_optional_id(owner_id, f"owner of area {area_id!r}")
     body = to_json(spec, f"spec for area {area_id!r}", sort_keys=True)
-    conn.execute(upsert(conn, s.areas, ["id"], {"owner_id": owner_id or "", "spec_json": body,
-                                                 "updated_ns": now_ns()}, id=area_id))
+    conn.execute(
+        upsert(
+            conn,
+            s.areas,
+            ["id"],
+            {"owner_id": owner_id or "", "spec_json": body, "updated_ns": now_ns()},
+            id=area_id,
+        )
+    )
     bump_control(conn)
 
 
 def remove_area(conn: Connection, area_id: str) -> bool:
     """Delete an area; False when it did not exist."""
-    found = bool(conn.execute(delete(s.areas).where(s.areas.c.id == check_id(area_id,
-                                                                             "area id"))).rowcount)
+    found = bool(
+        conn.execute(delete(s.areas).where(s.areas.c.id == check_id(area_id, "area id"))).rowcount
+    )
     if found:
         bump_control(conn)
     return found
@@ -357,8 +433,7 @@ def put_setting(conn: Connection, scope: str, key: str, value: object) -> None:
     check_id(key, "setting key")
     body = to_json(value, f"value for setting {scope}.{key}")
     table = s.settings
-    conn.execute(upsert(conn, table, ["scope", "key"], {"value_json": body},
-                        scope=scope, key=key))
+    conn.execute(upsert(conn, table, ["scope", "key"], {"value_json": body}, scope=scope, key=key))
 
 
 def delete_setting(conn: Connection, scope: str, key: str | None = None) -> int:
@@ -373,9 +448,12 @@ def delete_setting(conn: Connection, scope: str, key: str | None = None) -> int:
 def get_setting(conn: Connection, scope: str, key: str, default: object) -> Any:
     """One setting's value, or ``default``."""
     table = s.settings
-    row = conn.execute(select(table.c.value_json).where(
-        table.c.scope == check_id(scope, "setting scope"),
-        table.c.key == check_id(key, "setting key"))).first()
+    row = conn.execute(
+        select(table.c.value_json).where(
+            table.c.scope == check_id(scope, "setting scope"),
+            table.c.key == check_id(key, "setting key"),
+        )
+    ).first()
     return default if row is None else json.loads(row[0])
 
 
@@ -398,10 +476,15 @@ def note_data_start(conn: Connection, t_ns: int) -> None:
     statement, so that concurrent runs keep the earliest too)."""
     table = s.settings
     statement = insert_with_conflicts(conn.dialect.name)(table).values(
-        scope="data", key="start_ns", value_json=json.dumps(int(t_ns)))
-    conn.execute(statement.on_conflict_do_update(
-        index_elements=["scope", "key"], set_={"value_json": statement.excluded.value_json},
-        where=cast(table.c.value_json, BigInteger) > int(t_ns)))
+        scope="data", key="start_ns", value_json=json.dumps(int(t_ns))
+    )
+    conn.execute(
+        statement.on_conflict_do_update(
+            index_elements=["scope", "key"],
+            set_={"value_json": statement.excluded.value_json},
+            where=cast(table.c.value_json, BigInteger) > int(t_ns),
+        )
+    )
 
 
 def entity_exists(conn: Connection, entity_id: str) -> bool:
@@ -419,8 +502,9 @@ def bump_control(conn: Connection) -> None:
     """Mark a change a running node must apply, in this transaction (PostgreSQL also sends
     ``NOTIFY toaster_control`` on commit)."""
     state = s.store_state
-    conn.execute(update(state).where(state.c.id == 1)
-                 .values(control_version=state.c.control_version + 1))
+    conn.execute(
+        update(state).where(state.c.id == 1).values(control_version=state.c.control_version + 1)
+    )
     if conn.dialect.name == "postgresql":
         conn.execute(select(func.pg_notify(CONTROL_CHANNEL, "")))
 
@@ -428,5 +512,4 @@ def bump_control(conn: Connection) -> None:
 def control_version(conn: Connection) -> int:
     """The number bumped by every control change."""
     state = s.store_state
-    return int(conn.execute(select(state.c.control_version).where(state.c.id == 1))
-               .scalar_one())
+    return int(conn.execute(select(state.c.control_version).where(state.c.id == 1)).scalar_one())

@@ -180,8 +180,14 @@ class Database:
         self.close()
 
 
-def open_database(url: str | None = None, *, create: bool = True, check: bool = True,
-                  rules: Sequence[RuleFactory] = (), allow_memory: bool = False) -> Database:
+def open_database(
+    url: str | None = None,
+    *,
+    create: bool = True,
+    check: bool = True,
+    rules: Sequence[RuleFactory] = (),
+    allow_memory: bool = False,
+) -> Database:
     """Open a toaster database whose store runs ``rules`` (none by default: applications use
     :func:`toaster.connect`, which gives it the belief rule).
 
@@ -209,8 +215,13 @@ def open_database(url: str | None = None, *, create: bool = True, check: bool = 
     return Database(engine, normalise_url(url or default_url()), rules=rules)
 
 
-def open_engine(url: str | None = None, *, create: bool = False, revision: str = "head",
-                allow_memory: bool = False) -> tuple[Engine, str | None]:
+def open_engine(
+    url: str | None = None,
+    *,
+    create: bool = False,
+    revision: str = "head",
+    allow_memory: bool = False,
+) -> tuple[Engine, str | None]:
     """An engine on a toaster database, and the revision it was found at (None: a new or
     empty database, migrated to ``revision`` when ``create``).
 
@@ -227,8 +238,10 @@ def open_engine(url: str | None = None, *, create: bool = False, revision: str =
     if path is not None and migrate.is_new_file(path):
         if not create:
             shown = url or default_url()
-            msg = (f"no SQLite database at {where!r}: check the path, or create it with "
-                   f"`toaster --db {shown} db upgrade`")
+            msg = (
+                f"no SQLite database at {where!r}: check the path, or create it with "
+                f"`toaster --db {shown} db upgrade`"
+            )
             raise DatabaseOpenError(msg)
         created = migrate.create_sqlite_file(path, revision)
     engine = make_engine(url, allow_memory=allow_memory)

@@ -45,8 +45,10 @@ def lock_timeout() -> float:
     except ValueError:
         value = math.nan
     if not (math.isfinite(value) and value > 0):
-        msg = f"{LOCK_TIMEOUT_VAR}={raw!r} is not a number of seconds > 0: set e.g. " \
-              f"{LOCK_TIMEOUT_VAR}=10"
+        msg = (
+            f"{LOCK_TIMEOUT_VAR}={raw!r} is not a number of seconds > 0: set e.g. "
+            f"{LOCK_TIMEOUT_VAR}=10"
+        )
         raise InvalidInputError(msg)
     return value
 
@@ -64,7 +66,7 @@ def normalise_url(url: str) -> str:
         raise InvalidInputError(msg)
     for bare in ("postgresql://", "postgres://"):
         if url.startswith(bare):
-            return "postgresql+psycopg://" + url[len(bare):]
+            return "postgresql+psycopg://" + url[len(bare) :]
     return url
 
 
@@ -75,8 +77,10 @@ def check_url(url: object) -> str:
         msg = f"invalid database URL {shown(url)}: give text, e.g. sqlite:///toaster.db"
         raise InvalidInputError(msg)
     if not url.strip():
-        msg = (f"empty database URL {url!r}: give one ({_FORMS}), or leave --db and "
-               f"${ENV_VAR} out for sqlite:///{DEFAULT_SQLITE_FILE}")
+        msg = (
+            f"empty database URL {url!r}: give one ({_FORMS}), or leave --db and "
+            f"${ENV_VAR} out for sqlite:///{DEFAULT_SQLITE_FILE}"
+        )
         raise InvalidInputError(msg)
     return check_text(url, "database URL")
 
@@ -100,8 +104,10 @@ def parse_url(url: str | None = None, *, allow_memory: bool = False) -> URL:
         msg = f"unsupported database {backend!r} in {raw!r}: toaster runs on SQLite and PostgreSQL"
         raise InvalidInputError(msg)
     if parsed.get_driver_name() != _DRIVERS[backend]:
-        msg = (f"unsupported driver {parsed.get_driver_name()!r} in {describe(parsed)!r}: "
-               f"{_FORMS} (toaster uses {_DRIVERS[backend]})")
+        msg = (
+            f"unsupported driver {parsed.get_driver_name()!r} in {describe(parsed)!r}: "
+            f"{_FORMS} (toaster uses {_DRIVERS[backend]})"
+        )
         raise InvalidInputError(msg)
     if backend == "sqlite":
         _check_sqlite(parsed, raw, allow_memory)
@@ -132,46 +138,55 @@ def is_memory(url: URL) -> bool:
 def _check_sqlite(url: URL, shown: str, allow_memory: bool) -> None:
     database = url.database or ""
     if url.query:
-        msg = f"SQLite URL {shown!r} takes no options (got {', '.join(url.query)}): " \
-              "use sqlite:///FILE.db"
+        msg = (
+            f"SQLite URL {shown!r} takes no options (got {', '.join(url.query)}): "
+            "use sqlite:///FILE.db"
+        )
         raise InvalidInputError(msg)
     if is_memory(url):
         if allow_memory:
             return
-        msg = (f"{shown!r} is an in-memory database, which keeps nothing: "
-               f"name a file, e.g. sqlite:///{DEFAULT_SQLITE_FILE}")
+        msg = (
+            f"{shown!r} is an in-memory database, which keeps nothing: "
+            f"name a file, e.g. sqlite:///{DEFAULT_SQLITE_FILE}"
+        )
         raise InvalidInputError(msg)
     if database.startswith("file:"):
         msg = f"SQLite URI filenames are not supported ({shown!r}): use sqlite:///FILE.db"
         raise InvalidInputError(msg)
     path = Path(database)
     if path.is_dir():
-        msg = (f"SQLite database {database!r} is a folder: name a file in it, "
-               f"e.g. sqlite:///{path / DEFAULT_SQLITE_FILE}")
+        msg = (
+            f"SQLite database {database!r} is a folder: name a file in it, "
+            f"e.g. sqlite:///{path / DEFAULT_SQLITE_FILE}"
+        )
         raise InvalidInputError(msg)
     if path.exists() and not path.is_file():
         msg = f"SQLite database {database!r} is not a regular file: name a file"
         raise InvalidInputError(msg)
     parent = path.resolve().parent
     if not parent.is_dir():
-        msg = (f"cannot create SQLite database {database!r}: "
-               f"folder {str(parent)!r} does not exist")
+        msg = f"cannot create SQLite database {database!r}: folder {str(parent)!r} does not exist"
         raise InvalidInputError(msg)
 
 
 def _check_postgresql(url: URL) -> None:
     shown = describe(url)
     if not (url.database or url.query.get("dbname")):
-        msg = (f"PostgreSQL URL {shown!r} names no database (the server would pick one): "
-               "use postgresql://HOST/DBNAME")
+        msg = (
+            f"PostgreSQL URL {shown!r} names no database (the server would pick one): "
+            "use postgresql://HOST/DBNAME"
+        )
         raise InvalidInputError(msg)
     from psycopg import pq
 
     known = {option.keyword.decode() for option in pq.Conninfo.get_defaults()}
     for name in url.query:
         if name not in known:
-            msg = (f"unknown PostgreSQL URL option {name!r} in {shown!r}: use libpq's "
-                   "connection options (e.g. sslmode, connect_timeout, options)")
+            msg = (
+                f"unknown PostgreSQL URL option {name!r} in {shown!r}: use libpq's "
+                "connection options (e.g. sslmode, connect_timeout, options)"
+            )
             raise InvalidInputError(msg)
 
 
@@ -197,10 +212,10 @@ def make_engine(url: str | None = None, *, allow_memory: bool = False) -> Engine
 
 
 def _postgresql_engine(url: URL, timeout: float) -> Engine:
-    connect_args = {} if "connect_timeout" in url.query else {
-        "connect_timeout": CONNECT_TIMEOUT_S}
-    engine = create_engine(url, pool_pre_ping=True, pool_size=2, max_overflow=4,
-                           connect_args=connect_args)
+    connect_args = {} if "connect_timeout" in url.query else {"connect_timeout": CONNECT_TIMEOUT_S}
+    engine = create_engine(
+        url, pool_pre_ping=True, pool_size=2, max_overflow=4, connect_args=connect_args
+    )
 
     @event.listens_for(engine, "connect")
     def _on_connect(dbapi_connection, _record) -> None:
@@ -263,11 +278,13 @@ def database_error(exc: BaseException, where: str, timeout_s: float) -> ToasterE
         reason = reason.removeprefix("connection failed: ")
         return DatabaseOpenError(
             f"cannot connect to PostgreSQL {where!r} ({reason}): check that the server runs "
-            "and the URL's host, port, user and database")
+            "and the URL's host, port, user and database"
+        )
     if sqlstate == "3F000":  # invalid_schema_name
         return DatabaseOpenError(
             f"PostgreSQL {where!r} has no schema to use ({reason}): create the schema or "
-            "fix the URL's search_path")
+            "fix the URL's search_path"
+        )
     return None
 
 
@@ -288,14 +305,20 @@ def refused_value(exc: BaseException) -> InvalidInputError | None:
     orig = getattr(exc, "orig", None) or exc
     reason = (str(orig).strip().splitlines() or [type(orig).__name__])[0]
     if isinstance(orig, OverflowError):
-        return InvalidInputError(f"a number the database cannot hold ({reason}): integers and "
-                                 "times in ns go up to 2^63-1 (rolled back, nothing written)")
+        return InvalidInputError(
+            f"a number the database cannot hold ({reason}): integers and "
+            "times in ns go up to 2^63-1 (rolled back, nothing written)"
+        )
     if isinstance(orig, UnicodeEncodeError):
-        return InvalidInputError(f"text the database cannot hold ({reason}): give valid UTF-8 "
-                                 "text (rolled back, nothing written)")
+        return InvalidInputError(
+            f"text the database cannot hold ({reason}): give valid UTF-8 "
+            "text (rolled back, nothing written)"
+        )
     if _refused_by_database(orig, reason):
-        return InvalidInputError(f"the database refused a value ({reason}): check the values "
-                                 "given (rolled back, nothing written)")
+        return InvalidInputError(
+            f"the database refused a value ({reason}): check the values "
+            "given (rolled back, nothing written)"
+        )
     return None
 
 
@@ -310,8 +333,9 @@ def _refused_by_database(orig: BaseException, reason: str) -> bool:
     sqlstate = getattr(orig, "sqlstate", None)
     if sqlstate is None:  # refused by psycopg before sending (NUL in text, a Python type)
         kind = type(orig).__name__
-        return kind == "DataError" or (kind == "ProgrammingError"
-                                       and reason.startswith("cannot adapt type"))
+        return kind == "DataError" or (
+            kind == "ProgrammingError" and reason.startswith("cannot adapt type")
+        )
     return sqlstate[:2] in ("22", "23") and sqlstate != _UNIQUE_CONFLICT
 
 
@@ -321,19 +345,23 @@ def _sqlite_error(name: str, reason: str, where: str, timeout_s: float) -> Toast
     if name.startswith(("SQLITE_NOTADB", "SQLITE_CORRUPT")):
         return DatabaseOpenError(
             f"{where!r} is not a SQLite database or is corrupted ({reason}): restore it from "
-            "a backup, or name another file (a new one is created)")
+            "a backup, or name another file (a new one is created)"
+        )
     if name.startswith(("SQLITE_CANTOPEN", "SQLITE_PERM", "SQLITE_AUTH")):
         return DatabaseOpenError(
             f"cannot open SQLite database {where!r} ({reason}): check that the file and its "
-            "folder exist and that you may read and write them")
+            "folder exist and that you may read and write them"
+        )
     if name.startswith("SQLITE_READONLY"):
         return DatabaseOpenError(
             f"cannot write SQLite database {where!r} ({reason}): make the file and its "
-            "folder writable")
+            "folder writable"
+        )
     if name.startswith(("SQLITE_FULL", "SQLITE_IOERR")):
         return DatabaseOpenError(
             f"cannot write SQLite database {where!r} ({reason}): check the disk (free space, "
-            "errors)")
+            "errors)"
+        )
     return None
 
 
@@ -341,7 +369,8 @@ def _locked(where: str, timeout_s: float, holder: str) -> DatabaseLockedError:
     return DatabaseLockedError(
         f"database {where!r} is locked by {holder} (waited {timeout_s:g} s): the statement "
         f"was rolled back; retry when it is free, or wait longer with "
-        f"{LOCK_TIMEOUT_VAR}=SECONDS")
+        f"{LOCK_TIMEOUT_VAR}=SECONDS"
+    )
 
 
 def ensure_wal(engine: Engine) -> None:

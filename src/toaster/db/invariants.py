@@ -90,11 +90,13 @@ actual AS (
 
 def _difference(left: str, right: str) -> str:
     """The counts of ``left`` (``expected`` or ``actual``) that ``right`` lacks, by key."""
-    return (f"{_COUNTED} SELECT k.agent_id, k.subject_id, k.property, k.target_id, d.kind, "
-            f"d.stamp_ns, d.n FROM (SELECT * FROM {left} WHERE n > 0 "
-            f"EXCEPT SELECT * FROM {right} WHERE n > 0) d "
-            "JOIN fact_keys k ON k.id = d.key_id "
-            "ORDER BY k.agent_id, k.id, d.stamp_ns LIMIT :limit")
+    return (
+        f"{_COUNTED} SELECT k.agent_id, k.subject_id, k.property, k.target_id, d.kind, "
+        f"d.stamp_ns, d.n FROM (SELECT * FROM {left} WHERE n > 0 "
+        f"EXCEPT SELECT * FROM {right} WHERE n > 0) d "
+        "JOIN fact_keys k ON k.id = d.key_id "
+        "ORDER BY k.agent_id, k.id, d.stamp_ns LIMIT :limit"
+    )
 
 
 def _key(row: tuple[object, ...]) -> str:
@@ -112,9 +114,13 @@ def violations(conn: Connection, *, limit: int = 20) -> list[str]:
     for row in conn.execute(text(_OPEN_TWICE + " LIMIT :limit"), params):
         found.append(f"open twice: {_key(row)}: {row[4]} open intervals")
     for row in conn.execute(text(_difference("expected", "actual")), params):
-        found.append(f"missing event: {_key(row)}: {row[6]} {row[4]} boundary(ies) at "
-                     f"{row[5]}, not as many events")
+        found.append(
+            f"missing event: {_key(row)}: {row[6]} {row[4]} boundary(ies) at "
+            f"{row[5]}, not as many events"
+        )
     for row in conn.execute(text(_difference("actual", "expected")), params):
-        found.append(f"event without boundary: {_key(row)}: {row[6]} {row[4]} event(s) at "
-                     f"{row[5]}, not as many boundaries")
+        found.append(
+            f"event without boundary: {_key(row)}: {row[6]} {row[4]} event(s) at "
+            f"{row[5]}, not as many boundaries"
+        )
     return found

@@ -61,20 +61,27 @@ def current_revision(engine: Engine) -> str | None:
 def toaster_revision(conn: Connection, where: str) -> str | None:
     """The revision of a toaster database, None for an empty one (no table, or only an empty
     ``alembic_version``); :class:`DatabaseOpenError` for another application's database."""
-    if conn.dialect.name == "postgresql" and conn.exec_driver_sql(
-            "SELECT current_schema()").scalar() is None:
-        msg = (f"PostgreSQL {where!r} selects no existing schema: create it or fix the URL's "
-               "options=-csearch_path=SCHEMA")
+    if (
+        conn.dialect.name == "postgresql"
+        and conn.exec_driver_sql("SELECT current_schema()").scalar() is None
+    ):
+        msg = (
+            f"PostgreSQL {where!r} selects no existing schema: create it or fix the URL's "
+            "options=-csearch_path=SCHEMA"
+        )
         raise DatabaseOpenError(msg)
     inspector = inspect(conn)
     names = set(inspector.get_table_names()) | set(inspector.get_view_names())
-    revision = MigrationContext.configure(conn).get_current_revision() \
-        if VERSION_TABLE in names else None
+    revision = (
+        MigrationContext.configure(conn).get_current_revision() if VERSION_TABLE in names else None
+    )
     others = sorted(names - {VERSION_TABLE})
     if revision is None and others:
         listed = ", ".join(others[:5]) + (", ..." if len(others) > 5 else "")
-        msg = (f"{where!r} is not a toaster database (it holds {listed} and no toaster "
-               "revision): name a new file or an empty database")
+        msg = (
+            f"{where!r} is not a toaster database (it holds {listed} and no toaster "
+            "revision): name a new file or an empty database"
+        )
         raise DatabaseOpenError(msg)
     return revision
 
@@ -107,8 +114,10 @@ def _revision_errors(revision: str) -> Iterator[None]:
     try:
         yield
     except CommandError as exc:
-        msg = (f"cannot migrate to {revision!r} ({str(exc).splitlines()[0]}): give head, base "
-               "or a revision between them")
+        msg = (
+            f"cannot migrate to {revision!r} ({str(exc).splitlines()[0]}): give head, base "
+            "or a revision between them"
+        )
         raise InvalidInputError(msg) from None
 
 
@@ -140,7 +149,8 @@ def _migrating(engine: Engine) -> Iterator[Connection]:
                     # Transaction-scoped: a killed migrator's lock ends with its session.
                     conn.exec_driver_sql(
                         "SELECT pg_advisory_xact_lock(hashtext('toaster migrations ' || "
-                        "current_schema()))")
+                        "current_schema()))"
+                    )
                 toaster_revision(conn, describe(engine.url))  # refuses others' databases
                 yield conn
         finally:
@@ -198,8 +208,10 @@ def create_sqlite_file(path: Path, revision: str = "head") -> bool:
                 for leftover in (temp, *(Path(f"{temp}{s}") for s in _SIDE_FILES)):
                     leftover.unlink(missing_ok=True)
     except OSError as exc:
-        msg = (f"cannot create SQLite database {str(path)!r} ({exc.strerror or exc}): check "
-               f"that folder {str(folder)!r} is writable")
+        msg = (
+            f"cannot create SQLite database {str(path)!r} ({exc.strerror or exc}): check "
+            f"that folder {str(folder)!r} is writable"
+        )
         raise DatabaseOpenError(msg) from None
     return True
 
@@ -243,9 +255,11 @@ def _folder_lock(folder: Path, path: Path) -> Iterator[None]:
                 break
             except BlockingIOError:
                 if time.monotonic() > deadline:
-                    msg = (f"database {str(path)!r} is being created by another process "
-                           f"(waited {timeout:g} s): retry, or wait longer with "
-                           "TOASTER_LOCK_TIMEOUT=SECONDS")
+                    msg = (
+                        f"database {str(path)!r} is being created by another process "
+                        f"(waited {timeout:g} s): retry, or wait longer with "
+                        "TOASTER_LOCK_TIMEOUT=SECONDS"
+                    )
                     raise DatabaseLockedError(msg) from None
                 time.sleep(0.02)
         yield
@@ -261,14 +275,20 @@ def check_at_head(engine: Engine, *, url_hint: str = "") -> None:
         return
     where = f" --db {url_hint}" if url_hint else ""
     if current is None:
-        msg = (f"database has no toaster schema (this toaster expects revision {head}): "
-               f"run `toaster db upgrade{where}`")
+        msg = (
+            f"database has no toaster schema (this toaster expects revision {head}): "
+            f"run `toaster db upgrade{where}`"
+        )
     elif current in _known_revisions():
-        msg = (f"database is at revision {current}, this toaster expects {head}: "
-               f"run `toaster db upgrade{where}`")
+        msg = (
+            f"database is at revision {current}, this toaster expects {head}: "
+            f"run `toaster db upgrade{where}`"
+        )
     else:
-        msg = (f"database is at revision {current}, which this toaster does not know "
-               f"(it expects {head}): it was written by a newer toaster; upgrade toaster")
+        msg = (
+            f"database is at revision {current}, which this toaster does not know "
+            f"(it expects {head}): it was written by a newer toaster; upgrade toaster"
+        )
     raise SchemaOutdatedError(msg)
 
 

@@ -121,12 +121,14 @@ holders = Table(
     "holders",
     metadata,
     Column("id", Text, primary_key=True),
-    Column("agent_id", Text, ForeignKey("agents.id", ondelete="CASCADE"), nullable=True,
-           unique=True),
+    Column(
+        "agent_id", Text, ForeignKey("agents.id", ondelete="CASCADE"), nullable=True, unique=True
+    ),
     Column("depth", Integer, nullable=False),
     Column("registered_ns", BigInteger, nullable=False),
-    CheckConstraint("(depth = 1 AND agent_id = id) OR (depth >= 2 AND agent_id IS NULL)",
-                    name="agent_or_nested"),
+    CheckConstraint(
+        "(depth = 1 AND agent_id = id) OR (depth >= 2 AND agent_id IS NULL)", name="agent_or_nested"
+    ),
 )
 
 fact_keys = Table(
@@ -144,8 +146,13 @@ fact_keys = Table(
     CheckConstraint("subject_id <> '' AND property <> ''", name="key_not_empty"),
     Index(
         "uq_fact_keys_identity",
-        "agent_id", "subject_id", "subject_owner_id", "property", "sub_property",
-        "target_id", "target_owner_id",
+        "agent_id",
+        "subject_id",
+        "subject_owner_id",
+        "property",
+        "sub_property",
+        "target_id",
+        "target_owner_id",
         unique=True,
     ),
     Index("ix_fact_keys_subject", "subject_id", "agent_id"),
@@ -171,8 +178,11 @@ facts = Table(
     CheckConstraint("observability >= 0 AND observability <= 1", name="observability_range"),
     # One open interval per key; also the index used to close and refresh the open interval.
     Index(
-        "uq_facts_open_key", "key_id", unique=True,
-        sqlite_where=text("valid_to_ns IS NULL"), postgresql_where=text("valid_to_ns IS NULL"),
+        "uq_facts_open_key",
+        "key_id",
+        unique=True,
+        sqlite_where=text("valid_to_ns IS NULL"),
+        postgresql_where=text("valid_to_ns IS NULL"),
     ),
     # As-of: the last interval of a key starting at or before t.
     Index("ix_facts_key_from", "key_id", "valid_from_ns", "id"),
@@ -383,7 +393,8 @@ belief_freeze = Table(
     Column("observability", Float),
 )
 belief_mat = Table(
-    "belief_mat", metadata,
+    "belief_mat",
+    metadata,
     Column("follow_id", BigInteger, primary_key=True, autoincrement=False),
 )
 belief_new_chain = Table(  # nested holders being registered (step holders)
@@ -441,8 +452,13 @@ belief_follow = Table(
     CheckConstraint("to_ns IS NULL OR to_ns >= from_ns", name="valid_period"),
     CheckConstraint("pconf >= 0", name="pconf_positive"),
     # One open period per holder key; the rule finds the followers of a changed self key.
-    Index("uq_belief_follow_open_hkey", "hkey", unique=True,
-          sqlite_where=text("to_ns IS NULL"), postgresql_where=text("to_ns IS NULL")),
+    Index(
+        "uq_belief_follow_open_hkey",
+        "hkey",
+        unique=True,
+        sqlite_where=text("to_ns IS NULL"),
+        postgresql_where=text("to_ns IS NULL"),
+    ),
     Index("ix_belief_follow_hkey_from", "hkey", "from_ns"),
     Index("ix_belief_follow_self_holder", "self_key", "holder_id"),
 )

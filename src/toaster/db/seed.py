@@ -42,21 +42,48 @@ from toaster.timeutil import parse_time, start_from_first
 if TYPE_CHECKING:
     from toaster.db.writer.store import Store
 
-_FACT_FIELDS = {"subject": "subject_id", "subject_id": "subject_id", "property": "property",
-                "predicate": "property", "target": "target_id", "target_id": "target_id",
-                "value": "value_text", "value_text": "value_text", "num": "value_num",
-                "value_num": "value_num", "confidence": "confidence",
-                "observability": "observability", "property_type": "property_type",
-                "sub_property": "sub_property", "subject_owner": "subject_owner_id",
-                "subject_owner_id": "subject_owner_id", "target_owner": "target_owner_id",
-                "target_owner_id": "target_owner_id"}
+_FACT_FIELDS = {
+    "subject": "subject_id",
+    "subject_id": "subject_id",
+    "property": "property",
+    "predicate": "property",
+    "target": "target_id",
+    "target_id": "target_id",
+    "value": "value_text",
+    "value_text": "value_text",
+    "num": "value_num",
+    "value_num": "value_num",
+    "confidence": "confidence",
+    "observability": "observability",
+    "property_type": "property_type",
+    "sub_property": "sub_property",
+    "subject_owner": "subject_owner_id",
+    "subject_owner_id": "subject_owner_id",
+    "target_owner": "target_owner_id",
+    "target_owner_id": "target_owner_id",
+}
 _NUMBERS = {"value_num", "confidence", "observability"}
-_SECTIONS = {"base_time", "entities", "ontology", "properties", "facts", "retract", "events",
-             "timeline"}
+_SECTIONS = {
+    "base_time",
+    "entities",
+    "ontology",
+    "properties",
+    "facts",
+    "retract",
+    "events",
+    "timeline",
+}
 T = TypeVar("T")
 _STEP_KEYS = {"at", "retract", "facts", "assert", "events"}
-_BOOL_WORDS = {"true": True, "1": True, "yes": True, "false": False, "0": False, "no": False,
-               "": False}
+_BOOL_WORDS = {
+    "true": True,
+    "1": True,
+    "yes": True,
+    "false": False,
+    "0": False,
+    "no": False,
+    "": False,
+}
 
 
 class BatchReport(dict[str, int]):
@@ -107,8 +134,10 @@ def load_file(store: Store, path: str | Path) -> BatchReport:
     else:
         data = read_document(path, "batch file")
         if not isinstance(data, dict):
-            msg = (f"cannot read {str(path)!r}: the top level must be a mapping with sections "
-                   f"{', '.join(sorted(_SECTIONS))}")
+            msg = (
+                f"cannot read {str(path)!r}: the top level must be a mapping with sections "
+                f"{', '.join(sorted(_SECTIONS))}"
+            )
             raise FileFormatError(msg)
         plan = plan_document(data, origin=str(path))
     with store.transaction():
@@ -127,8 +156,10 @@ def plan_document(data: dict[str, Any], *, origin: str = "batch") -> Plan:
         raise FileFormatError(msg)
     unknown = set(data) - _SECTIONS
     if unknown:
-        msg = (f"{origin}: unknown section(s) {', '.join(sorted(map(str, unknown)))}; "
-               f"expected {', '.join(sorted(_SECTIONS))}")
+        msg = (
+            f"{origin}: unknown section(s) {', '.join(sorted(map(str, unknown)))}; "
+            f"expected {', '.join(sorted(_SECTIONS))}"
+        )
         raise FileFormatError(msg)
     plan = Plan(origin)
     base = _time(data.get("base_time", 0), 0, origin, "base_time")
@@ -141,16 +172,25 @@ def plan_document(data: dict[str, Any], *, origin: str = "batch") -> Plan:
     for index, row in _rows(data, "properties", origin):
         where = f"properties[{index}]"
         plan.add(where, "properties", _checked(origin, where, partial(_property, row)))
-    steps = [(f"{section}[{index}]", {"at": row.get("at", 0),  # the row's time, once
-                                      section: [{k: v for k, v in row.items() if k != "at"}]})
-             for section in ("facts", "retract", "events")
-             for index, row in _rows(data, section, origin)]
+    steps = [
+        (
+            f"{section}[{index}]",
+            {
+                "at": row.get("at", 0),  # the row's time, once
+                section: [{k: v for k, v in row.items() if k != "at"}],
+            },
+        )
+        for section in ("facts", "retract", "events")
+        for index, row in _rows(data, section, origin)
+    ]
     steps += [(f"timeline[{index}]", step) for index, step in _rows(data, "timeline", origin)]
     for where, step in steps:
         unknown_keys = set(step) - _STEP_KEYS
         if unknown_keys:
-            msg = (f"{origin}: {where}: unknown key(s) {', '.join(sorted(map(str, unknown_keys)))}"
-                   f"; a step has {', '.join(sorted(_STEP_KEYS))}")
+            msg = (
+                f"{origin}: {where}: unknown key(s) {', '.join(sorted(map(str, unknown_keys)))}"
+                f"; a step has {', '.join(sorted(_STEP_KEYS))}"
+            )
             raise FileFormatError(msg)
         t_ns = _time(step.get("at", 0), base, origin, f"{where} 'at'")
         first = _plan_step(plan, step, t_ns, origin, where)
@@ -179,8 +219,9 @@ def _entity(row: dict[str, Any], base: int) -> Callable[[Store], object]:
     name = _word(row, "", "name")
     owner = _opt(row, "owner", "owner_id") or ""
     is_self, agent = _flag(row, "self"), _flag(row, "agent")
-    return lambda store: store.add_entity(entity_id, kind, name, owner, is_self=is_self,
-                                          agent=agent, t_ns=base)
+    return lambda store: store.add_entity(
+        entity_id, kind, name, owner, is_self=is_self, agent=agent, t_ns=base
+    )
 
 
 def _edge(row: dict[str, Any]) -> Callable[[Store], object]:
@@ -207,8 +248,10 @@ def property_value(value: object, key: str) -> str:
         raise InvalidInputError(msg)
     check_text(value, f"value of property {key!r}")
     if utf8_size(value) > MAX_ID_BYTES:
-        msg = (f"invalid value {shown(value)} for property {key!r}: values are at most "
-               f"{MAX_ID_BYTES} bytes of UTF-8, not {utf8_size(value)}")
+        msg = (
+            f"invalid value {shown(value)} for property {key!r}: values are at most "
+            f"{MAX_ID_BYTES} bytes of UTF-8, not {utf8_size(value)}"
+        )
         raise InvalidInputError(msg)
     return value
 
@@ -216,8 +259,12 @@ def property_value(value: object, key: str) -> str:
 def _plan_step(plan: Plan, step: dict[str, Any], t_ns: int, origin: str, where: str) -> int:
     """Plan a step's rows; return its earliest time."""
     first = t_ns
-    for section, kind in (("retract", "retracted"), ("facts", "facts"), ("assert", "facts"),
-                          ("events", "events")):
+    for section, kind in (
+        ("retract", "retracted"),
+        ("facts", "facts"),
+        ("assert", "facts"),
+        ("events", "events"),
+    ):
         rows = step.get(section) or []
         if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
             msg = f"{origin}: {where}: {section!r} must be a list of mappings"
@@ -234,17 +281,27 @@ def _write(row: dict[str, Any], section: str, t_ns: int) -> Callable[[Store], ob
     agent = _opt(row, "agent")
     if section == "retract":
         prop = _req(row, "property", "predicate")
-        filters = {name: _opt(row, *names) for name, names in (  # 'NULL' or absent: any
-            ("subject_id", ("subject", "subject_id")), ("target_id", ("target", "target_id")),
-            ("sub_property", ("sub_property",)))}
-        return lambda store: store.retract_facts(_agent(store, agent), prop, filters[
-            "subject_id"], filters["target_id"], sub_property=filters["sub_property"], t_ns=t_ns)
+        filters = {
+            name: _opt(row, *names)
+            for name, names in (  # 'NULL' or absent: any
+                ("subject_id", ("subject", "subject_id")),
+                ("target_id", ("target", "target_id")),
+                ("sub_property", ("sub_property",)),
+            )
+        }
+        return lambda store: store.retract_facts(
+            _agent(store, agent),
+            prop,
+            filters["subject_id"],
+            filters["target_id"],
+            sub_property=filters["sub_property"],
+            t_ns=t_ns,
+        )
     fact = check_fact(fact_from_mapping(row))
     if section == "events":
         return lambda store: store.record_event(_agent(store, agent), fact, t_ns=t_ns)
     source = _opt(row, "source") or "user"
-    return lambda store: store.assert_fact(_agent(store, agent), fact, t_ns=t_ns,
-                                           source=source)
+    return lambda store: store.assert_fact(_agent(store, agent), fact, t_ns=t_ns, source=source)
 
 
 def fact_from_mapping(row: dict[str, Any]) -> Fact:
@@ -348,8 +405,7 @@ def _read_xml(path: Path) -> list[dict[str, str]]:
         root = ET.parse(path).getroot()
     except (ET.ParseError, OSError, ValueError, RecursionError) as exc:
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        msg = (f"cannot read {str(path)!r}: {reason} (expected one of the original's seed XML "
-               "files)")
+        msg = f"cannot read {str(path)!r}: {reason} (expected one of the original's seed XML files)"
         raise FileFormatError(msg) from None
     return [{k: _unquote(v) for k, v in child.attrib.items()} for child in root]
 
@@ -375,9 +431,22 @@ def plan_xml(path: Path) -> Plan:
     for index, row in enumerate(_read_xml(path)):
         where = f"element {index + 1}"
         if "entityClass" in row:
-            plan.add(where, "ontology", _checked(origin, where, partial(_edge, {
-                "class": row["entityClass"], "individual": row.get("individual"),
-                "instantiated": row.get("instantiated", "false")})))
+            plan.add(
+                where,
+                "ontology",
+                _checked(
+                    origin,
+                    where,
+                    partial(
+                        _edge,
+                        {
+                            "class": row["entityClass"],
+                            "individual": row.get("individual"),
+                            "instantiated": row.get("instantiated", "false"),
+                        },
+                    ),
+                ),
+            )
         elif "color" in row or "linkType" in row:
             entity_id = _checked(origin, where, partial(_req, row, "id"))
 
@@ -390,17 +459,28 @@ def plan_xml(path: Path) -> Plan:
             plan.writes.append((where, "", declare))
             for key in ("color", "height", "linkedToId", "linkType"):
                 if key in row:
-                    plan.add(where, "properties", _checked(origin, where, partial(
-                        _property, {"entity": row["id"], "key": key, "value": row[key]})))
+                    plan.add(
+                        where,
+                        "properties",
+                        _checked(
+                            origin,
+                            where,
+                            partial(
+                                _property, {"entity": row["id"], "key": key, "value": row[key]}
+                            ),
+                        ),
+                    )
         elif "id" in row and "type" in row:
+
             def entity(row: dict[str, str] = row) -> Callable[[Store], object]:
                 entity_id, kind = _req(row, "id"), _word(row, "", "type")
                 name, owner = _word(row, "", "name"), _opt(row, "owner_id") or ""
 
                 def write(store: Store) -> None:
                     make_self = kind.lower() == "robot" and not has_self(store)
-                    store.add_entity(entity_id, kind, name, owner,
-                                     is_self=True if make_self else None)
+                    store.add_entity(
+                        entity_id, kind, name, owner, is_self=True if make_self else None
+                    )
                     if make_self:
                         state["had_self"] = True
 
@@ -408,7 +488,9 @@ def plan_xml(path: Path) -> Plan:
 
             plan.add(where, "entities", _checked(origin, where, entity))
         else:
-            msg = (f"{origin}: element {index + 1} has attributes {sorted(row)}; expected an "
-                   "id list (id, type), ontology (entityClass, individual) or static properties")
+            msg = (
+                f"{origin}: element {index + 1} has attributes {sorted(row)}; expected an "
+                "id list (id, type), ontology (entityClass, individual) or static properties"
+            )
             raise FileFormatError(msg)
     return plan

@@ -61,17 +61,25 @@ def parse(prop: str, raw: object, base: Tolerance = EXACT) -> Tolerance:
     if isinstance(raw, Mapping):
         unknown = set(raw) - set(PARTS)
         if unknown:
-            msg = (f"invalid tolerance for {prop}: unknown part {sorted(unknown)[0]!r}; "
-                   f"use {', '.join(PARTS)}")
+            msg = (
+                f"invalid tolerance for {prop}: unknown part {sorted(unknown)[0]!r}; "
+                f"use {', '.join(PARTS)}"
+            )
             raise InvalidInputError(msg)
         parts.update(raw)
     else:
         parts["value"] = raw
     for part, value in parts.items():
-        if (isinstance(value, bool) or not isinstance(value, int | float)
-                or not math.isfinite(value) or value < 0):
-            msg = (f"invalid tolerance {value!r} for {prop} {part}: give a number ≥ 0 "
-                   "in the property's unit")
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, int | float)
+            or not math.isfinite(value)
+            or value < 0
+        ):
+            msg = (
+                f"invalid tolerance {value!r} for {prop} {part}: give a number ≥ 0 "
+                "in the property's unit"
+            )
             raise InvalidInputError(msg)
     return Tolerance(*(float(parts[p]) for p in PARTS))
 

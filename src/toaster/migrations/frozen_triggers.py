@@ -64,16 +64,21 @@ def _unit(ref: str, unit: str, backend: str) -> dict[str, list[str]]:
     return found
 
 
-def unit_statements(revision: str, backend: str, which: str,
-                    only: set[str] | None = None) -> list[str]:
+def unit_statements(
+    revision: str, backend: str, which: str, only: set[str] | None = None
+) -> list[str]:
     """The ``which`` (``create`` or ``drop``) statements of the units of ``revision``'s
     manifest (``only``: of these), placeholders filled from the manifest, the driver last on
     create and first on drop."""
     refs = manifest(revision)
-    order = sorted(only if only is not None else refs,
-                   key=lambda unit: (unit == _DRIVER) == (which == "create"))
-    return compose([s for unit in order for s in _unit(refs[unit], unit, backend)[which]],
-                   lambda unit: _unit(refs[unit], unit, backend).get("inline", []))
+    order = sorted(
+        only if only is not None else refs,
+        key=lambda unit: (unit == _DRIVER) == (which == "create"),
+    )
+    return compose(
+        [s for unit in order for s in _unit(refs[unit], unit, backend)[which]],
+        lambda unit: _unit(refs[unit], unit, backend).get("inline", []),
+    )
 
 
 def run_units(conn: Connection, revision: str, which: str) -> None:
@@ -89,8 +94,11 @@ def swap_units(conn: Connection, old: str, new: str) -> None:
     backend = conn.dialect.name
     before, after = manifest(old), manifest(new)
     changed = {u for u in before.keys() | after.keys() if before.get(u) != after.get(u)}
-    if any(_unit(refs[u], u, backend).get("inline") for refs in (before, after)
-           for u in changed & refs.keys()):
+    if any(
+        _unit(refs[u], u, backend).get("inline")
+        for refs in (before, after)
+        for u in changed & refs.keys()
+    ):
         changed.add(_DRIVER)
     _execute(conn, unit_statements(old, backend, "drop", changed & before.keys()))
     _execute(conn, unit_statements(new, backend, "create", changed & after.keys()))

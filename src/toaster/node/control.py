@@ -44,8 +44,12 @@ CLASSES = ("humans", "robots", "agents")
 DEFAULT_MONITORED = DEFAULTS["monitored_agents"]  # what a node monitors until told otherwise
 #: kinds of one-shot commands the node applies, and of queries it answers
 COMMANDS = ("set_entity_pose", "add_entity", "remove_entity")
-QUERIES = ("pointing", "get_relative_position", "get_multiple_relative_position",
-           "relative_position_from")
+QUERIES = (
+    "pointing",
+    "get_relative_position",
+    "get_multiple_relative_position",
+    "relative_position_from",
+)
 
 
 class NoNodeError(ToasterError):
@@ -76,19 +80,22 @@ def _agents(state: ControlState) -> list[str]:
 def read_state(conn: Connection) -> ControlState:
     """The stored control state."""
     monitor = catalog.settings(conn, MONITOR)
-    hands = {obj: (v["agent"], v["joint"]) for obj, v in catalog.settings(conn, IN_HAND).items()
-             if isinstance(v, dict) and _texts(v.get("agent"), v.get("joint"))}
+    hands = {
+        obj: (v["agent"], v["joint"])
+        for obj, v in catalog.settings(conn, IN_HAND).items()
+        if isinstance(v, dict) and _texts(v.get("agent"), v.get("joint"))
+    }
     agents = monitor.get("agents")
     joints = monitor.get("joints")
     if isinstance(joints, dict):
         joints = {a: list(j) for a, j in joints.items() if isinstance(j, list) and _texts(*j)}
-    return ControlState(agents=list(agents) if isinstance(agents, list) and _texts(*agents)
-                        else None,
-                        excluded=list(monitor.get("except", []))
-                        if _text_list(monitor.get("except", [])) else [],
-                        joints=joints if isinstance(joints, dict) else None,
-                        streams={k: bool(v) for k, v in catalog.settings(conn, STREAMS).items()},
-                        in_hand=hands)
+    return ControlState(
+        agents=list(agents) if isinstance(agents, list) and _texts(*agents) else None,
+        excluded=list(monitor.get("except", [])) if _text_list(monitor.get("except", [])) else [],
+        joints=joints if isinstance(joints, dict) else None,
+        streams={k: bool(v) for k, v in catalog.settings(conn, STREAMS).items()},
+        in_hand=hands,
+    )
 
 
 def _texts(*values: object) -> bool:
@@ -126,8 +133,9 @@ def monitor_remove(db: Any, agent_id: str, joint: str | None = None) -> ControlS
         if joint is not None:
             table = dict(state.joints or {})
             if joint not in table.get(agent_id, []):
-                msg = (f"joint {joint!r} of {agent_id!r} is not monitored: see "
-                       "'toaster monitor list'")
+                msg = (
+                    f"joint {joint!r} of {agent_id!r} is not monitored: see 'toaster monitor list'"
+                )
                 raise InvalidInputError(msg)
             table[agent_id] = [j for j in table[agent_id] if j != joint]
             catalog.put_setting(conn, MONITOR, "joints", table)
@@ -214,9 +222,12 @@ def submit(db: Any, kind: str, args: Mapping[str, Any]) -> int:
         raise InvalidInputError(msg)
     with db.transaction(write=True) as conn:
         new_id = conn.execute(
-            text("INSERT INTO control_commands (kind, args_json, created_ns, state) "
-                 "VALUES (:kind, :args, :t, 'pending') RETURNING id"),
-            {"kind": kind, "args": json.dumps(dict(args)), "t": now_ns()}).scalar_one()
+            text(
+                "INSERT INTO control_commands (kind, args_json, created_ns, state) "
+                "VALUES (:kind, :args, :t, 'pending') RETURNING id"
+            ),
+            {"kind": kind, "args": json.dumps(dict(args)), "t": now_ns()},
+        ).scalar_one()
         catalog.bump_control(conn)
         return int(new_id)
 
@@ -227,16 +238,21 @@ def ask(db: Any, kind: str, args: Mapping[str, Any], timeout_s: float = 2.0) -> 
     deadline = time.monotonic() + timeout_s
     while True:
         with db.transaction() as conn:  # a read while waiting
-            row = conn.execute(text("SELECT state, answer_json FROM control_commands "
-                                    "WHERE id = :id"), {"id": command_id}).one()
+            row = conn.execute(
+                text("SELECT state, answer_json FROM control_commands WHERE id = :id"),
+                {"id": command_id},
+            ).one()
         late = row.state == "pending" and time.monotonic() >= deadline
         if row.state != "pending" or late:
             with db.transaction(write=True) as conn:
-                conn.execute(text("DELETE FROM control_commands WHERE id = :id"),
-                             {"id": command_id})
+                conn.execute(
+                    text("DELETE FROM control_commands WHERE id = :id"), {"id": command_id}
+                )
         if late:
-            msg = (f"no node answered {kind} within {timeout_s:g} s: start "
-                   "'toaster serve' on this database (queries need a running node)")
+            msg = (
+                f"no node answered {kind} within {timeout_s:g} s: start "
+                "'toaster serve' on this database (queries need a running node)"
+            )
             raise NoNodeError(msg)
         if row.state != "pending":
             answer = json.loads(row.answer_json or "null")
@@ -248,11 +264,15 @@ def ask(db: Any, kind: str, args: Mapping[str, Any], timeout_s: float = 2.0) -> 
 
 def pending(conn: Connection, kinds: Iterable[str] | None = None) -> list[Command]:
     """Pending commands, oldest first (the node's side)."""
-    rows = conn.execute(text("SELECT id, kind, args_json FROM control_commands "
-                             "WHERE state = 'pending' ORDER BY id")).all()
+    rows = conn.execute(
+        text("SELECT id, kind, args_json FROM control_commands WHERE state = 'pending' ORDER BY id")
+    ).all()
     wanted = set(kinds) if kinds is not None else None
-    return [Command(int(r.id), str(r.kind), _json(r.args_json)) for r in rows
-            if wanted is None or r.kind in wanted]
+    return [
+        Command(int(r.id), str(r.kind), _json(r.args_json))
+        for r in rows
+        if wanted is None or r.kind in wanted
+    ]
 
 
 def _json(text: object) -> Any:
@@ -264,11 +284,19 @@ def _json(text: object) -> Any:
         return text
 
 
-def finish(conn: Connection, command_id: int, answer: object = None, *,
-           error: str | None = None) -> None:
+def finish(
+    conn: Connection, command_id: int, answer: object = None, *, error: str | None = None
+) -> None:
     """Record the node's answer (or the one-line error) of a command."""
-    conn.execute(text("UPDATE control_commands SET state = :state, answer_json = :answer, "
-                      "done_ns = :t WHERE id = :id"),
-                 {"state": "failed" if error is not None else "done",
-                  "answer": json.dumps(error if error is not None else answer),
-                  "t": now_ns(), "id": command_id})
+    conn.execute(
+        text(
+            "UPDATE control_commands SET state = :state, answer_json = :answer, "
+            "done_ns = :t WHERE id = :id"
+        ),
+        {
+            "state": "failed" if error is not None else "done",
+            "answer": json.dumps(error if error is not None else answer),
+            "t": now_ns(),
+            "id": command_id,
+        },
+    )

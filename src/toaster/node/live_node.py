@@ -73,10 +73,16 @@ class Output(Protocol):
 class LiveNode:
     """World, producers, store and control plane of one running toaster."""
 
-    def __init__(self, db: Any, *, config: Mapping[str, Any] | None = None,
-                 self_id: str = DEFAULT_SELF, holders: str | Sequence[str] = "none",
-                 sources: Sequence[Source] | None = None,
-                 outputs: Sequence[Output] = ()) -> None:
+    def __init__(
+        self,
+        db: Any,
+        *,
+        config: Mapping[str, Any] | None = None,
+        self_id: str = DEFAULT_SELF,
+        holders: str | Sequence[str] = "none",
+        sources: Sequence[Source] | None = None,
+        outputs: Sequence[Output] = (),
+    ) -> None:
         self.db = db
         if db is not None:
             db.set_page_cache(LIVE_PAGE_CACHE_KIB)
@@ -91,16 +97,19 @@ class LiveNode:
         # their pose is sent again every tick until moved or removed
         self.simu = LiveSource("toaster_simu", drops=self.drops)
         self._simulated: dict[str, dict[str, Any]] = {}
-        self.sources: list[Source] = [self.simu] + (list(sources) if sources is not None
-                                                    else [self.api])
+        self.sources: list[Source] = [self.simu] + (
+            list(sources) if sources is not None else [self.api]
+        )
         self.outputs = list(outputs)
-        self.producers: list[Any] = builtin_producers(self.config, {},
-                                                      spatial=bool(self.config.get("spatial")))
+        self.producers: list[Any] = builtin_producers(
+            self.config, {}, spatial=bool(self.config.get("spatial"))
+        )
         # the control plane changes these two: areas, and which agents are monitored
         self.areas = next(p for p in self.producers if isinstance(p, AreaManager))
         self.monitor = next(p for p in self.producers if isinstance(p, AgentMonitor))
-        self.runner = Runner(self.world, [], self.producers, store=self.store, agent_id=self_id,
-                             config=self.config)
+        self.runner = Runner(
+            self.world, [], self.producers, store=self.store, agent_id=self_id, config=self.config
+        )
         self.stats = LiveStats()
         self.faults = Faults(self.warn)
         self._version = -1
@@ -123,12 +132,17 @@ class LiveNode:
         store.add_entity(self.self_id, "robot", is_self=True)
         with self.db.transaction() as conn:
             rows = conn.exec_driver_sql(
-                "SELECT id, kind, name, owner_id FROM entities ORDER BY owner_id <> '', id").all()
+                "SELECT id, kind, name, owner_id FROM entities ORDER BY owner_id <> '', id"
+            ).all()
         for entity_id, kind, name, owner in rows:
             if kind in ("human", "robot", "object") or (kind == "joint" and owner):
                 try:
-                    self.world.add_entity(entity_id, kind, owner_id=owner if kind == "joint"
-                                          else "", name=name or entity_id)
+                    self.world.add_entity(
+                        entity_id,
+                        kind,
+                        owner_id=owner if kind == "joint" else "",
+                        name=name or entity_id,
+                    )
                 except ToasterError as exc:
                     self.warn(f"entity {entity_id!r} from the database ignored: {exc}")
                     continue
@@ -162,8 +176,9 @@ class LiveNode:
         self._apply_state(state, stored_areas)
         return True
 
-    def _apply_state(self, state: control.ControlState,
-                     stored_areas: dict[str, dict[str, Any]]) -> None:
+    def _apply_state(
+        self, state: control.ControlState, stored_areas: dict[str, dict[str, Any]]
+    ) -> None:
         current = self.areas.areas
         for area_id in set(current) - set(stored_areas):
             self.areas.remove_area(area_id)
@@ -200,15 +215,25 @@ class LiveNode:
         if command.kind == "set_entity_pose":
             row = world.index.get(entity_id) if isinstance(entity_id, str) else None
             if args.get("known_only") and not self._present(entity_id):
-                msg = (f"unknown entity {shown(entity_id)}: add it first (add_entity) or "
-                       "publish its pose")
+                msg = (
+                    f"unknown entity {shown(entity_id)}: add it first (add_entity) or "
+                    "publish its pose"
+                )
                 raise UnknownEntityError(msg)
             kind = world.kind_text[row] if row is not None else args.get("kind", "object")
-            owner = (world.ids[world.owner[row]] if row is not None and world.owner[row] >= 0
-                     else args.get("owner_id", ""))
-            pose = {"position": args.get("position"), "rpy": args.get("rpy"),
-                    "yaw": args.get("yaw", 0.0), "kind": kind, "owner_id": owner,
-                    "joint": args.get("joint", "")}
+            owner = (
+                world.ids[world.owner[row]]
+                if row is not None and world.owner[row] >= 0
+                else args.get("owner_id", "")
+            )
+            pose = {
+                "position": args.get("position"),
+                "rpy": args.get("rpy"),
+                "yaw": args.get("yaw", 0.0),
+                "kind": kind,
+                "owner_id": owner,
+                "joint": args.get("joint", ""),
+            }
             if not self.simu.push(entity_id, t_ns=t_ns, topic="set_entity_pose", **pose):
                 raise InvalidInputError(self.simu.last_error)
             self._simulated[str(entity_id)] = pose
@@ -216,8 +241,12 @@ class LiveNode:
             kind, owner = args.get("kind", "object"), args.get("owner_id", "")
             name = args.get("name", "")
             check_entity(entity_id, kind, owner, name if kind == "joint" else "")
-            world.add_entity(str(entity_id), str(kind), owner_id=str(owner),
-                             name=str(name) if isinstance(name, str) else "")
+            world.add_entity(
+                str(entity_id),
+                str(kind),
+                owner_id=str(owner),
+                name=str(name) if isinstance(name, str) else "",
+            )
         elif command.kind == "remove_entity":
             if not (self._present(entity_id) or entity_id in self._registered):
                 msg = f"unknown entity {shown(entity_id)}: nothing to remove"
@@ -264,9 +293,12 @@ class LiveNode:
         if not isinstance(args, Mapping):
             msg = f"arguments {shown(args)} must be a JSON object"
             raise InvalidInputError(msg)
-        names = {"pointing": ("agent",), "get_relative_position": ("subject", "target"),
-                 "get_multiple_relative_position": ("agent", "object", "target"),
-                 "relative_position_from": ("viewer", "object")}
+        names = {
+            "pointing": ("agent",),
+            "get_relative_position": ("subject", "target"),
+            "get_multiple_relative_position": ("agent", "object", "target"),
+            "relative_position_from": ("viewer", "object"),
+        }
         named = [args.get(key) for key in names.get(kind, ())]
         if kind == "relative_position_from" and args.get("reference") is not None:
             named.append(args["reference"])
@@ -278,19 +310,30 @@ class LiveNode:
                 config["pointing_joint_distance"] = float(args["joint_distance"])
             if args.get("angle"):
                 config["pointing_angle"] = float(args["angle"])
-            found = pointing(world, str(args["agent"]), str(args.get("joint", "rightHand")),
-                             t_ns=int(at) if at is not None else None, config=config)
+            found = pointing(
+                world,
+                str(args["agent"]),
+                str(args.get("joint", "rightHand")),
+                t_ns=int(at) if at is not None else None,
+                config=config,
+            )
             return [[entity_id, conf] for entity_id, conf in found]
         if kind == "get_relative_position":
             label, angle = relative_position(world, str(args["subject"]), str(args["target"]))
             return {"direction": label, "angle": angle}
         if kind == "get_multiple_relative_position":
-            label, angle = multiple_relative_position(world, str(args["agent"]),
-                                                      str(args["object"]), str(args["target"]))
+            label, angle = multiple_relative_position(
+                world, str(args["agent"]), str(args["object"]), str(args["target"])
+            )
             return {"direction": label, "angle": angle}
         if kind == "relative_position_from":
-            words, xyz = relative_position_from(world, str(args["viewer"]), str(args["object"]),
-                                                args.get("reference"), config=self.config)
+            words, xyz = relative_position_from(
+                world,
+                str(args["viewer"]),
+                str(args["object"]),
+                args.get("reference"),
+                config=self.config,
+            )
             return {"words": words, "forward_left_up": list(xyz)}
         msg = f"unknown query {kind!r}"
         raise ValueError(msg)
@@ -304,8 +347,9 @@ class LiveNode:
     def _register_new(self, t_ns: int) -> None:
         world, store = self.world, self.store
         assert store is not None
-        new = [r for r, eid in enumerate(world.ids)
-               if eid not in self._registered and world.active[r]]
+        new = [
+            r for r, eid in enumerate(world.ids) if eid not in self._registered and world.active[r]
+        ]
         if not new:
             return
         with store.transaction():
@@ -375,8 +419,9 @@ class LiveNode:
             return
         for gap in list(self.faults.pending):
             try:
-                self.store.record_event(self.self_id, gap.fact(self.self_id), t_ns=gap.start_ns,
-                                        source=GAP_SOURCE)
+                self.store.record_event(
+                    self.self_id, gap.fact(self.self_id), t_ns=gap.start_ns, source=GAP_SOURCE
+                )
             except Exception as exc:
                 effect = "it is recorded at a later tick"
                 if self.faults.noted("recording a gap", exc, effect) in RECONNECT_KINDS:
@@ -394,10 +439,16 @@ class LiveNode:
         if self.store is not None:
             self.store.forget()
 
-    def run(self, rate_hz: float = 30.0, *, stop: threading.Event | None = None,
-            ticks: int | None = None, seconds: float | None = None,
-            maintain_every_s: float | None = MAINTAIN_EVERY_S,
-            status_every_s: float = 0.0) -> LiveStats:
+    def run(
+        self,
+        rate_hz: float = 30.0,
+        *,
+        stop: threading.Event | None = None,
+        ticks: int | None = None,
+        seconds: float | None = None,
+        maintain_every_s: float | None = MAINTAIN_EVERY_S,
+        status_every_s: float = 0.0,
+    ) -> LiveStats:
         """Tick until ``stop`` is set (or ``ticks`` / ``seconds`` ran out).
 
         Ticks follow the input: a tick starts as soon as a source received a pose, but not
@@ -434,8 +485,14 @@ class LiveNode:
                 maintainer.stop()
         return self.stats
 
-    def _loop(self, period: float, stop: threading.Event, ticks: int | None,
-              seconds: float | None, status_every_s: float) -> None:
+    def _loop(
+        self,
+        period: float,
+        stop: threading.Event,
+        ticks: int | None,
+        seconds: float | None,
+        status_every_s: float,
+    ) -> None:
         begin = last_status = time.monotonic()
         self.stats.started = self.stats.window_start = begin
         count = 0
@@ -463,8 +520,10 @@ class LiveNode:
         window since the previous windowed line (``window=True`` starts a new one) or the
         last one taken."""
         s = self.stats
-        line = (f"status: up {time.monotonic() - s.started:.0f} s, {s.ticks} ticks, "
-                f"{s.overruns} overruns, drops {self.drops.summary()}, {s.warnings} warnings")
+        line = (
+            f"status: up {time.monotonic() - s.started:.0f} s, {s.ticks} ticks, "
+            f"{s.overruns} overruns, drops {self.drops.summary()}, {s.warnings} warnings"
+        )
         last = s.take_window() if window else s.last_window
         return f"{line}; {last}" if last else line
 
@@ -503,12 +562,19 @@ class LiveNode:
         self.stats.record(ms, took > period)
         n = self.stats.overruns
         if took > period and (n in (1, 10, 100) or n % 1000 == 0):
-            self.warn(f"tick overran its period: {ms:.1f} ms > {period * 1e3:.1f} ms "
-                      f"({n} overruns so far)")
+            self.warn(
+                f"tick overran its period: {ms:.1f} ms > {period * 1e3:.1f} ms "
+                f"({n} overruns so far)"
+            )
 
 
-def serve(node: LiveNode, rate_hz: float = 30.0, *, seconds: float | None = None,
-          status_every_s: float = 0.0) -> LiveStats:
+def serve(
+    node: LiveNode,
+    rate_hz: float = 30.0,
+    *,
+    seconds: float | None = None,
+    status_every_s: float = 0.0,
+) -> LiveStats:
     """Run a node until SIGINT or SIGTERM (or ``seconds``), stopping between two ticks; a
     status line every ``status_every_s`` seconds (0: none)."""
     stop = threading.Event()

@@ -50,9 +50,11 @@ class LiveStats:
         def pct(p: float) -> float:
             return ms[min(len(ms) - 1, int(p * len(ms)))] if ms else 0.0
 
-        line = (f"window {now - self.window_start:.0f} s: {self.window_ticks} ticks, "
-                f"p50 {pct(0.5):.1f} ms, p99 {pct(0.99):.1f} ms, max {self.window_max_ms:.1f} ms, "
-                f"{self.window_overruns} overruns")
+        line = (
+            f"window {now - self.window_start:.0f} s: {self.window_ticks} ticks, "
+            f"p50 {pct(0.5):.1f} ms, p99 {pct(0.99):.1f} ms, max {self.window_max_ms:.1f} ms, "
+            f"{self.window_overruns} overruns"
+        )
         self.window_ms, self.window_overruns, self.window_start = [], 0, now
         self.window_ticks, self.window_max_ms = 0, 0.0
         self.last_window = line

@@ -31,8 +31,14 @@ from toaster.timeutil import check_optional_ns, format_ns
 
 KINDS = ("facts", "memory", "history", "events")
 FORMATS = ("csv", "jsonl", "parquet")
-_SUFFIXES = {"csv": "csv", "jsonl": "jsonl", "ndjson": "jsonl", "json": "jsonl",
-             "parquet": "parquet", "pq": "parquet"}
+_SUFFIXES = {
+    "csv": "csv",
+    "jsonl": "jsonl",
+    "ndjson": "jsonl",
+    "json": "jsonl",
+    "parquet": "parquet",
+    "pq": "parquet",
+}
 
 
 class ExportResult(NamedTuple):
@@ -67,9 +73,15 @@ def export_format(path: str | Path, format: str | None = None) -> str:
     return _SUFFIXES[name]
 
 
-def select_rows(db: Any, kind: str, *, agent: str | Sequence[str] | None = None,
-                since: int | None = None, until: int | None = None,
-                **filters: Any) -> list[FactRow] | list[EventRow]:
+def select_rows(
+    db: Any,
+    kind: str,
+    *,
+    agent: str | Sequence[str] | None = None,
+    since: int | None = None,
+    until: int | None = None,
+    **filters: Any,
+) -> list[FactRow] | list[EventRow]:
     """The rows an export of ``kind`` holds (filters as in get-info: subject, property, ...)."""
     from toaster import queries
 
@@ -77,18 +89,25 @@ def select_rows(db: Any, kind: str, *, agent: str | Sequence[str] | None = None,
     _check_agents(db, agent)
     since, until = check_optional_ns(since, "since"), check_optional_ns(until, "until")
     if since is not None and until is not None and until < since:
-        msg = (f"empty time window: until {format_ns(until)} is before since "
-               f"{format_ns(since)}; swap them")
+        msg = (
+            f"empty time window: until {format_ns(until)} is before since "
+            f"{format_ns(since)}; swap them"
+        )
         raise InvalidInputError(msg)
     filters = {k: v for k, v in filters.items() if v is not None}
     if kind == "facts":
         if since is not None or until is not None:
-            msg = ("current facts have no time window: export 'history' (or 'memory') to "
-                   "limit intervals to a window")
+            msg = (
+                "current facts have no time window: export 'history' (or 'memory') to "
+                "limit intervals to a window"
+            )
             raise InvalidInputError(msg)
         return queries.current_facts(db, agent, **filters)
     read: dict[str, Callable[..., list[FactRow] | list[EventRow]]] = {
-        "memory": queries.memory, "history": queries.history, "events": queries.events}
+        "memory": queries.memory,
+        "history": queries.history,
+        "events": queries.events,
+    }
     return read[kind](db, agent, since=since, until=until, **filters)
 
 
@@ -104,8 +123,9 @@ def _check_agents(db: Any, agent: str | Sequence[str] | None) -> None:
             raise UnknownAgentError(msg)
 
 
-def export(db: Any, kind: str, output: str | Path, *, format: str | None = None,
-           **filters: Any) -> ExportResult:
+def export(
+    db: Any, kind: str, output: str | Path, *, format: str | None = None, **filters: Any
+) -> ExportResult:
     """Write the rows of ``kind`` (facts, memory, history, events) matching ``filters``.
 
     Filters: agent, subject, property, target (lists match any), since, until (ns).
@@ -119,8 +139,7 @@ def export(db: Any, kind: str, output: str | Path, *, format: str | None = None,
     return ExportResult(path, fmt, len(rows))
 
 
-def write_rows(rows: Sequence[NamedTuple], rtype: type[NamedTuple], path: Path,
-               fmt: str) -> None:
+def write_rows(rows: Sequence[NamedTuple], rtype: type[NamedTuple], path: Path, fmt: str) -> None:
     """Write typed rows to ``path`` in ``fmt`` (``csv``, ``jsonl`` or ``parquet``)."""
     fields = list(rtype._fields)
     if fmt == "csv":
@@ -146,15 +165,28 @@ def arrow_table(rows: Sequence[NamedTuple], rtype: type[NamedTuple]) -> Any:
     kinds = field_kinds(rtype)
     arrow = {str: pa.string(), int: pa.int64(), float: pa.float64(), bool: pa.bool_()}
     fields = list(rtype._fields)
-    columns = {f: pa.array([row[i] for row in rows], arrow[kinds[f][0]])
-               for i, f in enumerate(fields)}
+    columns = {
+        f: pa.array([row[i] for row in rows], arrow[kinds[f][0]]) for i, f in enumerate(fields)
+    }
     stamp = pa.timestamp("ns", tz="UTC")
     for field, name in time_columns(fields).items():
         columns[name] = columns[field].cast(stamp)
     nullable_ints = [f for f in fields if kinds[f] == (int, True)]
-    pandas = {"index_columns": [], "column_indexes": [], "creator": {"library": "toaster"},
-              "columns": [{"name": f, "field_name": f, "pandas_type": "int64",
-                           "numpy_type": "Int64", "metadata": None} for f in nullable_ints]}
+    pandas = {
+        "index_columns": [],
+        "column_indexes": [],
+        "creator": {"library": "toaster"},
+        "columns": [
+            {
+                "name": f,
+                "field_name": f,
+                "pandas_type": "int64",
+                "numpy_type": "Int64",
+                "metadata": None,
+            }
+            for f in nullable_ints
+        ],
+    }
     table = pa.table(columns)
     return table.replace_schema_metadata({"pandas": json.dumps(pandas)})
 
@@ -177,12 +209,13 @@ def read_rows(path: str | Path, kind: str, format: str | None = None) -> list[An
     else:
         text = {f for f, (base, _) in field_kinds(rtype).items() if base is str}
         with path.open(newline="", encoding="utf-8") as handle:
-            records = [{k: csv_untext(v) if k in text and v else v for k, v in rec.items()}
-                       for rec in csv.DictReader(handle)]
+            records = [
+                {k: csv_untext(v) if k in text and v else v for k, v in rec.items()}
+                for rec in csv.DictReader(handle)
+            ]
     kinds = field_kinds(rtype)
     try:
-        return [rtype(*(_typed(rec[f], kinds[f]) for f in rtype._fields))
-                for rec in records]
+        return [rtype(*(_typed(rec[f], kinds[f]) for f in rtype._fields)) for rec in records]
     except KeyError as exc:
         msg = f"{path.name}: column {exc.args[0]!r} is missing; is this a toaster {kind} export?"
         raise InvalidInputError(msg) from None
@@ -213,4 +246,5 @@ def _pyarrow() -> tuple[Any, Any]:
     require("export", "Parquet export")
     import pyarrow as pa  # type: ignore[import-untyped]  # (no py.typed)
     import pyarrow.parquet as pq  # type: ignore[import-untyped]
+
     return pa, pq

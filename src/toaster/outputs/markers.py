@@ -59,8 +59,7 @@ def _xyz(values: Sequence[float]) -> dict[str, float]:
 
 
 def _pose(position: Sequence[float], q: Quat = (0.0, 0.0, 0.0, 1.0)) -> dict[str, Any]:
-    return {"position": _xyz(position),
-            "orientation": {"x": q[0], "y": q[1], "z": q[2], "w": q[3]}}
+    return {"position": _xyz(position), "orientation": {"x": q[0], "y": q[1], "z": q[2], "w": q[3]}}
 
 
 def transforms(world: World) -> list[tuple[str, tuple[float, float, float], Quat, int]]:
@@ -81,17 +80,26 @@ def entity_list_fields(world: World, t_ns: int) -> dict[str, list[dict[str, Any]
             joints.setdefault(int(world.owner[r]), []).append(r)
 
     def entity(r: int) -> dict[str, Any]:
-        return {"id": world.ids[r], "name": world.names[r], "time": int(world.t_ns[r]),
-                "pose": _pose(world.pos[r], quat_of(world, r))}
+        return {
+            "id": world.ids[r],
+            "name": world.names[r],
+            "time": int(world.t_ns[r]),
+            "pose": _pose(world.pos[r], quat_of(world, r)),
+        }
 
     def agent(r: int) -> dict[str, Any]:
         skeleton = joints.get(r, [])
-        return {"mobility": 0, "busyHands": world.busy_hands(world.ids[r]),
-                "hasObjects": world.held_objects(world.ids[r]),
-                "skeletonNames": [world.joint_names[j] for j in skeleton],
-                "skeletonJoint": [{"jointOwner": world.ids[r], "position": 0.0,
-                                   "meEntity": entity(j)} for j in skeleton],
-                "meEntity": entity(r)}
+        return {
+            "mobility": 0,
+            "busyHands": world.busy_hands(world.ids[r]),
+            "hasObjects": world.held_objects(world.ids[r]),
+            "skeletonNames": [world.joint_names[j] for j in skeleton],
+            "skeletonJoint": [
+                {"jointOwner": world.ids[r], "position": 0.0, "meEntity": entity(j)}
+                for j in skeleton
+            ],
+            "meEntity": entity(r),
+        }
 
     out: dict[str, list[dict[str, Any]]] = {"human": [], "robot": [], "object": []}
     for r in rows:
@@ -106,15 +114,33 @@ def entity_list_fields(world: World, t_ns: int) -> dict[str, list[dict[str, Any]
 
 
 # -- markers ------------------------------------------------------------------------------------
-def marker(ns: str, mid: int, mtype: int, t_ns: int, *, pose: dict[str, Any] | None = None,
-           scale: Sequence[float] = (1.0, 1.0, 1.0), color: Sequence[float] = (1.0, 1.0, 1.0),
-           alpha: float = 1.0, points: Sequence[Sequence[float]] = (), text: str = ""
-           ) -> dict[str, Any]:
+def marker(
+    ns: str,
+    mid: int,
+    mtype: int,
+    t_ns: int,
+    *,
+    pose: dict[str, Any] | None = None,
+    scale: Sequence[float] = (1.0, 1.0, 1.0),
+    color: Sequence[float] = (1.0, 1.0, 1.0),
+    alpha: float = 1.0,
+    points: Sequence[Sequence[float]] = (),
+    text: str = "",
+) -> dict[str, Any]:
     """One Marker's fields in the map frame."""
-    return {"header": {"frame_id": FRAME, "stamp": t_ns}, "ns": ns, "id": mid, "type": mtype,
-            "action": ADD, "pose": pose or _pose((0.0, 0.0, 0.0)), "scale": _xyz(scale),
-            "color": {"r": color[0], "g": color[1], "b": color[2], "a": alpha},
-            "points": [_xyz(p) for p in points], "text": text, "frame_locked": False}
+    return {
+        "header": {"frame_id": FRAME, "stamp": t_ns},
+        "ns": ns,
+        "id": mid,
+        "type": mtype,
+        "action": ADD,
+        "pose": pose or _pose((0.0, 0.0, 0.0)),
+        "scale": _xyz(scale),
+        "color": {"r": color[0], "g": color[1], "b": color[2], "a": alpha},
+        "points": [_xyz(p) for p in points],
+        "text": text,
+        "frame_locked": False,
+    }
 
 
 def _clear(t_ns: int) -> dict[str, Any]:
@@ -126,8 +152,10 @@ def _clear(t_ns: int) -> dict[str, Any]:
 def _size(world: World, row: int) -> tuple[float, float, float]:
     size = world.size[row]
     default = DEFAULT_SIZE.get(int(world.kind[row]), (0.1, 0.1, 0.1))
-    return tuple(float(s) if np.isfinite(s) and s > 0 else d  # type: ignore[return-value]
-                 for s, d in zip(size, default, strict=True))
+    return tuple(
+        float(s) if np.isfinite(s) and s > 0 else d  # type: ignore[return-value]
+        for s, d in zip(size, default, strict=True)
+    )
 
 
 def entity_markers(world: World, t_ns: int) -> dict[str, list[dict[str, Any]]]:
@@ -151,22 +179,67 @@ def entity_markers(world: World, t_ns: int) -> dict[str, list[dict[str, Any]]]:
             # an object's box stands on its position (as the spatial producer sees it)
             q = quat_of(world, r)
             lift = rotate(q, (0.0, 0.0, sz / 2))
-            items.append(marker(eid, 0, CUBE, t_ns, pose=_pose(
-                (x + lift[0], y + lift[1], z + lift[2]), q), scale=(sx, sy, sz), color=color))
+            items.append(
+                marker(
+                    eid,
+                    0,
+                    CUBE,
+                    t_ns,
+                    pose=_pose((x + lift[0], y + lift[1], z + lift[2]), q),
+                    scale=(sx, sy, sz),
+                    color=color,
+                )
+            )
         else:
             shape = CYLINDER if kind == HUMAN else CUBE
-            items.append(marker(eid, 0, shape, t_ns, scale=(sx, sy, sz), color=color,
-                                alpha=0.8, pose=_pose((x, y, z + sz / 2),
-                                                      rpy_to_quat(0.0, 0.0, yaw))))
-            items.append(marker(eid, 2, ARROW, t_ns, scale=(0.6, 0.08, 0.08), color=color,
-                                pose=_pose((x, y, z + 0.8 * sz), rpy_to_quat(0.0, 0.0, yaw))))
+            items.append(
+                marker(
+                    eid,
+                    0,
+                    shape,
+                    t_ns,
+                    scale=(sx, sy, sz),
+                    color=color,
+                    alpha=0.8,
+                    pose=_pose((x, y, z + sz / 2), rpy_to_quat(0.0, 0.0, yaw)),
+                )
+            )
+            items.append(
+                marker(
+                    eid,
+                    2,
+                    ARROW,
+                    t_ns,
+                    scale=(0.6, 0.08, 0.08),
+                    color=color,
+                    pose=_pose((x, y, z + 0.8 * sz), rpy_to_quat(0.0, 0.0, yaw)),
+                )
+            )
             joints = skeleton.get(r, [])
             if joints:
-                items.append(marker(eid, 3, SPHERE_LIST, t_ns, scale=(0.08, 0.08, 0.08),
-                                    color=(1.0, 0.3, 0.3),
-                                    points=[world.pos[j].tolist() for j in joints]))
-        items.append(marker(eid, 1, TEXT, t_ns, pose=_pose((x, y, z + sz + 0.2)),
-                            scale=(0.2, 0.2, 0.2), color=color, text=world.names[r]))
+                items.append(
+                    marker(
+                        eid,
+                        3,
+                        SPHERE_LIST,
+                        t_ns,
+                        scale=(0.08, 0.08, 0.08),
+                        color=(1.0, 0.3, 0.3),
+                        points=[world.pos[j].tolist() for j in joints],
+                    )
+                )
+        items.append(
+            marker(
+                eid,
+                1,
+                TEXT,
+                t_ns,
+                pose=_pose((x, y, z + sz + 0.2)),
+                scale=(0.2, 0.2, 0.2),
+                color=color,
+                text=world.names[r],
+            )
+        )
     return out
 
 
@@ -184,8 +257,9 @@ def _area_outline(world: World, spec: Mapping[str, Any]) -> tuple[list[list[floa
     return points, z
 
 
-def area_markers(world: World, areas: Mapping[str, Mapping[str, Any]],
-                 occupied: set[str], t_ns: int) -> list[dict[str, Any]]:
+def area_markers(
+    world: World, areas: Mapping[str, Mapping[str, Any]], occupied: set[str], t_ns: int
+) -> list[dict[str, Any]]:
     """marker_area: polygons as closed lines, circles as flat discs, names above."""
     out = [_clear(t_ns)]
     for area_id, spec in sorted(areas.items()):
@@ -205,19 +279,44 @@ def area_markers(world: World, areas: Mapping[str, Mapping[str, Any]],
                 cx, cy, cz = ox + c * cx - s * cy, oy + s * cx + c * cy, cz + oz
             radius = float(spec["radius"])
             height = float(spec.get("height") or 0.02)
-            out.append(marker(area_id, 0, CYLINDER, t_ns, pose=_pose((cx, cy, cz)),
-                              scale=(2 * radius, 2 * radius, height), color=color,
-                              alpha=0.5 if busy else 0.25))
+            out.append(
+                marker(
+                    area_id,
+                    0,
+                    CYLINDER,
+                    t_ns,
+                    pose=_pose((cx, cy, cz)),
+                    scale=(2 * radius, 2 * radius, height),
+                    color=color,
+                    alpha=0.5 if busy else 0.25,
+                )
+            )
             label = (cx, cy, cz + 0.1)
         else:
             points, z = _area_outline(world, spec)
             ring = [[p[0], p[1], z] for p in [*points, points[0]]]
-            out.append(marker(area_id, 0, LINE_STRIP, t_ns, scale=(0.05, 0.0, 0.0),
-                              color=color, points=ring))
-            label = (sum(p[0] for p in points) / len(points),
-                     sum(p[1] for p in points) / len(points), z + 0.1)
-        out.append(marker(area_id, 1, TEXT, t_ns, pose=_pose(label), scale=(0.3, 0.3, 0.3),
-                          color=color, text=area_id))
+            out.append(
+                marker(
+                    area_id, 0, LINE_STRIP, t_ns, scale=(0.05, 0.0, 0.0), color=color, points=ring
+                )
+            )
+            label = (
+                sum(p[0] for p in points) / len(points),
+                sum(p[1] for p in points) / len(points),
+                z + 0.1,
+            )
+        out.append(
+            marker(
+                area_id,
+                1,
+                TEXT,
+                t_ns,
+                pose=_pose(label),
+                scale=(0.3, 0.3, 0.3),
+                color=color,
+                text=area_id,
+            )
+        )
     return out
 
 
@@ -245,17 +344,44 @@ def motion_markers(world: World, facts: Sequence[Fact], t_ns: int) -> list[dict[
         if fact.property == "IsMoving":
             length = max(0.2, float(fact.value_num or 0.0))
             yaw = float(world.rpy[s, 2])
-            out.append(marker(ns, mid, ARROW, t_ns, scale=(length, 0.1, 0.1),
-                              color=(1.0, 0.0, 0.0), alpha=min(1.0, 0.3 + fact.confidence),
-                              pose=_pose(start, rpy_to_quat(0.0, 0.0, yaw))))
+            out.append(
+                marker(
+                    ns,
+                    mid,
+                    ARROW,
+                    t_ns,
+                    scale=(length, 0.1, 0.1),
+                    color=(1.0, 0.0, 0.0),
+                    alpha=min(1.0, 0.3 + fact.confidence),
+                    pose=_pose(start, rpy_to_quat(0.0, 0.0, yaw)),
+                )
+            )
         elif fact.property == "IsMovingToward" and target is not None:
-            out.append(marker(ns, mid, ARROW, t_ns, scale=(0.05, 0.1, 0.15),
-                              color=(1.0, 0.4, 0.0), alpha=0.8,
-                              points=[start, world.pos[target].tolist()]))
+            out.append(
+                marker(
+                    ns,
+                    mid,
+                    ARROW,
+                    t_ns,
+                    scale=(0.05, 0.1, 0.15),
+                    color=(1.0, 0.4, 0.0),
+                    alpha=0.8,
+                    points=[start, world.pos[target].tolist()],
+                )
+            )
         elif fact.property in ("IsLookingAt", "IsLookingToward") and target is not None:
             head = _head(world, s)
             color = (0.8, 0.0, 0.8) if fact.property == "IsLookingAt" else (0.4, 0.4, 1.0)
-            out.append(marker(ns, mid, LINE_LIST, t_ns, scale=(0.03, 0.0, 0.0), color=color,
-                              alpha=0.8, points=[world.pos[head].tolist(),
-                                                 world.pos[target].tolist()]))
+            out.append(
+                marker(
+                    ns,
+                    mid,
+                    LINE_LIST,
+                    t_ns,
+                    scale=(0.03, 0.0, 0.0),
+                    color=color,
+                    alpha=0.8,
+                    points=[world.pos[head].tolist(), world.pos[target].tolist()],
+                )
+            )
     return out

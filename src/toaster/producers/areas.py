@@ -105,8 +105,11 @@ class AreaManager:
 
     name = "area_manager"
 
-    def __init__(self, areas: Mapping[str, Mapping[str, Any]] | None = None,
-                 config: Mapping[str, Any] | None = None) -> None:
+    def __init__(
+        self,
+        areas: Mapping[str, Mapping[str, Any]] | None = None,
+        config: Mapping[str, Any] | None = None,
+    ) -> None:
         self.config = make_config(config)
         self._areas: dict[str, _Compiled] = {}
         self._keys = np.zeros(0, np.int64)
@@ -128,8 +131,10 @@ class AreaManager:
 
     def _relayout(self, members: dict[str, np.ndarray]) -> None:
         self._slots = list(self._areas.values())
-        parts = [i * _K + members.get(a.area_id, np.zeros(0, np.int64))
-                 for i, a in enumerate(self._slots)]
+        parts = [
+            i * _K + members.get(a.area_id, np.zeros(0, np.int64))
+            for i, a in enumerate(self._slots)
+        ]
         self._keys = np.sort(np.concatenate(parts)) if parts else np.zeros(0, np.int64)
         self._static = _StaticAreas(self._slots)
 
@@ -189,8 +194,14 @@ class AreaManager:
             z = pos[cand, 2]
             z_lo, z_hi = area.z_lo + pos[owner, 2], area.z_hi + pos[owner, 2]
             x0, y0, x1, y1 = area.bounds
-            near = ((xy[:, 0] >= x0) & (xy[:, 0] <= x1) & (xy[:, 1] >= y0) & (xy[:, 1] <= y1)
-                    & (z >= z_lo) & (z <= z_hi))
+            near = (
+                (xy[:, 0] >= x0)
+                & (xy[:, 0] <= x1)
+                & (xy[:, 1] >= y0)
+                & (xy[:, 1] <= y1)
+                & (z >= z_lo)
+                & (z <= z_hi)
+            )
             cand, xy = cand[near], xy[near]
             in_outer = _inside(area.outer, xy)
             in_inner = in_outer if area.inner is area.outer else _inside(area.inner, xy)
@@ -205,7 +216,7 @@ class AreaManager:
             owner = owner_rows.get(slot, -1)
             if area.spec["owner"] and owner < 0:
                 continue
-            rows = rows_all[bounds[slot]:bounds[slot + 1]]
+            rows = rows_all[bounds[slot] : bounds[slot + 1]]
             if "density" in area.spec["facts"] and owner < 0 and kind_count is None:
                 kind_count = np.bincount(kind[live], minlength=4)
             self._facts(world, area, owner, rows, live, kind_count, out)
@@ -215,18 +226,32 @@ class AreaManager:
         """The IsFacing state of an area, new when the area or the world changed."""
         got = self._facing.get(area.area_id)
         if got is None or got[0] is not area or got[1]() is not world:
-            got = (area, weakref.ref(world),
-                   Debouncer(ns(self.config, "min_duration", "IsFacing")))
+            got = (area, weakref.ref(world), Debouncer(ns(self.config, "min_duration", "IsFacing")))
             self._facing[area.area_id] = got
         return got[2]
 
-    def _facts(self, world: World, area: _Compiled, owner: int, rows: np.ndarray,
-               live: np.ndarray, kind_count: np.ndarray | None, out: FactBatch) -> None:
+    def _facts(
+        self,
+        world: World,
+        area: _Compiled,
+        owner: int,
+        rows: np.ndarray,
+        live: np.ndarray,
+        kind_count: np.ndarray | None,
+        out: FactBatch,
+    ) -> None:
         spec, area_id = area.spec, area.area_id
         owner_id = spec["owner"] if owner >= 0 else ""
         prop, sub = area.prop, area.sub
-        out.add(prop, rows, area_id, obs=self.config["observability_area"],
-                property_type="position", sub_property=sub, tgt_owner=owner_id)
+        out.add(
+            prop,
+            rows,
+            area_id,
+            obs=self.config["observability_area"],
+            property_type="position",
+            sub_property=sub,
+            tgt_owner=owner_id,
+        )
         if "interaction" in spec["facts"] and owner >= 0 and rows.size:
             pos = world.pos
             angle = wrap_angle(world.rpy[rows, 2] - bearing(pos[rows, :2], pos[owner, :2]))
@@ -235,9 +260,16 @@ class AreaManager:
             # debounced (min_duration["IsFacing"]); a held fact keeps the measured angle
             clock = np.maximum(world.t_ns[: world.n], world.t_ns[owner])
             keep = self._facing_debouncer(world, area).update(rows, conf > 0, clock)
-            out.add("IsFacing", rows[keep], owner_id, value_num=angle[keep],
-                    conf=np.maximum(conf[keep], 0.0), obs=self.config["observability_facing"],
-                    property_type="posture", sub_property="angle")
+            out.add(
+                "IsFacing",
+                rows[keep],
+                owner_id,
+                value_num=angle[keep],
+                conf=np.maximum(conf[keep], 0.0),
+                obs=self.config["observability_facing"],
+                property_type="posture",
+                sub_property="angle",
+            )
         if "density" in spec["facts"]:
             if owner >= 0:
                 population = live & area.kinds[world.kind[: world.n]]
@@ -248,8 +280,17 @@ class AreaManager:
                 assert kind_count is not None  # counted for every unowned density area
                 total = int(kind_count[area.kinds].sum())
             ratio = rows.size / total if total else 0.0
-            out.add("AreaDensity", area_id, "", value_num=ratio, conf=1.0, obs=0.0,
-                    property_type="density", sub_property="ratio", subj_owner=owner_id)
+            out.add(
+                "AreaDensity",
+                area_id,
+                "",
+                value_num=ratio,
+                conf=1.0,
+                obs=0.0,
+                property_type="density",
+                sub_property="ratio",
+                subj_owner=owner_id,
+            )
 
 
 def _in_sorted(values: np.ndarray, sorted_keys: np.ndarray) -> np.ndarray:
@@ -277,19 +318,26 @@ class _StaticAreas:
         self.circle = np.asarray([isinstance(a.outer, tuple) for a in areas], bool)
         self.same = np.asarray([a.inner is a.outer for a in areas], bool)
         none = (0.0, 0.0, 0.0)
-        circ = [(a.outer, a.inner) if isinstance(a.outer, tuple) and isinstance(a.inner, tuple)
-                else (none, none) for a in areas]
+        circ = [
+            (a.outer, a.inner)
+            if isinstance(a.outer, tuple) and isinstance(a.inner, tuple)
+            else (none, none)
+            for a in areas
+        ]
         self.cx = np.asarray([c[0][0] for c in circ], float)
         self.cy = np.asarray([c[0][1] for c in circ], float)
         self.r_out = np.asarray([c[0][2] for c in circ], float)
         self.r_in = np.asarray([c[1][2] for c in circ], float)
-        self.outer = np.asarray([None if isinstance(a.outer, tuple) else a.outer for a in areas]
-                                + [None], object)[:-1]
-        self.inner = np.asarray([None if isinstance(a.inner, tuple) else a.inner for a in areas]
-                                + [None], object)[:-1]
+        self.outer = np.asarray(
+            [None if isinstance(a.outer, tuple) else a.outer for a in areas] + [None], object
+        )[:-1]
+        self.inner = np.asarray(
+            [None if isinstance(a.inner, tuple) else a.inner for a in areas] + [None], object
+        )[:-1]
 
-    def members(self, pos: np.ndarray, kind: np.ndarray, live: np.ndarray,
-                prev: np.ndarray) -> np.ndarray:
+    def members(
+        self, pos: np.ndarray, kind: np.ndarray, live: np.ndarray, prev: np.ndarray
+    ) -> np.ndarray:
         """New membership keys of the static areas (unsorted)."""
         cand = np.flatnonzero(live & self.any_kind[kind])
         if cand.size == 0:
@@ -307,8 +355,13 @@ class _StaticAreas:
         start = np.cumsum(counts) - counts
         ent = cand[order[np.arange(total) - np.repeat(start - lo, counts)]]
         p = pos[ent]
-        ok = ((p[:, 1] >= self.y0[area]) & (p[:, 1] <= self.y1[area]) & (p[:, 2] >= self.z_lo[area])
-              & (p[:, 2] <= self.z_hi[area]) & self.kinds[area, kind[ent]])
+        ok = (
+            (p[:, 1] >= self.y0[area])
+            & (p[:, 1] <= self.y1[area])
+            & (p[:, 2] >= self.z_lo[area])
+            & (p[:, 2] <= self.z_hi[area])
+            & self.kinds[area, kind[ent]]
+        )
         area, ent, p = area[ok], ent[ok], p[ok]
         circle = self.circle[area]
         in_outer = np.empty(len(area), bool)
@@ -327,15 +380,20 @@ class _StaticAreas:
             in_inner[g] = in_outer[g]
             diff = g[~same]
             if diff.size:
-                in_inner[diff] = shapely.intersects_xy(self.inner[area[diff]], p[diff, 0],
-                                                       p[diff, 1])
+                in_inner[diff] = shapely.intersects_xy(
+                    self.inner[area[diff]], p[diff, 0], p[diff, 1]
+                )
         keys = self.slots[area] * _K + ent
         was = _in_sorted(keys, prev)
         return keys[in_inner | (was & in_outer)]
 
 
-LABELS = ((math.pi / 6, "ahead", "ahead"), (math.pi / 4, "ahead right", "ahead left"),
-          (3 * math.pi / 4, "right", "left"), (5 * math.pi / 6, "back right", "back left"))
+LABELS = (
+    (math.pi / 6, "ahead", "ahead"),
+    (math.pi / 4, "ahead right", "ahead left"),
+    (3 * math.pi / 4, "right", "left"),
+    (5 * math.pi / 6, "back right", "back left"),
+)
 
 
 def direction_label(angle: float) -> str:
@@ -354,8 +412,9 @@ def relative_position(world: World, subject_id: str, target_id: str) -> tuple[st
     return direction_label(angle), angle
 
 
-def multiple_relative_position(world: World, agent_id: str, object_id: str,
-                               target_id: str) -> tuple[str, float]:
+def multiple_relative_position(
+    world: World, agent_id: str, object_id: str, target_id: str
+) -> tuple[str, float]:
     """Where the target is relative to the object, seen from the agent (sign bug fixed).
 
     angle = wrap(bearing(agent→object) − bearing(object→target)).

@@ -78,11 +78,21 @@ class FactBatch:
     def __len__(self) -> int:
         return self.n
 
-    def add(self, prop: str, subj: np.ndarray | str, tgt: np.ndarray | str = "", *,
-            value_text: str | tuple[np.ndarray, np.ndarray] = "true",
-            value_num: np.ndarray | float | None = None, conf: np.ndarray | float = 1.0,
-            obs: float = 1.0, property_type: str = "", sub_property: str = "",
-            tgt_owner: np.ndarray | str = "", subj_owner: str = "") -> None:
+    def add(
+        self,
+        prop: str,
+        subj: np.ndarray | str,
+        tgt: np.ndarray | str = "",
+        *,
+        value_text: str | tuple[np.ndarray, np.ndarray] = "true",
+        value_num: np.ndarray | float | None = None,
+        conf: np.ndarray | float = 1.0,
+        obs: float = 1.0,
+        property_type: str = "",
+        sub_property: str = "",
+        tgt_owner: np.ndarray | str = "",
+        subj_owner: str = "",
+    ) -> None:
         """Append a group; array columns all have the group's length.
 
         ``subj_owner`` is used only with a constant subject (row subjects derive theirs).
@@ -95,8 +105,22 @@ class FactBatch:
             size = 1
         if size == 0:
             return
-        self.groups.append(Group(prop, subj, tgt, value_text, value_num, conf, obs,
-                                 property_type, sub_property, tgt_owner, subj_owner, size))
+        self.groups.append(
+            Group(
+                prop,
+                subj,
+                tgt,
+                value_text,
+                value_num,
+                conf,
+                obs,
+                property_type,
+                sub_property,
+                tgt_owner,
+                subj_owner,
+                size,
+            )
+        )
         self.n += size
         self._facts = None
 
@@ -141,8 +165,11 @@ class FactBatch:
                 num.append(np.asarray(g.value_num, np.float64))
             else:
                 num.append(np.full(m, np.nan if g.value_num is None else g.value_num))
-            conf.append(np.asarray(g.conf, np.float64) if isinstance(g.conf, np.ndarray)
-                        else np.full(m, float(g.conf)))
+            conf.append(
+                np.asarray(g.conf, np.float64)
+                if isinstance(g.conf, np.ndarray)
+                else np.full(m, float(g.conf))
+            )
             obs.append(np.full(m, float(g.obs)))
         return np.concatenate(num), np.concatenate(conf), np.concatenate(obs)
 
@@ -161,24 +188,41 @@ class FactBatch:
             subj_owner: Any = world.owner_id_array()[rows].tolist()
         else:
             subj, subj_owner = repeat(g.subj, m), repeat(g.subj_owner, m)
-        tgt = (ids[pick(g.tgt)].tolist() if isinstance(g.tgt, np.ndarray)
-               else repeat(g.tgt, m))
+        tgt = ids[pick(g.tgt)].tolist() if isinstance(g.tgt, np.ndarray) else repeat(g.tgt, m)
         if isinstance(g.value_text, tuple):
             codes, labels = g.value_text
             vt: Any = labels[pick(codes)].tolist()
         else:
             vt = repeat(g.value_text, m)
-        vn = (pick(g.value_num).tolist() if isinstance(g.value_num, np.ndarray)
-              else repeat(g.value_num, m))
+        vn = (
+            pick(g.value_num).tolist()
+            if isinstance(g.value_num, np.ndarray)
+            else repeat(g.value_num, m)
+        )
         cf = pick(g.conf).tolist() if isinstance(g.conf, np.ndarray) else repeat(g.conf, m)
         if isinstance(g.tgt_owner, np.ndarray):
             owners = pick(g.tgt_owner)
             to: Any = np.where(owners >= 0, ids[owners], "").tolist()
         else:
             to = repeat(g.tgt_owner, m)
-        return list(map(_make_fact, zip(subj, repeat(g.prop, m), tgt, vt, vn, cf,  # noqa: B905
-                                        repeat(g.obs, m), repeat(g.property_type, m),
-                                        repeat(g.sub_property, m), subj_owner, to)))
+        return list(
+            map(
+                _make_fact,
+                zip(  # noqa: B905
+                    subj,
+                    repeat(g.prop, m),
+                    tgt,
+                    vt,
+                    vn,
+                    cf,
+                    repeat(g.obs, m),
+                    repeat(g.property_type, m),
+                    repeat(g.sub_property, m),
+                    subj_owner,
+                    to,
+                ),
+            )
+        )
 
     # -- keys ----------------------------------------------------------------------------------
     def keys(self) -> tuple[np.ndarray, np.ndarray]:
@@ -196,10 +240,15 @@ class FactBatch:
         for i, g in enumerate(groups):
             subj_row = isinstance(g.subj, np.ndarray)
             tgt_row = isinstance(g.tgt, np.ndarray)
-            base[i] = _sig_id((g.prop, g.sub_property,
-                               None if subj_row else (g.subj, g.subj_owner),
-                               None if tgt_row else g.tgt,
-                               None if isinstance(g.tgt_owner, np.ndarray) else g.tgt_owner))
+            base[i] = _sig_id(
+                (
+                    g.prop,
+                    g.sub_property,
+                    None if subj_row else (g.subj, g.subj_owner),
+                    None if tgt_row else g.tgt,
+                    None if isinstance(g.tgt_owner, np.ndarray) else g.tgt_owner,
+                )
+            )
             subj_parts.append(g.subj if isinstance(g.subj, np.ndarray) else neg[: g.size])
             tgt_parts.append(g.tgt if isinstance(g.tgt, np.ndarray) else neg[: g.size])
             if isinstance(g.value_text, tuple):
@@ -215,7 +264,7 @@ class FactBatch:
             ends = np.cumsum(sizes)
             for i, (lab_codes, labels) in labelled:
                 table = np.array([text_code(x) for x in labels.tolist()], np.int64)
-                codes[ends[i] - sizes[i]: ends[i]] = table[lab_codes]
+                codes[ends[i] - sizes[i] : ends[i]] = table[lab_codes]
         return keys, codes
 
 

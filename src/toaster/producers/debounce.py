@@ -19,8 +19,9 @@ import numpy as np
 from toaster.world.history import NO_TIME
 
 
-def _step(state: np.ndarray, since: np.ndarray, raw: np.ndarray, clock: np.ndarray,
-          min_ns: int) -> tuple[np.ndarray, np.ndarray]:
+def _step(
+    state: np.ndarray, since: np.ndarray, raw: np.ndarray, clock: np.ndarray, min_ns: int
+) -> tuple[np.ndarray, np.ndarray]:
     """The rule of the module for aligned arrays: (new reported state, new time of the last
     evidence agreeing with it)."""
     differ = raw != state
@@ -60,8 +61,9 @@ class Debouncer:
             self.since = np.concatenate([self.since, np.full(n - old, NO_TIME, np.int64)])
         full = np.zeros(n, bool)
         full[rows] = raw
-        self.state[:n], self.since[:n] = _step(self.state[:n], self.since[:n], full, clock,
-                                               self.min_ns)
+        self.state[:n], self.since[:n] = _step(
+            self.state[:n], self.since[:n], full, clock, self.min_ns
+        )
         return self.state[rows].copy()
 
 
@@ -89,8 +91,9 @@ class PairDebouncer:
         self.state = np.zeros(0, bool)
         self.since = np.zeros(0, np.int64)
 
-    def update(self, keys: np.ndarray, raw: np.ndarray, clock: np.ndarray,
-               before: np.ndarray | None = None) -> np.ndarray:
+    def update(
+        self, keys: np.ndarray, raw: np.ndarray, clock: np.ndarray, before: np.ndarray | None = None
+    ) -> np.ndarray:
         """The reported state of the pairs ``keys`` (unique) given their raw state, the time
         of that evidence (ns, one per pair) and, optionally, the time of the evidence before
         it (``NO_TIME`` where there is none)."""

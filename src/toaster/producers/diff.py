@@ -35,8 +35,11 @@ class KeySnapshot:
         return len(self.keys)
 
     def __eq__(self, other: object) -> bool:
-        return (isinstance(other, KeySnapshot) and np.array_equal(self.keys, other.keys)
-                and np.array_equal(self.codes, other.codes))
+        return (
+            isinstance(other, KeySnapshot)
+            and np.array_equal(self.keys, other.keys)
+            and np.array_equal(self.codes, other.codes)
+        )
 
     __hash__ = None  # type: ignore[assignment]
 
@@ -64,8 +67,10 @@ class SnapshotDiff:
         old = self._last.get(source)
         if isinstance(old, KeySnapshot):
             if not (isinstance(facts, FactBatch) and facts.world is old.world):
-                msg = (f"source {source!r} switched from fact batches of one world to another "
-                       "kind of snapshot: use one kind per source and diff")
+                msg = (
+                    f"source {source!r} switched from fact batches of one world to another "
+                    "kind of snapshot: use one kind per source and diff"
+                )
                 raise TypeError(msg)
             snap = KeySnapshot.of(facts)
             self._last[source] = snap
@@ -99,4 +104,3 @@ def _diff_keys(old: KeySnapshot, new: KeySnapshot) -> Changes:
     n_found = int(found.sum())
     changed = int((old.codes[pos_c[found]] != new.codes[found]).sum())
     return Changes(len(new.keys) - n_found, changed, len(old.keys) - n_found)
-

@@ -36,13 +36,20 @@ from toaster.world.history import NO_TIME
 from toaster.world.state import HUMAN, JOINT, ROBOT, World
 
 _PAIR = 1 << 21  # pair key = mover row × _PAIR + target row (rows < 2M)
-_CLASSES = {"humans": (HUMAN,), "robots": (ROBOT,), "agents": (HUMAN, ROBOT),
-            "human": (HUMAN,), "robot": (ROBOT,), "agent": (HUMAN, ROBOT)}
+_CLASSES = {
+    "humans": (HUMAN,),
+    "robots": (ROBOT,),
+    "agents": (HUMAN, ROBOT),
+    "human": (HUMAN,),
+    "robot": (ROBOT,),
+    "agent": (HUMAN, ROBOT),
+}
 DIST_LABELS = np.array(["reach", "close", "medium", "far", "out"], dtype=object)
 
 
-def _speed(world: World, rows: np.ndarray, window_ns: int, gap_ns: int
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _speed(
+    world: World, rows: np.ndarray, window_ns: int, gap_ns: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(2D speed m/s, reference xy, elapsed s) over a window, per row; speed 0 if no sample."""
     elapsed, ref_pos, _ = world.history.window_sample(rows, window_ns, gap_ns)
     secs = elapsed / NS_PER_S
@@ -64,8 +71,11 @@ class AgentMonitor:
         self._body_moving = Debouncer(moving_ns)
         self._joint_moving = Debouncer(moving_ns)
         toward_ns = ns(self.config, "min_duration", "IsMovingToward")
-        self._toward_state = {(part, sub): PairDebouncer(toward_ns) for part in ("body", "joint")
-                              for sub in ("direction", "distance")}
+        self._toward_state = {
+            (part, sub): PairDebouncer(toward_ns)
+            for part in ("body", "joint")
+            for sub in ("direction", "distance")
+        }
         # per part ("body", "joint"), the movers of this and of the last computed tick
         self._movers: dict[str, np.ndarray] = {}
         self._last_movers: dict[str, np.ndarray] = {}
@@ -89,8 +99,10 @@ class AgentMonitor:
             if kinds is not None:
                 table[list(kinds)] = True
             elif isinstance(which, str):
-                msg = (f"monitored_agents {which!r} is not understood: use humans, robots, "
-                       "agents or a list of agent ids")
+                msg = (
+                    f"monitored_agents {which!r} is not understood: use humans, robots, "
+                    "agents or a list of agent ids"
+                )
                 raise InvalidInputError(msg)
             elif not str(item).startswith("-") and item in world.index:
                 mask[world.index[item]] = True
@@ -118,8 +130,7 @@ class AgentMonitor:
             return joints
         names = self._joint_names(world)
         if isinstance(which, Mapping):
-            rows = [r for r in joints
-                    if names[r] in which.get(world.ids[world.owner[r]], ())]
+            rows = [r for r in joints if names[r] in which.get(world.ids[world.owner[r]], ())]
             return np.asarray(rows, dtype=np.int64)
         return joints[np.isin(names[joints], list(which))]
 
@@ -166,8 +177,15 @@ class AgentMonitor:
         mov = agents[moving]
         if mov.size:
             s = speed[moving]
-            out.add("IsMoving", mov, value_num=s, conf=np.minimum(1.0, s * 3.6 / 5.0), obs=obs,
-                    property_type="motion", sub_property="agent")
+            out.add(
+                "IsMoving",
+                mov,
+                value_num=s,
+                conf=np.minimum(1.0, s * 3.6 / 5.0),
+                obs=obs,
+                property_type="motion",
+                sub_property="agent",
+            )
             self._toward(world, mov, targets, index, "body", out)
         still = agents[~moving]
         joints = self.monitored_joints(world, still, live)
@@ -181,13 +199,26 @@ class AgentMonitor:
         jmov = joints[jm]
         if jmov.size:
             s = jspeed[jm]
-            out.add("IsMoving", jmov, value_num=s, conf=np.minimum(1.0, s * 3.6 / 20.0),
-                    obs=obs, property_type="motion", sub_property="joint")
+            out.add(
+                "IsMoving",
+                jmov,
+                value_num=s,
+                conf=np.minimum(1.0, s * 3.6 / 20.0),
+                obs=obs,
+                property_type="motion",
+                sub_property="joint",
+            )
             self._toward(world, jmov, targets, index, "joint", out)
         return out
 
-    def _looking(self, world: World, agents: np.ndarray, targets: np.ndarray,
-                 index: PlanarIndex, out: FactBatch) -> None:
+    def _looking(
+        self,
+        world: World,
+        agents: np.ndarray,
+        targets: np.ndarray,
+        index: PlanarIndex,
+        out: FactBatch,
+    ) -> None:
         cfg = self.config
         head_of = self.head_rows(world)
         heads = head_of[agents]
@@ -201,8 +232,9 @@ class AgentMonitor:
         hp = world.pos[heads]
         # the index holds the targets' bodies: widen the query by the farthest head offset
         headed = np.flatnonzero(target_head >= 0)
-        offset = float(np.sqrt(((points[headed, :2] - index.xy[headed]) ** 2).sum(1)).max(
-            initial=0.0))
+        offset = float(
+            np.sqrt(((points[headed, :2] - index.xy[headed]) ** 2).sum(1)).max(initial=0.0)
+        )
         ai, ti = index.candidates(hp, reach + offset)
         dist = pair_distance(hp, points, ai, ti)  # = norm over (dx, dy, dz), same rounding
         near = (dist <= reach) & (targets[ti] != agents[ai]) & (dist > 0)
@@ -218,14 +250,31 @@ class AgentMonitor:
         obs = cfg["observability_monitor"]
         a_rows, t_rows = agents[ai], targets[ti]
         quarter = aperture / 4
-        for keep, prop, width in ((toward, "IsLookingToward", aperture),
-                                  (at, "IsLookingAt", quarter)):
+        for keep, prop, width in (
+            (toward, "IsLookingToward", aperture),
+            (at, "IsLookingAt", quarter),
+        ):
             a = ang[keep]
-            out.add(prop, a_rows[keep], t_rows[keep], value_num=a, conf=(width - a) / width,
-                    obs=obs, property_type="attention", sub_property="agent")
+            out.add(
+                prop,
+                a_rows[keep],
+                t_rows[keep],
+                value_num=a,
+                conf=(width - a) / width,
+                obs=obs,
+                property_type="attention",
+                sub_property="agent",
+            )
 
-    def _toward(self, world: World, movers: np.ndarray, targets: np.ndarray,
-                index: PlanarIndex, part: str, out: FactBatch) -> None:
+    def _toward(
+        self,
+        world: World,
+        movers: np.ndarray,
+        targets: np.ndarray,
+        index: PlanarIndex,
+        part: str,
+        out: FactBatch,
+    ) -> None:
         """IsMovingToward by direction and by distance for moving bodies or joints.
 
         Only targets nearer than ``toward_range`` (2D, from the mover's position) count.
@@ -259,9 +308,16 @@ class AgentMonitor:
         self._movers[part] = movers
         before = np.where(continuing, prev, NO_TIME)[mi]
         ok = self._toward_state[(part, "direction")].update(pairs, conf > 0, clock, before)
-        out.add("IsMovingToward", movers[mi[ok]], targets[ti[ok]], value_num=dev[ok],
-                conf=np.maximum(conf[ok], 0.0), obs=obs, property_type="motion",
-                sub_property="direction")
+        out.add(
+            "IsMovingToward",
+            movers[mi[ok]],
+            targets[ti[ok]],
+            value_num=dev[ok],
+            conf=np.maximum(conf[ok], 0.0),
+            obs=obs,
+            property_type="motion",
+            sub_property="direction",
+        )
         _, ref, secs = _speed(world, movers, ns(cfg, f"{part}_toward_distance_window"), gap)
         bx = ref[mi, 0] - tgt[ti, 0]
         by = ref[mi, 1] - tgt[ti, 1]
@@ -273,15 +329,29 @@ class AgentMonitor:
         mi, ti, delta = mi[ok], ti[ok], delta[ok]
         with np.errstate(divide="ignore", invalid="ignore"):
             share = np.where(step[mi] > 0, delta / step[mi], 0.0)
-        out.add("IsMovingToward", movers[mi], targets[ti], value_num=delta,
-                conf=np.clip(share, 0.0, 1.0), obs=obs,
-                property_type="motion", sub_property="distance")
+        out.add(
+            "IsMovingToward",
+            movers[mi],
+            targets[ti],
+            value_num=delta,
+            conf=np.clip(share, 0.0, 1.0),
+            obs=obs,
+            property_type="motion",
+            sub_property="distance",
+        )
 
-    def _distance(self, world: World, joints: np.ndarray, targets: np.ndarray,
-                  index: PlanarIndex, out: FactBatch) -> None:
+    def _distance(
+        self,
+        world: World,
+        joints: np.ndarray,
+        targets: np.ndarray,
+        index: PlanarIndex,
+        out: FactBatch,
+    ) -> None:
         cfg = self.config
-        bounds = np.array([cfg["dist_reach"], cfg["dist_close"], cfg["dist_medium"],
-                           cfg["dist_far"]])
+        bounds = np.array(
+            [cfg["dist_reach"], cfg["dist_close"], cfg["dist_medium"], cfg["dist_far"]]
+        )
         jp, tp = world.pos[joints], world.pos[targets]
         if cfg["distance_emit_out"]:
             ji = np.repeat(np.arange(len(joints)), len(targets))
@@ -291,13 +361,27 @@ class AgentMonitor:
             # label < 4 (searchsorted right): strictly nearer than dist_far
             ji, ti, d = pairs_within(jp, tp, bounds[3], strict=True, index=index)
         label = np.searchsorted(bounds, d, side="right")
-        out.add("Distance", joints[ji], targets[ti], value_text=(label, DIST_LABELS),
-                value_num=d, conf=cfg["confidence_distance"], obs=cfg["observability_monitor"],
-                property_type="position", sub_property="3D")
+        out.add(
+            "Distance",
+            joints[ji],
+            targets[ti],
+            value_text=(label, DIST_LABELS),
+            value_num=d,
+            conf=cfg["confidence_distance"],
+            obs=cfg["observability_monitor"],
+            property_type="position",
+            sub_property="3D",
+        )
 
 
-def pointing(world: World, agent_id: str, joint: str = "rightHand", *, t_ns: int | None = None,
-             config: Mapping[str, Any] | None = None) -> list[tuple[str, float]]:
+def pointing(
+    world: World,
+    agent_id: str,
+    joint: str = "rightHand",
+    *,
+    t_ns: int | None = None,
+    config: Mapping[str, Any] | None = None,
+) -> list[tuple[str, float]]:
     """Entities an agent points at with a joint, best first, as (id, confidence).
 
     With ``t_ns``, poses come from the history as of that time (the "give me that" use case;

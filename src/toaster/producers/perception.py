@@ -31,13 +31,25 @@ class PerceptionFacts:
         out = FactBatch(world)
         live = world.live_mask(t_ns, ns(cfg, "presence_timeout"))
         agents = np.flatnonzero(live & (world.kind[:n] <= ROBOT))
-        out.add("isPresent", agents, "", conf=cfg["confidence_present"],
-                obs=cfg["observability_present"])
+        out.add(
+            "isPresent",
+            agents,
+            "",
+            conf=cfg["confidence_present"],
+            obs=cfg["observability_present"],
+        )
         held = np.flatnonzero(live & (world.held_by[:n] >= 0))
         if held.size:
             agent = world.owner[world.held_by[held]]
-            out.add("IsInHand", held, agent, obs=cfg["observability_in_hand"],
-                    property_type="position", sub_property="object", tgt_owner=agent)
+            out.add(
+                "IsInHand",
+                held,
+                agent,
+                obs=cfg["observability_in_hand"],
+                property_type="position",
+                sub_property="object",
+                tgt_owner=agent,
+            )
         return out
 
 
@@ -55,8 +67,9 @@ class HandActors:
     wherever it is (docs/beliefs.md, the actor).
     """
 
-    def __init__(self, reach: float = DEFAULTS["actor_hand_reach"],
-                 moved: float = DEFAULTS["actor_moved"]) -> None:
+    def __init__(
+        self, reach: float = DEFAULTS["actor_hand_reach"], moved: float = DEFAULTS["actor_moved"]
+    ) -> None:
         self.reach, self.moved = float(reach), float(moved)
         self._held = np.zeros(0, np.int64)  # world.held_by at the last update
         self._pos = np.zeros((0, 3))  # world.pos at the last update
@@ -83,13 +96,17 @@ class HandActors:
         rows = np.flatnonzero((now >= 0) | (before >= 0))
         if rows.size:
             hands = np.where(now[rows] >= 0, now[rows], before[rows])
-            self.movers = {ids[r]: ids[a] for r, a in zip(
-                rows.tolist(), owner[hands].tolist(), strict=True) if a >= 0}
+            self.movers = {
+                ids[r]: ids[a]
+                for r, a in zip(rows.tolist(), owner[hands].tolist(), strict=True)
+                if a >= 0
+            }
         self._handled(world, pos, pos_before, rows)
         return self.movers
 
-    def _handled(self, world: World, pos: np.ndarray, pos_before: np.ndarray,
-                 held: np.ndarray) -> None:
+    def _handled(
+        self, world: World, pos: np.ndarray, pos_before: np.ndarray, held: np.ndarray
+    ) -> None:
         """Objects that moved, not held, with a hand within reach: moved by that hand."""
         n = world.n
         objects = world.kind[:n] == OBJECT
@@ -99,14 +116,24 @@ class HandActors:
         if not moved.size:
             return
         joints = np.flatnonzero((world.kind[:n] == JOINT) & world.active[:n])
-        joints = np.array([j for j in joints.tolist() if "hand" in world.joint_names[j].lower()
-                           and world.owner[j] >= 0], dtype=np.int64)
+        joints = np.array(
+            [
+                j
+                for j in joints.tolist()
+                if "hand" in world.joint_names[j].lower() and world.owner[j] >= 0
+            ],
+            dtype=np.int64,
+        )
         if not joints.size:
             return
         gap = np.linalg.norm(pos[moved][:, None, :] - pos[joints][None, :, :], axis=2)
         nearest = gap.argmin(axis=1)
-        for row, j, d in zip(moved.tolist(), nearest.tolist(),
-                             gap[np.arange(len(moved)), nearest].tolist(), strict=True):
+        for row, j, d in zip(
+            moved.tolist(),
+            nearest.tolist(),
+            gap[np.arange(len(moved)), nearest].tolist(),
+            strict=True,
+        ):
             if d <= self.reach:
                 self.movers.setdefault(world.ids[row], world.ids[int(world.owner[joints[j]])])
 

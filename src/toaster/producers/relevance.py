@@ -53,8 +53,9 @@ class PlanarIndex:
         if self._tree is None:
             # unbalanced, non-compact: the cheapest build, and it is rebuilt every tick
             self._tree = cKDTree(self.xy, balanced_tree=False, compact_nodes=False)
-        hits = self._tree.query_ball_point(np.ascontiguousarray(a[:, :2], dtype=float), r,
-                                           return_sorted=True)
+        hits = self._tree.query_ball_point(
+            np.ascontiguousarray(a[:, :2], dtype=float), r, return_sorted=True
+        )
         counts = np.fromiter(map(len, hits), np.int64, m)
         total = int(counts.sum())
         if total == 0:
@@ -73,9 +74,14 @@ def pair_distance(a: np.ndarray, b: np.ndarray, ai: np.ndarray, bi: np.ndarray) 
     return np.sqrt(dx * dx + dy * dy + dz * dz)
 
 
-def pairs_within(a: np.ndarray, b: np.ndarray, r: float, *, strict: bool = False,
-                 index: PlanarIndex | None = None
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pairs_within(
+    a: np.ndarray,
+    b: np.ndarray,
+    r: float,
+    *,
+    strict: bool = False,
+    index: PlanarIndex | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(ai, bi, dist) of the pairs of rows of ``a`` and ``b`` at distance ≤ r (< r if strict).
 
     The distance is over ``a``'s columns (x, y or x, y, z), computed per pair as a dense

@@ -57,9 +57,16 @@ class Stats:
 class Runner:
     """One world, its sources and producers, and optionally a store to write snapshots to."""
 
-    def __init__(self, world: World, sources: Sequence[Source], producers: Sequence[Producer],
-                 *, store: Any = None, agent_id: str = DEFAULT_SELF,
-                 config: Mapping[str, Any] | None = None) -> None:
+    def __init__(
+        self,
+        world: World,
+        sources: Sequence[Source],
+        producers: Sequence[Producer],
+        *,
+        store: Any = None,
+        agent_id: str = DEFAULT_SELF,
+        config: Mapping[str, Any] | None = None,
+    ) -> None:
         self.world, self.sources, self.producers = world, list(sources), list(producers)
         self.store, self.agent_id = store, agent_id
         self.diff = SnapshotDiff()
@@ -69,8 +76,9 @@ class Runner:
         for source in self.sources:
             source.setup(world)
 
-    def tick(self, t_ns: int, *, on_error: Callable[[str, Exception], None] | None = None
-             ) -> dict[str, list[Fact] | FactBatch]:
+    def tick(
+        self, t_ns: int, *, on_error: Callable[[str, Exception], None] | None = None
+    ) -> dict[str, list[Fact] | FactBatch]:
         """Advance every source to ``t_ns``, compute every producer, write the snapshots.
 
         Producers with ``compute_batch`` hand over array snapshots (Fact tuples are only built
@@ -125,9 +133,16 @@ class Runner:
     def _add(self, name: str, seconds: float) -> None:
         self.stats.seconds[name] = self.stats.seconds.get(name, 0.0) + seconds
 
-    def run(self, start_ns: int, end_ns: int, rate_hz: float, *, realtime: bool = False,
-            on_tick: Callable[[int], None] | None = None,
-            maintain_every_s: float | None = MAINTAIN_EVERY_S) -> Stats:
+    def run(
+        self,
+        start_ns: int,
+        end_ns: int,
+        rate_hz: float,
+        *,
+        realtime: bool = False,
+        on_tick: Callable[[int], None] | None = None,
+        maintain_every_s: float | None = MAINTAIN_EVERY_S,
+    ) -> Stats:
         """Tick from start to end (inclusive) at ``rate_hz``; pace to the clock if realtime.
 
         Every ``maintain_every_s`` seconds of wall time the database is maintained between two
@@ -145,8 +160,11 @@ class Runner:
             if on_tick is not None:
                 on_tick(t)
             now = time.monotonic()
-            if (self.store is not None and maintain_every_s is not None
-                    and now - last_maintained >= maintain_every_s):
+            if (
+                self.store is not None
+                and maintain_every_s is not None
+                and now - last_maintained >= maintain_every_s
+            ):
                 self.store.db.maintain()
                 last_maintained = time.monotonic()
                 self._add("maintain", last_maintained - now)
@@ -190,10 +208,21 @@ class Session:
             x, y, z = (float(v) for v in world.pos[r])
             roll, pitch, yaw = (float(v) for v in world.rpy[r])
             sx, sy, sz = (float(v) for v in world.size[r])
-            return EntityPose(ids[r], world.kind_text[r], x, y, z, yaw, roll, pitch,
-                              (sx, sy, sz) if np.isfinite(world.size[r]).all() else None,
-                              ids[owner] if owner >= 0 else "", world.names[r],
-                              ids[hand] if hand >= 0 else "", int(world.t_ns[r]))
+            return EntityPose(
+                ids[r],
+                world.kind_text[r],
+                x,
+                y,
+                z,
+                yaw,
+                roll,
+                pitch,
+                (sx, sy, sz) if np.isfinite(world.size[r]).all() else None,
+                ids[owner] if owner >= 0 else "",
+                world.names[r],
+                ids[hand] if hand >= 0 else "",
+                int(world.t_ns[r]),
+            )
 
         live = np.flatnonzero(world.live_mask(t_ns, timeout)).tolist()
         areas = [(area_id, dict(spec)) for area_id, spec in self.areas.items()]
@@ -209,8 +238,11 @@ class Session:
         plain entities. Other robots stay agents, as the store makes them by default.
         """
         world, start, holders = self.world, self.start_ns, self.belief_holders
-        rows = sorted(entity_row(world, row, holders) for row, entity_id in enumerate(world.ids)
-                      if entity_id != self.self_id)  # (one order for every process)
+        rows = sorted(
+            entity_row(world, row, holders)
+            for row, entity_id in enumerate(world.ids)
+            if entity_id != self.self_id
+        )  # (one order for every process)
 
         def register(conn: Any) -> None:
             store.register_start(start)  # first: before the writes that lock store_state
@@ -222,8 +254,9 @@ class Session:
         store.retried(register)
 
 
-def entity_row(world: World, row: int, holders: str | Sequence[str]
-               ) -> tuple[str, str, str, str, bool | None]:
+def entity_row(
+    world: World, row: int, holders: str | Sequence[str]
+) -> tuple[str, str, str, str, bool | None]:
     """A world row as the store's ``(id, kind, name, owner_id, agent)`` (joints with their
     owner); a human is an agent (a belief holder) only as ``holders`` ("none", "humans" or
     ids) says."""
@@ -235,8 +268,9 @@ def entity_row(world: World, row: int, holders: str | Sequence[str]
     return entity_id, kind, world.names[row], owner, agent
 
 
-def register_row(store: Any, world: World, row: int, holders: str | Sequence[str],
-                 t_ns: int) -> None:
+def register_row(
+    store: Any, world: World, row: int, holders: str | Sequence[str], t_ns: int
+) -> None:
     """Put a world row in the store as an entity (see :func:`entity_row`)."""
     entity_id, kind, name, owner, agent = entity_row(world, row, holders)
     store.add_entity(entity_id, kind, name=name, owner_id=owner, agent=agent, t_ns=t_ns)
@@ -250,8 +284,10 @@ def _belief_holders(value: Any, kinds: dict[str, str], name: str) -> str | tuple
             return word.lower()
         value = word.split(",")
     if not isinstance(value, list | tuple) or not all(isinstance(v, str) for v in value):
-        msg = (f"belief holders {value!r} for {name}: give none, humans or a list of ids "
-               "(--holders ID[,ID...])")
+        msg = (
+            f"belief holders {value!r} for {name}: give none, humans or a list of ids "
+            "(--holders ID[,ID...])"
+        )
         raise InvalidInputError(msg)
     ids = tuple(dict.fromkeys(v.strip() for v in value if v.strip()))
     sample = ",".join([i for i, kind in kinds.items() if kind == "human"][:3]) or "(none)"
@@ -260,16 +296,24 @@ def _belief_holders(value: Any, kinds: dict[str, str], name: str) -> str | tuple
         raise InvalidInputError(msg)
     for entity_id in ids:
         if kinds.get(entity_id) not in ("human", "robot"):
-            msg = (f"belief holder {entity_id!r} is not a human of {name}: give none, humans "
-                   f"or ids of its people, such as {sample}")
+            msg = (
+                f"belief holder {entity_id!r} is not a human of {name}: give none, humans "
+                f"or ids of its people, such as {sample}"
+            )
             raise InvalidInputError(msg)
     return ids
 
 
-def load_session(path: str | Path, areas: dict[str, dict[str, Any]] | None = None, *,
-                 fps: float | None = None, holders: str | Sequence[str] | None = None,
-                 config: Mapping[str, Any] | None = None, tf_map: str | Path | None = None,
-                 pose_topics: Mapping[str, tuple[str, str]] | None = None) -> Session:
+def load_session(
+    path: str | Path,
+    areas: dict[str, dict[str, Any]] | None = None,
+    *,
+    fps: float | None = None,
+    holders: str | Sequence[str] | None = None,
+    config: Mapping[str, Any] | None = None,
+    tf_map: str | Path | None = None,
+    pose_topics: Mapping[str, tuple[str, str]] | None = None,
+) -> Session:
     """Build world, sources and producers from a scenario (.yaml/.yml/.json) or recording.
 
     Recordings: ``obsmat.txt`` (ETH/UCY; frame numbers at ``fps``, default 25, checked against
@@ -292,12 +336,16 @@ def load_session(path: str | Path, areas: dict[str, dict[str, Any]] | None = Non
         msg = f"--tf-map and --pose-topic are for ROS bags, not {path.name}"
         raise InvalidInputError(msg)
     if path.is_dir() and not is_bag(path):
-        msg = (f"cannot run the folder {path.name!r}: give a file, or a rosbag2 folder (with "
-               "metadata.yaml)")
+        msg = (
+            f"cannot run the folder {path.name!r}: give a file, or a rosbag2 folder (with "
+            "metadata.yaml)"
+        )
         raise FileFormatError(msg)
     if fps is not None and suffix != ".txt":
-        msg = (f"--fps is for obsmat .txt recordings (frame numbers): {path.name} gives its own "
-               "times; use --rate for ticks per second")
+        msg = (
+            f"--fps is for obsmat .txt recordings (frame numbers): {path.name} gives its own "
+            "times; use --rate for ticks per second"
+        )
         raise InvalidInputError(msg)
     if suffix in (".yaml", ".yml", ".json"):
         scenario = load_scenario(path)
@@ -326,17 +374,31 @@ def load_session(path: str | Path, areas: dict[str, dict[str, Any]] | None = Non
         start, end = source.start_ns, source.end_ns
         kinds, default_holders = source.kinds, "none"
     else:
-        msg = (f"cannot run {path.name!r}: give a scenario (.yaml, .yml, .json) or a recording "
-               "(obsmat .txt, .csv, .jsonl)")
+        msg = (
+            f"cannot run {path.name!r}: give a scenario (.yaml, .yml, .json) or a recording "
+            "(obsmat .txt, .csv, .jsonl)"
+        )
         raise FileFormatError(msg)
     if config_over:
         config = overlay_config(config, config_over)
     make_config(config)  # a bad threshold fails here, before anything is stored
     choice = holders if holders is not None else config.get("belief_holders")
-    belief_holders = _belief_holders(default_holders if choice is None else choice, kinds,
-                                     path.name)
+    belief_holders = _belief_holders(
+        default_holders if choice is None else choice, kinds, path.name
+    )
     entities = source.scenario.entities if isinstance(source, ScenarioSource) else []
     spatial = bool(config.get("spatial") or any(e.get("role") for e in entities))
     producers = builtin_producers(config, all_areas, spatial=spatial)
-    return Session(world, [source], producers, all_areas, self_id or DEFAULT_SELF, start, end,
-                   rate, config, belief_holders, agent_views=isinstance(source, ScenarioSource))
+    return Session(
+        world,
+        [source],
+        producers,
+        all_areas,
+        self_id or DEFAULT_SELF,
+        start,
+        end,
+        rate,
+        config,
+        belief_holders,
+        agent_views=isinstance(source, ScenarioSource),
+    )

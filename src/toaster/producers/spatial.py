@@ -29,8 +29,15 @@ from toaster.world.geometry import gaze_axis
 from toaster.world.state import OBJECT, ROBOT, World
 
 #: Target sample points, as fractions of the box size from its centre.
-POINTS = np.array([[0.0, 0.0, 0.0], [0.35, 0.35, 0.35], [0.35, -0.35, 0.35],
-                   [-0.35, 0.35, 0.35], [-0.35, -0.35, 0.35]])
+POINTS = np.array(
+    [
+        [0.0, 0.0, 0.0],
+        [0.35, 0.35, 0.35],
+        [0.35, -0.35, 0.35],
+        [-0.35, 0.35, 0.35],
+        [-0.35, -0.35, 0.35],
+    ]
+)
 
 
 @dataclass
@@ -46,8 +53,14 @@ class Boxes:
 
     def subset(self, idx: np.ndarray) -> Boxes:
         """The boxes ``idx``."""
-        return Boxes(self.rows[idx], self.centre[idx], self.half[idx], self.cos[idx],
-                     self.sin[idx], self.is_agent[idx])
+        return Boxes(
+            self.rows[idx],
+            self.centre[idx],
+            self.half[idx],
+            self.cos[idx],
+            self.sin[idx],
+            self.is_agent[idx],
+        )
 
     def to_local(self, pts: np.ndarray) -> np.ndarray:
         """World points (..., 3) into every box frame: (..., n_boxes, 3)."""
@@ -74,8 +87,11 @@ def collect_boxes(world: World, live: np.ndarray, agent_size: Any) -> Boxes:
 def segment_hits(p0: np.ndarray, p1: np.ndarray, half: np.ndarray) -> np.ndarray:
     """Slab test: does the segment p0 → p1 (local frames, (..., 3)) cross the box ±half?"""
     p0, p1, half = np.broadcast_arrays(p0, p1, half)
-    return _slabs([p0[..., a] for a in range(3)], [p1[..., a] for a in range(3)],
-                  [half[..., a] for a in range(3)])
+    return _slabs(
+        [p0[..., a] for a in range(3)],
+        [p1[..., a] for a in range(3)],
+        [half[..., a] for a in range(3)],
+    )
 
 
 def _slabs(p0: list[np.ndarray], p1: list[np.ndarray], half: list[np.ndarray]) -> np.ndarray:
@@ -104,7 +120,7 @@ def _ray_hits(eye: np.ndarray, pts: np.ndarray, boxes: Boxes, om: np.ndarray) ->
     c, s = boxes.cos[om].astype(f4), boxes.sin[om].astype(f4)
     centre = boxes.centre[om].astype(f4)
     half = boxes.half[om].astype(f4)
-    e = (eye.astype(f4) - centre)  # (M, 3)
+    e = eye.astype(f4) - centre  # (M, 3)
     ex, ey = c * e[:, 0] + s * e[:, 1], -s * e[:, 0] + c * e[:, 1]
     p = pts.astype(f4)
     dx = p[:, 0:1] - centre[:, 0]
@@ -143,8 +159,9 @@ class SpatialFacts:
         return out
 
     # -- object relations -------------------------------------------------------------------
-    def _relations(self, world: World, boxes: Boxes, obj: np.ndarray,
-                   out: FactBatch) -> tuple[np.ndarray, np.ndarray]:
+    def _relations(
+        self, world: World, boxes: Boxes, obj: np.ndarray, out: FactBatch
+    ) -> tuple[np.ndarray, np.ndarray]:
         """IsIn (innermost container) and IsOn (highest support); per box, -1 for none."""
         cfg, nb = self.config, len(boxes.rows)
         ids = world.ids
@@ -158,8 +175,12 @@ class SpatialFacts:
         if cont.size and free.size:
             local = boxes.subset(cont).to_local(boxes.centre[free])  # (F, C, 3)
             h = boxes.half[cont]
-            inside = ((np.abs(local[..., 0]) <= h[:, 0]) & (np.abs(local[..., 1]) <= h[:, 1])
-                      & (np.abs(local[..., 2]) <= h[:, 2]) & (free[:, None] != cont[None, :]))
+            inside = (
+                (np.abs(local[..., 0]) <= h[:, 0])
+                & (np.abs(local[..., 1]) <= h[:, 1])
+                & (np.abs(local[..., 2]) <= h[:, 2])
+                & (free[:, None] != cont[None, :])
+            )
             vol = h.prod(axis=1)
             inside &= boxes.half[free].prod(axis=1)[:, None] < vol[None, :]
             score = np.where(inside, vol[None, :], np.inf)
@@ -171,9 +192,14 @@ class SpatialFacts:
             local = boxes.subset(sup).to_local(bottom)
             h = boxes.half[sup]
             gap = local[..., 2] - h[:, 2]
-            on = ((np.abs(local[..., 0]) <= h[:, 0]) & (np.abs(local[..., 1]) <= h[:, 1])
-                  & (gap <= cfg["on_gap"]) & (gap >= -cfg["on_penetration"])
-                  & (free[:, None] != sup[None, :]) & (container[free][:, None] < 0))
+            on = (
+                (np.abs(local[..., 0]) <= h[:, 0])
+                & (np.abs(local[..., 1]) <= h[:, 1])
+                & (gap <= cfg["on_gap"])
+                & (gap >= -cfg["on_penetration"])
+                & (free[:, None] != sup[None, :])
+                & (container[free][:, None] < 0)
+            )
             top = np.where(on, boxes.centre[sup, 2] + h[:, 2], -np.inf)
             best = top.argmax(axis=1)
             has = np.isfinite(top[np.arange(len(free)), best])
@@ -186,19 +212,29 @@ class SpatialFacts:
 
     def _closed(self, world: World, boxes: Boxes, obj: np.ndarray, out: FactBatch) -> None:
         ids = world.ids
-        rows = np.array([r for r in boxes.rows[obj].tolist() if world.closed.get(ids[r])],
-                        np.int64)
-        out.add("IsClosed", rows, "", obs=self.config["observability_spatial"],
-                property_type="state")
+        rows = np.array([r for r in boxes.rows[obj].tolist() if world.closed.get(ids[r])], np.int64)
+        out.add(
+            "IsClosed", rows, "", obs=self.config["observability_spatial"], property_type="state"
+        )
 
-    def _next_to(self, world: World, boxes: Boxes, obj: np.ndarray, container: np.ndarray,
-                 support: np.ndarray, out: FactBatch) -> None:
+    def _next_to(
+        self,
+        world: World,
+        boxes: Boxes,
+        obj: np.ndarray,
+        container: np.ndarray,
+        support: np.ndarray,
+        out: FactBatch,
+    ) -> None:
         """IsNextTo both ways between objects sharing a support, a container or the floor."""
         cfg = self.config
         held = world.held_by[boxes.rows[obj]] >= 0
         bottom = boxes.centre[obj, 2] - boxes.half[obj, 2]
-        place = np.where(support[obj] >= 0, support[obj],
-                         np.where(container[obj] >= 0, container[obj] + len(boxes.rows), -1))
+        place = np.where(
+            support[obj] >= 0,
+            support[obj],
+            np.where(container[obj] >= 0, container[obj] + len(boxes.rows), -1),
+        )
         floor = (place == -1) & (np.abs(bottom) <= cfg["floor_height"])
         place = np.where((place == -1) & ~floor, -2, place)
         keep = ~held & (place != -2)
@@ -230,8 +266,14 @@ class SpatialFacts:
             dist.append(np.r_[gap, gap])
         if subj:
             s, t = np.concatenate(subj), np.concatenate(tgt)
-            out.add("IsNextTo", boxes.rows[s], boxes.rows[t], value_num=np.concatenate(dist),
-                    obs=cfg["observability_spatial"], property_type="position")
+            out.add(
+                "IsNextTo",
+                boxes.rows[s],
+                boxes.rows[t],
+                value_num=np.concatenate(dist),
+                obs=cfg["observability_spatial"],
+                property_type="position",
+            )
 
     # -- perception --------------------------------------------------------------------------
     def _hidden(self, world: World, boxes: Boxes, container: np.ndarray) -> np.ndarray:
@@ -251,9 +293,13 @@ class SpatialFacts:
         if self._heads[0] != version:
             self._heads = (version, {})
         heads = self._heads[1]
-        head = np.array([heads.setdefault(a, world.joint_of(world.ids[a],
-                                                            self.config["head_joint"]))
-                         for a in agents.tolist()], np.int64)
+        head = np.array(
+            [
+                heads.setdefault(a, world.joint_of(world.ids[a], self.config["head_joint"]))
+                for a in agents.tolist()
+            ],
+            np.int64,
+        )
         has = head >= 0
         eye = world.pos[agents] + np.array([0.0, 0.0, self.config["eye_height"]])
         rpy = world.rpy[agents].copy()
@@ -261,8 +307,9 @@ class SpatialFacts:
         rpy[has] = world.rpy[head[has]]
         return eye, gaze_axis(rpy)
 
-    def visible_fraction(self, world: World, boxes: Boxes, container: np.ndarray,
-                         hidden: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def visible_fraction(
+        self, world: World, boxes: Boxes, container: np.ndarray, hidden: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(agent box indices, (A, B) share of target points seen by each agent)."""
         cfg, nb, k = self.config, len(boxes.rows), len(POINTS)
         ag = np.flatnonzero(boxes.is_agent)
@@ -273,8 +320,13 @@ class SpatialFacts:
         offs = POINTS * (2 * boxes.half)[:, None, :]  # (B, K, 3) in box frames
         c, s = boxes.cos[:, None], boxes.sin[:, None]
         pts = boxes.centre[:, None, :] + np.stack(
-            [c * offs[..., 0] - s * offs[..., 1], s * offs[..., 0] + c * offs[..., 1],
-             offs[..., 2]], axis=-1)  # (B, K, 3)
+            [
+                c * offs[..., 0] - s * offs[..., 1],
+                s * offs[..., 0] + c * offs[..., 1],
+                offs[..., 2],
+            ],
+            axis=-1,
+        )  # (B, K, 3)
         cos_half = np.cos(cfg["view_aperture"] / 2)
         radius = np.linalg.norm(boxes.half, axis=1)
         holder = np.full(nb, -1)
@@ -296,7 +348,8 @@ class SpatialFacts:
             dc = boxes.centre - eye[i]
             dcn = np.linalg.norm(dc, axis=1)
             occ = (dcn - radius <= cfg["view_range"]) & (
-                (dc @ gaze[i] >= -radius) | (dcn <= radius))
+                (dc @ gaze[i] >= -radius) | (dcn <= radius)
+            )
             occ[a] = False
             om = np.flatnonzero(occ)
             if om.size:
@@ -313,8 +366,9 @@ class SpatialFacts:
             frac[i] = np.bincount(bi, minlength=nb) / k
         return ag, frac
 
-    def _visibility(self, world: World, boxes: Boxes, container: np.ndarray,
-                    hidden: np.ndarray, out: FactBatch) -> None:
+    def _visibility(
+        self, world: World, boxes: Boxes, container: np.ndarray, hidden: np.ndarray, out: FactBatch
+    ) -> None:
         cfg = self.config
         ag, frac = self.visible_fraction(world, boxes, container, hidden)
         ai, bi = np.nonzero(frac >= max(cfg["visible_min_fraction"], 1e-9))
@@ -322,10 +376,10 @@ class SpatialFacts:
             return
         agent, target, f = boxes.rows[ag[ai]], boxes.rows[bi], frac[ai, bi]
         obs = cfg["observability_spatial"]
-        out.add("IsVisibleBy", target, agent, value_num=f, conf=f, obs=obs,
-                property_type="affordance")
-        out.add("CanSee", agent, target, value_num=f, conf=f, obs=obs,
-                property_type="affordance")
+        out.add(
+            "IsVisibleBy", target, agent, value_num=f, conf=f, obs=obs, property_type="affordance"
+        )
+        out.add("CanSee", agent, target, value_num=f, conf=f, obs=obs, property_type="affordance")
 
     def _reach(self, world: World, boxes: Boxes, obj: np.ndarray, out: FactBatch) -> None:
         cfg = self.config
@@ -339,20 +393,32 @@ class SpatialFacts:
         ai, oi = np.nonzero(gap <= cfg["arm_reach"])
         agent, target = boxes.rows[ag[ai]], boxes.rows[obj[oi]]
         obs = cfg["observability_spatial"]
-        out.add("IsReachableBy", target, agent, value_num=gap[ai, oi], obs=obs,
-                property_type="affordance")
-        out.add("CanReach", agent, target, value_num=gap[ai, oi], obs=obs,
-                property_type="affordance")
+        out.add(
+            "IsReachableBy",
+            target,
+            agent,
+            value_num=gap[ai, oi],
+            obs=obs,
+            property_type="affordance",
+        )
+        out.add(
+            "CanReach", agent, target, value_num=gap[ai, oi], obs=obs, property_type="affordance"
+        )
 
 
 # -- relative position on request ---------------------------------------------------------------
 RELATIVE_WORDS = (("in front", "behind"), ("left", "right"), ("above", "below"))
 
 
-def relative_position_from(world: World, viewer_id: str, object_id: str,
-                           reference_id: str | None = None, *, threshold: float = 0.1,
-                           config: Mapping[str, Any] | None = None
-                           ) -> tuple[list[str], list[float]]:
+def relative_position_from(
+    world: World,
+    viewer_id: str,
+    object_id: str,
+    reference_id: str | None = None,
+    *,
+    threshold: float = 0.1,
+    config: Mapping[str, Any] | None = None,
+) -> tuple[list[str], list[float]]:
     """Where ``object_id`` is, seen from ``viewer_id``: relative to the viewer or to a reference.
 
     Returns (words, [forward, left, up] in metres in the viewer's heading frame): words among
@@ -378,6 +444,9 @@ def relative_position_from(world: World, viewer_id: str, object_id: str,
     c, s = np.cos(yaw), np.sin(yaw)
     local = [float(c * d[0] + s * d[1]), float(-s * d[0] + c * d[1]), float(d[2])]
     order = np.argsort(-np.abs(local), kind="stable")
-    words = [RELATIVE_WORDS[i][0 if local[i] > 0 else 1] for i in order.tolist()
-             if abs(local[i]) > threshold]
+    words = [
+        RELATIVE_WORDS[i][0 if local[i] > 0 else 1]
+        for i in order.tolist()
+        if abs(local[i]) > threshold
+    ]
     return words, local

@@ -23,8 +23,9 @@ __all__ = ["agents", "descendants", "entities", "ontology", "properties"]
 _MAX_DEPTH = 64
 
 
-def entities(db: Database, entity_id: str | None = None, *, kind: str | None = None,
-             name: str | None = None) -> list[Entity]:
+def entities(
+    db: Database, entity_id: str | None = None, *, kind: str | None = None, name: str | None = None
+) -> list[Entity]:
     """Registered entities, optionally one id, one kind or one name."""
     table = s.entities
     query = select(table.c.id, table.c.name, table.c.kind, table.c.owner_id).order_by(table.c.id)
@@ -56,8 +57,9 @@ def ontology(db: Database, entity_class: str | None = None) -> list[OntologyRow]
         return [OntologyRow(row[0], row[1], bool(row[2])) for row in conn.execute(query)]
 
 
-def descendants(db: Database, entity_class: str, *,
-                instantiated_only: bool = True) -> list[OntologyRow]:
+def descendants(
+    db: Database, entity_class: str, *, instantiated_only: bool = True
+) -> list[OntologyRow]:
     """Every edge below ``entity_class``, recursively (the original's LEAVE). With
     ``instantiated_only`` (the original's behaviour) only instantiated individuals are kept;
     their ``instantiated`` flag is the stored one (the original always answered true)."""
@@ -75,12 +77,14 @@ def descendants(db: Database, entity_class: str, *,
     return [row for row in found if row.instantiated or not instantiated_only]
 
 
-def properties(db: Database, entity_id: str | None = None,
-               key: str | None = None) -> list[PropertyRow]:
+def properties(
+    db: Database, entity_id: str | None = None, key: str | None = None
+) -> list[PropertyRow]:
     """Static properties, all or of one entity, optionally one key."""
     table = s.properties
     query = select(table.c.entity_id, table.c.key, table.c.value).order_by(
-        table.c.entity_id, table.c.key)
+        table.c.entity_id, table.c.key
+    )
     if entity_id is not None:
         query = query.where(table.c.entity_id == check_text(entity_id, "entity id"))
     if key is not None:

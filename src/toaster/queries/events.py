@@ -16,10 +16,17 @@ if TYPE_CHECKING:
 EVENT_COLUMNS = ", ".join(EventRow._fields)
 
 
-def events(db: Database, agent: str | None = None, *, since: int | None = None,
-           until: int | None = None, kind: str | list[str] | None = None,
-           limit: int | None = None, newest_first: bool = False,
-           **filters: Any) -> list[EventRow]:
+def events(
+    db: Database,
+    agent: str | None = None,
+    *,
+    since: int | None = None,
+    until: int | None = None,
+    kind: str | list[str] | None = None,
+    limit: int | None = None,
+    newest_first: bool = False,
+    **filters: Any,
+) -> list[EventRow]:
     """Events in ``[since, until]`` (both inclusive), oldest first unless ``newest_first``.
 
     Filters: agent, subject, property, target, sub_property, source, value (lists match any).
@@ -28,8 +35,11 @@ def events(db: Database, agent: str | None = None, *, since: int | None = None,
     since, until = check_optional_ns(since, "since"), check_optional_ns(until, "until")
     limit = check_count(limit, "limit")
     if kind is not None:
-        kinds = [check_text(kind, "kind")] if isinstance(kind, str) else [
-            check_text(k, "kind") for k in check_list(kind, "kind")]
+        kinds = (
+            [check_text(kind, "kind")]
+            if isinstance(kind, str)
+            else [check_text(k, "kind") for k in check_list(kind, "kind")]
+        )
         names = [f"kind_{i}" for i in range(len(kinds))]
         where += f" AND kind IN ({', '.join(':' + n for n in names)})" if names else " AND 1 = 0"
         params.update(zip(names, kinds, strict=True))
@@ -40,8 +50,9 @@ def events(db: Database, agent: str | None = None, *, since: int | None = None,
         where += " AND stamp_ns <= :until"
         params["until"] = until
     order = "DESC" if newest_first else "ASC"
-    sql = (f"SELECT {EVENT_COLUMNS} FROM event_log WHERE {where} "
-           f"ORDER BY stamp_ns {order}, id {order}")
+    sql = (
+        f"SELECT {EVENT_COLUMNS} FROM event_log WHERE {where} ORDER BY stamp_ns {order}, id {order}"
+    )
     if limit is not None:
         sql += " LIMIT :limit"
         params["limit"] = limit

@@ -18,16 +18,38 @@ if TYPE_CHECKING:
     from toaster.db.database import Database
 
 FACT_COLUMNS = ", ".join(FactRow._fields)
-_FILTERABLE = ("agent_id", "subject_id", "subject_owner_id", "property", "property_type",
-               "sub_property", "target_id", "target_owner_id", "value_text", "source")
-_FILTER_ARGS = {"agent": "agent_id", "subject": "subject_id", "property": "property",
-                "target": "target_id", "sub_property": "sub_property", "source": "source",
-                "property_type": "property_type", "value": "value_text",
-                "subject_owner": "subject_owner_id", "target_owner": "target_owner_id"}
-_KEY_ONLY = ("k.agent_id, k.subject_id, k.subject_owner_id, k.property, k.property_type, "
-             "k.sub_property, k.target_id, k.target_owner_id")
-_KEY_COLS = (f"{_KEY_ONLY}, f.value_text, f.value_num, f.confidence, f.observability, "
-             "f.valid_from_ns, f.valid_to_ns, f.recorded_ns, f.source")
+_FILTERABLE = (
+    "agent_id",
+    "subject_id",
+    "subject_owner_id",
+    "property",
+    "property_type",
+    "sub_property",
+    "target_id",
+    "target_owner_id",
+    "value_text",
+    "source",
+)
+_FILTER_ARGS = {
+    "agent": "agent_id",
+    "subject": "subject_id",
+    "property": "property",
+    "target": "target_id",
+    "sub_property": "sub_property",
+    "source": "source",
+    "property_type": "property_type",
+    "value": "value_text",
+    "subject_owner": "subject_owner_id",
+    "target_owner": "target_owner_id",
+}
+_KEY_ONLY = (
+    "k.agent_id, k.subject_id, k.subject_owner_id, k.property, k.property_type, "
+    "k.sub_property, k.target_id, k.target_owner_id"
+)
+_KEY_COLS = (
+    f"{_KEY_ONLY}, f.value_text, f.value_num, f.confidence, f.observability, "
+    "f.valid_from_ns, f.valid_to_ns, f.recorded_ns, f.source"
+)
 
 
 def check_filter(arg: str, value: object) -> object:
@@ -54,8 +76,9 @@ def _where(filters: dict[str, Any], prefix: str = "") -> tuple[str, dict[str, An
         column = _FILTER_ARGS[arg]
         if isinstance(value, list | tuple | set | frozenset):
             names = [f"{column}_{i}" for i in range(len(value))]
-            clauses.append(f"{prefix}{column} IN ({', '.join(':' + n for n in names)})"
-                           if names else "1 = 0")  # an empty list matches nothing
+            clauses.append(
+                f"{prefix}{column} IN ({', '.join(':' + n for n in names)})" if names else "1 = 0"
+            )  # an empty list matches nothing
             params.update(zip(names, value, strict=True))
         else:
             clauses.append(f"{prefix}{column} = :{column}")
@@ -73,8 +96,17 @@ def _rows(db: Database, sql: str, params: dict[str, Any], *, raw: bool = False) 
         return [FactRow(*row) for row in cur.fetchall()]
 
 
-def _select(db: Database, view: str, filters: dict[str, Any], *, since: int | None,
-            until: int | None, limit: int | None, order: str, extra: str = "") -> list[Any]:
+def _select(
+    db: Database,
+    view: str,
+    filters: dict[str, Any],
+    *,
+    since: int | None,
+    until: int | None,
+    limit: int | None,
+    order: str,
+    extra: str = "",
+) -> list[Any]:
     where, params = _where(filters)
     since, until = check_optional_ns(since, "since"), check_optional_ns(until, "until")
     limit = check_count(limit, "limit")
@@ -91,36 +123,78 @@ def _select(db: Database, view: str, filters: dict[str, Any], *, since: int | No
     return _rows(db, sql, params, raw=bool(extra))
 
 
-def current_facts(db: Database, agent: str | Sequence[str] | None = None, *,
-                  limit: int | None = None, **filters: Any) -> list[FactRow]:
+def current_facts(
+    db: Database,
+    agent: str | Sequence[str] | None = None,
+    *,
+    limit: int | None = None,
+    **filters: Any,
+) -> list[FactRow]:
     """Facts currently believed (open intervals), filtered by agent, subject, property, target,
     sub_property, source, value... (a list matches any of its items)."""
-    return _select(db, "current_facts", {"agent": agent, **filters}, since=None, until=None,
-                   limit=limit, order="agent_id, subject_id, property, target_id, fact_id")
+    return _select(
+        db,
+        "current_facts",
+        {"agent": agent, **filters},
+        since=None,
+        until=None,
+        limit=limit,
+        order="agent_id, subject_id, property, target_id, fact_id",
+    )
 
 
-def memory(db: Database, agent: str | Sequence[str] | None = None, *, since: int | None = None,
-           until: int | None = None, limit: int | None = None, **filters: Any) -> list[FactRow]:
+def memory(
+    db: Database,
+    agent: str | Sequence[str] | None = None,
+    *,
+    since: int | None = None,
+    until: int | None = None,
+    limit: int | None = None,
+    **filters: Any,
+) -> list[FactRow]:
     """Past beliefs (closed intervals), oldest first; ``since``/``until`` keep intervals that
     overlap the window."""
-    return _select(db, "memory", {"agent": agent, **filters}, since=since, until=until,
-                   limit=limit, order="valid_from_ns, fact_id")
+    return _select(
+        db,
+        "memory",
+        {"agent": agent, **filters},
+        since=since,
+        until=until,
+        limit=limit,
+        order="valid_from_ns, fact_id",
+    )
 
 
-def history(db: Database, agent: str | Sequence[str] | None = None, *, since: int | None = None,
-            until: int | None = None, limit: int | None = None, **filters: Any) -> list[FactRow]:
+def history(
+    db: Database,
+    agent: str | Sequence[str] | None = None,
+    *,
+    since: int | None = None,
+    until: int | None = None,
+    limit: int | None = None,
+    **filters: Any,
+) -> list[FactRow]:
     """Every interval, current and past, oldest first (the timeline of the matching facts)."""
-    return _select(db, "fact_history", {"agent": agent, **filters}, since=since, until=until,
-                   limit=limit, order="valid_from_ns, fact_id")
+    return _select(
+        db,
+        "fact_history",
+        {"agent": agent, **filters},
+        since=since,
+        until=until,
+        limit=limit,
+        order="valid_from_ns, fact_id",
+    )
 
 
 def _numbers_at(conf: str | None = None) -> str:
     """value_num, confidence, observability of interval ``f`` at ``:t``: those of its first
     sample after ``:t`` (``s``, see ``Backend.sample_join``) when there is one."""
     confidence = conf or "COALESCE(s.confidence, f.confidence)"
-    return ("CASE WHEN s.confidence IS NULL THEN f.value_num ELSE s.value_num END AS value_num, "
-            f"{confidence} AS confidence, "
-            "COALESCE(s.observability, f.observability) AS observability")
+    return (
+        "CASE WHEN s.confidence IS NULL THEN f.value_num ELSE s.value_num END AS value_num, "
+        f"{confidence} AS confidence, "
+        "COALESCE(s.observability, f.observability) AS observability"
+    )
 
 
 def _followed_numbers(backend: str) -> str:
@@ -141,10 +215,12 @@ def beliefs_at(db: Database, agent: str, t_ns: int, **filters: Any) -> list[Fact
     where, params = _where({"agent": check_id(agent, "agent id"), **filters}, prefix="k.")
     params["t"] = check_ns(t_ns)
     samples = backend.sample_join.format(fact="f.id")
-    own = (f"SELECT {_KEY_ONLY}, f.value_text, {_numbers_at()}, f.valid_from_ns, "
-           "f.valid_to_ns, f.recorded_ns, f.source, k.id AS key_id FROM fact_keys k "
-           f"{backend.as_of_join.format(key='k.id')} {samples} WHERE {where} "
-           "AND (f.valid_to_ns IS NULL OR f.valid_to_ns > :t)")
+    own = (
+        f"SELECT {_KEY_ONLY}, f.value_text, {_numbers_at()}, f.valid_from_ns, "
+        "f.valid_to_ns, f.recorded_ns, f.source, k.id AS key_id FROM fact_keys k "
+        f"{backend.as_of_join.format(key='k.id')} {samples} WHERE {where} "
+        "AND (f.valid_to_ns IS NULL OR f.valid_to_ns > :t)"
+    )
     followed = (
         f"SELECT {_KEY_ONLY}, f.value_text, {_followed_numbers(backend.name)}, "
         f"{sqltext.expand('{{followed_from}}, {{followed_to}}', backend.name)}, f.recorded_ns, "
@@ -152,9 +228,12 @@ def beliefs_at(db: Database, agent: str, t_ns: int, **filters: Any) -> list[Fact
         "AND w.from_ns <= :t AND (w.to_ns IS NULL OR w.to_ns > :t) "
         f"{backend.as_of_join.format(key='w.self_key')} {samples} WHERE {where} "
         "AND (f.valid_to_ns IS NULL OR f.valid_to_ns > :t) AND "
-        f"{sqltext.expand('{{followed_facts}}', backend.name)}")
-    sql = (f"SELECT {FACT_COLUMNS} FROM ({own} UNION ALL {followed}) AS held "
-           "ORDER BY subject_id, property, target_id, key_id")
+        f"{sqltext.expand('{{followed_facts}}', backend.name)}"
+    )
+    sql = (
+        f"SELECT {FACT_COLUMNS} FROM ({own} UNION ALL {followed}) AS held "
+        "ORDER BY subject_id, property, target_id, key_id"
+    )
     return _rows(db, sql, params)
 
 
@@ -172,13 +251,27 @@ class SignalPoint(NamedTuple):
     confidence: float | None
 
 
-def signal(db: Database, agent: str | Sequence[str] | None = None, *, since: int | None = None,
-           until: int | None = None, **filters: Any) -> list[SignalPoint]:
+def signal(
+    db: Database,
+    agent: str | Sequence[str] | None = None,
+    *,
+    since: int | None = None,
+    until: int | None = None,
+    **filters: Any,
+) -> list[SignalPoint]:
     """The numbers of the matching facts over time, as step points: each interval's start,
     each stored refresh (``fact_samples``) and its end (``value_num`` None). Sorted by key,
     then time. The value at any time is the last point at or before it, within tolerance."""
-    rows = _select(db, "fact_history", {"agent": agent, **filters}, since=since, until=until,
-                   limit=None, order="valid_from_ns, fact_id", extra=", fact_id")
+    rows = _select(
+        db,
+        "fact_history",
+        {"agent": agent, **filters},
+        since=since,
+        until=until,
+        limit=None,
+        order="valid_from_ns, fact_id",
+        extra=", fact_id",
+    )
     if not rows:
         return []
     samples: dict[int, list[tuple[int, float | None, float]]] = {}
@@ -186,12 +279,15 @@ def signal(db: Database, agent: str | Sequence[str] | None = None, *, since: int
     with db.transaction():
         cur = db.cursor()
         for start in range(0, len(ids), 500):
-            chunk = ids[start:start + 500]
+            chunk = ids[start : start + 500]
             names = {f"f{i}": fact_id for i, fact_id in enumerate(chunk)}
-            cur.execute(db.backend.named(
-                "SELECT fact_id, until_ns, value_num, confidence FROM fact_samples WHERE "
-                f"fact_id IN ({', '.join(':' + n for n in names)}) ORDER BY fact_id, until_ns"),
-                names)
+            cur.execute(
+                db.backend.named(
+                    "SELECT fact_id, until_ns, value_num, confidence FROM fact_samples WHERE "
+                    f"fact_id IN ({', '.join(':' + n for n in names)}) ORDER BY fact_id, until_ns"
+                ),
+                names,
+            )
             for fact_id, until_ns, value, conf in cur.fetchall():
                 samples.setdefault(fact_id, []).append((until_ns, value, conf))
     points: list[SignalPoint] = []
@@ -213,16 +309,29 @@ def signal(db: Database, agent: str | Sequence[str] | None = None, *, since: int
     return points
 
 
-def fact_value(db: Database, agent: str, subject: str, property: str, target: str = "", *,
-               at: int | None = None, sub_property: str | None = None,
-               subject_owner: str | None = None,
-               target_owner: str | None = None) -> FactRow | None:
+def fact_value(
+    db: Database,
+    agent: str,
+    subject: str,
+    property: str,
+    target: str = "",
+    *,
+    at: int | None = None,
+    sub_property: str | None = None,
+    subject_owner: str | None = None,
+    target_owner: str | None = None,
+) -> FactRow | None:
     """The interval of one fact holding now (``at`` None) or at time ``at``; None if it does
     not hold. ``sub_property`` and owners None match any (the first match is returned)."""
-    filters = {"agent": check_id(agent, "agent id"), "subject": check_id(subject, "subject id"),
-               "property": check_id(property, "property"), "target": target,
-               "sub_property": sub_property, "subject_owner": subject_owner,
-               "target_owner": target_owner}
+    filters = {
+        "agent": check_id(agent, "agent id"),
+        "subject": check_id(subject, "subject id"),
+        "property": check_id(property, "property"),
+        "target": target,
+        "sub_property": sub_property,
+        "subject_owner": subject_owner,
+        "target_owner": target_owner,
+    }
     if at is None:
         where, params = _where(filters)
         sql = f"SELECT {FACT_COLUMNS} FROM current_facts WHERE {where} ORDER BY key_id LIMIT 1"

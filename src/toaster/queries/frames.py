@@ -49,13 +49,15 @@ def _integers(values: list[Any], kind: tuple[type, bool] | None) -> bool:
     return bool(present) and all(type(v) is int for v in present)
 
 
-def to_dataframe(rows: Sequence[NamedTuple], columns: Sequence[str] | None = None, *,
-                 times: bool = False) -> Any:
+def to_dataframe(
+    rows: Sequence[NamedTuple], columns: Sequence[str] | None = None, *, times: bool = False
+) -> Any:
     """A DataFrame with one column per field of the rows, typed as described in the module
     docstring (``*_ns`` columns stay exact integers; ``times`` adds timestamp columns)."""
     require("pandas", "to_dataframe")
     import numpy as np
     import pandas as pd
+
     names = list(columns) if columns is not None else list(rows[0]._fields) if rows else []
     kinds = field_kinds(type(rows[0])) if rows and columns is None else {}
     data: dict[str, Any] = {}
@@ -71,6 +73,5 @@ def to_dataframe(rows: Sequence[NamedTuple], columns: Sequence[str] | None = Non
         for field, column in time_columns(names).items():
             nat = np.iinfo(np.int64).min  # numpy's NaT
             ns = np.array([nat if v is None else v for v in raw[field]], dtype=np.int64)
-            frame[column] = pd.Series(ns.view("M8[ns]"), index=frame.index).dt.tz_localize(
-                "UTC")
+            frame[column] = pd.Series(ns.view("M8[ns]"), index=frame.index).dt.tz_localize("UTC")
     return frame

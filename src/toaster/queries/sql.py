@@ -26,10 +26,16 @@ class SQLResult(NamedTuple):
     truncated: bool = False
 
 
-def execute(db: Database, sql: str, params: dict[str, Any] | list[Any] | None = None, *,
-            write: bool = False, max_rows: int = readonly.DEFAULT_MAX_ROWS,
-            max_bytes: int = readonly.DEFAULT_MAX_BYTES,
-            timeout_s: float = readonly.DEFAULT_TIMEOUT_S) -> SQLResult:
+def execute(
+    db: Database,
+    sql: str,
+    params: dict[str, Any] | list[Any] | None = None,
+    *,
+    write: bool = False,
+    max_rows: int = readonly.DEFAULT_MAX_ROWS,
+    max_bytes: int = readonly.DEFAULT_MAX_BYTES,
+    timeout_s: float = readonly.DEFAULT_TIMEOUT_S,
+) -> SQLResult:
     """Run one SQL statement, read-only unless ``write`` (docs/execute.md).
 
     Read-only: exactly one SELECT, WITH, VALUES, TABLE, EXPLAIN or SHOW (PRAGMA on SQLite)
@@ -46,8 +52,9 @@ def execute(db: Database, sql: str, params: dict[str, Any] | list[Any] | None = 
     with a dict on both).
     """
     if not write:
-        with execute_stream(db, sql, params, max_rows=max_rows, max_bytes=max_bytes,
-                            timeout_s=timeout_s) as stream:
+        with execute_stream(
+            db, sql, params, max_rows=max_rows, max_bytes=max_bytes, timeout_s=timeout_s
+        ) as stream:
             rows = list(stream)
         return SQLResult(stream.columns, rows, len(rows), stream.truncated)
     named = params if isinstance(params, dict) else None  # ``:name`` style, both backends
@@ -67,8 +74,7 @@ def execute(db: Database, sql: str, params: dict[str, Any] | list[Any] | None = 
                 columns = [d[0] for d in cur.description] if cur.description else []
                 rows = [tuple(r) for r in cur.fetchall()] if cur.description else []
                 count = cur.rowcount
-            conn.execute(text(
-                "UPDATE store_state SET cache_epoch = cache_epoch + 1 WHERE id = 1"))
+            conn.execute(text("UPDATE store_state SET cache_epoch = cache_epoch + 1 WHERE id = 1"))
     except ToasterError:
         raise
     except Exception as exc:
@@ -78,10 +84,15 @@ def execute(db: Database, sql: str, params: dict[str, Any] | list[Any] | None = 
 
 
 @contextmanager
-def execute_stream(db: Database, sql: str, params: dict[str, Any] | list[Any] | None = None,
-                   *, max_rows: int = readonly.DEFAULT_MAX_ROWS,
-                   max_bytes: int = readonly.DEFAULT_MAX_BYTES,
-                   timeout_s: float = readonly.DEFAULT_TIMEOUT_S) -> Iterator[readonly.ReadRows]:
+def execute_stream(
+    db: Database,
+    sql: str,
+    params: dict[str, Any] | list[Any] | None = None,
+    *,
+    max_rows: int = readonly.DEFAULT_MAX_ROWS,
+    max_bytes: int = readonly.DEFAULT_MAX_BYTES,
+    timeout_s: float = readonly.DEFAULT_TIMEOUT_S,
+) -> Iterator[readonly.ReadRows]:
     """Run one read-only statement as :func:`execute` does, and give its rows as they are
     fetched: ``columns``, then the rows, ``truncated`` once they are read. Every bound is
     checked before the first row (a refused statement gives none); the caller holds one
@@ -92,8 +103,7 @@ def execute_stream(db: Database, sql: str, params: dict[str, Any] | list[Any] | 
     ...         print(*row)
     """
     bounds = readonly.limits(max_rows, max_bytes, timeout_s)
-    read = readonly.read_postgresql if db.dialect_name == "postgresql" else \
-        readonly.read_sqlite
+    read = readonly.read_postgresql if db.dialect_name == "postgresql" else readonly.read_sqlite
     with read(db, sql, params, bounds) as rows:
         yield rows
 
@@ -114,8 +124,11 @@ def are_in_table(db: Database, agent: str, facts: list[Fact]) -> list[bool]:
         if not isinstance(fact, Fact):
             msg = f"invalid fact pattern {shown(fact)}: give toaster.Fact(subject, property, ...)"
             raise InvalidInputError(msg)
-        filters: dict[str, Any] = {"subject": fact.subject_id, "property": fact.property,
-                                   "target": fact.target_id or None}
+        filters: dict[str, Any] = {
+            "subject": fact.subject_id,
+            "property": fact.property,
+            "target": fact.target_id or None,
+        }
         if fact.target_id == "":
             filters["target"] = ""
         if fact.sub_property:

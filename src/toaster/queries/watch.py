@@ -35,8 +35,10 @@ class _Listen:
     def __init__(self, db: Database) -> None:
         import psycopg
 
-        self.conn = psycopg.connect(db.engine.url.set(drivername="postgresql")
-                                    .render_as_string(hide_password=False), autocommit=True)
+        self.conn = psycopg.connect(
+            db.engine.url.set(drivername="postgresql").render_as_string(hide_password=False),
+            autocommit=True,
+        )
         self.conn.execute(f"LISTEN {EVENTS_CHANNEL}")
 
     def wait(self, timeout_s: float) -> None:
@@ -76,30 +78,49 @@ class _DataVersion:
 
 
 def _matches(row: EventRow, patterns: dict[str, str | None]) -> bool:
-    return all(pattern is None or fnmatch.fnmatchcase(getattr(row, field) or "", pattern)
-               for field, pattern in patterns.items())
+    return all(
+        pattern is None or fnmatch.fnmatchcase(getattr(row, field) or "", pattern)
+        for field, pattern in patterns.items()
+    )
 
 
-def watch(db: Database, *, agent: str | None = None, subject: str | None = None,
-          property: str | None = None, target: str | None = None,
-          after_id: int | None = None, poll_s: float = 0.02,
-          timeout_s: float | None = None,
-          stop: threading.Event | None = None) -> Iterator[EventRow]:
+def watch(
+    db: Database,
+    *,
+    agent: str | None = None,
+    subject: str | None = None,
+    property: str | None = None,
+    target: str | None = None,
+    after_id: int | None = None,
+    poll_s: float = 0.02,
+    timeout_s: float | None = None,
+    stop: threading.Event | None = None,
+) -> Iterator[EventRow]:
     """Events committed from now on (or after event ``after_id``) that match the patterns,
     oldest first, as they are committed; stops after ``timeout_s`` without a match (None: never)
     or within half a second of ``stop`` being set.
     """
-    patterns = {field: None if value is None else check_text(value, f"{field} pattern")
-                for field, value in (("agent_id", agent), ("subject_id", subject),
-                                     ("property", property), ("target_id", target))}
+    patterns = {
+        field: None if value is None else check_text(value, f"{field} pattern")
+        for field, value in (
+            ("agent_id", agent),
+            ("subject_id", subject),
+            ("property", property),
+            ("target_id", target),
+        )
+    }
     after_id = check_count(after_id, "after_id")
     poll_s = check_seconds(poll_s, "poll_s")
     timeout_s = None if timeout_s is None else check_seconds(timeout_s, "timeout_s")
     with db.transaction() as conn:
-        last = after_id if after_id is not None else int(
-            conn.execute(text("SELECT COALESCE(MAX(id), 0) FROM events")).scalar_one())
-    waker: _Listen | _DataVersion = (_Listen(db) if db.dialect_name == "postgresql"
-                                     else _DataVersion(db, poll_s))
+        last = (
+            after_id
+            if after_id is not None
+            else int(conn.execute(text("SELECT COALESCE(MAX(id), 0) FROM events")).scalar_one())
+        )
+    waker: _Listen | _DataVersion = (
+        _Listen(db) if db.dialect_name == "postgresql" else _DataVersion(db, poll_s)
+    )
     sql = text(f"SELECT {EVENT_COLUMNS} FROM event_log WHERE id > :last ORDER BY id, agent_id")
     quiet_since = time.monotonic()
     try:

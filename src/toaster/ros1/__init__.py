@@ -25,5 +25,11 @@ def start_bridge(node: Any, **kwargs: Any) -> Bridge:
     return start(node, **kwargs)
 
 
-__all__ = ["DEBIAN_DIST", "INSTALL_HINT", "RosUnavailableError", "import_rospy", "ros_path",
-           "start_bridge"]
+__all__ = [
+    "DEBIAN_DIST",
+    "INSTALL_HINT",
+    "RosUnavailableError",
+    "import_rospy",
+    "ros_path",
+    "start_bridge",
+]

@@ -51,14 +51,17 @@ from toaster.world.state import World
 VIEW_EVERY = 3
 #: the node's status line (std_msgs/String, latched) and the service that answers it now
 STATUS_TOPIC, STATUS_SERVICE = "/toaster/status", "/toaster/get_status"
-MARKER_TOPICS = ("marker_object", "marker_area", "marker_human", "marker_robot",
-                 "marker_motion")
-SIMU_LISTS = {"toaster_simu_human": ("/toaster_simu/humanList", "HumanListStamped"),
-              "toaster_simu_robot": ("/toaster_simu/robotList", "RobotListStamped"),
-              "toaster_simu_object": ("/toaster_simu/objectList", "ObjectListStamped")}
-PDG_LISTS = {"human": ("/pdg/humanList", "HumanListStamped", "humanList"),
-             "robot": ("/pdg/robotList", "RobotListStamped", "robotList"),
-             "object": ("/pdg/objectList", "ObjectListStamped", "objectList")}
+MARKER_TOPICS = ("marker_object", "marker_area", "marker_human", "marker_robot", "marker_motion")
+SIMU_LISTS = {
+    "toaster_simu_human": ("/toaster_simu/humanList", "HumanListStamped"),
+    "toaster_simu_robot": ("/toaster_simu/robotList", "RobotListStamped"),
+    "toaster_simu_object": ("/toaster_simu/objectList", "ObjectListStamped"),
+}
+PDG_LISTS = {
+    "human": ("/pdg/humanList", "HumanListStamped", "humanList"),
+    "robot": ("/pdg/robotList", "RobotListStamped", "robotList"),
+    "object": ("/pdg/objectList", "ObjectListStamped", "objectList"),
+}
 
 
 class Warnings:
@@ -112,12 +115,23 @@ def pose_topic_targets(topics: Mapping[str, Any] | None) -> dict[str, FrameTarge
 class Bridge:
     """A running ROS 1 bridge; :meth:`shutdown` detaches it from the node."""
 
-    def __init__(self, node: Any, rospy: Any, registry: messages.Registry, *,
-                 tf_map: Any = None, pose_topics: Mapping[str, Any] | None = None,
-                 publish_tf: bool = True, markers: bool = True,
-                 fixed_frame: str = FIXED_FRAME, toaster_simu: bool = True,
-                 pdg_lists: bool = False, publish_lists: bool = True, ros4hri: bool = True,
-                 services: bool = True) -> None:
+    def __init__(
+        self,
+        node: Any,
+        rospy: Any,
+        registry: messages.Registry,
+        *,
+        tf_map: Any = None,
+        pose_topics: Mapping[str, Any] | None = None,
+        publish_tf: bool = True,
+        markers: bool = True,
+        fixed_frame: str = FIXED_FRAME,
+        toaster_simu: bool = True,
+        pdg_lists: bool = False,
+        publish_lists: bool = True,
+        ros4hri: bool = True,
+        services: bool = True,
+    ) -> None:
         self.node, self.rospy, self.registry = node, rospy, registry
         self.warnings = Warnings()
         self.drops: Drops = node.drops
@@ -157,9 +171,16 @@ class Bridge:
     def push(self, source: str, update: PoseUpdate, topic: str) -> None:
         """Queue a pose; a bad one is dropped and counted under ``topic`` (LiveSource.push
         runs the store's checks)."""
-        self.source(source).push(update.entity_id, update.position, quat=update.quat,
-                                 t_ns=update.t_ns, kind=update.kind, owner_id=update.owner_id,
-                                 joint=update.joint, topic=topic)
+        self.source(source).push(
+            update.entity_id,
+            update.position,
+            quat=update.quat,
+            t_ns=update.t_ns,
+            kind=update.kind,
+            owner_id=update.owner_id,
+            joint=update.joint,
+            topic=topic,
+        )
 
     def _sub(self, topic: str, cls: Any, callback: Any, *args: Any) -> None:
         def guarded(msg: Any) -> None:
@@ -169,8 +190,9 @@ class Bridge:
                 self.drops.drop(topic, "message", f"{type(exc).__name__}: {_one_line(exc)}")
 
         # tcp_nodelay: no Nagle wait on the sender's side for a pose (tens of ms otherwise)
-        self.subscribers.append(self.rospy.Subscriber(topic, cls, guarded, queue_size=10,
-                                                      tcp_nodelay=True))
+        self.subscribers.append(
+            self.rospy.Subscriber(topic, cls, guarded, queue_size=10, tcp_nodelay=True)
+        )
 
     def _subscribe(self, toaster_simu: bool, pdg_lists: bool) -> None:
         from geometry_msgs.msg import PoseStamped  # type: ignore[import-not-found]
@@ -229,9 +251,12 @@ class Bridge:
             for update in found:
                 self.push("ros4hri", update, "/tf")
         for frame in lost:
-            self.warnings.add(f"lost:{frame}", f"/tf: frame {frame!r} "
-                              f"({self.frames[frame].entity_id}) does not reach "
-                              f"{self.tree.fixed!r}: its pose is not known")
+            self.warnings.add(
+                f"lost:{frame}",
+                f"/tf: frame {frame!r} "
+                f"({self.frames[frame].entity_id}) does not reach "
+                f"{self.tree.fixed!r}: its pose is not known",
+            )
 
     def _hri(self, frame: str) -> FrameTarget | None:
         target = hri_target(frame)
@@ -251,8 +276,9 @@ class Bridge:
         except ValueError as exc:
             self.drops.drop(topic, "pose", str(exc))
             return
-        self.push("pose_topics", update._replace(owner_id=target.owner_id,
-                                                 joint=target.joint), topic)
+        self.push(
+            "pose_topics", update._replace(owner_id=target.owner_id, joint=target.joint), topic
+        )
 
     def _on_list(self, msg: Any, source: str, topic: str) -> None:
         updates, bad = list_updates(msg)
@@ -271,17 +297,29 @@ class Bridge:
         # latched: a subscriber that comes later gets the last status line at once
         self.status_pub = pub(STATUS_TOPIC, String, queue_size=1, latch=True)
         trigger = reg.srv("std_srvs/Trigger")
-        self.services.append(self.rospy.Service(STATUS_SERVICE, trigger, self._guard(
-            STATUS_SERVICE, trigger, self._get_status)))
-        self.fact_pubs = {p: pub(f"/{p}/factList", reg.msg("FactList"), queue_size=10)
-                          for p in PRODUCERS}
+        self.services.append(
+            self.rospy.Service(
+                STATUS_SERVICE, trigger, self._guard(STATUS_SERVICE, trigger, self._get_status)
+            )
+        )
+        self.fact_pubs = {
+            p: pub(f"/{p}/factList", reg.msg("FactList"), queue_size=10) for p in PRODUCERS
+        }
         self.area_pub = pub("/area_manager/areaList", reg.msg("AreaList"), queue_size=10)
         self.tf_pub = pub("/tf", TFMessage, queue_size=100) if self.publish_tf else None
-        self.marker_pubs = ({t: pub(f"/toaster_visualizer/{t}", MarkerArray, queue_size=10)
-                             for t in MARKER_TOPICS} if self.markers else {})
-        self.list_pubs = ({k: pub(topic, reg.msg(type_name), queue_size=10)
-                           for k, (topic, type_name, _) in PDG_LISTS.items()}
-                          if self.publish_lists else {})
+        self.marker_pubs = (
+            {t: pub(f"/toaster_visualizer/{t}", MarkerArray, queue_size=10) for t in MARKER_TOPICS}
+            if self.markers
+            else {}
+        )
+        self.list_pubs = (
+            {
+                k: pub(topic, reg.msg(type_name), queue_size=10)
+                for k, (topic, type_name, _) in PDG_LISTS.items()
+            }
+            if self.publish_lists
+            else {}
+        )
 
     def _get_status(self, req: Any, resp: Any) -> Any:
         resp.success, resp.message = True, self.node.status()
@@ -291,12 +329,18 @@ class Bridge:
         db = self.node.db
         url = getattr(db, "url", "") if db is not None else ""
         if not url or ":memory:" in url:
-            self.node.warn("ROS services are off: they need a database file or server that "
-                           "a second connection can open (not :memory:)")
+            self.node.warn(
+                "ROS services are off: they need a database file or server that "
+                "a second connection can open (not :memory:)"
+            )
             return
         self.pool = DbPool(url)
-        handlers = Handlers(self.pool, self.registry, lambda line: self.warnings.add(line, line),
-                            log=self.rospy.loginfo)
+        handlers = Handlers(
+            self.pool,
+            self.registry,
+            lambda line: self.warnings.add(line, line),
+            log=self.rospy.loginfo,
+        )
         watchers = self.watchers = Watchers(self.rospy, self.registry, url)
 
         def open_watch(req: Any, resp: Any) -> Any:
@@ -316,13 +360,13 @@ class Bridge:
                 return handler(req, resp)
             except Exception as exc:  # a bad request fails this call only
                 line = f"{name}: {_one_line(exc)}"
-                self.drops.drop(name, getattr(exc, "field", "request"), _one_line(exc),
-                                "refused")
+                self.drops.drop(name, getattr(exc, "field", "request"), _one_line(exc), "refused")
                 for field in ("answer", "boolAnswer"):
                     if hasattr(resp, field):
                         setattr(resp, field, False)
                         return resp
                 raise self.rospy.ServiceException(line) from None
+
         return call
 
     def area_numbers(self, names: frozenset[str]) -> dict[str, int]:
@@ -339,8 +383,14 @@ class Bridge:
             sub.unregister()
         for srv in self.services:
             srv.shutdown("toaster bridge stopped")
-        for pub in [*self.fact_pubs.values(), self.area_pub, self.tf_pub, self.status_pub,
-                    *self.marker_pubs.values(), *self.list_pubs.values()]:
+        for pub in [
+            *self.fact_pubs.values(),
+            self.area_pub,
+            self.tf_pub,
+            self.status_pub,
+            *self.marker_pubs.values(),
+            *self.list_pubs.values(),
+        ]:
             if pub is not None:
                 pub.unregister()
         if self.output in self.node.outputs:
@@ -391,8 +441,11 @@ class _Output:
         fact_cls, fact_list = reg.msg("Fact"), reg.msg("FactList")
         for producer, pub in b.fact_pubs.items():
             if pub.get_num_connections():
-                pub.publish(fact_list(factList=[fact_cls(**fact_fields(f, t_ns))
-                                                for f in facts.get(producer, [])]))
+                pub.publish(
+                    fact_list(
+                        factList=[fact_cls(**fact_fields(f, t_ns)) for f in facts.get(producer, [])]
+                    )
+                )
         self.ticks += 1
         if (self.ticks - 1) % VIEW_EVERY:  # fact lists every tick; views at 1/VIEW_EVERY
             return
@@ -405,16 +458,26 @@ class _Output:
         areas = b.node.areas.areas
         if b.area_pub.get_num_connections():
             numbers = b.area_numbers(frozenset(areas))
-            b.area_pub.publish(messages.to_msg(reg.msg("AreaList"), {"areaList": [
-                area_fields(name, spec, numbers.get(name, 0), inside.get(name, []))
-                for name, spec in sorted(areas.items())]}, reg))
+            b.area_pub.publish(
+                messages.to_msg(
+                    reg.msg("AreaList"),
+                    {
+                        "areaList": [
+                            area_fields(name, spec, numbers.get(name, 0), inside.get(name, []))
+                            for name, spec in sorted(areas.items())
+                        ]
+                    },
+                    reg,
+                )
+            )
         self._markers(t_ns, facts, world, areas, set(inside))
         if any(p.get_num_connections() for p in b.list_pubs.values()):
             lists = markers.entity_list_fields(world, t_ns)
             header = {"frame_id": "/map", "stamp": t_ns}
             for kind, (_, type_name, field) in PDG_LISTS.items():
-                b.list_pubs[kind].publish(messages.to_msg(
-                    reg.msg(type_name), {"header": header, field: lists[kind]}, reg))
+                b.list_pubs[kind].publish(
+                    messages.to_msg(reg.msg(type_name), {"header": header, field: lists[kind]}, reg)
+                )
 
     def _tf(self, t_ns: int, world: World) -> Any:
         from geometry_msgs.msg import TransformStamped  # type: ignore[import-not-found]
@@ -430,8 +493,14 @@ class _Output:
             out.append(tr)
         return TFMessage(transforms=out)
 
-    def _markers(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World,
-                 areas: Mapping[str, Any], occupied: set[str]) -> None:
+    def _markers(
+        self,
+        t_ns: int,
+        facts: Mapping[str, list[Fact]],
+        world: World,
+        areas: Mapping[str, Any],
+        occupied: set[str],
+    ) -> None:
         from visualization_msgs.msg import MarkerArray  # type: ignore[import-not-found]
 
         pubs = self.bridge.marker_pubs
@@ -445,14 +514,22 @@ class _Output:
             arrays["marker_area"] = markers.area_markers(world, areas, occupied, t_ns)
         if "marker_motion" in wanted:
             arrays["marker_motion"] = markers.motion_markers(
-                world, facts.get("agent_monitor", []), t_ns)
+                world, facts.get("agent_monitor", []), t_ns
+            )
         for topic in wanted:
             pubs[topic].publish(messages.to_msg(MarkerArray, {"markers": arrays[topic]}))
 
 
-def start_bridge(node: Any, *, node_name: str = "toaster", tf_map: str | Path | Mapping[
-        str, Any] | None = None, pose_topics: Mapping[str, Any] | None = None,
-                 publish_tf: bool = True, markers: bool = True, **options: Any) -> Bridge:
+def start_bridge(
+    node: Any,
+    *,
+    node_name: str = "toaster",
+    tf_map: str | Path | Mapping[str, Any] | None = None,
+    pose_topics: Mapping[str, Any] | None = None,
+    publish_tf: bool = True,
+    markers: bool = True,
+    **options: Any,
+) -> Bridge:
     """Connect a :class:`~toaster.node.LiveNode` to ROS 1 (a roscore must be running).
 
     ``tf_map``: frame -> {id, kind, owner?, joint?} (a YAML/JSON file or a mapping) for
@@ -465,8 +542,14 @@ def start_bridge(node: Any, *, node_name: str = "toaster", tf_map: str | Path | 
     rospy = import_rospy()
     registry = messages.load()
     frames = read_frame_map(tf_map)  # bad maps fail before anything starts
-    unknown = set(options) - {"fixed_frame", "toaster_simu", "pdg_lists", "publish_lists",
-                              "ros4hri", "services"}
+    unknown = set(options) - {
+        "fixed_frame",
+        "toaster_simu",
+        "pdg_lists",
+        "publish_lists",
+        "ros4hri",
+        "services",
+    }
     if unknown:
         msg = f"start_bridge: unknown option(s) {sorted(unknown)}"
         raise InvalidInputError(msg)
@@ -481,5 +564,13 @@ def start_bridge(node: Any, *, node_name: str = "toaster", tf_map: str | Path | 
         if handler not in root.handlers:
             handler.setLevel(max(handler.level, level))  # without rospy's INFO chatter
             root.addHandler(handler)
-    return Bridge(node, rospy, registry, tf_map=frames, pose_topics=pose_topics,
-                  publish_tf=publish_tf, markers=markers, **options)
+    return Bridge(
+        node,
+        rospy,
+        registry,
+        tf_map=frames,
+        pose_topics=pose_topics,
+        publish_tf=publish_tf,
+        markers=markers,
+        **options,
+    )

@@ -44,15 +44,23 @@ class RosCore:
         self.port = port or free_port()
         home = Path(home)
         env = {k: v for k, v in os.environ.items() if not k.startswith("ROS")}
-        self.env = env | {"ROS_MASTER_URI": f"http://127.0.0.1:{self.port}",
-                          "ROS_HOME": str(home), "ROS_LOG_DIR": str(home / "log"),
-                          "ROS_HOSTNAME": "127.0.0.1", "PYTHONUNBUFFERED": "1"}
+        self.env = env | {
+            "ROS_MASTER_URI": f"http://127.0.0.1:{self.port}",
+            "ROS_HOME": str(home),
+            "ROS_LOG_DIR": str(home / "log"),
+            "ROS_HOSTNAME": "127.0.0.1",
+            "PYTHONUNBUFFERED": "1",
+        }
         self.proc: subprocess.Popen[bytes] | None = None
 
     def __enter__(self) -> dict[str, str]:
-        self.proc = subprocess.Popen([ROSCORE, "-p", str(self.port)], env=self.env,
-                                     stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                                     start_new_session=True)
+        self.proc = subprocess.Popen(
+            [ROSCORE, "-p", str(self.port)],
+            env=self.env,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            start_new_session=True,
+        )
         deadline = time.monotonic() + 30
         while True:
             try:

@@ -33,8 +33,9 @@ def control_state(db: Any) -> control.ControlState:
 def entity_kind(db: Any, entity_id: str) -> str | None:
     """The kind of a registered entity (human, robot, object, joint...), None if unknown."""
     with db.transaction() as conn:
-        kind = conn.execute(text("SELECT kind FROM entities WHERE id = :id"),
-                            {"id": entity_id}).scalar_one_or_none()
+        kind = conn.execute(
+            text("SELECT kind FROM entities WHERE id = :id"), {"id": entity_id}
+        ).scalar_one_or_none()
     return None if kind is None else str(kind)
 
 
@@ -45,8 +46,10 @@ def run_command(db: Any, kind: str, args: dict[str, Any], wait_s: float) -> str 
     deadline = time.monotonic() + wait_s
     while time.monotonic() < deadline:
         with db.transaction() as conn:
-            row = conn.execute(text("SELECT state, answer_json FROM control_commands "
-                                    "WHERE id = :id"), {"id": command_id}).one_or_none()
+            row = conn.execute(
+                text("SELECT state, answer_json FROM control_commands WHERE id = :id"),
+                {"id": command_id},
+            ).one_or_none()
         if row is None or row.state == "done":
             return None
         if row.state == "failed":
@@ -122,10 +125,19 @@ def row_fields(row: FactRow) -> dict[str, Any]:
 
 def event_fields(row: EventRow) -> dict[str, Any]:
     """toaster_msgs/Event fields; an ended fact is "!property", as the original wrote it."""
-    fact = Fact(row.subject_id, row.property, row.target_id, row.value_text or "",
-                row.value_num, row.confidence if row.confidence is not None else 1.0,
-                row.observability if row.observability is not None else 1.0,
-                row.property_type, row.sub_property, row.subject_owner_id, row.target_owner_id)
+    fact = Fact(
+        row.subject_id,
+        row.property,
+        row.target_id,
+        row.value_text or "",
+        row.value_num,
+        row.confidence if row.confidence is not None else 1.0,
+        row.observability if row.observability is not None else 1.0,
+        row.property_type,
+        row.sub_property,
+        row.subject_owner_id,
+        row.target_owner_id,
+    )
     out = fact_fields(fact, row.stamp_ns)
     if row.kind == "ended":
         out["property"] = "!" + row.property
@@ -135,8 +147,7 @@ def event_fields(row: EventRow) -> dict[str, Any]:
 
 
 def id_fields(entity: Entity) -> dict[str, Any]:
-    return {"id": entity.id, "name": entity.name, "type": entity.kind,
-            "owner_id": entity.owner_id}
+    return {"id": entity.id, "name": entity.name, "type": entity.kind, "owner_id": entity.owner_id}
 
 
 def _number(value: str) -> int:
@@ -148,26 +159,42 @@ def property_fields(db: Any, entity_id: str | None) -> list[dict[str, Any]]:
     grouped: dict[str, dict[str, str]] = {}
     for row in q.properties(db, entity_id):
         grouped.setdefault(row.entity_id, {})[row.key] = str(row.value)
-    return [{"id": _number(eid), "color": p.get("color", ""), "height": p.get("height", ""),
-             "linkedToId": _number(p.get("linkedToId", "")), "linkType": p.get("linkType", "")}
-            for eid, p in grouped.items()]
+    return [
+        {
+            "id": _number(eid),
+            "color": p.get("color", ""),
+            "height": p.get("height", ""),
+            "linkedToId": _number(p.get("linkedToId", "")),
+            "linkType": p.get("linkType", ""),
+        }
+        for eid, p in grouped.items()
+    ]
 
 
 # -- database_manager ---------------------------------------------------------------------------
 def _agent(db: Any, agent: str) -> str:
     store = db.store()
-    return store.check_agent(agent) if agent else store.self_agent(
-        "give agentId (no single self agent)")
+    return (
+        store.check_agent(agent)
+        if agent
+        else store.self_agent("give agentId (no single self agent)")
+    )
 
 
 def _facts(db: Any, req: Any, sub: str) -> list[dict[str, Any]]:
     agent = _agent(db, req.agentId)
     if sub == "VALUE":
         f = req.reqFact
-        row = q.fact_value(db, agent, f.subjectId, f.property, f.targetId,
-                           sub_property=f.subProperty or None,
-                           subject_owner=f.subjectOwnerId or None,
-                           target_owner=f.targetOwnerId or None)
+        row = q.fact_value(
+            db,
+            agent,
+            f.subjectId,
+            f.property,
+            f.targetId,
+            sub_property=f.subProperty or None,
+            subject_owner=f.subjectOwnerId or None,
+            target_owner=f.targetOwnerId or None,
+        )
         return [row_fields(row)] if row else []
     reader = {"ALL": q.history, "CURRENT": q.current_facts, "OLD": q.memory}.get(sub)
     if reader is None:
@@ -180,8 +207,14 @@ def _events(db: Any, req: Any, sub: str) -> list[dict[str, Any]]:
     agent = req.agentId or None
     if sub == "VALUE":
         e = req.reqEvent
-        rows = q.events(db, agent, subject=e.subjectId or None, target=e.targetId or None,
-                        property=e.property.lstrip("!") or None, limit=1)
+        rows = q.events(
+            db,
+            agent,
+            subject=e.subjectId or None,
+            target=e.targetId or None,
+            property=e.property.lstrip("!") or None,
+            limit=1,
+        )
     else:
         rows = q.events(db, agent)
     return [event_fields(r) for r in rows]
@@ -192,14 +225,15 @@ def _ontology(db: Any, req: Any, sub: str) -> list[dict[str, Any]]:
         rows = q.descendants(db, req.entityClass)
     else:
         rows = q.ontology(db, req.entityClass if sub == "VALUE" else None)
-    return [{"entityClass": r.entity_class, "individual": r.individual,
-             "instantiated": r.instantiated} for r in rows]
+    return [
+        {"entityClass": r.entity_class, "individual": r.individual, "instantiated": r.instantiated}
+        for r in rows
+    ]
 
 
 def _ids(db: Any, req: Any, sub: str) -> list[dict[str, Any]]:
     if sub == "VALUE":
-        return [id_fields(e) for e in q.entities(db, req.idString or None,
-                                                 name=req.name or None)]
+        return [id_fields(e) for e in q.entities(db, req.idString or None, name=req.name or None)]
     return [id_fields(e) for e in q.entities(db)]
 
 
@@ -244,13 +278,20 @@ def set_info(db: Any, req: Any) -> None:
         return
     for f in req.facts:
         if req.add:
-            store.assert_fact(agent, fact_from_msg(f), t_ns=int(f.time) or None, source="ros",
-                              strict=False)
+            store.assert_fact(
+                agent, fact_from_msg(f), t_ns=int(f.time) or None, source="ros", strict=False
+            )
         else:
-            store.retract_facts(agent, f.property, f.subjectId or None, f.targetId or None,
-                                sub_property=f.subProperty or None,
-                                subject_owner_id=f.subjectOwnerId or None,
-                                target_owner_id=f.targetOwnerId or None, source="ros")
+            store.retract_facts(
+                agent,
+                f.property,
+                f.subjectId or None,
+                f.targetId or None,
+                sub_property=f.subProperty or None,
+                subject_owner_id=f.subjectOwnerId or None,
+                target_owner_id=f.targetOwnerId or None,
+                source="ros",
+            )
 
 
 def execute(db: Any, req: Any) -> tuple[bool, list[str]]:
@@ -260,8 +301,16 @@ def execute(db: Any, req: Any) -> tuple[bool, list[str]]:
         result = q.execute(db, req.order)
         return True, ["NULL" if v is None else str(v) for row in result.rows for v in row]
     if command == "ARE_IN_TABLE":
-        facts = [Fact(f.subjectId, f.property, f.targetId, sub_property=f.subProperty,
-                      property_type=f.propertyType) for f in req.facts]
+        facts = [
+            Fact(
+                f.subjectId,
+                f.property,
+                f.targetId,
+                sub_property=f.subProperty,
+                property_type=f.propertyType,
+            )
+            for f in req.facts
+        ]
         answers = q.are_in_table(db, _agent(db, req.agent), facts)
         if str(req.type).upper() == "INDIV":
             return True, ["true" if a else "false" for a in answers]
@@ -275,10 +324,14 @@ def execute(db: Any, req: Any) -> tuple[bool, list[str]]:
         return True, []
     if command == "PRINT":
         agent = _agent(db, req.agent) if str(req.type).upper() == "AGENT" else None
-        return True, [f"{r.agent_id} {r.subject_id} {r.property} {r.target_id} {r.value_text}"
-                      for r in q.current_facts(db, agent)]
-    msg = (f"execute {req.command!r}: use SQL, ARE_IN_TABLE, EMPTY or PRINT (toaster stores "
-           "every producer's facts, so SET_TOPICS and RESET_TABLES have no equivalent)")
+        return True, [
+            f"{r.agent_id} {r.subject_id} {r.property} {r.target_id} {r.value_text}"
+            for r in q.current_facts(db, agent)
+        ]
+    msg = (
+        f"execute {req.command!r}: use SQL, ARE_IN_TABLE, EMPTY or PRINT (toaster stores "
+        "every producer's facts, so SET_TOPICS and RESET_TABLES have no equivalent)"
+    )
     raise InvalidInputError(msg)
 
 
@@ -305,6 +358,13 @@ def plot_facts(db: Any, req: Any, directory: str | Path = PLOT_DIR) -> Path:
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
     path = out / f"{fact}.dat"
-    plot(db, path, subject=req.subjectID or None, property=fact,
-         target=req.targetID or None, since=since, until=until)
+    plot(
+        db,
+        path,
+        subject=req.subjectID or None,
+        property=fact,
+        target=req.targetID or None,
+        since=since,
+        until=until,
+    )
     return path

@@ -79,7 +79,9 @@ def _shipped(root: Path) -> tuple[dict[str, str], dict[str, tuple[str, str]]]:
         lines = path.read_text().splitlines()
         cut = next(i for i, line in enumerate(lines) if line.strip() == "---")
         services[f"{path.parents[1].name}/{path.stem}"] = (
-            "\n".join(lines[:cut]) + "\n", "\n".join(lines[cut + 1:]) + "\n")
+            "\n".join(lines[:cut]) + "\n",
+            "\n".join(lines[cut + 1 :]) + "\n",
+        )
     return messages, services
 
 
@@ -117,8 +119,10 @@ def _build(root: Path) -> Registry:
     for name, (request, response) in services.items():
         texts[f"{name}Request"], texts[f"{name}Response"] = request, response
     context = genmsg.MsgContext.create_default()
-    specs = {name: genmsg.msg_loader.load_msg_from_string(context, text, name)
-             for name, text in texts.items()}
+    specs = {
+        name: genmsg.msg_loader.load_msg_from_string(context, text, name)
+        for name, text in texts.items()
+    }
     for name, spec in specs.items():
         context.register(name, spec)
     wanted = [*shipped, *(f"{n}{part}" for n in services for part in ("Request", "Response"))]
@@ -135,10 +139,16 @@ def _build(root: Path) -> Registry:
         digest = hashlib.md5()
         digest.update(genmsg.gentools.compute_md5_text(context, request).encode())
         digest.update(genmsg.gentools.compute_md5_text(context, response).encode())
-        service_classes[name] = type(name.split("/")[1], (), {
-            "_type": name, "_md5sum": digest.hexdigest(),
-            "_request_class": messages[f"{name}Request"],
-            "_response_class": messages[f"{name}Response"]})
+        service_classes[name] = type(
+            name.split("/")[1],
+            (),
+            {
+                "_type": name,
+                "_md5sum": digest.hexdigest(),
+                "_request_class": messages[f"{name}Request"],
+                "_response_class": messages[f"{name}Response"],
+            },
+        )
     return Registry(messages, service_classes)
 
 

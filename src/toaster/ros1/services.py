@@ -36,8 +36,11 @@ STREAM_FLAGS = {
     "toaster_simu_robot": ("toasterSimuRobot",),
     "toaster_simu_object": ("toasterSimuObject",),
 }
-CLASS_OF = {"monitor_all_agents": "agents", "monitor_all_humans": "humans",
-            "monitor_all_robots": "robots"}
+CLASS_OF = {
+    "monitor_all_agents": "agents",
+    "monitor_all_humans": "humans",
+    "monitor_all_robots": "robots",
+}
 AREA_IDS = ("ros1", "area_ids")  # settings scope and key: {area name: the original's number}
 
 
@@ -104,8 +107,7 @@ def _entity_id(req: Any, kind: str) -> str:
     joint = kind == "joint"
     entity_id = f"{req.ownerId}/{req.id}" if joint else str(req.id)
     try:
-        return check_entity(entity_id, kind, req.ownerId if joint else "",
-                            req.id if joint else "")
+        return check_entity(entity_id, kind, req.ownerId if joint else "", req.id if joint else "")
     except Refused as exc:
         raise ServiceError(str(exc), exc.field) from None
 
@@ -122,8 +124,15 @@ def _checked_id(value: object, field: str, what: str, *, agent: bool = False) ->
 class Handlers:
     """Service handlers over a connection pool; ``ask_timeout`` bounds world queries."""
 
-    def __init__(self, pool: DbPool, registry: Any, warn: Callable[[str], None], *,
-                 ask_timeout: float = 2.0, log: Callable[[str], None] | None = None) -> None:
+    def __init__(
+        self,
+        pool: DbPool,
+        registry: Any,
+        warn: Callable[[str], None],
+        *,
+        ask_timeout: float = 2.0,
+        log: Callable[[str], None] | None = None,
+    ) -> None:
         self.pool = pool
         self.registry = registry
         self.warn = warn
@@ -152,8 +161,7 @@ class Handlers:
     def _known(self, db: Any, entity_id: str, field: str, *, agent: bool = False) -> str:
         """``entity_id`` if the database has it (an agent: a human or robot), else a
         :class:`ServiceError` naming the request field."""
-        _checked_id(entity_id, field, f"{field} ({'agent' if agent else 'object'} id)",
-                    agent=agent)
+        _checked_id(entity_id, field, f"{field} ({'agent' if agent else 'object'} id)", agent=agent)
         kind = dbcalls.entity_kind(db, entity_id)
         if kind is None or (agent and kind not in ("human", "robot")):
             what = "human or robot" if agent else "entity"
@@ -195,8 +203,9 @@ class Handlers:
         kind = str(req.type).lower()
         entity_id = _entity_id(req, kind)
         name = req.id if kind == "joint" else (req.name or req.id)  # a joint's skeleton name
-        self._command("add_entity", {"id": entity_id, "kind": kind, "owner_id": req.ownerId,
-                                     "name": name})
+        self._command(
+            "add_entity", {"id": entity_id, "kind": kind, "owner_id": req.ownerId, "name": name}
+        )
         resp.answer = True
         return resp
 
@@ -229,8 +238,10 @@ class Handlers:
             state = dbcalls.control_state(db)
             agents = state.agents if state.agents is not None else ["humans"]
             if req.agentId not in agents and not set(agents) & set(control.CLASSES):
-                msg = (f"add_joint_to_agent: {shown(req.agentId)} is not monitored: "
-                       "call add_agent first")
+                msg = (
+                    f"add_joint_to_agent: {shown(req.agentId)} is not monitored: "
+                    "call add_agent first"
+                )
                 raise ServiceError(msg, "agentId")
             control.monitor_add(db, req.agentId, joints=[req.jointName])
         resp.answer = True
@@ -265,22 +276,29 @@ class Handlers:
             with self.pool.db() as db:
                 control.monitor_all(db, which, bool(req.monitorAll))
             return resp
+
         return handler
 
     def print_all_monitored_agents(self, req: Any, resp: Any) -> Any:
         with self.pool.db() as db:
             state = dbcalls.control_state(db)
-        self.log(f"monitored agents: {state.agents if state.agents is not None else 'default'}"
-                 f"; except {state.excluded}; joints {state.joints or 'all'}")
+        self.log(
+            f"monitored agents: {state.agents if state.agents is not None else 'default'}"
+            f"; except {state.excluded}; joints {state.joints or 'all'}"
+        )
         return resp
 
     def pointing(self, req: Any, resp: Any) -> Any:
         _checked_id(req.pointingAgentId, "pointingAgentId", "pointing agent id", agent=True)
         _checked_id(req.pointingJoint or "rightHand", "pointingJoint", "joint name")
-        args: dict[str, Any] = {"agent": req.pointingAgentId,
-                                "joint": req.pointingJoint or "rightHand"}
-        for field, key in (("pointingJointDistThreshold", "joint_distance"),
-                           ("angleThreshold", "angle")):
+        args: dict[str, Any] = {
+            "agent": req.pointingAgentId,
+            "joint": req.pointingJoint or "rightHand",
+        }
+        for field, key in (
+            ("pointingJointDistThreshold", "joint_distance"),
+            ("angleThreshold", "angle"),
+        ):
             value = float(getattr(req, field))
             if math.isfinite(value) and value > 0:
                 args[key] = value
@@ -344,17 +362,19 @@ class Handlers:
     def get_relative_position(self, req: Any, resp: Any) -> Any:
         _checked_id(req.subjectId, "subjectId", "subject id")
         _checked_id(req.targetId, "targetId", "target id")
-        found = self._ask("get_relative_position", {"subject": req.subjectId,
-                                                     "target": req.targetId})
+        found = self._ask(
+            "get_relative_position", {"subject": req.subjectId, "target": req.targetId}
+        )
         resp.direction, resp.angleValue, resp.answer = found["direction"], found["angle"], True
         return resp
 
     def get_multiple_relative_position(self, req: Any, resp: Any) -> Any:
         for field in ("agentSubjectId", "objectSubjectId", "targetId"):
             _checked_id(getattr(req, field), field, field)
-        found = self._ask("get_multiple_relative_position", {
-            "agent": req.agentSubjectId, "object": req.objectSubjectId,
-            "target": req.targetId})
+        found = self._ask(
+            "get_multiple_relative_position",
+            {"agent": req.agentSubjectId, "object": req.objectSubjectId, "target": req.targetId},
+        )
         resp.direction, resp.angleValue, resp.answer = found["direction"], found["angle"], True
         return resp
 
@@ -377,8 +397,9 @@ class Handlers:
         resp.resId = build("ids", "Id")
         resp.resOntology = build("ontology", "Ontology")
         resp.resProperties = build("properties", "Property")
-        resp.boolAnswer = any(found.get(k) for k in ("facts", "events", "ids", "ontology",
-                                                      "properties"))
+        resp.boolAnswer = any(
+            found.get(k) for k in ("facts", "events", "ids", "ontology", "properties")
+        )
         return resp
 
     def set_info(self, req: Any, resp: Any) -> Any:
@@ -391,8 +412,10 @@ class Handlers:
         with self.pool.db() as db:
             path = dbcalls.plot_facts(db, req)
         script = shell_word(str(path.with_suffix(".gp").resolve()))
-        self.log(f"plot_facts: wrote {visible(str(path.resolve()))} (draw it with gnuplot -p "
-                 f"{visible(script)})")
+        self.log(
+            f"plot_facts: wrote {visible(str(path.resolve()))} (draw it with gnuplot -p "
+            f"{visible(script)})"
+        )
         resp.boolAnswer = True
         return resp
 
@@ -409,13 +432,18 @@ class Handlers:
             ("/agent_monitor/add_agent", "AddAgent", self.add_agent),
             ("/agent_monitor/remove_agent", "RemoveAgent", self.remove_agent),
             ("/agent_monitor/add_joint_to_agent", "AddJointToAgent", self.add_joint_to_agent),
-            ("/agent_monitor/remove_joint_to_agent", "RemoveJointToAgent",
-             self.remove_joint_to_agent),
-            ("/agent_monitor/remove_all_joints_to_agent", "RemoveAllJointsToAgent",
-             self.remove_all_joints_to_agent),
+            (
+                "/agent_monitor/remove_joint_to_agent",
+                "RemoveJointToAgent",
+                self.remove_joint_to_agent,
+            ),
+            (
+                "/agent_monitor/remove_all_joints_to_agent",
+                "RemoveAllJointsToAgent",
+                self.remove_all_joints_to_agent,
+            ),
             ("/agent_monitor/remove_all_agents", "Empty", self.remove_all_agents),
-            ("/agent_monitor/print_all_monitored_agents", "Empty",
-             self.print_all_monitored_agents),
+            ("/agent_monitor/print_all_monitored_agents", "Empty", self.print_all_monitored_agents),
             ("/agent_monitor/pointing", "Pointing", self.pointing),
             ("/agent_monitor/pointing_time", "PointingTime", self.pointing),
             ("/area_manager/add_area", "AddArea", self.add_area),
@@ -423,15 +451,23 @@ class Handlers:
             ("/area_manager/remove_all_areas", "Empty", self.remove_all_areas),
             ("/area_manager/print_area", "PrintArea", self.print_area),
             ("/area_manager/print_all_areas", "Empty", self.print_all_areas),
-            ("/area_manager/get_relative_position", "GetRelativePosition",
-             self.get_relative_position),
-            ("/area_manager/get_multiple_relative_position", "GetMultiRelativePosition",
-             self.get_multiple_relative_position),
+            (
+                "/area_manager/get_relative_position",
+                "GetRelativePosition",
+                self.get_relative_position,
+            ),
+            (
+                "/area_manager/get_multiple_relative_position",
+                "GetMultiRelativePosition",
+                self.get_multiple_relative_position,
+            ),
             ("/database_manager/execute", "ExecuteDB", self.execute),
             ("/database_manager/get_info", "GetInfoDB", self.get_info),
             ("/database_manager/set_info", "SetInfoDB", self.set_info),
             ("/database_manager/plot_facts", "PlotFactsDB", self.plot_facts),
         ]
-        out += [(f"/agent_monitor/{name}", "MonitorAll", self.monitor_all(which))
-                for name, which in CLASS_OF.items()]
+        out += [
+            (f"/agent_monitor/{name}", "MonitorAll", self.monitor_all(which))
+            for name, which in CLASS_OF.items()
+        ]
         return out

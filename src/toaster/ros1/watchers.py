@@ -16,13 +16,25 @@ TOPIC_PREFIX = "/database_manager/watch/"
 
 def event_fields(row: EventRow) -> dict[str, Any]:
     """toaster_msgs/BeliefEvent fields of an event row."""
-    fact = Fact(row.subject_id, row.property, row.target_id, value_text=row.value_text or "",
-                value_num=row.value_num, confidence=row.confidence or 0.0,
-                observability=row.observability or 0.0, property_type=row.property_type,
-                sub_property=row.sub_property, subject_owner_id=row.subject_owner_id,
-                target_owner_id=row.target_owner_id)
-    return {"agentId": row.agent_id, "kind": row.kind,
-            "previousValue": row.previous_text or "", "fact": fact_fields(fact, row.stamp_ns)}
+    fact = Fact(
+        row.subject_id,
+        row.property,
+        row.target_id,
+        value_text=row.value_text or "",
+        value_num=row.value_num,
+        confidence=row.confidence or 0.0,
+        observability=row.observability or 0.0,
+        property_type=row.property_type,
+        sub_property=row.sub_property,
+        subject_owner_id=row.subject_owner_id,
+        target_owner_id=row.target_owner_id,
+    )
+    return {
+        "agentId": row.agent_id,
+        "kind": row.kind,
+        "previousValue": row.previous_text or "",
+        "fact": fact_fields(fact, row.stamp_ns),
+    }
 
 
 class Watchers:
@@ -45,8 +57,14 @@ class Watchers:
         pub = self.rospy.Publisher(topic, cls, queue_size=1000, latch=False)
         self.publishers.append(pub)
         db = connect(self.url)
-        stream = watch(db, agent=agent or None, subject=subject or None, property=prop or None,
-                       target=target or None, stop=self.stop)
+        stream = watch(
+            db,
+            agent=agent or None,
+            subject=subject or None,
+            property=prop or None,
+            target=target or None,
+            stop=self.stop,
+        )
 
         def run() -> None:
             try:
@@ -66,4 +84,3 @@ class Watchers:
             thread.join(2)
         for pub in self.publishers:
             pub.unregister()
-

@@ -36,10 +36,13 @@ SOURCE = "beliefs"
 SEPARATOR = HOLDER_SEPARATOR
 _RUN = text("INSERT INTO belief_runs (self_id, t_ns, recorded_ns) VALUES (:s, :t, :r)")
 # Periods to copy into own rows before a write that bypasses the rule (see BeliefRule.detach).
-_HOLDER_OPEN = ("SELECT w.id FROM fact_keys k JOIN belief_follow w ON w.hkey = k.id "
-                "AND w.to_ns IS NULL WHERE k.agent_id = :a")
-_FOLLOWING_SELF = ("SELECT w.id FROM fact_keys k JOIN belief_follow w ON w.self_key = k.id "
-                   "WHERE k.agent_id = :a")
+_HOLDER_OPEN = (
+    "SELECT w.id FROM fact_keys k JOIN belief_follow w ON w.hkey = k.id "
+    "AND w.to_ns IS NULL WHERE k.agent_id = :a"
+)
+_FOLLOWING_SELF = (
+    "SELECT w.id FROM fact_keys k JOIN belief_follow w ON w.self_key = k.id WHERE k.agent_id = :a"
+)
 
 
 def holder_id(agent: str, *about: str) -> str:
@@ -92,23 +95,36 @@ class BeliefRule:
         """The tick's self keys; refreshed ones with the values they held before the tick;
         each with the agent who made its change (``ChangeSet.actor_of``), if known."""
         rows: dict[int, tuple[Any, ...]] = {}
-        keys = ([k for k, _ in changes.appeared] + [k for k, _, _ in changes.changed]
-                + [k for k, _ in changes.ended])
+        keys = (
+            [k for k, _ in changes.appeared]
+            + [k for k, _, _ in changes.changed]
+            + [k for k, _ in changes.ended]
+        )
         for key_id in keys:
             rows[key_id] = (key_id, False, None, None, None, changes.actor_of(key_id))
         for key_id, _, held in changes.refreshed:
-            rows[key_id] = (key_id, True, held.value_num, held.confidence, held.observability,
-                            changes.actor_of(key_id))
+            rows[key_id] = (
+                key_id,
+                True,
+                held.value_num,
+                held.confidence,
+                held.observability,
+                changes.actor_of(key_id),
+            )
         cur = self.store.db.cursor()
         if conn.dialect.name == "postgresql":
             cur.execute(
                 "INSERT INTO belief_changed (key_id, refreshed, prev_num, prev_conf, prev_obs, "
                 "actor_id) SELECT * FROM unnest(%s::bigint[], %s::boolean[], %s::float8[], "
                 "%s::float8[], %s::float8[], %s::text[])",
-                [list(column) for column in zip(*rows.values(), strict=True)])
+                [list(column) for column in zip(*rows.values(), strict=True)],
+            )
         else:
-            cur.executemany("INSERT INTO belief_changed (key_id, refreshed, prev_num, prev_conf, "
-                            "prev_obs, actor_id) VALUES (?, ?, ?, ?, ?, ?)", list(rows.values()))
+            cur.executemany(
+                "INSERT INTO belief_changed (key_id, refreshed, prev_num, prev_conf, "
+                "prev_obs, actor_id) VALUES (?, ?, ?, ?, ?, ?)",
+                list(rows.values()),
+            )
 
     def detach(self, conn: Connection, agent_id: str | None, *, keep: bool) -> None:
         """Before a write that bypasses the rule (a direct write to a holder, emptying an
@@ -127,8 +143,13 @@ class BeliefRule:
             for statement in _materialize(conn.dialect.name):
                 conn.execute(statement)
         if not keep:
-            conn.execute(text("DELETE FROM belief_follow WHERE hkey IN "
-                              "(SELECT id FROM fact_keys WHERE agent_id = :a)"), {"a": agent_id})
+            conn.execute(
+                text(
+                    "DELETE FROM belief_follow WHERE hkey IN "
+                    "(SELECT id FROM fact_keys WHERE agent_id = :a)"
+                ),
+                {"a": agent_id},
+            )
 
     def __call__(self, conn: Connection, changes: ChangeSet) -> None:
         agents = self.store.agents()
@@ -143,4 +164,11 @@ class BeliefRule:
 def _check_sql(sql: str) -> bool:
     """True when ``sql`` names no bound parameter outside the known set (used by tests)."""
     return set(re.findall(r"(?<![:\w]):([a-z_]+)", sql)) <= {
-        "self", "t", "source", "recorded", "phase", "everything", "moves"}
+        "self",
+        "t",
+        "source",
+        "recorded",
+        "phase",
+        "everything",
+        "moves",
+    }

@@ -24,8 +24,12 @@ import re
 from dataclasses import dataclass
 
 #: The run's columns the steps read, by parameter name; :data:`Step` adds constants.
-RUN_PARAMS = {"self": "NEW.self_id", "t": "NEW.t_ns", "recorded": "NEW.recorded_ns",
-              "source": "'beliefs'"}
+RUN_PARAMS = {
+    "self": "NEW.self_id",
+    "t": "NEW.t_ns",
+    "recorded": "NEW.recorded_ns",
+    "source": "'beliefs'",
+}
 AROUND = {"phase": "'around'", "everything": "0"}
 
 
@@ -54,10 +58,12 @@ def _steps(*names: str, **constants: str) -> tuple[Step, ...]:
 #: The run applies: rules enabled, a self agent's change, somebody else to hold beliefs.
 #: Several robots may write one database: each keeps its own world view, and the holders
 #: take the changes whichever robot perceives them (one timeline: see :data:`CLOCK`).
-RUNS = ("{{setting(enabled)}} = 'true' "
-        "AND EXISTS (SELECT 1 FROM agents WHERE id = NEW.self_id AND is_self) "
-        "AND EXISTS (SELECT 1 FROM agents WHERE NOT is_self) "
-        "AND EXISTS (SELECT 1 FROM belief_changed)")
+RUNS = (
+    "{{setting(enabled)}} = 'true' "
+    "AND EXISTS (SELECT 1 FROM agents WHERE id = NEW.self_id AND is_self) "
+    "AND EXISTS (SELECT 1 FROM agents WHERE NOT is_self) "
+    "AND EXISTS (SELECT 1 FROM belief_changed)"
+)
 #: A run that applies first moves the rules' clock (``store_state.beliefs_ns``) to its time
 #: unless it is behind: a robot or producer whose clock lags another's (or a late SQL writer)
 #: never writes a holder's row before one already written (the store also writes the self
@@ -69,15 +75,19 @@ RUNS = ("{{setting(enabled)}} = 'true' "
 #: then takes the clock's time (:data:`CLOCK_NS`). On PostgreSQL the update's row lock also
 #: serializes the runs of concurrent writers: each sees the rows of the runs committed
 #: before it.
-CLOCK = ("UPDATE store_state SET beliefs_ns = CASE "
-         "WHEN beliefs_ns IS NULL OR NEW.t_ns > beliefs_ns THEN NEW.t_ns "
-         "WHEN NEW.t_ns = beliefs_ns AND beliefs_self = NEW.self_id THEN beliefs_ns "
-         "ELSE beliefs_ns + 1 END, beliefs_self = NEW.self_id WHERE id = 1")
+CLOCK = (
+    "UPDATE store_state SET beliefs_ns = CASE "
+    "WHEN beliefs_ns IS NULL OR NEW.t_ns > beliefs_ns THEN NEW.t_ns "
+    "WHEN NEW.t_ns = beliefs_ns AND beliefs_self = NEW.self_id THEN beliefs_ns "
+    "ELSE beliefs_ns + 1 END, beliefs_self = NEW.self_id WHERE id = 1"
+)
 CLOCK_NS = "(SELECT beliefs_ns FROM store_state WHERE id = 1)"
 #: The agents (or the depth) changed since the nested holders were last registered, and
 #: somebody perceives something (a database where nobody does keeps only its real agents).
-NEW_AGENTS = ("CAST({{setting(depth)}} AS INTEGER) >= 2 AND EXISTS (SELECT 1 FROM belief_seen) "
-              "AND {{holders_basis}} <> (SELECT holders_basis FROM store_state WHERE id = 1)")
+NEW_AGENTS = (
+    "CAST({{setting(depth)}} AS INTEGER) >= 2 AND EXISTS (SELECT 1 FROM belief_seen) "
+    "AND {{holders_basis}} <> (SELECT holders_basis FROM store_state WHERE id = 1)"
+)
 #: The holders step registered somebody: perceive again with them.
 HOLDERS_ADDED = "EXISTS (SELECT 1 FROM belief_new_chain)"
 #: A change of who perceives what (rooms, containers, visibility, closed containers): look
@@ -90,11 +100,14 @@ PERCEPTION_CHANGED = (  # (each changed key's property looked up by its id: a jo
     "UNION ALL SELECT value FROM {{setting_list(containment)}} "
     "UNION ALL SELECT key FROM {{setting_map(visibility)}} "
     "UNION ALL SELECT x.value FROM {{setting_pairs(attention)}} AS x "
-    "UNION ALL SELECT {{setting_text(closed)}}))")
+    "UNION ALL SELECT {{setting_text(closed)}}))"
+)
 #: A holder takes a change (or sees something again), or follows a changed key: when nobody
 #: perceives anything, as in a crowd replay with no rooms, the write steps are skipped.
-ANY_WORK = ("EXISTS (SELECT 1 FROM belief_in) OR EXISTS (SELECT 1 FROM belief_changed b "
-            "{{pinned_join}} belief_follow w ON w.self_key = b.key_id AND w.to_ns IS NULL)")
+ANY_WORK = (
+    "EXISTS (SELECT 1 FROM belief_in) OR EXISTS (SELECT 1 FROM belief_changed b "
+    "{{pinned_join}} belief_follow w ON w.self_key = b.key_id AND w.to_ns IS NULL)"
+)
 SHARE_ROWS = "{{setting(share_rows)}} = 'true'"
 #: A holder's perception confidence of a followed key changed (rare: not on a first tick, when
 #: PostgreSQL, with no statistics yet, once planned these updates as a scan per row).
@@ -103,47 +116,82 @@ REPCONF = "EXISTS (SELECT 1 FROM belief_todo WHERE action = 'repconf')"
 #: The groups of holders (96_regroup) hold for this run: formed for this self agent, and no
 #: perception changes (nor an actor, who perceives its own change alone). Any other run first
 #: ends them (15_ungroup) and forms them again at its end.
-STEADY = ("COALESCE((SELECT groups_for FROM store_state WHERE id = 1), '') = NEW.self_id "
-          f"AND NOT ({PERCEPTION_CHANGED}) "
-          "AND NOT EXISTS (SELECT 1 FROM belief_changed WHERE actor_id IS NOT NULL)")
+STEADY = (
+    "COALESCE((SELECT groups_for FROM store_state WHERE id = 1), '') = NEW.self_id "
+    f"AND NOT ({PERCEPTION_CHANGED}) "
+    "AND NOT EXISTS (SELECT 1 FROM belief_changed WHERE actor_id IS NOT NULL)"
+)
 #: The groups were ended (by this run, or by a write since the last run).
 REGROUP = "{{groups_ended}}"
 
-PIPELINE = Block("run", RUNS, (
-    *_steps("10_focus", "12_moves", "13_late", "58_frozen"),
-    Block("not_steady", f"NOT ({STEADY})", _steps("15_ungroup")),
-    *_steps("20_perceive", **AROUND),
-    *_steps("30_changes", moves="0"),
-    *_steps("32_expand"),
-    Block("new_agents", NEW_AGENTS, (
-        *_steps("holders"),
-        Block("holders_added", HOLDERS_ADDED, (
-            *_steps("reperceive"), *_steps("20_perceive", **AROUND),
-            *_steps("30_changes", moves="0"))),
-        *_steps("holders_seen"),
-    )),
-    Block("phases", PERCEPTION_CHANGED, (
-        *_steps("20_perceive", phase="'before'", everything="1"),
-        *_steps("20_perceive", phase="'after'", everything="1"),
-        *_steps("30_changes", moves="1"),
-        *_steps("40_refresh", "42_keep_max"),
-    )),
-    Block("write", ANY_WORK, (
-        *_steps("35_freeze", "45_resolve", "50_keys", "45_resolve", "55_switch", "58_frozen",
-                "60_plan", "70_events", "80_close", "85_refresh_rows"),
-        Block("follow", SHARE_ROWS, _steps("90_follow")),
-        Block("own", f"NOT ({SHARE_ROWS})", _steps("91_open")),
-        Block("repconf", REPCONF, _steps("92_repconf")),
-        *_steps("94_keep_groups"),
-    )),
-    Block("regroup", REGROUP, _steps("96_regroup")),
-))
+PIPELINE = Block(
+    "run",
+    RUNS,
+    (
+        *_steps("10_focus", "12_moves", "13_late", "58_frozen"),
+        Block("not_steady", f"NOT ({STEADY})", _steps("15_ungroup")),
+        *_steps("20_perceive", **AROUND),
+        *_steps("30_changes", moves="0"),
+        *_steps("32_expand"),
+        Block(
+            "new_agents",
+            NEW_AGENTS,
+            (
+                *_steps("holders"),
+                Block(
+                    "holders_added",
+                    HOLDERS_ADDED,
+                    (
+                        *_steps("reperceive"),
+                        *_steps("20_perceive", **AROUND),
+                        *_steps("30_changes", moves="0"),
+                    ),
+                ),
+                *_steps("holders_seen"),
+            ),
+        ),
+        Block(
+            "phases",
+            PERCEPTION_CHANGED,
+            (
+                *_steps("20_perceive", phase="'before'", everything="1"),
+                *_steps("20_perceive", phase="'after'", everything="1"),
+                *_steps("30_changes", moves="1"),
+                *_steps("40_refresh", "42_keep_max"),
+            ),
+        ),
+        Block(
+            "write",
+            ANY_WORK,
+            (
+                *_steps(
+                    "35_freeze",
+                    "45_resolve",
+                    "50_keys",
+                    "45_resolve",
+                    "55_switch",
+                    "58_frozen",
+                    "60_plan",
+                    "70_events",
+                    "80_close",
+                    "85_refresh_rows",
+                ),
+                Block("follow", SHARE_ROWS, _steps("90_follow")),
+                Block("own", f"NOT ({SHARE_ROWS})", _steps("91_open")),
+                Block("repconf", REPCONF, _steps("92_repconf")),
+                *_steps("94_keep_groups"),
+            ),
+        ),
+        Block("regroup", REGROUP, _steps("96_regroup")),
+    ),
+)
 
 _PARAM = re.compile(r"(?<![:\w]):([a-z_]+)")
 
 
 def bind(sql: str, params: dict[str, str]) -> str:
     """``sql`` with its ``:name`` parameters replaced by SQL expressions (unknown: error)."""
+
     def value(match: re.Match[str]) -> str:
         name = match.group(1)
         if name not in params:

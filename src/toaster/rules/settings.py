@@ -32,10 +32,19 @@ SCOPE = "beliefs"
 #: The settings and the kind of value each takes. Their defaults live in the database (view
 #: ``belief_settings``, migration 0006), read by the rule statements and by :func:`read` alike.
 KINDS: dict[str, str] = {
-    "enabled": "bool", "depth": "depth", "copresence": "properties",
-    "containment": "properties", "visibility": "sides", "closed": "property",
-    "refute_by_target": "properties", "self_perception": "bool", "share_rows": "bool",
-    "attention": "gates", "trust": "trust", "distrust": "agents", "group_holders": "bool",
+    "enabled": "bool",
+    "depth": "depth",
+    "copresence": "properties",
+    "containment": "properties",
+    "visibility": "sides",
+    "closed": "property",
+    "refute_by_target": "properties",
+    "self_perception": "bool",
+    "share_rows": "bool",
+    "attention": "gates",
+    "trust": "trust",
+    "distrust": "agents",
+    "group_holders": "bool",
 }
 TRUST_POLICIES = ("everyone", "witnesses")
 MAX_DEPTH = 4
@@ -54,28 +63,43 @@ def validate(key: str, value: object) -> object:
     if kind == "bool" and not isinstance(value, bool):
         msg = f"invalid beliefs setting {key}={value!r}: use true or false"
         raise InvalidInputError(msg)
-    if kind == "depth" and (not isinstance(value, int) or isinstance(value, bool)
-                           or not 1 <= value <= MAX_DEPTH):
+    if kind == "depth" and (
+        not isinstance(value, int) or isinstance(value, bool) or not 1 <= value <= MAX_DEPTH
+    ):
         msg = f"invalid beliefs setting depth={value!r}: use an integer from 1 to {MAX_DEPTH}"
         raise InvalidInputError(msg)
     if kind == "properties":
         _str_list(key, value)
-    if kind == "sides" and (not isinstance(value, dict) or any(
-            not isinstance(k, str) or v not in ("subject", "target") for k, v in value.items())):
-        msg = (f"invalid beliefs setting visibility={value!r}: map each property to "
-               "'subject' or 'target' (the side that sees)")
+    if kind == "sides" and (
+        not isinstance(value, dict)
+        or any(not isinstance(k, str) or v not in ("subject", "target") for k, v in value.items())
+    ):
+        msg = (
+            f"invalid beliefs setting visibility={value!r}: map each property to "
+            "'subject' or 'target' (the side that sees)"
+        )
         raise InvalidInputError(msg)
-    if kind == "gates" and (not isinstance(value, dict) or any(
-            not isinstance(k, str) or not k or not isinstance(v, list)
-            or not all(isinstance(a, str) and a for a in v) for k, v in value.items())):
-        msg = (f"invalid beliefs setting attention={value!r}: map a copresence property to a "
-               'list of attention properties, e.g. {"IsInRoom": ["IsLookingToward"]}')
+    if kind == "gates" and (
+        not isinstance(value, dict)
+        or any(
+            not isinstance(k, str)
+            or not k
+            or not isinstance(v, list)
+            or not all(isinstance(a, str) and a for a in v)
+            for k, v in value.items()
+        )
+    ):
+        msg = (
+            f"invalid beliefs setting attention={value!r}: map a copresence property to a "
+            'list of attention properties, e.g. {"IsInRoom": ["IsLookingToward"]}'
+        )
         raise InvalidInputError(msg)
     if kind == "trust" and value not in TRUST_POLICIES:
         msg = f"invalid beliefs setting trust={value!r}: use one of {', '.join(TRUST_POLICIES)}"
         raise InvalidInputError(msg)
-    if kind == "agents" and (not isinstance(value, list)
-                             or not all(isinstance(v, str) and v for v in value)):
+    if kind == "agents" and (
+        not isinstance(value, list) or not all(isinstance(v, str) and v for v in value)
+    ):
         msg = f"invalid beliefs setting {key}={value!r}: give a list of agent ids"
         raise InvalidInputError(msg)
     if kind == "property" and (not isinstance(value, str) or not value):
@@ -100,6 +124,12 @@ def check_key(key: str) -> str:
 
 def perception_properties(config: dict[str, Any]) -> frozenset[str]:
     """Properties whose change can change who perceives what (triggers "seeing again")."""
-    return frozenset([*config["copresence"], *config["containment"], *config["visibility"],
-                      *(a for gate in config["attention"].values() for a in gate),
-                      config["closed"]])
+    return frozenset(
+        [
+            *config["copresence"],
+            *config["containment"],
+            *config["visibility"],
+            *(a for gate in config["attention"].values() for a in gate),
+            config["closed"],
+        ]
+    )

@@ -27,11 +27,34 @@ from importlib import resources
 
 #: The steps of the rule, in order (see :class:`toaster.rules.hook.BeliefRule` for when each
 #: one runs).
-STEPS = ("00_temp", "10_focus", "12_moves", "13_late", "15_ungroup", "20_perceive", "30_changes",
-         "32_expand", "35_freeze", "40_refresh", "42_keep_max", "45_resolve", "50_keys",
-         "55_switch", "58_frozen", "60_plan", "70_events", "80_close", "85_refresh_rows",
-         "90_follow", "91_open", "92_repconf", "94_keep_groups", "95_materialize", "96_regroup",
-         "99_clear")
+STEPS = (
+    "00_temp",
+    "10_focus",
+    "12_moves",
+    "13_late",
+    "15_ungroup",
+    "20_perceive",
+    "30_changes",
+    "32_expand",
+    "35_freeze",
+    "40_refresh",
+    "42_keep_max",
+    "45_resolve",
+    "50_keys",
+    "55_switch",
+    "58_frozen",
+    "60_plan",
+    "70_events",
+    "80_close",
+    "85_refresh_rows",
+    "90_follow",
+    "91_open",
+    "92_repconf",
+    "94_keep_groups",
+    "95_materialize",
+    "96_regroup",
+    "99_clear",
+)
 
 #: Where a function-like macro puts its argument.
 ARG = "<arg>"
@@ -64,8 +87,10 @@ MACROS: dict[str, dict[str, str]] = {
         # The entity is not hidden in a closed container (the CTE ``hidden``).
         "not_hidden": f"{ARG} NOT IN (SELECT e FROM hidden)",
         # A map of lists as (key, value) rows.
-        "setting_pairs": (f"(SELECT m.key AS key, l.value AS value FROM "
-                          f"json_each({{{{setting({ARG})}}}}) AS m, json_each(m.value) AS l)"),
+        "setting_pairs": (
+            f"(SELECT m.key AS key, l.value AS value FROM "
+            f"json_each({{{{setting({ARG})}}}}) AS m, json_each(m.value) AS l)"
+        ),
     },
     "postgresql": {
         "lo": "LEAST",
@@ -86,9 +111,11 @@ MACROS: dict[str, dict[str, str]] = {
         # An anti-join: NOT IN over the recursive CTE (estimated at a million rows) was planned
         # as a scan of it per row, and the joins around it as nested loops.
         "not_hidden": f"NOT EXISTS (SELECT 1 FROM hidden WHERE hidden.e = {ARG})",
-        "setting_pairs": (f"(SELECT m.key AS key, l.value AS value FROM "
-                          f"json_each_text(CAST({{{{setting({ARG})}}}} AS json)) AS m, "
-                          f"json_array_elements_text(CAST(m.value AS json)) AS l(value))"),
+        "setting_pairs": (
+            f"(SELECT m.key AS key, l.value AS value FROM "
+            f"json_each_text(CAST({{{{setting({ARG})}}}} AS json)) AS m, "
+            f"json_array_elements_text(CAST(m.value AS json)) AS l(value))"
+        ),
     },
 }
 
@@ -99,56 +126,80 @@ FOLLOWED = {
     "followed_conf": f"{{{{lo}}}}(1.0, {ARG} * w.pconf)",
     # The self's interval clipped to the period.
     "followed_from": "{{hi}}(f.valid_from_ns, w.from_ns)",
-    "followed_to": ("CASE WHEN w.to_ns IS NULL THEN f.valid_to_ns "
-                    "WHEN f.valid_to_ns IS NULL THEN w.to_ns "
-                    "ELSE {{lo}}(f.valid_to_ns, w.to_ns) END"),
+    "followed_to": (
+        "CASE WHEN w.to_ns IS NULL THEN f.valid_to_ns "
+        "WHEN f.valid_to_ns IS NULL THEN w.to_ns "
+        "ELSE {{lo}}(f.valid_to_ns, w.to_ns) END"
+    ),
     # The self's intervals shown in the period (an empty closed period shows none).
-    "followed_facts": ("(w.to_ns IS NULL OR (f.valid_from_ns < w.to_ns AND w.to_ns > w.from_ns)) "
-                       "AND (f.valid_to_ns IS NULL OR f.valid_to_ns > w.from_ns)"),
+    "followed_facts": (
+        "(w.to_ns IS NULL OR (f.valid_from_ns < w.to_ns AND w.to_ns > w.from_ns)) "
+        "AND (f.valid_to_ns IS NULL OR f.valid_to_ns > w.from_ns)"
+    ),
     # The self's events shown in the period (not the point events of kind 'event').
-    "followed_events": ("e.kind <> 'event' AND e.stamp_ns >= w.events_from_ns "
-                        "AND (w.events_to_ns IS NULL OR e.stamp_ns <= w.events_to_ns)"),
+    "followed_events": (
+        "e.kind <> 'event' AND e.stamp_ns >= w.events_from_ns "
+        "AND (w.events_to_ns IS NULL OR e.stamp_ns <= w.events_to_ns)"
+    ),
 }
 
 #: The write surface (template ``inbox``): ``NEW`` is the ``fact_inbox`` row.
 INBOX = {
     # The row's key (NULL key fields mean '').
-    "inbox_key": ("(SELECT id FROM fact_keys WHERE agent_id = NEW.agent_id "
-                  "AND subject_id = NEW.subject_id "
-                  "AND subject_owner_id = COALESCE(NEW.subject_owner_id, '') "
-                  "AND property = NEW.property AND sub_property = COALESCE(NEW.sub_property, '') "
-                  "AND target_id = COALESCE(NEW.target_id, '') "
-                  "AND target_owner_id = COALESCE(NEW.target_owner_id, ''))"),
+    "inbox_key": (
+        "(SELECT id FROM fact_keys WHERE agent_id = NEW.agent_id "
+        "AND subject_id = NEW.subject_id "
+        "AND subject_owner_id = COALESCE(NEW.subject_owner_id, '') "
+        "AND property = NEW.property AND sub_property = COALESCE(NEW.sub_property, '') "
+        "AND target_id = COALESCE(NEW.target_id, '') "
+        "AND target_owner_id = COALESCE(NEW.target_owner_id, ''))"
+    ),
     # The row's open interval, as the target of an UPDATE (SQLite: through a subquery, as it
     # allows no INDEXED BY on an UPDATE's table inside a trigger).
-    "inbox_open_interval": ("{{#sqlite}}id = (SELECT f.id FROM facts f {{open_fact}} "
-                            "WHERE f.key_id = {{inbox_key}} AND f.valid_to_ns IS NULL){{/sqlite}}"
-                            "{{#postgresql}}key_id = {{inbox_key}} AND valid_to_ns IS NULL"
-                            "{{/postgresql}}"),
+    "inbox_open_interval": (
+        "{{#sqlite}}id = (SELECT f.id FROM facts f {{open_fact}} "
+        "WHERE f.key_id = {{inbox_key}} AND f.valid_to_ns IS NULL){{/sqlite}}"
+        "{{#postgresql}}key_id = {{inbox_key}} AND valid_to_ns IS NULL"
+        "{{/postgresql}}"
+    ),
     # The key's last interval (intervals of a key never overlap) starts or ends after NEW.
-    "inbox_later": ("(SELECT COALESCE(f.valid_to_ns, f.valid_from_ns) FROM facts f "
-                    "WHERE f.key_id = {{inbox_key}} ORDER BY f.valid_from_ns DESC LIMIT 1) "
-                    "> NEW.t_ns"),
+    "inbox_later": (
+        "(SELECT COALESCE(f.valid_to_ns, f.valid_from_ns) FROM facts f "
+        "WHERE f.key_id = {{inbox_key}} ORDER BY f.valid_from_ns DESC LIMIT 1) "
+        "> NEW.t_ns"
+    ),
     "inbox_self": "EXISTS (SELECT 1 FROM agents WHERE id = NEW.agent_id AND is_self)",
     # The open interval f moved numbers only.
-    "inbox_renumbered": ("(f.value_num {{is_distinct}} NEW.value_num "
-                         "OR f.confidence <> NEW.confidence "
-                         "OR f.observability <> NEW.observability)"),
+    "inbox_renumbered": (
+        "(f.value_num {{is_distinct}} NEW.value_num "
+        "OR f.confidence <> NEW.confidence "
+        "OR f.observability <> NEW.observability)"
+    ),
     # The current facts a retract ends (k, f): NULL or 'NULL' fields match any, as the
     # original's wildcard (Store.retract_facts).
     "inbox_match": (
         "fact_keys k JOIN facts f {{open_fact}} ON f.key_id = k.id AND f.valid_to_ns IS NULL "
         "WHERE k.agent_id = NEW.agent_id AND k.property = NEW.property"
-        + "".join(f" AND (NEW.{c} IS NULL OR NEW.{c} = 'NULL' OR k.{c} = NEW.{c})"
-                  for c in ("subject_id", "target_id", "sub_property", "subject_owner_id",
-                            "target_owner_id"))),
+        + "".join(
+            f" AND (NEW.{c} IS NULL OR NEW.{c} = 'NULL' OR k.{c} = NEW.{c})"
+            for c in (
+                "subject_id",
+                "target_id",
+                "sub_property",
+                "subject_owner_id",
+                "target_owner_id",
+            )
+        )
+    ),
 }
 
 #: The nested holders (templates ``holders`` / ``holders_seen``): the agents and depth they
 #: were registered for.
 HOLDERS = {
-    "holders_basis": ("(SELECT CAST(count(*) AS text) || ':' || CAST(COALESCE(MAX(num), 0) AS "
-                      "text) FROM agents) || ':' || {{setting(depth)}}"),
+    "holders_basis": (
+        "(SELECT CAST(count(*) AS text) || ':' || CAST(COALESCE(MAX(num), 0) AS "
+        "text) FROM agents) || ':' || {{setting(depth)}}"
+    ),
 }
 
 #: The self agent holds (an open interval of) the key identical to the holder key ``<arg>``.
@@ -158,7 +209,8 @@ SELF_HOLDS = {
         f"WHERE sk.agent_id = :self AND sk.subject_id = {ARG}.subject_id "
         f"AND sk.subject_owner_id = {ARG}.subject_owner_id AND sk.property = {ARG}.property "
         f"AND sk.sub_property = {ARG}.sub_property AND sk.target_id = {ARG}.target_id "
-        f"AND sk.target_owner_id = {ARG}.target_owner_id"),
+        f"AND sk.target_owner_id = {ARG}.target_owner_id"
+    ),
 }
 
 #: Ends the groups of holders outside a run (a write that changes a holder's followed keys,
@@ -166,8 +218,9 @@ SELF_HOLDS = {
 UNGROUP = "UPDATE store_state SET groups_for = NULL WHERE id = 1"
 #: A write to ``agents`` (any client): the groups end and every store re-reads its agents
 #: (``store_state.agents_version``, read at the start of each store write).
-AGENTS_CHANGED = ("UPDATE store_state SET groups_for = NULL, "
-                  "agents_version = agents_version + 1 WHERE id = 1")
+AGENTS_CHANGED = (
+    "UPDATE store_state SET groups_for = NULL, agents_version = agents_version + 1 WHERE id = 1"
+)
 
 #: Groups of holders that perceive alike (96_regroup).
 GROUPS = {
@@ -175,8 +228,7 @@ GROUPS = {
     # The groups were ended (by this run, or by a write since the last run).
     "groups_ended": "(SELECT groups_for FROM store_state WHERE id = 1) IS NULL",
     # The holder ``<arg>`` is computed: it heads a group or belongs to none.
-    "not_member": (f"{ARG} NOT IN (SELECT holder_id FROM belief_groups "
-                   "WHERE rep_id <> holder_id)"),
+    "not_member": (f"{ARG} NOT IN (SELECT holder_id FROM belief_groups WHERE rep_id <> holder_id)"),
 }
 
 #: The macros that are the same on both backends.
@@ -201,8 +253,11 @@ def _macro(backend: str, match: re.Match[str]) -> str:
         msg = f"unknown SQL macro {{{{{name}}}}}"
         raise ValueError(msg)
     if (arg is None) == (ARG in body):
-        msg = (f"SQL macro {{{{{name}}}}} takes an argument" if arg is None
-               else f"SQL macro {{{{{name}}}}} takes no argument")
+        msg = (
+            f"SQL macro {{{{{name}}}}} takes an argument"
+            if arg is None
+            else f"SQL macro {{{{{name}}}}} takes no argument"
+        )
         raise ValueError(msg)
     return body if arg is None else body.replace(ARG, arg)
 
@@ -227,7 +282,7 @@ def expand(sql: str, backend: str) -> str:
             break
         text = rendered
     if "{{" in text or "}}" in text:
-        msg = f"unrendered SQL macro in {text[max(text.find('{{'), 0):][:60]!r}"
+        msg = f"unrendered SQL macro in {text[max(text.find('{{'), 0) :][:60]!r}"
         raise ValueError(msg)
     return text
 
@@ -242,10 +297,12 @@ def template(step: str) -> str:
     if step not in STEPS and step not in TRIGGER_TEMPLATES:
         msg = f"unknown belief rule step {step!r}"
         raise ValueError(msg)
-    text = (resources.files("toaster.rules") / "sql" / f"{step}.sql").read_text(
-        encoding="utf-8")
-    return text.replace("{{materialize}}", template("95_materialize")) if (
-        "{{materialize}}" in text) else text
+    text = (resources.files("toaster.rules") / "sql" / f"{step}.sql").read_text(encoding="utf-8")
+    return (
+        text.replace("{{materialize}}", template("95_materialize"))
+        if ("{{materialize}}" in text)
+        else text
+    )
 
 
 @functools.cache
@@ -254,28 +311,37 @@ def render(step: str, backend: str) -> str:
     return expand(template(step), backend)
 
 
-_KEY = ("k.agent_id, k.subject_id, k.subject_owner_id, k.property, k.property_type, "
-        "k.sub_property, k.target_id, k.target_owner_id")
-_OWN = (f"SELECT {_KEY}, f.value_text, f.value_num, f.confidence, f.observability, "
-        "f.valid_from_ns, f.valid_to_ns, f.recorded_ns, f.source, f.id AS fact_id, "
-        "k.id AS key_id FROM facts f JOIN fact_keys k ON k.id = f.key_id")
+_KEY = (
+    "k.agent_id, k.subject_id, k.subject_owner_id, k.property, k.property_type, "
+    "k.sub_property, k.target_id, k.target_owner_id"
+)
+_OWN = (
+    f"SELECT {_KEY}, f.value_text, f.value_num, f.confidence, f.observability, "
+    "f.valid_from_ns, f.valid_to_ns, f.recorded_ns, f.source, f.id AS fact_id, "
+    "k.id AS key_id FROM facts f JOIN fact_keys k ON k.id = f.key_id"
+)
 _FOLLOWED_FACTS = (
     f"SELECT {_KEY}, f.value_text, f.value_num, {{{{followed_conf(f.confidence)}}}}, "
     "f.observability, {{followed_from}}, {{followed_to}}, f.recorded_ns, 'beliefs', f.id, k.id "
     "FROM belief_follow w JOIN fact_keys k ON k.id = w.hkey "
-    "JOIN facts f ON f.key_id = w.self_key AND {{followed_facts}}")
-_EVENT_KEY = ("k.subject_id, k.subject_owner_id, k.property, k.property_type, k.sub_property, "
-              "k.target_id, k.target_owner_id")
+    "JOIN facts f ON f.key_id = w.self_key AND {{followed_facts}}"
+)
+_EVENT_KEY = (
+    "k.subject_id, k.subject_owner_id, k.property, k.property_type, k.sub_property, "
+    "k.target_id, k.target_owner_id"
+)
 _OWN_EVENTS = (
     f"SELECT e.id, e.agent_id, e.kind, e.stamp_ns, {_EVENT_KEY}, e.value_text, e.value_num, "
     "e.confidence, e.observability, e.previous_text, e.source, e.recorded_ns, e.key_id "
-    "FROM events e JOIN fact_keys k ON k.id = e.key_id")
+    "FROM events e JOIN fact_keys k ON k.id = e.key_id"
+)
 _FOLLOWED_EVENTS = (
     f"SELECT e.id, k.agent_id, e.kind, e.stamp_ns, {_EVENT_KEY}, e.value_text, e.value_num, "
     "{{followed_conf(e.confidence)}}, e.observability, e.previous_text, 'beliefs', "
     "e.recorded_ns, k.id "
     "FROM belief_follow w JOIN fact_keys k ON k.id = w.hkey "
-    "JOIN events e ON e.key_id = w.self_key AND {{followed_events}}")
+    "JOIN events e ON e.key_id = w.self_key AND {{followed_events}}"
+)
 
 
 def views(backend: str) -> list[tuple[str, str]]:
@@ -286,9 +352,15 @@ def views(backend: str) -> list[tuple[str, str]]:
     followed = expand(_FOLLOWED_FACTS, backend)
     return [
         ("fact_history", f"{_OWN} UNION ALL {followed}"),
-        ("current_facts", f"{_OWN} WHERE f.valid_to_ns IS NULL UNION ALL {followed} "
-                          "AND w.to_ns IS NULL AND f.valid_to_ns IS NULL"),
-        ("memory", f"{_OWN} WHERE f.valid_to_ns IS NOT NULL UNION ALL {followed} "
-                   "AND (w.to_ns IS NOT NULL OR f.valid_to_ns IS NOT NULL)"),
+        (
+            "current_facts",
+            f"{_OWN} WHERE f.valid_to_ns IS NULL UNION ALL {followed} "
+            "AND w.to_ns IS NULL AND f.valid_to_ns IS NULL",
+        ),
+        (
+            "memory",
+            f"{_OWN} WHERE f.valid_to_ns IS NOT NULL UNION ALL {followed} "
+            "AND (w.to_ns IS NOT NULL OR f.valid_to_ns IS NOT NULL)",
+        ),
         ("event_log", f"{_OWN_EVENTS} UNION ALL {expand(_FOLLOWED_EVENTS, backend)}"),
     ]

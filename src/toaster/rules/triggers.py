@@ -55,8 +55,7 @@ from toaster.rules.sqltext import AGENTS_CHANGED, UNGROUP
 #: JIT: the recursive perception query's estimates (JSON settings, CTEs) passed JIT's cost
 #: thresholds, and compiling it took ~3 s for a statement that runs in milliseconds. The step
 #: functions need none of it: the run function's settings stay in force while it calls them.
-_PG_SETTINGS = ("SET join_collapse_limit = 1 SET plan_cache_mode = force_custom_plan "
-                "SET jit = off")
+_PG_SETTINGS = "SET join_collapse_limit = 1 SET plan_cache_mode = force_custom_plan SET jit = off"
 _RUNS_GUARD = GUARD_MESSAGE.format(table="belief_runs")
 BACKENDS = ("sqlite", "postgresql")
 #: The scratch tables' units (before and after a run: they read no run values) and the
@@ -124,8 +123,7 @@ def _pg_call(unit: str, args: str = "NEW.self_id, NEW.t_ns, NEW.recorded_ns") ->
 def _pg_block(block: Block) -> list[str]:
     body: list[str] = []
     if block is PIPELINE:  # the run takes the rules' clock (see pipeline.CLOCK)
-        body += [sqltext.expand(CLOCK, "postgresql") + ";",
-                 f"NEW.t_ns := {CLOCK_NS};"]
+        body += [sqltext.expand(CLOCK, "postgresql") + ";", f"NEW.t_ns := {CLOCK_NS};"]
     for part in block.body:
         body += _pg_block(part) if isinstance(part, Block) else _pg_call(unit_name(part))
     if block.condition is None:
@@ -136,8 +134,10 @@ def _pg_block(block: Block) -> list[str]:
 
 def _pg_function(name: str, body: list[str], declare: str = "") -> str:
     lines = "\n".join(body)
-    return (f"CREATE FUNCTION {name}() RETURNS trigger LANGUAGE plpgsql {_PG_SETTINGS} AS $fn$\n"
-            f"{declare}BEGIN\n{lines}\nRETURN NULL;\nEND\n$fn$")
+    return (
+        f"CREATE FUNCTION {name}() RETURNS trigger LANGUAGE plpgsql {_PG_SETTINGS} AS $fn$\n"
+        f"{declare}BEGIN\n{lines}\nRETURN NULL;\nEND\n$fn$"
+    )
 
 
 def _pg_unit(unit: str) -> dict[str, list[str]]:
@@ -147,34 +147,64 @@ def _pg_unit(unit: str) -> dict[str, list[str]]:
     args = "" if unit in SCRATCH else _PG_ARGS
     types = "" if unit in SCRATCH else "text, bigint, bigint"
     lines = "\n".join(s + ";" for s in sql)
-    return {"create": [f"CREATE FUNCTION toaster_step_{unit}({args}) RETURNS void "
-                       f"LANGUAGE plpgsql AS $fn$\nBEGIN\n{lines}\nEND\n$fn$"],
-            "drop": [f"DROP FUNCTION IF EXISTS toaster_step_{unit}({types})"]}
+    return {
+        "create": [
+            f"CREATE FUNCTION toaster_step_{unit}({args}) RETURNS void "
+            f"LANGUAGE plpgsql AS $fn$\nBEGIN\n{lines}\nEND\n$fn$"
+        ],
+        "drop": [f"DROP FUNCTION IF EXISTS toaster_step_{unit}({types})"],
+    }
 
 
 def _pg_pipeline() -> dict[str, list[str]]:
-    run = _pg_function("toaster_belief_run", [
-        "IF current_setting('toaster.writer', true) IS DISTINCT FROM 'rules' THEN",
-        f"RAISE EXCEPTION USING MESSAGE = {_quoted(_RUNS_GUARD)}, "
-        "ERRCODE = 'insufficient_privilege';",
-        "END IF;", *_pg_call("00_temp", ""), *_pg_block(PIPELINE), *_pg_call("99_clear", "")])
-    return {"create": [run, "CREATE TRIGGER belief_runs_run BEFORE INSERT ON belief_runs "
-                            "FOR EACH ROW EXECUTE FUNCTION toaster_belief_run()"],
-            "drop": ["DROP TRIGGER IF EXISTS belief_runs_run ON belief_runs",
-                     "DROP FUNCTION IF EXISTS toaster_belief_run()"]}
+    run = _pg_function(
+        "toaster_belief_run",
+        [
+            "IF current_setting('toaster.writer', true) IS DISTINCT FROM 'rules' THEN",
+            f"RAISE EXCEPTION USING MESSAGE = {_quoted(_RUNS_GUARD)}, "
+            "ERRCODE = 'insufficient_privilege';",
+            "END IF;",
+            *_pg_call("00_temp", ""),
+            *_pg_block(PIPELINE),
+            *_pg_call("99_clear", ""),
+        ],
+    )
+    return {
+        "create": [
+            run,
+            "CREATE TRIGGER belief_runs_run BEFORE INSERT ON belief_runs "
+            "FOR EACH ROW EXECUTE FUNCTION toaster_belief_run()",
+        ],
+        "drop": [
+            "DROP TRIGGER IF EXISTS belief_runs_run ON belief_runs",
+            "DROP FUNCTION IF EXISTS toaster_belief_run()",
+        ],
+    }
 
 
 def _pg_inbox() -> dict[str, list[str]]:
     inbox_sql = sqltext.render("inbox", "postgresql")
-    inbox = _pg_function("toaster_fact_inbox", [
-        "PERFORM set_config('toaster.writer', 'rules', true);", *_pg_call("00_temp", ""),
-        *[s + ";" for s in statements(inbox_sql)],
-        "PERFORM set_config('toaster.writer', COALESCE(previous_writer, ''), true);"],
-        declare="DECLARE previous_writer text := current_setting('toaster.writer', true);\n")
-    return {"create": [inbox, "CREATE TRIGGER fact_inbox_apply BEFORE INSERT ON fact_inbox "
-                              "FOR EACH ROW EXECUTE FUNCTION toaster_fact_inbox()"],
-            "drop": ["DROP TRIGGER IF EXISTS fact_inbox_apply ON fact_inbox",
-                     "DROP FUNCTION IF EXISTS toaster_fact_inbox()"]}
+    inbox = _pg_function(
+        "toaster_fact_inbox",
+        [
+            "PERFORM set_config('toaster.writer', 'rules', true);",
+            *_pg_call("00_temp", ""),
+            *[s + ";" for s in statements(inbox_sql)],
+            "PERFORM set_config('toaster.writer', COALESCE(previous_writer, ''), true);",
+        ],
+        declare="DECLARE previous_writer text := current_setting('toaster.writer', true);\n",
+    )
+    return {
+        "create": [
+            inbox,
+            "CREATE TRIGGER fact_inbox_apply BEFORE INSERT ON fact_inbox "
+            "FOR EACH ROW EXECUTE FUNCTION toaster_fact_inbox()",
+        ],
+        "drop": [
+            "DROP TRIGGER IF EXISTS fact_inbox_apply ON fact_inbox",
+            "DROP FUNCTION IF EXISTS toaster_fact_inbox()",
+        ],
+    }
 
 
 # -- Both: what ends the groups of holders outside a run ---------------------------------------
@@ -186,10 +216,13 @@ _UNGROUP_ON = {"settings": UNGROUP, "agents": AGENTS_CHANGED}
 
 #: PostgreSQL: a transaction that registers thousands of agents bumps the version once (each
 #: update of the one store_state row in a transaction lengthens the row's version chain).
-_PG_ONCE = {"agents": (
-    "IF current_setting('toaster.agents_changed', true) IS DISTINCT FROM 'yes' "
-    "OR (SELECT groups_for FROM store_state WHERE id = 1) IS NOT NULL THEN",
-    "PERFORM set_config('toaster.agents_changed', 'yes', true);")}
+_PG_ONCE = {
+    "agents": (
+        "IF current_setting('toaster.agents_changed', true) IS DISTINCT FROM 'yes' "
+        "OR (SELECT groups_for FROM store_state WHERE id = 1) IS NOT NULL THEN",
+        "PERFORM set_config('toaster.agents_changed', 'yes', true);",
+    )
+}
 
 
 def _pg_ungroup() -> dict[str, list[str]]:
@@ -199,23 +232,36 @@ def _pg_ungroup() -> dict[str, list[str]]:
         condition, mark = _PG_ONCE[table]
         return [condition, f"{sql};", mark, "END IF;"]
 
-    return {"create": [statement for table, sql in _UNGROUP_ON.items() for statement in (
-        _pg_function(f"toaster_{table}_changed", body(table, sql)),
-        f"CREATE TRIGGER {table}_ungroup AFTER INSERT OR UPDATE OR DELETE ON {table} "
-        f"FOR EACH STATEMENT EXECUTE FUNCTION toaster_{table}_changed()")],
-        "drop": [*[f"DROP TRIGGER IF EXISTS {t}_ungroup ON {t}" for t in _UNGROUP_ON],
-                 *[f"DROP FUNCTION IF EXISTS toaster_{t}_changed()" for t in _UNGROUP_ON]]}
+    return {
+        "create": [
+            statement
+            for table, sql in _UNGROUP_ON.items()
+            for statement in (
+                _pg_function(f"toaster_{table}_changed", body(table, sql)),
+                f"CREATE TRIGGER {table}_ungroup AFTER INSERT OR UPDATE OR DELETE ON {table} "
+                f"FOR EACH STATEMENT EXECUTE FUNCTION toaster_{table}_changed()",
+            )
+        ],
+        "drop": [
+            *[f"DROP TRIGGER IF EXISTS {t}_ungroup ON {t}" for t in _UNGROUP_ON],
+            *[f"DROP FUNCTION IF EXISTS toaster_{t}_changed()" for t in _UNGROUP_ON],
+        ],
+    }
 
 
 _ACTIONS = ("insert", "update", "delete")
 
 
 def _sqlite_ungroup() -> dict[str, list[str]]:
-    return {"create": [f"CREATE TRIGGER {table}_ungroup_{action} AFTER {action.upper()} ON "
-                       f"{table} BEGIN {sql}; END"
-                       for table, sql in _UNGROUP_ON.items() for action in _ACTIONS],
-            "drop": [f"DROP TRIGGER IF EXISTS {t}_ungroup_{a}"
-                     for t in _UNGROUP_ON for a in _ACTIONS]}
+    return {
+        "create": [
+            f"CREATE TRIGGER {table}_ungroup_{action} AFTER {action.upper()} ON "
+            f"{table} BEGIN {sql}; END"
+            for table, sql in _UNGROUP_ON.items()
+            for action in _ACTIONS
+        ],
+        "drop": [f"DROP TRIGGER IF EXISTS {t}_ungroup_{a}" for t in _UNGROUP_ON for a in _ACTIONS],
+    }
 
 
 # -- SQLite: a trigger per block and per step -------------------------------------------------
@@ -228,8 +274,10 @@ def _sqlite_enter(block: Block) -> str:
     if block is PIPELINE:
         clock = f"{sqltext.expand(CLOCK, 'sqlite')} AND {condition};\n"
         t_ns = CLOCK_NS
-    return (f"{clock}INSERT INTO belief_steps (block, self_id, t_ns, recorded_ns) SELECT "
-            f"'{block.name}', NEW.self_id, {t_ns}, NEW.recorded_ns WHERE {condition};")
+    return (
+        f"{clock}INSERT INTO belief_steps (block, self_id, t_ns, recorded_ns) SELECT "
+        f"'{block.name}', NEW.self_id, {t_ns}, NEW.recorded_ns WHERE {condition};"
+    )
 
 
 def _sqlite_call(unit: str) -> list[str]:
@@ -239,16 +287,17 @@ def _sqlite_call(unit: str) -> list[str]:
 
 def _sqlite_trigger(name: str, block: str, body: list[str]) -> str:
     lines = "\n".join(body)
-    return (f"CREATE TRIGGER {name} AFTER INSERT ON belief_steps "
-            f"WHEN NEW.block = '{block}' AND EXISTS (SELECT 1 FROM rule_writer) "
-            f"BEGIN\n{lines}\nEND")
+    return (
+        f"CREATE TRIGGER {name} AFTER INSERT ON belief_steps "
+        f"WHEN NEW.block = '{block}' AND EXISTS (SELECT 1 FROM rule_writer) "
+        f"BEGIN\n{lines}\nEND"
+    )
 
 
 def _sqlite_block(block: Block) -> str:
     body: list[str] = []
     for part in block.body:
-        body += [_sqlite_enter(part)] if isinstance(part, Block) else _sqlite_call(
-            unit_name(part))
+        body += [_sqlite_enter(part)] if isinstance(part, Block) else _sqlite_call(unit_name(part))
     return _sqlite_trigger(f"belief_block_{block.name}", block.name, body)
 
 
@@ -257,25 +306,43 @@ def _sqlite_unit(unit: str) -> dict[str, list[str]]:
 
 
 def _sqlite_pipeline() -> dict[str, list[str]]:
-    run = "\n".join([
-        f"SELECT RAISE(ABORT, {_quoted(_RUNS_GUARD)}) "
-        "WHERE NOT EXISTS (SELECT 1 FROM rule_writer);",
-        _sqlite_enter(PIPELINE), *_sqlite_call("99_clear"), "DELETE FROM belief_steps;",
-        "SELECT RAISE(IGNORE);"])
-    return {"create": [f"CREATE TRIGGER belief_runs_run BEFORE INSERT ON belief_runs BEGIN\n"
-                       f"{run}\nEND", *[_sqlite_block(b) for b in blocks()]],
-            "drop": [f"DROP TRIGGER IF EXISTS {name}" for name in (
-                "belief_runs_run", *[f"belief_block_{b.name}" for b in blocks()])]}
+    run = "\n".join(
+        [
+            f"SELECT RAISE(ABORT, {_quoted(_RUNS_GUARD)}) "
+            "WHERE NOT EXISTS (SELECT 1 FROM rule_writer);",
+            _sqlite_enter(PIPELINE),
+            *_sqlite_call("99_clear"),
+            "DELETE FROM belief_steps;",
+            "SELECT RAISE(IGNORE);",
+        ]
+    )
+    return {
+        "create": [
+            f"CREATE TRIGGER belief_runs_run BEFORE INSERT ON belief_runs BEGIN\n{run}\nEND",
+            *[_sqlite_block(b) for b in blocks()],
+        ],
+        "drop": [
+            f"DROP TRIGGER IF EXISTS {name}"
+            for name in ("belief_runs_run", *[f"belief_block_{b.name}" for b in blocks()])
+        ],
+    }
 
 
 def _sqlite_inbox() -> dict[str, list[str]]:
-    inbox = "\n".join([
-        "INSERT OR IGNORE INTO rule_writer (id, holder) VALUES (1, 'inbox');",
-        *[s + ";" for s in statements(sqltext.render("inbox", "sqlite"))],
-        "DELETE FROM rule_writer WHERE holder = 'inbox';", "SELECT RAISE(IGNORE);"])
-    return {"create": [f"CREATE TRIGGER fact_inbox_apply BEFORE INSERT ON fact_inbox BEGIN\n"
-                       f"{inbox}\nEND"],
-            "drop": ["DROP TRIGGER IF EXISTS fact_inbox_apply"]}
+    inbox = "\n".join(
+        [
+            "INSERT OR IGNORE INTO rule_writer (id, holder) VALUES (1, 'inbox');",
+            *[s + ";" for s in statements(sqltext.render("inbox", "sqlite"))],
+            "DELETE FROM rule_writer WHERE holder = 'inbox';",
+            "SELECT RAISE(IGNORE);",
+        ]
+    )
+    return {
+        "create": [
+            f"CREATE TRIGGER fact_inbox_apply BEFORE INSERT ON fact_inbox BEGIN\n{inbox}\nEND"
+        ],
+        "drop": ["DROP TRIGGER IF EXISTS fact_inbox_apply"],
+    }
 
 
 # -- The units ------------------------------------------------------------------------------
@@ -283,7 +350,8 @@ def units() -> dict[str, Unit]:
     """Every unit as :func:`freeze` writes it, the pipeline last."""
     names = [SCRATCH[0], *step_units(), SCRATCH[1]]
     found: dict[str, Unit] = {
-        unit: {"sqlite": _sqlite_unit(unit), "postgresql": _pg_unit(unit)} for unit in names}
+        unit: {"sqlite": _sqlite_unit(unit), "postgresql": _pg_unit(unit)} for unit in names
+    }
     blocks_named = {b.name for b in blocks()}
     if blocks_named & found.keys():  # a belief_steps row names one trigger only
         msg = f"blocks and steps share names: {sorted(blocks_named & found.keys())}"
@@ -300,8 +368,10 @@ def ddl(backend: str) -> list[str]:
         msg = f"unsupported database backend {backend!r}"
         raise ValueError(msg)
     found = units()
-    return compose([s for unit in found.values() for s in unit[backend]["create"]],
-                   lambda unit: found[unit][backend]["inline"])
+    return compose(
+        [s for unit in found.values() for s in unit[backend]["create"]],
+        lambda unit: found[unit][backend]["inline"],
+    )
 
 
 def freeze(revision: str, folder: Path | None = None) -> list[str]:
@@ -314,10 +384,12 @@ def freeze(revision: str, folder: Path | None = None) -> list[str]:
     target = folder / revision
     for stale in [folder / f"{revision}_units.json", *target.glob("*.json")]:
         stale.unlink(missing_ok=True)  # an earlier freeze of this revision
-    before = sorted(p.name for p in folder.glob("*_units.json")
-                    if p.name < f"{revision}_units.json")
-    old: dict[str, str] = json.loads((folder / before[-1]).read_text(encoding="utf-8")) if (
-        before) else {}
+    before = sorted(
+        p.name for p in folder.glob("*_units.json") if p.name < f"{revision}_units.json"
+    )
+    old: dict[str, str] = (
+        json.loads((folder / before[-1]).read_text(encoding="utf-8")) if (before) else {}
+    )
     manifest: dict[str, str] = {}
     for unit, content in units().items():
         ref = old.get(unit)

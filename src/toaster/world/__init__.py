@@ -7,6 +7,18 @@ from toaster.world.scenario import Scenario, ScenarioSource, load_scenario, pars
 from toaster.world.state import Observation, World
 from toaster.world.tracks import TrackSource, read_obsmat, read_tracks
 
-__all__ = ["History", "LiveSource", "Observation", "Scenario", "ScenarioSource", "TrackSource",
-           "World", "bearing", "load_scenario", "parse_scenario", "read_obsmat", "read_tracks",
-           "wrap_angle"]
+__all__ = [
+    "History",
+    "LiveSource",
+    "Observation",
+    "Scenario",
+    "ScenarioSource",
+    "TrackSource",
+    "World",
+    "bearing",
+    "load_scenario",
+    "parse_scenario",
+    "read_obsmat",
+    "read_tracks",
+    "wrap_angle",
+]

@@ -22,9 +22,13 @@ from toaster.errors import InvalidInputError
 from toaster.world.state import HUMAN, JOINT, OBJECT, ROBOT
 
 ENTITY_WORDS: dict[str, frozenset[int]] = {
-    "human": frozenset({HUMAN}), "robot": frozenset({ROBOT}), "object": frozenset({OBJECT}),
-    "joint": frozenset({JOINT}), "agent": frozenset({HUMAN, ROBOT}),
-    "entity": frozenset({HUMAN, ROBOT, OBJECT}), "all": frozenset({HUMAN, ROBOT, OBJECT, JOINT}),
+    "human": frozenset({HUMAN}),
+    "robot": frozenset({ROBOT}),
+    "object": frozenset({OBJECT}),
+    "joint": frozenset({JOINT}),
+    "agent": frozenset({HUMAN, ROBOT}),
+    "entity": frozenset({HUMAN, ROBOT, OBJECT}),
+    "all": frozenset({HUMAN, ROBOT, OBJECT, JOINT}),
 }
 FACT_KINDS = frozenset({"interaction", "density"})
 
@@ -38,15 +42,18 @@ def entity_kinds(words: Any) -> frozenset[int]:
         key = str(word).lower().strip()
         key = key[:-3] + "y" if key.endswith("ies") else key.removesuffix("s")
         if key not in ENTITY_WORDS:
-            msg = (f"unknown entity type {word!r}: use humans, robots, objects, joints, agents "
-                   "or entities (singular is fine)")
+            msg = (
+                f"unknown entity type {word!r}: use humans, robots, objects, joints, agents "
+                "or entities (singular is fine)"
+            )
             raise InvalidInputError(msg)
         kinds |= ENTITY_WORDS[key]
     return frozenset(kinds)
 
 
-def _num(spec: Mapping[str, Any], key: str, area_id: str, default: float | None = None
-         ) -> float | None:
+def _num(
+    spec: Mapping[str, Any], key: str, area_id: str, default: float | None = None
+) -> float | None:
     value = spec.get(key, default)
     if value is None:
         return None
@@ -72,8 +79,10 @@ def normalize_area(area_id: str, spec: Mapping[str, Any]) -> dict[str, Any]:
         import shapely  # here: `toaster --help` loads no shapely
 
         if len(pts) < 3 or not shapely.Polygon(pts).is_valid:
-            msg = (f"area {area_id!r}: points {points!r} do not make a simple polygon; give at "
-                   "least three [x, y] corners in order")
+            msg = (
+                f"area {area_id!r}: points {points!r} do not make a simple polygon; give at "
+                "least three [x, y] corners in order"
+            )
             raise InvalidInputError(msg)
         out["points"] = pts
     elif shape == "circle":
@@ -121,7 +130,8 @@ def area_from_original(area: Mapping[str, Any]) -> tuple[str, dict[str, Any]]:
     name = str(area["name"])
     fact_type = str(area.get("factType", ""))
     spec: dict[str, Any] = {
-        "owner": str(area.get("myOwner", "") or ""), "area_type": area.get("areaType", ""),
+        "owner": str(area.get("myOwner", "") or ""),
+        "area_type": area.get("areaType", ""),
         "facts": [f for f in ("interaction", "density") if f == fact_type],
         "entity_types": [area.get("entityType") or "entities"],
     }

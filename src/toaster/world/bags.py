@@ -44,8 +44,9 @@ MSG_DIR = Path(__file__).resolve().parent.parent / "ros1" / "msgs"
 
 def is_bag(path: Path) -> bool:
     """Whether ``path`` looks like a bag toaster can replay."""
-    return (path.suffix.lower() in (".bag", ".mcap", ".db3")
-            or (path.is_dir() and (path / "metadata.yaml").exists()))
+    return path.suffix.lower() in (".bag", ".mcap", ".db3") or (
+        path.is_dir() and (path / "metadata.yaml").exists()
+    )
 
 
 def toaster_types() -> dict[str, Any]:
@@ -71,8 +72,14 @@ def typestore() -> Any:
 class BagSource:
     """Poses of a bag in stamp order; ``advance`` applies those stamped up to the tick."""
 
-    def __init__(self, name: str, times: np.ndarray, updates: list[Any],
-                 problems: Counter[str], areas: dict[str, dict[str, Any]] | None = None) -> None:
+    def __init__(
+        self,
+        name: str,
+        times: np.ndarray,
+        updates: list[Any],
+        problems: Counter[str],
+        areas: dict[str, dict[str, Any]] | None = None,
+    ) -> None:
         from toaster.world.live import quaternion_to_rpy
 
         self.name = name
@@ -117,9 +124,12 @@ class BagSource:
             if update.entity_id in seen:
                 continue
             seen.add(update.entity_id)
-            world.add_entity(update.entity_id, update.kind,
-                             owner_id=update.owner_id if update.kind == "joint" else "",
-                             name=update.joint or update.entity_id)
+            world.add_entity(
+                update.entity_id,
+                update.kind,
+                owner_id=update.owner_id if update.kind == "joint" else "",
+                name=update.joint or update.entity_id,
+            )
 
     def advance(self, world: World, t_ns: int) -> None:
         """Apply the poses stamped at or before ``t_ns`` not applied yet."""
@@ -145,8 +155,12 @@ def _sample_hz(times: np.ndarray, updates: list[Any]) -> float | None:
     return min(max(1e9 / step, MIN_RATE_HZ), MAX_RATE_HZ) if step > 0 else None
 
 
-def read_bag(path: str | Path, *, tf_map: str | Path | Mapping[str, Any] | None = None,
-             pose_topics: Mapping[str, tuple[str, str]] | None = None) -> BagSource:
+def read_bag(
+    path: str | Path,
+    *,
+    tf_map: str | Path | Mapping[str, Any] | None = None,
+    pose_topics: Mapping[str, tuple[str, str]] | None = None,
+) -> BagSource:
     """Read a bag's poses (see the module's doc); one-line errors for unreadable bags."""
     require("rosbag", "reading bags")
     from rosbags.highlevel import AnyReader
@@ -169,9 +183,12 @@ def read_bag(path: str | Path, *, tf_map: str | Path | Mapping[str, Any] | None 
 
     try:
         with AnyReader([path], default_typestore=typestore()) as reader:
-            wanted = [c for c in reader.connections
-                      if c.msgtype in (*TF_TYPES, *LIST_TYPES, AREA_TYPE)
-                      or (c.msgtype == POSE_TYPE and c.topic in topics)]
+            wanted = [
+                c
+                for c in reader.connections
+                if c.msgtype in (*TF_TYPES, *LIST_TYPES, AREA_TYPE)
+                or (c.msgtype == POSE_TYPE and c.topic in topics)
+            ]
             for topic in set(topics) - {c.topic for c in reader.connections}:
                 problems[f"topic {topic} is not in the bag"] += 1
             for conn, received_ns, raw in reader.messages(connections=wanted):
@@ -188,8 +205,9 @@ def read_bag(path: str | Path, *, tf_map: str | Path | Mapping[str, Any] | None 
                             problems[f"frame {frame} does not reach map"] += 1
                         keep(found, received_ns)
                     elif conn.msgtype == AREA_TYPE:
-                        areas = dict(mapping.area_from_msg(a)
-                                     for a in mapping.field(msg, "areaList", ()))
+                        areas = dict(
+                            mapping.area_from_msg(a) for a in mapping.field(msg, "areaList", ())
+                        )
                     elif conn.msgtype in LIST_TYPES:
                         found, bad = mapping.list_updates(msg)
                         for line in bad:
@@ -197,8 +215,9 @@ def read_bag(path: str | Path, *, tf_map: str | Path | Mapping[str, Any] | None 
                         keep(found, received_ns)
                     else:
                         entity, kind = topics[conn.topic]
-                        keep([mapping.pose_stamped_update(msg, entity, kind, tree=tree)],
-                             received_ns)
+                        keep(
+                            [mapping.pose_stamped_update(msg, entity, kind, tree=tree)], received_ns
+                        )
                 except ValueError as exc:
                     problems[f"{conn.topic}: {exc}"] += 1
     except (OSError, KeyError) as exc:
@@ -210,7 +229,9 @@ def read_bag(path: str | Path, *, tf_map: str | Path | Mapping[str, Any] | None 
             raise FileFormatError(msg) from None
         raise
     if not updates:
-        msg = (f"bag {path.name!r} holds no pose toaster can use: give --tf-map for its /tf "
-               "frames or --pose-topic TOPIC=ID for PoseStamped topics")
+        msg = (
+            f"bag {path.name!r} holds no pose toaster can use: give --tf-map for its /tf "
+            "frames or --pose-topic TOPIC=ID for PoseStamped topics"
+        )
         raise FileFormatError(msg)
     return BagSource(path.name, np.array(times, np.int64), updates, problems, areas)

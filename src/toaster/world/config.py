@@ -96,8 +96,7 @@ DEFAULTS: dict[str, Any] = {
 
 #: The longest duration threshold, in seconds (about 11.6 days).
 MAX_SECONDS = 1e6
-_SECONDS = {k for k in DEFAULTS if k.endswith("_window")} | {"motion_max_gap",
-                                                              "presence_timeout"}
+_SECONDS = {k for k in DEFAULTS if k.endswith("_window")} | {"motion_max_gap", "presence_timeout"}
 #: dict-valued settings whose values are durations in seconds, keyed by known names
 _SECONDS_BY_NAME = {"min_duration"}
 
@@ -108,12 +107,15 @@ def _seconds(key: str, value: Any) -> float:
         try:
             value = parse_duration(value) / NS_PER_S
         except InvalidInputError:
-            msg = (f"invalid value {shown(value)} for {key!r}: give seconds or a duration like "
-                   "'300ms'")
+            msg = (
+                f"invalid value {shown(value)} for {key!r}: give seconds or a duration like '300ms'"
+            )
             raise InvalidInputError(msg) from None
     if not _number(value) or not 0 <= value <= MAX_SECONDS:
-        msg = (f"invalid value {shown(value)} for {key!r}: give a number of seconds from 0 to "
-               f"{MAX_SECONDS:g}")
+        msg = (
+            f"invalid value {shown(value)} for {key!r}: give a number of seconds from 0 to "
+            f"{MAX_SECONDS:g}"
+        )
         raise InvalidInputError(msg)
     return float(value)
 
@@ -127,8 +129,10 @@ def _seconds_by_name(key: str, value: Any) -> dict[str, float]:
     out = dict(default)
     for name, seconds in value.items():
         if name not in default:
-            msg = (f"unknown property {shown(name)} in {key!r}: use one of "
-                   f"{', '.join(sorted(default))}")
+            msg = (
+                f"unknown property {shown(name)} in {key!r}: use one of "
+                f"{', '.join(sorted(default))}"
+            )
             raise InvalidInputError(msg)
         out[name] = _seconds(f"{key}.{name}", seconds)
     return out
@@ -140,7 +144,8 @@ _CLASSES = ("humans", "robots", "agents")
 def _words(key: str, value: Any, example: str) -> list[str]:
     """A list of non-empty texts without NUL, or a one-line error."""
     if not isinstance(value, list | tuple) or not all(
-            isinstance(v, str) and v.strip() for v in value):
+        isinstance(v, str) and v.strip() for v in value
+    ):
         msg = f"invalid value {shown(value)} for {key!r}: give a list of ids such as {example}"
         raise InvalidInputError(msg)
     for v in value:
@@ -173,10 +178,15 @@ def _check_other(key: str, value: Any) -> Any:
         if isinstance(value, str):
             check_text(value, key)
     elif key == "agent_size":
-        if (not isinstance(value, list | tuple) or len(value) != 3
-                or not all(_number(v) and 0 < v <= 1e3 for v in value)):
-            msg = (f"invalid value {shown(value)} for {key!r}: give [x, y, z], positive metres "
-                   "such as [0.5, 0.5, 1.75]")
+        if (
+            not isinstance(value, list | tuple)
+            or len(value) != 3
+            or not all(_number(v) and 0 < v <= 1e3 for v in value)
+        ):
+            msg = (
+                f"invalid value {shown(value)} for {key!r}: give [x, y, z], positive metres "
+                "such as [0.5, 0.5, 1.75]"
+            )
             raise InvalidInputError(msg)
         value = [float(v) for v in value]
     return value
@@ -195,8 +205,10 @@ def _number(value: Any) -> bool:
 def make_config(overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The defaults updated with ``overrides``; unknown keys and bad values raise one line."""
     if overrides is not None and not isinstance(overrides, Mapping):
-        msg = (f"invalid thresholds {shown(overrides)}: give a mapping such as "
-               "{toward_range_humans: 3.6}")
+        msg = (
+            f"invalid thresholds {shown(overrides)}: give a mapping such as "
+            "{toward_range_humans: 3.6}"
+        )
         raise InvalidInputError(msg)
     config = dict(DEFAULTS)
     config.update({key: dict(DEFAULTS[key]) for key in _SECONDS_BY_NAME})  # no shared dicts
@@ -226,8 +238,10 @@ def read_config_file(path: str | Path) -> dict[str, Any]:
 
     overrides = read_document(path, "config")
     if not isinstance(overrides, dict):
-        msg = (f"config {str(path)!r} must be a mapping of thresholds such as "
-               "'toward_range_humans: 3.6'")
+        msg = (
+            f"config {str(path)!r} must be a mapping of thresholds such as "
+            "'toward_range_humans: 3.6'"
+        )
         raise InvalidInputError(msg)
     try:
         make_config(overrides)

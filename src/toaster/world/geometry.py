@@ -51,8 +51,9 @@ def gaze_axis(rpy: np.ndarray) -> np.ndarray:
     """Unit local +x axis of poses (…, 3): (cos p cos y, cos p sin y, -sin p); roll is ignored."""
     rpy = np.asarray(rpy, dtype=float)
     cp = np.cos(rpy[..., 1])
-    return np.stack([cp * np.cos(rpy[..., 2]), cp * np.sin(rpy[..., 2]), -np.sin(rpy[..., 1])],
-                    axis=-1)
+    return np.stack(
+        [cp * np.cos(rpy[..., 2]), cp * np.sin(rpy[..., 2]), -np.sin(rpy[..., 1])], axis=-1
+    )
 
 
 def to_local_xy(xy: np.ndarray, origin_xy: np.ndarray, yaw: float) -> np.ndarray:

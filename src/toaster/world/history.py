@@ -42,8 +42,9 @@ class History:
         self.head = np.concatenate([self.head, np.zeros(grow, np.int64)])
         self.last_t = np.concatenate([self.last_t, np.full(grow, NO_TIME, np.int64)])
 
-    def append(self, t_ns: np.ndarray, pos: np.ndarray, rpy: np.ndarray,
-               rows: np.ndarray | None = None) -> int:
+    def append(
+        self, t_ns: np.ndarray, pos: np.ndarray, rpy: np.ndarray, rows: np.ndarray | None = None
+    ) -> int:
         """Append the current state of entity rows whose time is newer; return how many."""
         n = len(t_ns)
         self._grow(n)
@@ -72,8 +73,9 @@ class History:
         times = self.t[rows]
         return times, (times != NO_TIME) & (times >= self.newest - self.horizon_ns)
 
-    def latest_at_or_before(self, rows: np.ndarray, t_ref: np.ndarray
-                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def latest_at_or_before(
+        self, rows: np.ndarray, t_ref: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """For each row, the newest sample with time ≤ t_ref: (found, time, position, rpy)."""
         times, valid = self._valid(rows)
         ok = valid & (times <= np.asarray(t_ref, dtype=np.int64).reshape(-1, 1))
@@ -82,8 +84,9 @@ class History:
         found = np.asarray(ok.any(axis=1))  # (R,) bool
         return found, times[np.arange(len(rows)), slot], self.pos[rows, slot], self.rpy[rows, slot]
 
-    def oldest_after(self, rows: np.ndarray, t_ref: np.ndarray
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def oldest_after(
+        self, rows: np.ndarray, t_ref: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """For each row, the oldest sample with time > t_ref (the original's window rule)."""
         times, valid = self._valid(rows)
         ok = valid & (times > np.asarray(t_ref, dtype=np.int64).reshape(-1, 1))
@@ -91,8 +94,9 @@ class History:
         found = np.asarray(ok.any(axis=1))  # (R,) bool
         return found, times[np.arange(len(rows)), slot], self.pos[rows, slot], self.rpy[rows, slot]
 
-    def window_sample(self, rows: np.ndarray, window_ns: int, max_gap_ns: int
-                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def window_sample(
+        self, rows: np.ndarray, window_ns: int, max_gap_ns: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Reference sample for a motion window ending at each row's newest sample.
 
         The newest sample at or before ``t - window`` is used when it is at most ``max_gap_ns``

@@ -39,8 +39,9 @@ from toaster.world.state import KIND_CODES, World
 #: (and the database's entities) grow without end; poses of further new ids are refused.
 MAX_LIVE_ENTITIES = 100_000
 #: (entity id, kind, owner id, joint name, t_ns, position, rpy, confidence)
-_Pose = tuple[str, str, str, str, int, tuple[float, float, float], tuple[float, float, float],
-              float]
+_Pose = tuple[
+    str, str, str, str, int, tuple[float, float, float], tuple[float, float, float], float
+]
 
 
 def quaternion_to_rpy(x: float, y: float, z: float, w: float) -> tuple[float, float, float]:
@@ -56,8 +57,7 @@ def quaternion_to_rpy(x: float, y: float, z: float, w: float) -> tuple[float, fl
     return roll, pitch, yaw
 
 
-def _numbers(values: object, field: str, what: str, bound: float, most: int = 4
-             ) -> list[float]:
+def _numbers(values: object, field: str, what: str, bound: float, most: int = 4) -> list[float]:
     """``values`` (at most ``most``) as finite floats within ±``bound``, else
     :class:`Refused` naming them."""
     try:
@@ -72,8 +72,7 @@ def _numbers(values: object, field: str, what: str, bound: float, most: int = 4
     return out
 
 
-def check_entity(entity_id: object, kind: object, owner_id: object = "",
-                 joint: object = "") -> str:
+def check_entity(entity_id: object, kind: object, owner_id: object = "", joint: object = "") -> str:
     """``entity_id`` if the store will register it as ``kind`` (an agent's id without
     ``>``, a joint with its agent): the checks of :mod:`toaster.model`; else
     :class:`Refused` naming the field (kind, id, owner, joint)."""
@@ -86,15 +85,24 @@ def check_entity(entity_id: object, kind: object, owner_id: object = "",
             raise Refused(msg, "owner")
         refuse_if(check_agent_id, owner_id, "owner", "owner id")
         refuse_if(check_optional_id, joint, "joint", "joint name")
-    refuse_if(check_agent_id if kind in ("human", "robot") else check_id, entity_id, "id",
-              f"{kind} id")
+    refuse_if(
+        check_agent_id if kind in ("human", "robot") else check_id, entity_id, "id", f"{kind} id"
+    )
     return str(entity_id)
 
 
-def _checked(entity_id: object, position: Sequence[float], yaw: float,
-             rpy: Sequence[float] | None, quat: Sequence[float] | None, t_ns: int | None,
-             kind: str, confidence: float, owner_id: str, joint: str
-             ) -> tuple[str, float, float, float, list[float], int, float]:
+def _checked(
+    entity_id: object,
+    position: Sequence[float],
+    yaw: float,
+    rpy: Sequence[float] | None,
+    quat: Sequence[float] | None,
+    t_ns: int | None,
+    kind: str,
+    confidence: float,
+    owner_id: str,
+    joint: str,
+) -> tuple[str, float, float, float, list[float], int, float]:
     """A pose checked as the store will check it (ids, time, confidence) and as the world
     needs it (finite coordinates within ±MAX_COORD m, an orientation); :class:`Refused`."""
     check_entity(entity_id, kind, owner_id, joint)
@@ -128,9 +136,16 @@ def _checked(entity_id: object, position: Sequence[float], yaw: float,
 class LiveSource:
     """Thread-safe buffer of the newest poses per entity; ``advance`` applies them."""
 
-    def __init__(self, name: str = "live", *, max_pending: int = 8,
-                 rewind_ns: int = NS_PER_S, max_skew_ns: int = 5 * NS_PER_S,
-                 drops: Drops | None = None, max_entities: int = MAX_LIVE_ENTITIES) -> None:
+    def __init__(
+        self,
+        name: str = "live",
+        *,
+        max_pending: int = 8,
+        rewind_ns: int = NS_PER_S,
+        max_skew_ns: int = 5 * NS_PER_S,
+        drops: Drops | None = None,
+        max_entities: int = MAX_LIVE_ENTITIES,
+    ) -> None:
         self.name = name
         self.max_entities = int(max_entities)
         self.start_ns: int | None = None
@@ -155,10 +170,21 @@ class LiveSource:
         self.drops.drop(topic or self.name, field, reason)
         return False
 
-    def push(self, entity_id: str, position: Sequence[float], *, yaw: float = 0.0,
-             rpy: Sequence[float] | None = None, quat: Sequence[float] | None = None,
-             t_ns: int | None = None, kind: str = "human", confidence: float = 1.0,
-             owner_id: str = "", joint: str = "", topic: str | None = None) -> bool:
+    def push(
+        self,
+        entity_id: str,
+        position: Sequence[float],
+        *,
+        yaw: float = 0.0,
+        rpy: Sequence[float] | None = None,
+        quat: Sequence[float] | None = None,
+        t_ns: int | None = None,
+        kind: str = "human",
+        confidence: float = 1.0,
+        owner_id: str = "",
+        joint: str = "",
+        topic: str | None = None,
+    ) -> bool:
         """Buffer a pose (x, y[, z] in metres; orientation as yaw, rpy or a quaternion x, y, z,
         w; time defaults to the wall clock). Joints: ``kind="joint"`` with ``owner_id`` and the
         skeleton name ``joint``, position in world coordinates. False (with ``last_error``,
@@ -166,13 +192,22 @@ class LiveSource:
         refused: the store's checks of ids, times and confidences, finite coordinates within
         ±MAX_COORD."""
         try:
-            pose = _checked(entity_id, position, yaw, rpy, quat, t_ns, kind, confidence,
-                            owner_id, joint)
+            pose = _checked(
+                entity_id, position, yaw, rpy, quat, t_ns, kind, confidence, owner_id, joint
+            )
         except Refused as exc:
             return self._refuse(exc.field, f"pose of {shown(entity_id)} refused: {exc}", topic)
         entity_id, x, y, z, angles, stamp, conf = pose
-        item: _Pose = (entity_id, kind, owner_id, joint, stamp, (x, y, z),
-                       (angles[0], angles[1], angles[2]), conf)
+        item: _Pose = (
+            entity_id,
+            kind,
+            owner_id,
+            joint,
+            stamp,
+            (x, y, z),
+            (angles[0], angles[1], angles[2]),
+            conf,
+        )
         with self._lock:
             queue = self._pending.setdefault(entity_id, [])
             queue.append(item)
@@ -211,17 +246,23 @@ class LiveSource:
             eid, kind, owner, joint = pose[:4]
             if eid not in world.index:
                 if len(world.ids) >= self.max_entities:
-                    self._refuse("id", f"pose of {shown(eid)} refused: the world holds "
-                                 f"{self.max_entities} entities already, removed ones "
-                                 "included (MAX_LIVE_ENTITIES)", None)
+                    self._refuse(
+                        "id",
+                        f"pose of {shown(eid)} refused: the world holds "
+                        f"{self.max_entities} entities already, removed ones "
+                        "included (MAX_LIVE_ENTITIES)",
+                        None,
+                    )
                     continue
                 if kind == "joint" and owner not in world.index:
-                    self.warnings.append(f"joint {eid!r} ignored: its agent {owner!r} is not "
-                                         "known yet")
+                    self.warnings.append(
+                        f"joint {eid!r} ignored: its agent {owner!r} is not known yet"
+                    )
                     continue
                 try:
-                    world.add_entity(eid, kind, owner_id=owner if kind == "joint" else "",
-                                     name=joint or eid)
+                    world.add_entity(
+                        eid, kind, owner_id=owner if kind == "joint" else "", name=joint or eid
+                    )
                 except ToasterError as exc:
                     self.warnings.append(f"pose of {eid!r} ignored: {exc}")
                     continue
@@ -235,12 +276,19 @@ class LiveSource:
         if rewound.any():
             back = rows[rewound]
             for r in back.tolist():
-                self.warnings.append(f"time went backwards for {world.ids[r]!r}: its history "
-                                     "was reset")
+                self.warnings.append(
+                    f"time went backwards for {world.ids[r]!r}: its history was reset"
+                )
             world.history.clear_rows(back)
             world.t_ns[back] = NO_TIME
-        world.observe(self.name, rows, stamps, np.array([p[5] for p in applied]),
-                      np.array([p[6] for p in applied]), np.array([p[7] for p in applied]))
+        world.observe(
+            self.name,
+            rows,
+            stamps,
+            np.array([p[5] for p in applied]),
+            np.array([p[6] for p in applied]),
+            np.array([p[7] for p in applied]),
+        )
 
     def _align(self, t_ns: int) -> None:
         """Shift stamps far from the tick's clock (lock held)."""
@@ -248,10 +296,12 @@ class LiveSource:
         if newest is None or abs(newest + self.offset_ns - t_ns) <= self.max_skew_ns:
             return
         self.offset_ns = t_ns - newest
-        self.warnings.append(f"stamps are {abs(self.offset_ns) / NS_PER_S:.1f} s "
-                             f"{'behind' if self.offset_ns > 0 else 'ahead of'} the node's "
-                             "clock (simulated time, a looping bag or an unsynchronised "
-                             "clock?): shifted to it")
+        self.warnings.append(
+            f"stamps are {abs(self.offset_ns) / NS_PER_S:.1f} s "
+            f"{'behind' if self.offset_ns > 0 else 'ahead of'} the node's "
+            "clock (simulated time, a looping bag or an unsynchronised "
+            "clock?): shifted to it"
+        )
 
     def take_warnings(self) -> list[str]:
         """The warnings met while applying since the last call (refused pushes are reported

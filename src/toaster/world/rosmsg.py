@@ -75,8 +75,12 @@ def quat_mul(a: Quat, b: Quat) -> Quat:
     """Hamilton product a·b of (x, y, z, w) quaternions."""
     ax, ay, az, aw = a
     bx, by, bz, bw = b
-    return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
+    return (
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    )
 
 
 def rotate(q: Quat, v: Vec) -> Vec:
@@ -99,8 +103,12 @@ def rpy_to_quat(roll: float, pitch: float, yaw: float) -> Quat:
     cr, sr = math.cos(roll / 2), math.sin(roll / 2)
     cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
     cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
-    return (sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
-            cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy)
+    return (
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+        cr * cp * cy + sr * sp * sy,
+    )
 
 
 def vec(p: Any) -> Vec:
@@ -147,8 +155,9 @@ def read_frame_map(source: str | Path | Mapping[str, Any] | None) -> dict[str, F
     if not isinstance(data, Mapping):
         msg = "the frame map must be a mapping {frame: {id, kind, owner?, joint?}}"
         raise InvalidInputError(msg)
-    return {strip_frame(str(frame)): frame_target(str(frame), entry)
-            for frame, entry in data.items()}
+    return {
+        strip_frame(str(frame)): frame_target(str(frame), entry) for frame, entry in data.items()
+    }
 
 
 def _parse_map_text(text: str, path: Path) -> Any:
@@ -182,8 +191,9 @@ def frame_target(frame: str, entry: Any) -> FrameTarget:
             msg = f"frame {frame!r}: a joint needs owner (its agent) and joint (or id)"
             raise InvalidInputError(msg)
         check_agent_id(owner, f"frame {frame!r}: owner")
-        return FrameTarget(check_id(f"{owner}/{joint}", f"frame {frame!r}: joint id"), "joint",
-                           owner, joint)
+        return FrameTarget(
+            check_id(f"{owner}/{joint}", f"frame {frame!r}: joint id"), "joint", owner, joint
+        )
     entity_id = str(entry.get("id") or "")
     if not entity_id:
         msg = f"frame {frame!r}: missing id"
@@ -239,12 +249,15 @@ class TfTree:
                     bad.append(f"transform {shown(parent)} -> {shown(child)} ignored: {exc}")
                     continue
                 if child == parent:
-                    bad.append(f"transform {shown(parent)} -> {shown(child)} ignored: not a "
-                               "tree edge")
+                    bad.append(
+                        f"transform {shown(parent)} -> {shown(child)} ignored: not a tree edge"
+                    )
                     continue
                 if child not in self._edges and len(self._edges) >= self.MAX_FRAMES:
-                    bad.append(f"transform {shown(parent)} -> {shown(child)} ignored: "
-                               f"{self.MAX_FRAMES} frames are known already")
+                    bad.append(
+                        f"transform {shown(parent)} -> {shown(child)} ignored: "
+                        f"{self.MAX_FRAMES} frames are known already"
+                    )
                     continue
                 self._edges[child] = (parent, t, q, stamp_ns(tr.header.stamp))
                 changed.add(child)
@@ -298,8 +311,9 @@ class TfTree:
         return copy
 
 
-def tf_updates(tree: TfTree, targets: Mapping[str, FrameTarget], changed: Iterable[str]
-               ) -> tuple[list[PoseUpdate], list[str]]:
+def tf_updates(
+    tree: TfTree, targets: Mapping[str, FrameTarget], changed: Iterable[str]
+) -> tuple[list[PoseUpdate], list[str]]:
     """Poses of the mapped frames whose chain contains a changed frame, and the mapped frames
     that do not reach the fixed frame, all composed from the tree as it was when called (a
     message arriving meanwhile on rospy's thread is not half seen: one human's body from it
@@ -316,13 +330,22 @@ def tf_updates(tree: TfTree, targets: Mapping[str, FrameTarget], changed: Iterab
             lost.append(frame)
             continue
         position, q, t_ns = found
-        updates.append(PoseUpdate(target.entity_id, target.kind, position, q, t_ns,
-                                  target.owner_id, target.joint))
+        updates.append(
+            PoseUpdate(
+                target.entity_id, target.kind, position, q, t_ns, target.owner_id, target.joint
+            )
+        )
     return updates, lost
 
 
-def pose_stamped_update(msg: Any, entity_id: str, kind: str = "object", *,
-                        tree: TfTree | None = None, fixed_frame: str = FIXED_FRAME) -> PoseUpdate:
+def pose_stamped_update(
+    msg: Any,
+    entity_id: str,
+    kind: str = "object",
+    *,
+    tree: TfTree | None = None,
+    fixed_frame: str = FIXED_FRAME,
+) -> PoseUpdate:
     """A PoseStamped as the entity's world pose; a frame other than the fixed one is composed
     through ``tree``. ValueError for non-finite numbers or a frame that does not reach it."""
     position, q = vec(msg.pose.position), quat(msg.pose.orientation)
@@ -340,11 +363,24 @@ def pose_stamped_update(msg: Any, entity_id: str, kind: str = "object", *,
 
 
 # -- the original's entity lists ----------------------------------------------------------------
-def _entity_update(entity: Any, kind: str, header_ns: int, owner: str = "",
-                   joint: str = "", entity_id: str | None = None) -> PoseUpdate:
+def _entity_update(
+    entity: Any,
+    kind: str,
+    header_ns: int,
+    owner: str = "",
+    joint: str = "",
+    entity_id: str | None = None,
+) -> PoseUpdate:
     t_ns = int(entity.time) or header_ns or None
-    return PoseUpdate(entity_id or str(entity.id), kind, vec(entity.pose.position),
-                      quat(entity.pose.orientation), t_ns, owner, joint)
+    return PoseUpdate(
+        entity_id or str(entity.id),
+        kind,
+        vec(entity.pose.position),
+        quat(entity.pose.orientation),
+        t_ns,
+        owner,
+        joint,
+    )
 
 
 def agent_updates(agent: Any, kind: str, header_ns: int) -> list[PoseUpdate]:
@@ -355,10 +391,10 @@ def agent_updates(agent: Any, kind: str, header_ns: int) -> list[PoseUpdate]:
     names = list(field(agent, "skeletonNames", ()))
     for i, joint in enumerate(field(agent, "skeletonJoint", ())):
         me_joint = field(joint, "meEntity")
-        name = (names[i] if i < len(names) and names[i] else
-                str(me_joint.name or me_joint.id))
-        out.append(_entity_update(me_joint, "joint", header_ns, agent_id, name,
-                                  f"{agent_id}/{name}"))
+        name = names[i] if i < len(names) and names[i] else str(me_joint.name or me_joint.id)
+        out.append(
+            _entity_update(me_joint, "joint", header_ns, agent_id, name, f"{agent_id}/{name}")
+        )
     return out
 
 
@@ -371,7 +407,8 @@ def list_updates(msg: Any) -> tuple[list[PoseUpdate], list[str]]:
     items: list[tuple[str, Any]] = (
         [("human", field(h, "meAgent")) for h in field(msg, "humanList", ())]
         + [("robot", field(r, "meAgent")) for r in field(msg, "robotList", ())]
-        + [("object", o) for o in field(msg, "objectList", ())])
+        + [("object", o) for o in field(msg, "objectList", ())]
+    )
     for kind, item in items:
         try:
             if kind == "object":
@@ -390,24 +427,41 @@ def fact_fields(fact: Fact, t_ns: int) -> dict[str, Any]:
     number)."""
     num = fact.value_num
     has_num = num is not None
-    return {"property": fact.property, "propertyType": fact.property_type,
-            "subProperty": fact.sub_property, "subjectId": fact.subject_id,
-            "targetId": fact.target_id, "subjectOwnerId": fact.subject_owner_id,
-            "targetOwnerId": fact.target_owner_id, "valueType": has_num,
-            "factObservability": float(fact.observability),
-            "doubleValue": float(num) if num is not None else 0.0,
-            "stringValue": fact.value_text, "confidence": float(fact.confidence),
-            "time": t_ns, "timeStart": t_ns, "timeEnd": 0}
+    return {
+        "property": fact.property,
+        "propertyType": fact.property_type,
+        "subProperty": fact.sub_property,
+        "subjectId": fact.subject_id,
+        "targetId": fact.target_id,
+        "subjectOwnerId": fact.subject_owner_id,
+        "targetOwnerId": fact.target_owner_id,
+        "valueType": has_num,
+        "factObservability": float(fact.observability),
+        "doubleValue": float(num) if num is not None else 0.0,
+        "stringValue": fact.value_text,
+        "confidence": float(fact.confidence),
+        "time": t_ns,
+        "timeStart": t_ns,
+        "timeEnd": 0,
+    }
 
 
 def fact_from_msg(msg: Any) -> Fact:
     """A toaster Fact from a toaster_msgs/Fact (or Event): a number only when valueType is
     1; an empty string value means "true"."""
-    return Fact(str(msg.subjectId), str(msg.property), str(msg.targetId),
-                str(msg.stringValue) or "true",
-                float(msg.doubleValue) if msg.valueType else None,
-                float(msg.confidence), float(msg.factObservability), str(msg.propertyType),
-                str(msg.subProperty), str(msg.subjectOwnerId), str(msg.targetOwnerId))
+    return Fact(
+        str(msg.subjectId),
+        str(msg.property),
+        str(msg.targetId),
+        str(msg.stringValue) or "true",
+        float(msg.doubleValue) if msg.valueType else None,
+        float(msg.confidence),
+        float(msg.factObservability),
+        str(msg.propertyType),
+        str(msg.subProperty),
+        str(msg.subjectOwnerId),
+        str(msg.targetOwnerId),
+    )
 
 
 def area_from_msg(msg: Any) -> tuple[str, dict[str, Any]]:
@@ -416,39 +470,57 @@ def area_from_msg(msg: Any) -> tuple[str, dict[str, Any]]:
     from toaster.world.areaspec import area_from_original, normalize_area
 
     f = field
-    record = {"name": str(msg.name), "myOwner": str(f(msg, "myOwner")),
-              "areaType": str(f(msg, "areaType")), "factType": str(f(msg, "factType")),
-              "entityType": str(f(msg, "entityType")), "isCircle": bool(f(msg, "isCircle")),
-              "ray": float(msg.ray),
-              "center": {"x": float(msg.center.x), "y": float(msg.center.y)},
-              "poly": [[float(p.x), float(p.y)] for p in msg.poly.points],
-              "zmin": float(msg.zmin), "zmax": float(msg.zmax)}
+    record = {
+        "name": str(msg.name),
+        "myOwner": str(f(msg, "myOwner")),
+        "areaType": str(f(msg, "areaType")),
+        "factType": str(f(msg, "factType")),
+        "entityType": str(f(msg, "entityType")),
+        "isCircle": bool(f(msg, "isCircle")),
+        "ray": float(msg.ray),
+        "center": {"x": float(msg.center.x), "y": float(msg.center.y)},
+        "poly": [[float(p.x), float(p.y)] for p in msg.poly.points],
+        "zmin": float(msg.zmin),
+        "zmax": float(msg.zmax),
+    }
     name, spec = area_from_original(record)
-    extra: dict[str, Any] = {"enter_hysteresis": float(f(msg, "enterHysteresis")),
-                             "leave_hysteresis": float(f(msg, "leaveHysteresis"))}
+    extra: dict[str, Any] = {
+        "enter_hysteresis": float(f(msg, "enterHysteresis")),
+        "leave_hysteresis": float(f(msg, "leaveHysteresis")),
+    }
     if f(msg, "isCircle") and float(msg.height) > 0:
-        extra |= {"center": [float(msg.center.x), float(msg.center.y), float(msg.center.z)],
-                  "height": float(msg.height)}
+        extra |= {
+            "center": [float(msg.center.x), float(msg.center.y), float(msg.center.z)],
+            "height": float(msg.height),
+        }
     return name, normalize_area(name, {**spec, **extra})
 
 
-def area_fields(area_id: str, spec: Mapping[str, Any], number: int,
-                inside: Iterable[str] = ()) -> dict[str, Any]:
+def area_fields(
+    area_id: str, spec: Mapping[str, Any], number: int, inside: Iterable[str] = ()
+) -> dict[str, Any]:
     """toaster_msgs/Area fields (nested dicts) of a stored area spec."""
     circle = spec.get("shape") == "circle"
     center = [*spec.get("center", [0.0, 0.0]), 0.0][:3]
     z_min, z_max = spec.get("z_min"), spec.get("z_max")
     facts = list(spec.get("facts") or [])
     return {
-        "id": number, "name": area_id, "myOwner": spec.get("owner", ""),
-        "areaType": spec.get("area_type", ""), "factType": facts[0] if facts else "",
-        "entityType": " ".join(spec.get("entity_types") or ["entities"]), "isCircle": circle,
+        "id": number,
+        "name": area_id,
+        "myOwner": spec.get("owner", ""),
+        "areaType": spec.get("area_type", ""),
+        "factType": facts[0] if facts else "",
+        "entityType": " ".join(spec.get("entity_types") or ["entities"]),
+        "isCircle": circle,
         "center": {"x": center[0], "y": center[1], "z": center[2]},
-        "ray": float(spec.get("radius") or 0.0), "height": float(spec.get("height") or 0.0),
+        "ray": float(spec.get("radius") or 0.0),
+        "height": float(spec.get("height") or 0.0),
         "poly": {"points": [{"x": p[0], "y": p[1], "z": 0.0} for p in spec.get("points", [])]},
         "zmin": float(z_min) if z_min is not None else 0.0,
         "zmax": float(z_max) if z_max is not None else 0.0,
         "enterHysteresis": float(spec.get("enter_hysteresis") or 0.0),
         "leaveHysteresis": float(spec.get("leave_hysteresis") or 0.0),
-        "insideEntities_": sorted(inside), "upcomingEntities_": [], "leavingEntities_": [],
+        "insideEntities_": sorted(inside),
+        "upcomingEntities_": [],
+        "leavingEntities_": [],
     }

@@ -21,8 +21,20 @@ from toaster.timeutil import check_ns, check_rate, parse_duration, parse_time
 from toaster.world.geometry import wrap_angle
 from toaster.world.state import MOBILITIES, World
 
-ACTIONS = ("set_pose", "move", "put_in_hand", "remove_from_hand", "enter", "leave", "look_at",
-           "stop_looking", "point", "stop_pointing", "open", "close")
+ACTIONS = (
+    "set_pose",
+    "move",
+    "put_in_hand",
+    "remove_from_hand",
+    "enter",
+    "leave",
+    "look_at",
+    "stop_looking",
+    "point",
+    "stop_pointing",
+    "open",
+    "close",
+)
 ARM_LENGTH = 0.6
 
 
@@ -46,8 +58,11 @@ def _vec(value: Any, where: str, size: int = 3) -> list[float]:
 def _finite(value: Any, where: str, what: str, limit: float = MAX_COORD) -> float:
     """``value`` as a float if it is a number within ±``limit``, else a one-line error."""
     try:
-        number = float(value) if isinstance(value, int | float) and not isinstance(
-            value, bool) else math.nan
+        number = (
+            float(value)
+            if isinstance(value, int | float) and not isinstance(value, bool)
+            else math.nan
+        )
     except OverflowError:
         number = math.nan
     if not (math.isfinite(number) and abs(number) <= limit):
@@ -65,9 +80,17 @@ def _rpy(item: Mapping[str, Any], where: str) -> list[float]:
         from toaster.world.live import quaternion_to_rpy
 
         q = item["orientation"]
-        if (not isinstance(q, list | tuple) or len(q) != 4
-                or not all(isinstance(v, int | float) and not isinstance(v, bool)
-                           and math.isfinite(v) and abs(v) <= MAX_COORD for v in q)):
+        if (
+            not isinstance(q, list | tuple)
+            or len(q) != 4
+            or not all(
+                isinstance(v, int | float)
+                and not isinstance(v, bool)
+                and math.isfinite(v)
+                and abs(v) <= MAX_COORD
+                for v in q
+            )
+        ):
             msg = f"{where}: orientation {shown(q)} must be a quaternion [x, y, z, w] of numbers"
             raise FileFormatError(msg)
         try:
@@ -141,8 +164,7 @@ def parse_scenario(data: Any, origin: str = "scenario") -> Scenario:
     if duration < 0:
         msg = f"{origin}: duration {data.get('duration')!r} must not be negative"
         raise FileFormatError(msg)
-    entities = [_entity(ent, f"{origin}: entities[{i}]") for i, ent in
-                enumerate(data["entities"])]
+    entities = [_entity(ent, f"{origin}: entities[{i}]") for i, ent in enumerate(data["entities"])]
     known: dict[str, str] = {}
     joints: dict[str, tuple[str, str]] = {}  # joint id -> (agent, joint name)
     for i, ent in enumerate(entities):
@@ -153,8 +175,7 @@ def parse_scenario(data: Any, origin: str = "scenario") -> Scenario:
             if jid == ent["id"]:
                 known[jid] = ent["kind"]
             else:
-                joints[jid] = next((ent["id"], j["name"]) for j in ent["joints"]
-                                   if j["id"] == jid)
+                joints[jid] = next((ent["id"], j["name"]) for j in ent["joints"] if j["id"] == jid)
     self_id = data.get("self", "") or next((e["id"] for e in entities if e["self"]), "")
     if self_id and (not isinstance(self_id, str) or known.get(self_id) != "robot"):
         msg = f"{origin}: self {shown(self_id)} is not a robot of the scenario"
@@ -163,8 +184,10 @@ def parse_scenario(data: Any, origin: str = "scenario") -> Scenario:
     if not isinstance(raw_timeline, list):
         msg = f"{origin}: 'timeline' must be a list of actions such as {{at: 1s, leave: bob}}"
         raise FileFormatError(msg)
-    timeline = [_check_action(action, i, known, joints, origin, start)
-                for i, action in enumerate(raw_timeline)]
+    timeline = [
+        _check_action(action, i, known, joints, origin, start)
+        for i, action in enumerate(raw_timeline)
+    ]
     timeline.sort(key=lambda a: a["at_ns"])  # stable: file order within one time
     areas = data.get("areas", {}) or {}
     if not isinstance(areas, dict):
@@ -189,8 +212,17 @@ def parse_scenario(data: Any, origin: str = "scenario") -> Scenario:
     if not isinstance(name, str | int | float) or isinstance(name, bool):
         msg = f"{origin}: name {shown(name)} must be text"
         raise FileFormatError(msg)
-    return Scenario(_text(str(name), origin, "name"), start, start + duration, rate,
-                    self_id, entities, areas, config, timeline)
+    return Scenario(
+        _text(str(name), origin, "name"),
+        start,
+        start + duration,
+        rate,
+        self_id,
+        entities,
+        areas,
+        config,
+        timeline,
+    )
 
 
 def _text(value: Any, where: str, what: str) -> str:
@@ -243,15 +275,28 @@ def _entity(ent: Any, where: str) -> dict[str, Any]:
             raise FileFormatError(msg)
         jname = _id(j["name"], f"{where} joint", "joint name")
         jid = _id(j.get("id", f"{eid}/{jname}"), f"{where} joint {jname}", "joint id")
-        joints.append({"id": jid, "name": jname,
-                       "position": _vec(j.get("position", [0, 0, 0]), f"{where} joint {jname}"),
-                       "rpy": _rpy(j, f"{where} joint {jname}")})
-    return {"id": eid, "kind": kind, "name": name, "size": size, "mobility": mobility,
-            "role": role, "closed": _flag(ent, "closed", None, where),
-            "self": _flag(ent, "self", False, where),
-            "present": _flag(ent, "present", True, where),
-            "position": _vec(ent.get("position", [0, 0, 0]), f"{where} position"),
-            "rpy": _rpy(ent, where), "joints": joints}
+        joints.append(
+            {
+                "id": jid,
+                "name": jname,
+                "position": _vec(j.get("position", [0, 0, 0]), f"{where} joint {jname}"),
+                "rpy": _rpy(j, f"{where} joint {jname}"),
+            }
+        )
+    return {
+        "id": eid,
+        "kind": kind,
+        "name": name,
+        "size": size,
+        "mobility": mobility,
+        "role": role,
+        "closed": _flag(ent, "closed", None, where),
+        "self": _flag(ent, "self", False, where),
+        "present": _flag(ent, "present", True, where),
+        "position": _vec(ent.get("position", [0, 0, 0]), f"{where} position"),
+        "rpy": _rpy(ent, where),
+        "joints": joints,
+    }
 
 
 def check_area(area_id: Any, spec: Any, where: str) -> dict[str, Any]:
@@ -262,8 +307,10 @@ def check_area(area_id: Any, spec: Any, where: str) -> dict[str, Any]:
     name = _id(area_id, where, "area id")
     where = f"{where} {name}"
     if not isinstance(spec, dict):
-        msg = f"{where}: an area spec is a mapping such as {{shape: circle, center: [1, 2], " \
-              "radius: 1}"
+        msg = (
+            f"{where}: an area spec is a mapping such as {{shape: circle, center: [1, 2], "
+            "radius: 1}"
+        )
         raise FileFormatError(msg)
     for key, value in spec.items():
         if key in ("points",):
@@ -274,13 +321,13 @@ def check_area(area_id: Any, spec: Any, where: str) -> dict[str, Any]:
                 _vec(p, f"{where} points")
         elif key == "center":
             _vec(value, f"{where} center")
-        elif key in ("radius", "height", "z_min", "z_max", "enter_hysteresis",
-                     "leave_hysteresis"):
+        elif key in ("radius", "height", "z_min", "z_max", "enter_hysteresis", "leave_hysteresis"):
             if value is not None:
                 _finite(value, where, key)
         elif key in ("facts", "entity_types"):
             if not isinstance(value, str) and not (
-                    isinstance(value, list) and all(isinstance(v, str) for v in value)):
+                isinstance(value, list) and all(isinstance(v, str) for v in value)
+            ):
                 msg = f"{where}: {key} {shown(value)} must be a word or a list of words"
                 raise FileFormatError(msg)
         elif key in ("shape", "owner", "area_type") and value is not None:
@@ -295,9 +342,14 @@ def check_area(area_id: Any, spec: Any, where: str) -> dict[str, Any]:
         raise FileFormatError(msg) from None
 
 
-def _check_action(action: Any, i: int, known: dict[str, str],
-                  joints: dict[str, tuple[str, str]], origin: str,
-                  start: int) -> dict[str, Any]:
+def _check_action(
+    action: Any,
+    i: int,
+    known: dict[str, str],
+    joints: dict[str, tuple[str, str]],
+    origin: str,
+    start: int,
+) -> dict[str, Any]:
     where = f"{origin}: timeline[{i}]"
     if not isinstance(action, dict):
         msg = f"{where} must be a mapping such as {{at: 1s, set_pose: Bob, position: [1, 2]}}"
@@ -309,8 +361,7 @@ def _check_action(action: Any, i: int, known: dict[str, str],
     verb = verbs[0]
     subject = action[verb]
     if not isinstance(subject, str) or subject not in known:
-        msg = (f"{where}: {verb} names unknown entity {shown(subject)}; declare it under "
-               "'entities'")
+        msg = f"{where}: {verb} names unknown entity {shown(subject)}; declare it under 'entities'"
         raise FileFormatError(msg)
     try:
         at = parse_duration(str(action.get("at", "0s")))
@@ -322,8 +373,10 @@ def _check_action(action: Any, i: int, known: dict[str, str],
         msg = f"{where}: at {action.get('at')!r} must not be negative (time from the start)"
         raise FileFormatError(msg)
     for key in ("target", "agent"):
-        if key in action and (not isinstance(action[key], str)
-                              or (action[key] not in known and action[key] not in joints)):
+        if key in action and (
+            not isinstance(action[key], str)
+            or (action[key] not in known and action[key] not in joints)
+        ):
             msg = f"{where}: {key} {shown(action[key])} is unknown; declare it under 'entities'"
             raise FileFormatError(msg)
     out = {**action, "verb": verb, "subject": subject, "at_ns": at}
@@ -335,8 +388,11 @@ def _check_action(action: Any, i: int, known: dict[str, str],
         out["waypoints"] = [_vec(p, f"{where} waypoint") for p in pts]
         out["flat"] = [len(p) < 3 for p in pts]
         speed = action.get("speed", 1.0)
-        if isinstance(speed, bool) or not isinstance(speed, int | float) or not (
-                0 < _finite(speed, where, "speed") <= MAX_COORD):
+        if (
+            isinstance(speed, bool)
+            or not isinstance(speed, int | float)
+            or not (0 < _finite(speed, where, "speed") <= MAX_COORD)
+        ):
             msg = f"{where}: speed {shown(speed)} must be a positive number of m/s"
             raise FileFormatError(msg)
         out["speed"] = float(speed)
@@ -351,14 +407,18 @@ def _check_action(action: Any, i: int, known: dict[str, str],
             msg = f"{where}: put_in_hand needs 'agent' and 'hand' (a joint name)"
             raise FileFormatError(msg)
         if not any(owner == agent and name == hand for owner, name in joints.values()):
-            msg = (f"{where}: agent {shown(agent)} has no joint {shown(hand)}; declare it "
-                   "under the agent's joints")
+            msg = (
+                f"{where}: agent {shown(agent)} has no joint {shown(hand)}; declare it "
+                "under the agent's joints"
+            )
             raise FileFormatError(msg)
         if agent == subject:
             msg = f"{where}: {subject!r} cannot be put in its own hand"
             raise FileFormatError(msg)
-    if verb in ("look_at", "point", "stop_looking", "stop_pointing") and \
-            known[subject] not in ("human", "robot"):
+    if verb in ("look_at", "point", "stop_looking", "stop_pointing") and known[subject] not in (
+        "human",
+        "robot",
+    ):
         msg = f"{where}: {verb} is for humans and robots, not {known[subject]} {subject!r}"
         raise FileFormatError(msg)
     if verb in ("look_at", "point") and "target" not in action:
@@ -367,8 +427,10 @@ def _check_action(action: Any, i: int, known: dict[str, str],
     if verb == "point":
         hand = action.get("hand", "rightHand")
         if not any(owner == subject and name == hand for owner, name in joints.values()):
-            msg = (f"{where}: point: agent {subject!r} has no joint {shown(hand)}; declare it "
-                   "under its joints")
+            msg = (
+                f"{where}: point: agent {subject!r} has no joint {shown(hand)}; declare it "
+                "under its joints"
+            )
             raise FileFormatError(msg)
     return out
 
@@ -402,8 +464,9 @@ class ScenarioSource:
         """Add the scenario's entities and joints to the world (checked by the parser)."""
         for ent in self.scenario.entities:
             eid, kind = ent["id"], ent["kind"]
-            world.add_entity(eid, kind, name=ent["name"], size=ent["size"],
-                             mobility=ent["mobility"])
+            world.add_entity(
+                eid, kind, name=ent["name"], size=ent["size"], mobility=ent["mobility"]
+            )
             self._kind[eid] = kind
             if ent["role"] is not None or ent["closed"] is not None:
                 world.set_shape(eid, role=ent["role"], closed=ent["closed"])
@@ -428,8 +491,9 @@ class ScenarioSource:
             self._dirty.add(eid)
             if (t_ns - motion.start_ns) / 1e9 * motion.speed >= motion.cum[-1]:
                 del self._motions[eid]
-        report = sorted(e for e in self._present
-                        if self._kind[e] in ("human", "robot") or e in self._dirty)
+        report = sorted(
+            e for e in self._present if self._kind[e] in ("human", "robot") or e in self._dirty
+        )
         self._dirty.clear()
         if report:
             pos = np.array([self._pose[e][0] for e in report])
@@ -492,8 +556,12 @@ class ScenarioSource:
             if jrow < 0:
                 msg = f"point: agent {eid!r} has no joint {hand!r}; declare it under its joints"
                 raise FileFormatError(msg)
-            self._pointing[eid] = (action["target"], world.ids[jrow],
-                                   world.local_pos[jrow].tolist(), world.local_rpy[jrow].tolist())
+            self._pointing[eid] = (
+                action["target"],
+                world.ids[jrow],
+                world.local_pos[jrow].tolist(),
+                world.local_rpy[jrow].tolist(),
+            )
         elif verb in ("open", "close"):
             world.closed[eid] = verb == "close"
         elif verb == "stop_pointing" and eid in self._pointing:
@@ -510,8 +578,12 @@ class ScenarioSource:
             d = world.pos[tg] - head_world
             yaw = math.atan2(d[1], d[0])
             pitch = -math.atan2(d[2], math.hypot(d[0], d[1]))
-            world.set_joint_local(world.ids[head], world.local_pos[head],
-                                  [0.0, pitch, wrap_angle(yaw - world.rpy[a, 2])], t_ns)
+            world.set_joint_local(
+                world.ids[head],
+                world.local_pos[head],
+                [0.0, pitch, wrap_angle(yaw - world.rpy[a, 2])],
+                t_ns,
+            )
         for agent, (target, jid, lpos, _) in self._pointing.items():
             a, tg = world.row(agent), world.row(target)
             d = world.pos[tg, :2] - world.pos[a, :2]

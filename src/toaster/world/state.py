@@ -61,8 +61,9 @@ class EntityPose(NamedTuple):
 class World:
     """Current state of all entities (columns) with a per-entity time-bounded history."""
 
-    def __init__(self, history_capacity: int = 100,
-                 history_horizon_ns: int = DEFAULT_HORIZON_NS) -> None:
+    def __init__(
+        self, history_capacity: int = 100, history_horizon_ns: int = DEFAULT_HORIZON_NS
+    ) -> None:
         self.ids: list[str] = []
         self.index: dict[str, int] = {}
         self.kind_text: list[str] = []
@@ -87,8 +88,11 @@ class World:
         self.closed: dict[str, bool] = {}  # containers that are closed (lid on)
         self.history = History(history_capacity, history_horizon_ns)
         self._version = 0
-        self._id_cache: tuple[int, np.ndarray, np.ndarray] = (-1, np.zeros(0, object),
-                                                              np.zeros(0, object))
+        self._id_cache: tuple[int, np.ndarray, np.ndarray] = (
+            -1,
+            np.zeros(0, object),
+            np.zeros(0, object),
+        )
 
     # -- entities ---------------------------------------------------------------------------
     def _grow(self) -> None:
@@ -109,9 +113,16 @@ class World:
         self.held_by = grow(self.held_by, -1)
         self._cap = cap
 
-    def add_entity(self, entity_id: str, kind: str = "object", *, owner_id: str = "",
-                   name: str = "", size: Sequence[float] | None = None,
-                   mobility: str = "full") -> int:
+    def add_entity(
+        self,
+        entity_id: str,
+        kind: str = "object",
+        *,
+        owner_id: str = "",
+        name: str = "",
+        size: Sequence[float] | None = None,
+        mobility: str = "full",
+    ) -> int:
         """Register (or re-activate) an entity and return its row.
 
         A joint needs ``owner_id`` (its agent); its ``name`` is the skeleton name ("head").
@@ -121,8 +132,9 @@ class World:
             raise InvalidInputError(msg)
         kind = kind.lower()
         if kind not in KIND_CODES:
-            msg = (f"unknown entity kind {kind!r} for {entity_id!r}: "
-                   "use human, robot, object or joint")
+            msg = (
+                f"unknown entity kind {kind!r} for {entity_id!r}: use human, robot, object or joint"
+            )
             raise InvalidInputError(msg)
         if mobility not in MOBILITIES:
             msg = f"unknown mobility {mobility!r} for {entity_id!r}: use one of {MOBILITIES}"
@@ -131,8 +143,10 @@ class World:
         if kind == "joint":
             owner = self.index.get(owner_id, -1)
             if owner < 0 or self.kind[owner] not in (HUMAN, ROBOT):
-                msg = (f"joint {entity_id!r} names owner {owner_id!r}, which is not a known "
-                       "human or robot: add the agent first")
+                msg = (
+                    f"joint {entity_id!r} names owner {owner_id!r}, which is not a known "
+                    "human or robot: add the agent first"
+                )
                 raise UnknownEntityError(msg)
         row = self.index.get(entity_id)
         if row is None:
@@ -204,9 +218,15 @@ class World:
         """Switch a source on or off (observations of a disabled source are dropped)."""
         self.sources_enabled[source] = bool(enabled)
 
-    def observe(self, source: str, ids: Sequence[str] | np.ndarray,
-                t_ns: Sequence[int] | np.ndarray, pos: np.ndarray, rpy: np.ndarray | None = None,
-                conf: np.ndarray | None = None) -> int:
+    def observe(
+        self,
+        source: str,
+        ids: Sequence[str] | np.ndarray,
+        t_ns: Sequence[int] | np.ndarray,
+        pos: np.ndarray,
+        rpy: np.ndarray | None = None,
+        conf: np.ndarray | None = None,
+    ) -> int:
         """Apply a batch of poses from one source with the newest-then-most-confident rule.
 
         Unknown ids must have been added first. ``ids`` may also be an integer array of
@@ -250,15 +270,33 @@ class World:
             self._set_local_from_world(joints)
         return int(r.size)
 
-    def set_pose(self, entity_id: str, position: Sequence[float], t_ns: int,
-                 rpy: Sequence[float] = (0.0, 0.0, 0.0), *, source: str = "api",
-                 confidence: float = 1.0) -> None:
+    def set_pose(
+        self,
+        entity_id: str,
+        position: Sequence[float],
+        t_ns: int,
+        rpy: Sequence[float] = (0.0, 0.0, 0.0),
+        *,
+        source: str = "api",
+        confidence: float = 1.0,
+    ) -> None:
         """Set one entity's world pose (a convenience over :meth:`observe`)."""
-        self.observe(source, [entity_id], [t_ns], np.asarray([position], float),
-                     np.asarray([rpy], float), np.asarray([confidence]))
+        self.observe(
+            source,
+            [entity_id],
+            [t_ns],
+            np.asarray([position], float),
+            np.asarray([rpy], float),
+            np.asarray([confidence]),
+        )
 
-    def set_joint_local(self, joint_id: str, position: Sequence[float],
-                        rpy: Sequence[float] = (0.0, 0.0, 0.0), t_ns: int | None = None) -> None:
+    def set_joint_local(
+        self,
+        joint_id: str,
+        position: Sequence[float],
+        rpy: Sequence[float] = (0.0, 0.0, 0.0),
+        t_ns: int | None = None,
+    ) -> None:
         """Set a joint's pose relative to its agent (x forward, y left, z up)."""
         row = self.row(joint_id)
         if self.kind[row] != JOINT:
@@ -276,8 +314,14 @@ class World:
         self.local_pos[joints] = np.einsum("nji,nj->ni", rot, delta)
         self.local_rpy[joints] = wrap_angle(self.rpy[joints] - self.rpy[agents])
 
-    def set_shape(self, entity_id: str, *, size: Sequence[float] | None = None,
-                  role: str | None = None, closed: bool | None = None) -> None:
+    def set_shape(
+        self,
+        entity_id: str,
+        *,
+        size: Sequence[float] | None = None,
+        role: str | None = None,
+        closed: bool | None = None,
+    ) -> None:
         """Give an entity a box (size x, y, z in metres), a role (support, container) or a lid."""
         row = self.row(entity_id)
         if size is not None:
@@ -326,8 +370,9 @@ class World:
         if joints.size:
             agents = self.owner[joints]
             rot = rotation_matrices(self.rpy[agents])
-            self.pos[joints] = self.pos[agents] + np.einsum("nij,nj->ni", rot,
-                                                            self.local_pos[joints])
+            self.pos[joints] = self.pos[agents] + np.einsum(
+                "nij,nj->ni", rot, self.local_pos[joints]
+            )
             self.rpy[joints] = wrap_angle(self.rpy[agents] + self.local_rpy[joints])
             self.t_ns[joints] = np.maximum(self.t_ns[joints], self.t_ns[agents])
         held = np.flatnonzero(self.held_by[:n] >= 0)

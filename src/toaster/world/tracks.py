@@ -34,9 +34,16 @@ FPS_TOLERANCE = 1.5  # refuse an fps more than this factor away from what the ve
 class TrackSource:
     """Replays time-sorted samples into a world: each tick reports samples in (last, t]."""
 
-    def __init__(self, t_ns: np.ndarray, ids: list[str], kinds: dict[str, str],
-                 pos: np.ndarray, rpy: np.ndarray, conf: np.ndarray | None = None,
-                 name: str = "tracks") -> None:
+    def __init__(
+        self,
+        t_ns: np.ndarray,
+        ids: list[str],
+        kinds: dict[str, str],
+        pos: np.ndarray,
+        rpy: np.ndarray,
+        conf: np.ndarray | None = None,
+        name: str = "tracks",
+    ) -> None:
         order = np.argsort(t_ns, kind="stable")
         self.t = np.asarray(t_ns, np.int64)[order]
         self.ids = [ids[i] for i in order]
@@ -62,8 +69,9 @@ class TrackSource:
         stop = int(np.searchsorted(self.t, t_ns, side="right"))
         if stop > self._cursor:
             sl = slice(self._cursor, stop)
-            world.observe(self.name, self.ids[sl], self.t[sl], self.pos[sl], self.rpy[sl],
-                          self.conf[sl])
+            world.observe(
+                self.name, self.ids[sl], self.t[sl], self.pos[sl], self.rpy[sl], self.conf[sl]
+            )
             self._cursor = stop
 
 
@@ -92,8 +100,10 @@ def _obsmat_table(path: Path) -> tuple[np.ndarray, np.ndarray]:
             numbers.append(n)
             rows.append(fields)
             if len(fields) != len(OBSMAT_COLUMNS):
-                msg = (f"{label} line {n} has {len(fields)} columns: obsmat has 8 "
-                       "(frame ped x z y vx vz vy)")
+                msg = (
+                    f"{label} line {n} has {len(fields)} columns: obsmat has 8 "
+                    "(frame ped x z y vx vz vy)"
+                )
                 raise FileFormatError(msg)
     if not rows:
         msg = f"{label} holds no samples: obsmat has one row per person and frame"
@@ -106,8 +116,10 @@ def _obsmat_table(path: Path) -> tuple[np.ndarray, np.ndarray]:
                 try:
                     float(word)
                 except ValueError:
-                    msg = (f"{label} line {n}: {column} {word!r} is not a number; obsmat rows "
-                           "are 8 numbers (frame ped x z y vx vz vy): fix or delete the line")
+                    msg = (
+                        f"{label} line {n}: {column} {word!r} is not a number; obsmat rows "
+                        "are 8 numbers (frame ped x z y vx vz vy): fix or delete the line"
+                    )
                     raise FileFormatError(msg) from None
         raise  # pragma: no cover - numpy and float() agree on what a number is
     return data, np.asarray(numbers, np.int64)
@@ -133,16 +145,21 @@ def _check_obsmat(label: str, data: np.ndarray, lines: np.ndarray) -> None:
         value = data[i, OBSMAT_COLUMNS.index(column)]
         msg = f"{where}: {column} is {value}, not a finite number: fix or delete the line"
     elif bad_int[i, 0]:
-        msg = (f"{where}: frame {data[i, 0]:g} is not a frame number (frames are non-negative "
-               "integers; columns are frame ped x z y vx vz vy): fix or delete the line")
+        msg = (
+            f"{where}: frame {data[i, 0]:g} is not a frame number (frames are non-negative "
+            "integers; columns are frame ped x z y vx vz vy): fix or delete the line"
+        )
     else:
-        msg = (f"{where}: person id {data[i, 1]:g} is not an id (ids are non-negative integers; "
-               "columns are frame ped x z y vx vz vy): fix or delete the line")
+        msg = (
+            f"{where}: person id {data[i, 1]:g} is not an id (ids are non-negative integers; "
+            "columns are frame ped x z y vx vz vy): fix or delete the line"
+        )
     raise FileFormatError(msg)
 
 
-def _check_fps(label: str, fps: float, frame: np.ndarray, ped: np.ndarray,
-               data: np.ndarray) -> float | None:
+def _check_fps(
+    label: str, fps: float, frame: np.ndarray, ped: np.ndarray, data: np.ndarray
+) -> float | None:
     """The median frame step between a person's rows; refuse an fps the velocities contradict.
 
     Rows are sorted by person then frame. Over consecutive rows of a person that walks
@@ -164,15 +181,18 @@ def _check_fps(label: str, fps: float, frame: np.ndarray, ped: np.ndarray,
         per_step = float(np.median(moved[use] * step / steps[use]))
         at = float(np.median(speed[use]))
         guess = f"{round(fit):d}" if fit >= 10 else f"{fit:.2g}"
-        msg = (f"--fps {fps:g} does not fit {label}: its annotated velocities imply about "
-               f"{guess} fps (positions move {per_step:.2f} m per {step:g} frames at "
-               f"{at:.2f} m/s); give --fps {guess}")
+        msg = (
+            f"--fps {fps:g} does not fit {label}: its annotated velocities imply about "
+            f"{guess} fps (positions move {per_step:.2f} m per {step:g} frames at "
+            f"{at:.2f} m/s); give --fps {guess}"
+        )
         raise FileFormatError(msg)
     return step
 
 
-def read_obsmat(path: str | Path, prefix: str = "ped", start_ns: int = 0,
-                fps: float = OBSMAT_FPS) -> TrackSource:
+def read_obsmat(
+    path: str | Path, prefix: str = "ped", start_ns: int = 0, fps: float = OBSMAT_FPS
+) -> TrackSource:
     """Read an ETH/UCY obsmat.txt (frame ped x z y vx vz vy); yaw follows the velocity.
 
     ``fps`` is the video frame rate the frame numbers count (ETH/UCY: 25). It is checked
@@ -206,8 +226,10 @@ def read_obsmat(path: str | Path, prefix: str = "ped", start_ns: int = 0,
     rpy = np.column_stack([np.zeros(len(data)), np.zeros(len(data)), yaw])
     last = float(frame.max()) * (NS_PER_S / rate) + start_ns
     if not (start_ns >= 0 and last <= MAX_NS - NS_PER_S):
-        msg = (f"{label}: frame {int(frame.max())} at {fps!r} fps is beyond the year 2262 "
-               "(times are 64-bit nanoseconds): fix the frame numbers or --fps")
+        msg = (
+            f"{label}: frame {int(frame.max())} at {fps!r} fps is beyond the year 2262 "
+            "(times are 64-bit nanoseconds): fix the frame numbers or --fps"
+        )
         raise FileFormatError(msg)
     t = start_ns + np.rint(frame * (NS_PER_S / rate)).astype(np.int64)
     source = TrackSource(t, ids, dict.fromkeys(ids, "human"), pos, rpy, name="obsmat")
@@ -228,12 +250,16 @@ def _rows(path: Path) -> list[tuple[int, dict]]:
                     try:
                         row = json.loads(line)
                     except json.JSONDecodeError as exc:
-                        msg = (f"{path.name} line {n}: not JSON ({exc.msg}); one JSON object "
-                               "per line is expected")
+                        msg = (
+                            f"{path.name} line {n}: not JSON ({exc.msg}); one JSON object "
+                            "per line is expected"
+                        )
                         raise FileFormatError(msg) from None
                     if not isinstance(row, dict):
-                        msg = (f"{path.name} line {n}: {type(row).__name__} instead of a JSON "
-                               'object such as {"t_s": 0.5, "id": "bob", "x": 1, "y": 2}')
+                        msg = (
+                            f"{path.name} line {n}: {type(row).__name__} instead of a JSON "
+                            'object such as {"t_s": 0.5, "id": "bob", "x": 1, "y": 2}'
+                        )
                         raise FileFormatError(msg)
                     out.append((n, row))
                 return out
@@ -245,8 +271,9 @@ def _rows(path: Path) -> list[tuple[int, dict]]:
         raise FileFormatError(msg) from None
 
 
-def _number(row: dict, key: str, default: float | None, where: str, unit: str,
-            limit: float = MAX_COORD) -> float:
+def _number(
+    row: dict, key: str, default: float | None, where: str, unit: str, limit: float = MAX_COORD
+) -> float:
     """One finite number of a sample within ±``limit`` (``default`` when absent or empty;
     None: required)."""
     raw = row.get(key)
@@ -263,8 +290,9 @@ def _number(row: dict, key: str, default: float | None, where: str, unit: str,
         msg = f"{where}: {key} {shown(raw)} is not a number ({unit}): fix or delete the line"
         raise FileFormatError(msg) from None
     if not math.isfinite(value):
-        msg = (f"{where}: {key} is {shown(raw)}, not a finite number ({unit}): fix or delete "
-               "the line")
+        msg = (
+            f"{where}: {key} is {shown(raw)}, not a finite number ({unit}): fix or delete the line"
+        )
         raise FileFormatError(msg)
     if abs(value) > limit:
         msg = f"{where}: {key} {shown(raw)} is beyond ±{limit:g} ({unit}): fix or delete the line"
@@ -279,14 +307,17 @@ def _time_ns(row: dict, where: str) -> int:
         raise FileFormatError(msg)
     try:
         if "t_s" in row:
-            return check_ns(round(_number(row, "t_s", None, where, "seconds",
-                                          MAX_NS / NS_PER_S) * NS_PER_S), f"{where}: t_s =")
+            return check_ns(
+                round(_number(row, "t_s", None, where, "seconds", MAX_NS / NS_PER_S) * NS_PER_S),
+                f"{where}: t_s =",
+            )
         raw = row["t_ns"]
-        text = str(raw).strip() if isinstance(raw, int | str) and not isinstance(
-            raw, bool) else ""
+        text = str(raw).strip() if isinstance(raw, int | str) and not isinstance(raw, bool) else ""
         if not text.lstrip("+-").isdigit() or len(text) > 30:
-            msg = (f"{where}: t_ns {shown(raw)} is not an integer number of nanoseconds "
-                   "(use t_s for seconds): fix or delete the line")
+            msg = (
+                f"{where}: t_ns {shown(raw)} is not an integer number of nanoseconds "
+                "(use t_s for seconds): fix or delete the line"
+            )
             raise FileFormatError(msg)
         return check_ns(int(text), f"{where}: t_ns")
     except InvalidInputError as exc:
@@ -314,19 +345,22 @@ def read_tracks(path: str | Path) -> TrackSource:
     for i, (line, row) in enumerate(rows):
         where = f"{path.name} line {line}"
         t[i] = _time_ns(row, where)
-        pos[i] = [_number(row, key, None if key != "z" else 0.0, where, "metres")
-                  for key in ("x", "y", "z")]
+        pos[i] = [
+            _number(row, key, None if key != "z" else 0.0, where, "metres")
+            for key in ("x", "y", "z")
+        ]
         if "qw" in row:  # a quaternion, as ROS gives orientations
-            q = [_number(row, key, None, where, "a quaternion component")
-                 for key in ("qx", "qy", "qz", "qw")]
+            q = [
+                _number(row, key, None, where, "a quaternion component")
+                for key in ("qx", "qy", "qz", "qw")
+            ]
             try:
                 rpy[i] = quaternion_to_rpy(*q)
             except ValueError as exc:
                 msg = f"{where}: {exc}"
                 raise FileFormatError(msg) from None
         else:
-            rpy[i] = [_number(row, key, 0.0, where, "radians")
-                      for key in ("roll", "pitch", "yaw")]
+            rpy[i] = [_number(row, key, 0.0, where, "radians") for key in ("roll", "pitch", "yaw")]
         conf[i] = _number(row, "confidence", 1.0, where, "between 0 and 1")
         if not 0 <= conf[i] <= 1:
             msg = f"{where}: confidence {conf[i]:g} must be between 0 and 1: fix the line"

@@ -15,8 +15,14 @@ from toaster.db.dialects.base import (
     insert_with_conflicts,
 )
 
-__all__ = ["GUARDED_TABLES", "GUARD_MESSAGE", "Backend", "Key", "backend_for",
-           "insert_with_conflicts"]
+__all__ = [
+    "GUARDED_TABLES",
+    "GUARD_MESSAGE",
+    "Backend",
+    "Key",
+    "backend_for",
+    "insert_with_conflicts",
+]
 
 
 def backend_for(dialect_name: str) -> Backend:

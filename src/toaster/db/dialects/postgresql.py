@@ -144,24 +144,27 @@ class PostgreSQLBackend:
         # VACUUM takes a lock that only schema changes and other vacuums wait for: the same
         # statement serves beside a writer
         with _autocommit(raw) as cur:
-            cur.execute("VACUUM (ANALYZE) facts, fact_samples, events, fact_keys, "
-                        "belief_follow")
+            cur.execute("VACUUM (ANALYZE) facts, fact_samples, events, fact_keys, belief_follow")
 
     def set_page_cache(self, raw: Any, kib: int) -> None:
         """Nothing to bound: the server holds the page cache (shared_buffers)."""
 
     def vacuum_scratch(self, raw: Any) -> None:
         with _autocommit(raw) as cur:
-            cur.execute("SELECT c.relname FROM pg_class c WHERE c.relnamespace = "
-                        "pg_my_temp_schema() AND c.relkind = 'r' ORDER BY c.relname")
+            cur.execute(
+                "SELECT c.relname FROM pg_class c WHERE c.relnamespace = "
+                "pg_my_temp_schema() AND c.relkind = 'r' ORDER BY c.relname"
+            )
             names = [row[0] for row in cur.fetchall()]
             if names:  # the session's temporary tables: the scratch tables (00_temp)
                 cur.execute("VACUUM " + ", ".join(f'pg_temp."{name}"' for name in names))
 
     def begin_writes(self, cur: Any) -> tuple[int, int]:
         # A transaction-local setting: other sessions never see it; one round trip in all.
-        cur.execute("SELECT cache_epoch, agents_version, "
-                    "set_config('toaster.writer', 'rules', true) FROM store_state WHERE id = 1")
+        cur.execute(
+            "SELECT cache_epoch, agents_version, "
+            "set_config('toaster.writer', 'rules', true) FROM store_state WHERE id = 1"
+        )
         epoch, agents, _ = cur.fetchone()
         return int(epoch), int(agents)
 
@@ -176,4 +179,5 @@ class PostgreSQLBackend:
 
     def lock_registrations(self, conn: Any) -> None:
         conn.exec_driver_sql(
-            "SELECT pg_advisory_xact_lock(hashtext('toaster agents ' || current_schema()))")
+            "SELECT pg_advisory_xact_lock(hashtext('toaster agents ' || current_schema()))"
+        )

@@ -18,7 +18,7 @@ _KEY_COLS = "subject_id, subject_owner_id, property, sub_property, target_id, ta
 
 def _chunks(items: list[Any], size: int) -> Iterator[list[Any]]:
     for start in range(0, len(items), size):
-        yield items[start:start + size]
+        yield items[start : start + size]
 
 
 def _insert_rows(cur: Any, head: str, rows: list[tuple[Any, ...]]) -> None:
@@ -32,8 +32,10 @@ def _insert_rows(cur: Any, head: str, rows: list[tuple[Any, ...]]) -> None:
     width = len(rows[0])
     marks = "(" + ",".join("?" * width) + ")"
     for chunk in _chunks(rows, _MAX_VARS // width):
-        cur.execute(f"{head} VALUES {','.join([marks] * len(chunk))}",
-                    [value for row in chunk for value in row])
+        cur.execute(
+            f"{head} VALUES {','.join([marks] * len(chunk))}",
+            [value for row in chunk for value in row],
+        )
 
 
 class SQLiteBackend:
@@ -153,13 +155,21 @@ class SQLiteBackend:
         return updated
 
     def insert_intervals(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
-        _insert_rows(cur, "INSERT INTO facts (key_id, value_text, value_num, confidence, "
-                     "observability, valid_from_ns, recorded_ns, source)", rows)
+        _insert_rows(
+            cur,
+            "INSERT INTO facts (key_id, value_text, value_num, confidence, "
+            "observability, valid_from_ns, recorded_ns, source)",
+            rows,
+        )
 
     def insert_events(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
-        _insert_rows(cur, "INSERT INTO events (key_id, agent_id, kind, stamp_ns, value_text, "
-                     "value_num, confidence, observability, previous_text, source, "
-                     "recorded_ns)", rows)
+        _insert_rows(
+            cur,
+            "INSERT INTO events (key_id, agent_id, kind, stamp_ns, value_text, "
+            "value_num, confidence, observability, previous_text, source, "
+            "recorded_ns)",
+            rows,
+        )
 
     def insert_entities(self, cur: Any, rows: list[tuple[str, str, int]]) -> None:
         cur.executemany(
@@ -195,7 +205,8 @@ class SQLiteBackend:
         # is seen only by this transaction.
         cur.execute("INSERT OR IGNORE INTO rule_writer (id, holder) VALUES (1, 'store')")
         epoch, agents = cur.execute(
-            "SELECT cache_epoch, agents_version FROM store_state WHERE id = 1").fetchone()
+            "SELECT cache_epoch, agents_version FROM store_state WHERE id = 1"
+        ).fetchone()
         return int(epoch), int(agents)
 
     def end_writes(self, cur: Any) -> None:

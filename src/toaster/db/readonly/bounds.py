@@ -25,8 +25,7 @@ class ReadRows:
     (no row comes from a statement that is then refused): ``columns``, then at most
     ``max_rows`` rows; ``truncated`` is True once they are read if there were more."""
 
-    def __init__(self, columns: list[str], rows: Iterable[tuple[Any, ...]],
-                 max_rows: int) -> None:
+    def __init__(self, columns: list[str], rows: Iterable[tuple[Any, ...]], max_rows: int) -> None:
         self.columns = columns
         self.truncated = False
         self._rows = rows
@@ -42,11 +41,15 @@ class ReadRows:
 
 def limits(max_rows: int, max_bytes: int, timeout_s: float) -> Limits:
     """The checked bounds (:class:`~toaster.errors.InvalidInputError` names a bad one)."""
-    for name, value, low, high in (("max_rows", max_rows, 1, 2**31 - 2),
-                                   ("max_bytes", max_bytes, 1024, 2**62)):
+    for name, value, low, high in (
+        ("max_rows", max_rows, 1, 2**31 - 2),
+        ("max_bytes", max_bytes, 1024, 2**62),
+    ):
         if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-            msg = (f"{name}={value!r} is not a whole number from {low} to {high}: give e.g. "
-                   f"{name}=100000")
+            msg = (
+                f"{name}={value!r} is not a whole number from {low} to {high}: give e.g. "
+                f"{name}=100000"
+            )
             raise InvalidInputError(msg)
     if not (isinstance(timeout_s, int | float) and 0 < timeout_s < 1e7):
         msg = f"timeout_s={timeout_s!r} is not a number of seconds > 0: give e.g. timeout_s=60"
@@ -56,24 +59,32 @@ def limits(max_rows: int, max_bytes: int, timeout_s: float) -> Limits:
 
 def timeout_error(bounds: Limits) -> ToasterError:
     """The error of a statement that ran past ``timeout_s``."""
-    return ToasterError(f"SQL error: the statement ran longer than {bounds.timeout_s:g} s "
-                        "(read-only SQL's bound): narrow it (WHERE, LIMIT) or raise --timeout")
+    return ToasterError(
+        f"SQL error: the statement ran longer than {bounds.timeout_s:g} s "
+        "(read-only SQL's bound): narrow it (WHERE, LIMIT) or raise --timeout"
+    )
 
 
 def too_big_error(bounds: Limits, value: str | None = None) -> ToasterError:
     """The error of a result past ``max_bytes``, or of one ``value`` (what makes it)."""
     if value is not None:
-        return ToasterError(f"SQL error: {value} is larger than {bounds.max_bytes} bytes "
-                            "(--max-bytes): make it smaller, or raise --max-bytes")
-    return ToasterError(f"SQL error: the result is larger than {bounds.max_bytes} bytes "
-                        "(--max-bytes): select fewer rows or columns, or raise --max-bytes")
+        return ToasterError(
+            f"SQL error: {value} is larger than {bounds.max_bytes} bytes "
+            "(--max-bytes): make it smaller, or raise --max-bytes"
+        )
+    return ToasterError(
+        f"SQL error: the result is larger than {bounds.max_bytes} bytes "
+        "(--max-bytes): select fewer rows or columns, or raise --max-bytes"
+    )
 
 
 def require_own_transaction(conn: Any) -> None:
     """Refuse to run inside the caller's transaction (the statement's must be rolled back)."""
     if conn.in_transaction():
-        msg = ("read-only SQL runs in a transaction of its own: call execute() outside "
-               "store.transaction() / db.transaction()")
+        msg = (
+            "read-only SQL runs in a transaction of its own: call execute() outside "
+            "store.transaction() / db.transaction()"
+        )
         raise ToasterError(msg)
 
 

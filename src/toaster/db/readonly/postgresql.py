@@ -56,22 +56,29 @@ BEGIN
   END LOOP;
 END
 """
-_CREATE_RUN = (f"CREATE FUNCTION {_RUN}(q text, max_rows integer, max_bytes bigint) "
-               "RETURNS SETOF record LANGUAGE plpgsql SECURITY DEFINER "
-               f"AS $toaster${_RUN_BODY}$toaster$")
+_CREATE_RUN = (
+    f"CREATE FUNCTION {_RUN}(q text, max_rows integer, max_bytes bigint) "
+    "RETURNS SETOF record LANGUAGE plpgsql SECURITY DEFINER "
+    f"AS $toaster${_RUN_BODY}$toaster$"
+)
 _PID = "pid = pg_catalog.pg_backend_pid()"
-_VXID = (f"(SELECT virtualxid FROM pg_catalog.pg_locks WHERE locktype = 'virtualxid' "
-         f"AND {_PID})")
+_VXID = f"(SELECT virtualxid FROM pg_catalog.pg_locks WHERE locktype = 'virtualxid' AND {_PID})"
 _ADVISORY = f"SELECT count(*) FROM pg_catalog.pg_locks WHERE locktype = 'advisory' AND {_PID}"
 _SCHEMA = "(SELECT oid FROM pg_catalog.pg_namespace WHERE nspname = current_schema())"
-_UNGRANTED = (f"FROM pg_catalog.pg_class c WHERE c.relnamespace = {_SCHEMA} "
-              "AND c.relkind IN ('r', 'v', 'm', 'p', 'f') "
-              "AND NOT pg_catalog.has_table_privilege(r.oid, c.oid, 'SELECT')")
-_SAFE = ("NOT (r.rolsuper OR r.rolcreaterole OR r.rolcreatedb OR r.rolreplication "
-         "OR r.rolbypassrls) AND NOT EXISTS (SELECT FROM pg_catalog.pg_auth_members m "
-         "WHERE m.member = r.oid)")
-_USAGE = ("current_schema() IS NOT NULL "
-          "AND pg_catalog.has_schema_privilege(r.oid, current_schema(), 'USAGE')")
+_UNGRANTED = (
+    f"FROM pg_catalog.pg_class c WHERE c.relnamespace = {_SCHEMA} "
+    "AND c.relkind IN ('r', 'v', 'm', 'p', 'f') "
+    "AND NOT pg_catalog.has_table_privilege(r.oid, c.oid, 'SELECT')"
+)
+_SAFE = (
+    "NOT (r.rolsuper OR r.rolcreaterole OR r.rolcreatedb OR r.rolreplication "
+    "OR r.rolbypassrls) AND NOT EXISTS (SELECT FROM pg_catalog.pg_auth_members m "
+    "WHERE m.member = r.oid)"
+)
+_USAGE = (
+    "current_schema() IS NOT NULL "
+    "AND pg_catalog.has_schema_privilege(r.oid, current_schema(), 'USAGE')"
+)
 # Scans pg_class: only when setting up (a table the reader may not read is found when the
 # statement fails on it, then granted, and the statement run again).
 _GRANTED = f"{_USAGE} AND NOT EXISTS (SELECT {_UNGRANTED})"
@@ -137,8 +144,10 @@ def read_postgresql(db: Any, sql: str, params: Any, bounds: Limits) -> Iterator[
                     yield rows
                     return
             elif prepared:
-                msg = (f"cannot set up read-only SQL on PostgreSQL ({_NO_READER.get(raw)}): "
-                       f"fix role {READER_ROLE} or this role's TEMP privilege, or use --write")
+                msg = (
+                    f"cannot set up read-only SQL on PostgreSQL ({_NO_READER.get(raw)}): "
+                    f"fix role {READER_ROLE} or this role's TEMP privilege, or use --write"
+                )
                 raise ToasterError(msg)
         _prepare(db, raw)
         prepared = True
@@ -152,8 +161,11 @@ def ensure_reader_role(cur: Any) -> str | None:
     connecting role). Runs in the caller's write transaction (a migration may call it).
     """
     for _ in range(2):  # a concurrent CREATE ROLE may win the race: look again
-        cur.execute(f"SELECT {_SAFE}, pg_catalog.pg_has_role(r.oid, 'MEMBER') "
-                    "FROM pg_catalog.pg_roles r WHERE r.rolname = %s", [READER_ROLE])
+        cur.execute(
+            f"SELECT {_SAFE}, pg_catalog.pg_has_role(r.oid, 'MEMBER') "
+            "FROM pg_catalog.pg_roles r WHERE r.rolname = %s",
+            [READER_ROLE],
+        )
         row = cur.fetchone()
         if row is not None:
             break
@@ -167,27 +179,33 @@ def ensure_reader_role(cur: Any) -> str | None:
         return f"role {READER_ROLE} has attributes or memberships it must not have"
     if not member and (failed := _savepoint(cur, f"GRANT {READER_ROLE} TO CURRENT_USER")):
         return f"cannot take role {READER_ROLE}: {failed}"
-    cur.execute(f"SELECT pg_catalog.quote_ident(current_schema()), {_GRANTED} "
-                "FROM pg_catalog.pg_roles r WHERE r.rolname = %s", [READER_ROLE])
+    cur.execute(
+        f"SELECT pg_catalog.quote_ident(current_schema()), {_GRANTED} "
+        "FROM pg_catalog.pg_roles r WHERE r.rolname = %s",
+        [READER_ROLE],
+    )
     schema, granted = cur.fetchone()
     if schema is None:
         return "no current schema (search_path names none that exists)"
     if granted:
         return None
     _savepoint(cur, f"GRANT USAGE ON SCHEMA {schema} TO {READER_ROLE}")
-    cur.execute(f"SELECT c.oid::regclass::text FROM pg_catalog.pg_roles r, "
-                f"pg_catalog.pg_class c WHERE r.rolname = %s AND c.relnamespace = {_SCHEMA} "
-                "AND c.relkind IN ('r', 'v', 'm', 'p', 'f') "
-                "AND NOT pg_catalog.has_table_privilege(r.oid, c.oid, 'SELECT')",
-                [READER_ROLE])
+    cur.execute(
+        f"SELECT c.oid::regclass::text FROM pg_catalog.pg_roles r, "
+        f"pg_catalog.pg_class c WHERE r.rolname = %s AND c.relnamespace = {_SCHEMA} "
+        "AND c.relkind IN ('r', 'v', 'm', 'p', 'f') "
+        "AND NOT pg_catalog.has_table_privilege(r.oid, c.oid, 'SELECT')",
+        [READER_ROLE],
+    )
     missing = [name for (name,) in cur.fetchall()]
     if missing:
         _savepoint(cur, f"GRANT SELECT ON TABLE {', '.join(missing)} TO {READER_ROLE}")
-    cur.execute(f"SELECT {_GRANTED} FROM pg_catalog.pg_roles r WHERE r.rolname = %s",
-                [READER_ROLE])
+    cur.execute(f"SELECT {_GRANTED} FROM pg_catalog.pg_roles r WHERE r.rolname = %s", [READER_ROLE])
     if not cur.fetchone()[0]:
-        return (f"cannot grant {READER_ROLE} SELECT on every table of schema {schema} "
-                "(only their owner can)")
+        return (
+            f"cannot grant {READER_ROLE} SELECT on every table of schema {schema} "
+            "(only their owner can)"
+        )
     return None
 
 
@@ -212,13 +230,16 @@ def _prepare(db: Any, raw: Any) -> None:
     try:
         with db.transaction(write=True):
             cur = raw.cursor()
-            cur.execute("SELECT pg_catalog.pg_advisory_xact_lock("
-                        "pg_catalog.hashtext('toaster read-only setup'))")
+            cur.execute(
+                "SELECT pg_catalog.pg_advisory_xact_lock("
+                "pg_catalog.hashtext('toaster read-only setup'))"
+            )
             reason = ensure_reader_role(cur)
             cur.execute(f"DROP FUNCTION IF EXISTS {_RUN_SIGNATURE}")
             cur.execute(_CREATE_RUN)
-            if reason is None and (failed := _savepoint(
-                    cur, f"ALTER FUNCTION {_RUN_SIGNATURE} OWNER TO {READER_ROLE}")):
+            if reason is None and (
+                failed := _savepoint(cur, f"ALTER FUNCTION {_RUN_SIGNATURE} OWNER TO {READER_ROLE}")
+            ):
                 reason = f"cannot give role {READER_ROLE} the wrapper: {failed}"
     except psycopg.Error as exc:
         _NO_READER[raw] = first_line(exc)
@@ -253,9 +274,16 @@ def _pg_transaction(db: Any, raw: Any, bounds: Limits) -> Iterator[tuple[Any, _S
         cur = raw.cursor()
         db.backend.set_read_only(cur)
         temp_kb = max(2**20, 2 * bounds.max_bytes >> 10)
-        cur.execute(_SETUP, {"timeout": f"{round(bounds.timeout_s * 1000)}ms",
-                             "temp": f"{temp_kb}kB", "run": _RUN_SIGNATURE, "body": _RUN_BODY,
-                             "reader": READER_ROLE})
+        cur.execute(
+            _SETUP,
+            {
+                "timeout": f"{round(bounds.timeout_s * 1000)}ms",
+                "temp": f"{temp_kb}kB",
+                "run": _RUN_SIGNATURE,
+                "body": _RUN_BODY,
+                "reader": READER_ROLE,
+            },
+        )
         state = _State(*cur.fetchone()[4:])
         before = state.advisory
         yield cur, state
@@ -282,8 +310,10 @@ def _check_advisory(conn: Any, raw: Any, before: int) -> None:
         return
     if int(result.get_value(0, 0) or 0) > before:
         conn.invalidate()  # closing the session releases them
-        msg = ("statement refused, it took advisory locks that outlive its transaction (the "
-               "connection was closed to release them): rerun with --write")
+        msg = (
+            "statement refused, it took advisory locks that outlive its transaction (the "
+            "connection was closed to release them): rerun with --write"
+        )
         raise ReadOnlyError(msg)
 
 
@@ -306,8 +336,9 @@ def _pg_text(raw: Any, sql: str, params: Any) -> str:
         raise ToasterError(msg) from None
 
 
-def _pg_start(db: Any, cur: Any, raw: Any, text: str, state: _State, role: str,
-              bounds: Limits) -> ReadRows:
+def _pg_start(
+    db: Any, cur: Any, raw: Any, text: str, state: _State, role: str, bounds: Limits
+) -> ReadRows:
     """Describe the statement, run it through the wrapper as ``role`` (a plpgsql set-returning
     function runs to its end on the first FETCH), check what is left, then give its rows."""
     import psycopg
@@ -320,38 +351,51 @@ def _pg_start(db: Any, cur: Any, raw: Any, text: str, state: _State, role: str,
         msg = "SQL error: the statement returns no column: select at least one"
         raise ToasterError(msg)
     # The protocol names a domain's base type; a table column's own type keeps the domain.
-    cur.execute("SELECT pg_catalog.format_type(coalesce(a.atttypid, u.o), "
-                "coalesce(a.atttypmod, u.m)), t.typtype FROM ROWS FROM ("
-                "pg_catalog.jsonb_to_recordset(%s::jsonb) AS (o oid, m int4, tb oid, col int2)) "
-                "WITH ORDINALITY AS u(o, m, tb, col, i) LEFT JOIN pg_catalog.pg_attribute a "
-                "ON a.attrelid = u.tb AND a.attnum = u.col AND u.tb <> 0 "
-                "JOIN pg_catalog.pg_type t ON t.oid = coalesce(a.atttypid, u.o) ORDER BY u.i",
-                [json.dumps([dict(zip(("o", "m", "tb", "col"), f, strict=True)) for f in fields])])
+    cur.execute(
+        "SELECT pg_catalog.format_type(coalesce(a.atttypid, u.o), "
+        "coalesce(a.atttypmod, u.m)), t.typtype FROM ROWS FROM ("
+        "pg_catalog.jsonb_to_recordset(%s::jsonb) AS (o oid, m int4, tb oid, col int2)) "
+        "WITH ORDINALITY AS u(o, m, tb, col, i) LEFT JOIN pg_catalog.pg_attribute a "
+        "ON a.attrelid = u.tb AND a.attnum = u.col AND u.tb <> 0 "
+        "JOIN pg_catalog.pg_type t ON t.oid = coalesce(a.atttypid, u.o) ORDER BY u.i",
+        [json.dumps([dict(zip(("o", "m", "tb", "col"), f, strict=True)) for f in fields])],
+    )
     types = cur.fetchall()
     for name, (type_name, kind) in zip(names, types, strict=True):
         if kind == "p":
-            msg = (f"SQL error: column {name!r} has the pseudo-type {type_name}, which "
-                   f"read-only SQL cannot return: cast it, e.g. (...)::text AS {name}")
+            msg = (
+                f"SQL error: column {name!r} has the pseudo-type {type_name}, which "
+                f"read-only SQL cannot return: cast it, e.g. (...)::text AS {name}"
+            )
             raise ToasterError(msg)
     columns = ", ".join(f"c{i} {type_name}" for i, (type_name, _) in enumerate(types))
     try:
-        cur.execute(f"DECLARE {_CURSOR} NO SCROLL CURSOR FOR SELECT * FROM "
-                    f"{_RUN}(%s::text, %s::integer, %s::bigint) AS t({columns})",
-                    [text, bounds.max_rows, bounds.max_bytes])
+        cur.execute(
+            f"DECLARE {_CURSOR} NO SCROLL CURSOR FOR SELECT * FROM "
+            f"{_RUN}(%s::text, %s::integer, %s::bigint) AS t({columns})",
+            [text, bounds.max_rows, bounds.max_bytes],
+        )
         first = _fetch(cur)
     except psycopg.Error as exc:
         error = _pg_error(exc.sqlstate, first_line(exc), bounds)
         if exc.sqlstate == "42501" and _RELATION_DENIED.search(first_line(exc)):
             raise _Denied(error) from None
         raise error from None
-    cur.execute(f"SELECT current_user, current_setting('transaction_read_only'), {_VXID}, "
-                f"({_ADVISORY})")
+    cur.execute(
+        f"SELECT current_user, current_setting('transaction_read_only'), {_VXID}, ({_ADVISORY})"
+    )
     after = cur.fetchone()
-    if raw.info.transaction_status != pq.TransactionStatus.INTRANS or \
-            tuple(after) != (role, "on", state.vxid, state.advisory):
+    if raw.info.transaction_status != pq.TransactionStatus.INTRANS or tuple(after) != (
+        role,
+        "on",
+        state.vxid,
+        state.advisory,
+    ):
         db.connection.invalidate()
-        msg = ("statement refused, it left its read-only transaction or role, or took locks "
-               "(rolled back, connection closed): rerun with --write")
+        msg = (
+            "statement refused, it left its read-only transaction or role, or took locks "
+            "(rolled back, connection closed): rerun with --write"
+        )
         raise ReadOnlyError(msg)
     return ReadRows(names, _pg_rows(cur, first, bounds), bounds.max_rows)
 
@@ -361,8 +405,7 @@ def _fetch(cur: Any) -> list[tuple[Any, ...]]:
     return [tuple(r) for r in cur.fetchall()]
 
 
-def _pg_rows(cur: Any, batch: list[tuple[Any, ...]],
-             bounds: Limits) -> Iterator[tuple[Any, ...]]:
+def _pg_rows(cur: Any, batch: list[tuple[Any, ...]], bounds: Limits) -> Iterator[tuple[Any, ...]]:
     """The rows, a batch at a time: the client holds one batch."""
     import psycopg
 
@@ -388,13 +431,17 @@ def _describe(raw: Any, text: str, bounds: Limits) -> tuple[list[str], list[list
         result = pgconn.describe_prepared(b"")
     if result.status != pq.ExecStatus.COMMAND_OK:
         sqlstate = (result.error_field(pq.DiagnosticField.SQLSTATE) or b"").decode()
-        message = (result.error_field(pq.DiagnosticField.MESSAGE_PRIMARY) or
-                   result.error_message or b"error").decode(encoding, "replace")
+        message = (
+            result.error_field(pq.DiagnosticField.MESSAGE_PRIMARY)
+            or result.error_message
+            or b"error"
+        ).decode(encoding, "replace")
         raise _pg_error(sqlstate, message.strip().splitlines()[0], bounds)
     fields = range(result.nfields)
-    return ([(result.fname(i) or b"").decode(encoding) for i in fields],
-            [[result.ftype(i), result.fmod(i), result.ftable(i), result.ftablecol(i)]
-             for i in fields])
+    return (
+        [(result.fname(i) or b"").decode(encoding) for i in fields],
+        [[result.ftype(i), result.fmod(i), result.ftable(i), result.ftablecol(i)] for i in fields],
+    )
 
 
 def _pg_error(sqlstate: str | None, message: str, bounds: Limits) -> ToasterError:
@@ -403,16 +450,19 @@ def _pg_error(sqlstate: str | None, message: str, bounds: Limits) -> ToasterErro
     if sqlstate == "54000" and message.startswith("toaster: result over"):
         return too_big_error(bounds)
     if sqlstate == "25006":
-        return ReadOnlyError(f"statement refused, the database is opened read-only: rerun "
-                             f"with --write ({message})")
+        return ReadOnlyError(
+            f"statement refused, the database is opened read-only: rerun with --write ({message})"
+        )
     if sqlstate in ("42501", "0A000"):
-        return ReadOnlyError(f"statement refused by read-only SQL ({message}): rerun with "
-                             "--write")
+        return ReadOnlyError(f"statement refused by read-only SQL ({message}): rerun with --write")
     if sqlstate == "42804" and "RETURN NEXT" in message:
-        return ToasterError("SQL error: a column computed as a domain type cannot be returned "
-                            "by read-only SQL: cast it to its base type, e.g. (...)::integer")
+        return ToasterError(
+            "SQL error: a column computed as a domain type cannot be returned "
+            "by read-only SQL: cast it to its base type, e.g. (...)::integer"
+        )
     if sqlstate == "42601" and "multiple commands" in message:
-        return ReadOnlyError("read-only SQL runs exactly one statement (this has several): "
-                             "run them one at a time, or all with --write")
+        return ReadOnlyError(
+            "read-only SQL runs exactly one statement (this has several): "
+            "run them one at a time, or all with --write"
+        )
     return ToasterError(f"SQL error: {message}")
-

@@ -49,31 +49,97 @@ START_TIMEOUT_S = 60.0
 #: A batch of rows sent at once: at most this many rows, or one row past this many bytes.
 _BATCH_ROWS = 1000
 _BATCH_BYTES = 2**20
-_SQLITE_ALLOWED = {sqlite3.SQLITE_SELECT, sqlite3.SQLITE_READ, sqlite3.SQLITE_FUNCTION,
-                   sqlite3.SQLITE_RECURSIVE}
+_SQLITE_ALLOWED = {
+    sqlite3.SQLITE_SELECT,
+    sqlite3.SQLITE_READ,
+    sqlite3.SQLITE_FUNCTION,
+    sqlite3.SQLITE_RECURSIVE,
+}
 #: Pragmas that only read, whatever their argument (a table or index name).
-_PRAGMAS_ANY = frozenset((
-    "table_info", "table_xinfo", "table_list", "index_list", "index_info", "index_xinfo",
-    "foreign_key_list", "foreign_key_check", "integrity_check", "quick_check",
-    "collation_list", "function_list", "module_list", "pragma_list", "database_list",
-    "compile_options"))
+_PRAGMAS_ANY = frozenset(
+    (
+        "table_info",
+        "table_xinfo",
+        "table_list",
+        "index_list",
+        "index_info",
+        "index_xinfo",
+        "foreign_key_list",
+        "foreign_key_check",
+        "integrity_check",
+        "quick_check",
+        "collation_list",
+        "function_list",
+        "module_list",
+        "pragma_list",
+        "database_list",
+        "compile_options",
+    )
+)
 #: Pragmas that read without an argument (with one, they write).
-_PRAGMAS_READ = frozenset((
-    "application_id", "auto_vacuum", "busy_timeout", "cache_size", "data_version", "encoding",
-    "foreign_keys", "freelist_count", "journal_mode", "page_count", "page_size", "query_only",
-    "schema_version", "synchronous", "temp_store", "user_version", "max_page_count"))
+_PRAGMAS_READ = frozenset(
+    (
+        "application_id",
+        "auto_vacuum",
+        "busy_timeout",
+        "cache_size",
+        "data_version",
+        "encoding",
+        "foreign_keys",
+        "freelist_count",
+        "journal_mode",
+        "page_count",
+        "page_size",
+        "query_only",
+        "schema_version",
+        "synchronous",
+        "temp_store",
+        "user_version",
+        "max_page_count",
+    )
+)
 #: Authorizer action codes, named for messages.
-_SQLITE_ACTIONS = {getattr(sqlite3, f"SQLITE_{name}"): name.replace("_", " ") for name in (
-    "ALTER_TABLE", "ANALYZE", "ATTACH", "CREATE_INDEX", "CREATE_TABLE", "CREATE_TEMP_INDEX",
-    "CREATE_TEMP_TABLE", "CREATE_TEMP_TRIGGER", "CREATE_TEMP_VIEW", "CREATE_TRIGGER",
-    "CREATE_VIEW", "CREATE_VTABLE", "DELETE", "DETACH", "DROP_INDEX", "DROP_TABLE",
-    "DROP_TEMP_INDEX", "DROP_TEMP_TABLE", "DROP_TEMP_TRIGGER", "DROP_TEMP_VIEW", "DROP_TRIGGER",
-    "DROP_VIEW", "DROP_VTABLE", "FUNCTION", "INSERT", "PRAGMA", "REINDEX", "SAVEPOINT",
-    "TRANSACTION", "UPDATE")}
+_SQLITE_ACTIONS = {
+    getattr(sqlite3, f"SQLITE_{name}"): name.replace("_", " ")
+    for name in (
+        "ALTER_TABLE",
+        "ANALYZE",
+        "ATTACH",
+        "CREATE_INDEX",
+        "CREATE_TABLE",
+        "CREATE_TEMP_INDEX",
+        "CREATE_TEMP_TABLE",
+        "CREATE_TEMP_TRIGGER",
+        "CREATE_TEMP_VIEW",
+        "CREATE_TRIGGER",
+        "CREATE_VIEW",
+        "CREATE_VTABLE",
+        "DELETE",
+        "DETACH",
+        "DROP_INDEX",
+        "DROP_TABLE",
+        "DROP_TEMP_INDEX",
+        "DROP_TEMP_TABLE",
+        "DROP_TEMP_TRIGGER",
+        "DROP_TEMP_VIEW",
+        "DROP_TRIGGER",
+        "DROP_VIEW",
+        "DROP_VTABLE",
+        "FUNCTION",
+        "INSERT",
+        "PRAGMA",
+        "REINDEX",
+        "SAVEPOINT",
+        "TRANSACTION",
+        "UPDATE",
+    )
+}
 #: The worker's program: toaster's package from where the caller imported it, nothing from
 #: the environment (-I) or site-packages (-S).
-_CHILD = ("import sys; sys.path.insert(0, {root!r}); "
-          "from toaster.db.readonly.sqlite import serve; serve()")
+_CHILD = (
+    "import sys; sys.path.insert(0, {root!r}); "
+    "from toaster.db.readonly.sqlite import serve; serve()"
+)
 _ERRORS = {"ReadOnlyError": ReadOnlyError, "ToasterError": ToasterError}
 
 
@@ -85,7 +151,10 @@ class _Worker:
         root = str(Path(__file__).resolve().parents[3])
         self.process = subprocess.Popen(
             [sys.executable, "-I", "-S", "-c", _CHILD.format(root=root)],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+        )
         self.heap = heap
         self.pid = os.getpid()  # a forked copy of this process must not share it
         self.lock = threading.Lock()
@@ -110,11 +179,15 @@ class _Worker:
             return
         self.stop()
         if killed:
-            msg = (f"SQL error: the read-only statement's process did not start within "
-                   f"{START_TIMEOUT_S:g} s (is the machine overloaded?): run it again")
+            msg = (
+                f"SQL error: the read-only statement's process did not start within "
+                f"{START_TIMEOUT_S:g} s (is the machine overloaded?): run it again"
+            )
         else:
-            msg = (f"SQL error: the read-only statement's process ended as it started (exit "
-                   f"status {self.process.returncode}): run it again")
+            msg = (
+                f"SQL error: the read-only statement's process ended as it started (exit "
+                f"status {self.process.returncode}): run it again"
+            )
         raise ToasterError(msg)
 
     def stop(self) -> None:
@@ -188,12 +261,15 @@ def read_sqlite(db: Any, sql: str, params: Any, bounds: Limits) -> Iterator[Read
     require_own_transaction(db.connection)
     path = sqlite_file(db.engine.url)
     if path is None:
-        msg = ("read-only SQL runs in a process of its own, which cannot open an in-memory "
-               "database: use a database file, or --write")
+        msg = (
+            "read-only SQL runs in a process of its own, which cannot open an in-memory "
+            "database: use a database file, or --write"
+        )
         raise ToasterError(msg)
     try:
-        request = marshal.dumps((str(path.resolve()), sql, params, tuple(bounds),
-                                 SQLITE_HEAP_LIMIT, lock_timeout()))
+        request = marshal.dumps(
+            (str(path.resolve()), sql, params, tuple(bounds), SQLITE_HEAP_LIMIT, lock_timeout())
+        )
     except ValueError:
         msg = "SQL error: parameters must be text, numbers, bytes or None"
         raise ToasterError(msg) from None
@@ -240,8 +316,10 @@ def _ended(process: Any) -> ToasterError:
     except subprocess.TimeoutExpired:
         process.kill()
         status = process.wait()
-    return ToasterError(f"SQL error: the read-only statement's process ended without an "
-                        f"answer (exit status {status}): run it again")
+    return ToasterError(
+        f"SQL error: the read-only statement's process ended without an "
+        f"answer (exit status {status}): run it again"
+    )
 
 
 def _send(out: IO[bytes], message: Any) -> None:
@@ -303,11 +381,16 @@ class _Reader:
     def __init__(self, path: str, heap: int, lock_timeout_s: float) -> None:
         self.opened = (path, heap, lock_timeout_s)
         self.heap = heap
-        self.raw = sqlite3.connect(f"file:{quote(path)}?mode=ro", uri=True,
-                                   timeout=lock_timeout_s, isolation_level=None)
+        self.raw = sqlite3.connect(
+            f"file:{quote(path)}?mode=ro", uri=True, timeout=lock_timeout_s, isolation_level=None
+        )
         self.helper = sqlite3.connect(":memory:")
-        for pragma in ("query_only = ON", "foreign_keys = ON", "temp_store = MEMORY",
-                       f"hard_heap_limit = {int(heap)}"):
+        for pragma in (
+            "query_only = ON",
+            "foreign_keys = ON",
+            "temp_store = MEMORY",
+            f"hard_heap_limit = {int(heap)}",
+        ):
             self.raw.execute(f"PRAGMA {pragma}").fetchall()  # done: no statement stays active
         self.failed: list[ToasterError] = []  # what a checked function refused
         self.bounds = Limits(1, 1024, 1.0)
@@ -332,8 +415,9 @@ class _Reader:
         changes = raw.total_changes
         raw.set_authorizer(_authorizer(refused))
         try:
-            columns, batches = _fetch(raw.cursor(), sql, params, bounds,
-                                      (refused, self.failed), self.heap)
+            columns, batches = _fetch(
+                raw.cursor(), sql, params, bounds, (refused, self.failed), self.heap
+            )
         finally:
             raw.set_authorizer(None)
             query_only = raw.execute("PRAGMA query_only").fetchone()[0]
@@ -341,8 +425,10 @@ class _Reader:
             if raw.in_transaction:
                 raw.execute("ROLLBACK")
         if changed or query_only != 1:
-            msg = ("statement refused: it ended its transaction or changed the database "
-                   "(rolled back): rerun with --write")
+            msg = (
+                "statement refused: it ended its transaction or changed the database "
+                "(rolled back): rerun with --write"
+            )
             raise ReadOnlyError(msg)
         return columns, batches
 
@@ -364,10 +450,13 @@ def _authorizer(refused: list[str]) -> Any:
 
     def authorize(action: int, arg1: str | None, arg2: str | None, *_: Any) -> int:
         if action in _SQLITE_ALLOWED and not (
-                action == sqlite3.SQLITE_FUNCTION and (arg2 or "").lower() in SQLITE_CALLS):
+            action == sqlite3.SQLITE_FUNCTION and (arg2 or "").lower() in SQLITE_CALLS
+        ):
             return sqlite3.SQLITE_OK
-        if action == sqlite3.SQLITE_PRAGMA and ((arg1 or "").lower() in _PRAGMAS_ANY or (
-                arg2 is None and (arg1 or "").lower() in _PRAGMAS_READ)):
+        if action == sqlite3.SQLITE_PRAGMA and (
+            (arg1 or "").lower() in _PRAGMAS_ANY
+            or (arg2 is None and (arg1 or "").lower() in _PRAGMAS_READ)
+        ):
             return sqlite3.SQLITE_OK
         if action == sqlite3.SQLITE_UPDATE and arg1 == "sqlite_master":
             # SQLite's own nested statement on first use of a pragma table-valued function
@@ -381,9 +470,14 @@ def _authorizer(refused: list[str]) -> Any:
     return authorize
 
 
-def _fetch(cur: Any, sql: str, params: Any, bounds: Limits,
-           denials: tuple[list[str], list[ToasterError]],
-           heap: int) -> tuple[list[str], list[bytes]]:
+def _fetch(
+    cur: Any,
+    sql: str,
+    params: Any,
+    bounds: Limits,
+    denials: tuple[list[str], list[ToasterError]],
+    heap: int,
+) -> tuple[list[str], list[bytes]]:
     """The columns and the rows (at most ``max_rows`` + 1, the last saying "truncated"), as
     marshalled batches; a row that takes the result past ``max_bytes`` is refused. ``denials``:
     what the authorizer denied, what a checked function refused (they explain errors)."""
@@ -410,8 +504,10 @@ def _fetch(cur: Any, sql: str, params: Any, bounds: Limits,
         if batch:
             batches.append(marshal.dumps(batch))
     except MemoryError:
-        msg = (f"SQL error: the statement needs more than {heap >> 20} MiB of memory "
-               "(read-only SQL's bound): narrow it (WHERE, LIMIT)")
+        msg = (
+            f"SQL error: the statement needs more than {heap >> 20} MiB of memory "
+            "(read-only SQL's bound): narrow it (WHERE, LIMIT)"
+        )
         raise ToasterError(msg) from None
     except sqlite3.Error as exc:
         raise _sqlite_error(exc, *denials, bounds) from None
@@ -423,19 +519,22 @@ def _fetch(cur: Any, sql: str, params: Any, bounds: Limits,
     return columns, batches
 
 
-def _sqlite_error(exc: sqlite3.Error, refused: list[str], failed: list[ToasterError],
-                  bounds: Limits) -> ToasterError:
+def _sqlite_error(
+    exc: sqlite3.Error, refused: list[str], failed: list[ToasterError], bounds: Limits
+) -> ToasterError:
     name = getattr(exc, "sqlite_errorname", "")
     reason = first_line(exc)
     if failed:
         return failed[0]
     if refused or name == "SQLITE_AUTH":
         what = refused[0] if refused else reason
-        return ReadOnlyError(f"statement refused, read-only SQL does not allow {what}: "
-                             "rerun with --write")
+        return ReadOnlyError(
+            f"statement refused, read-only SQL does not allow {what}: rerun with --write"
+        )
     if name == "SQLITE_READONLY":
-        return ReadOnlyError(f"statement refused, the database is opened read-only: rerun "
-                             f"with --write ({reason})")
+        return ReadOnlyError(
+            f"statement refused, the database is opened read-only: rerun with --write ({reason})"
+        )
     if name == "SQLITE_TOOBIG":
         return too_big_error(bounds, "a value")
     return ToasterError(f"SQL error: {reason}")

@@ -45,8 +45,10 @@ def tokenize(sql: str, dialect: str) -> list[Token]:
         if c in " \t\n\r\f\v":
             i += 1
         elif sql.startswith("--", i):  # to the end of the line (\r too on PostgreSQL)
-            end = min((e for e in (sql.find("\n", i), sql.find("\r", i) if pg else -1)
-                       if e >= 0), default=n)
+            end = min(
+                (e for e in (sql.find("\n", i), sql.find("\r", i) if pg else -1) if e >= 0),
+                default=n,
+            )
             i = end + 1
         elif sql.startswith("/*", i):
             i = _block_comment(sql, i, pg)
@@ -58,7 +60,7 @@ def tokenize(sql: str, dialect: str) -> list[Token]:
             end = sql.find("]", i)
             if end < 0:
                 _unterminated("[identifier")
-            tokens.append(Token("ident", '"' + sql[i + 1:end] + '"', i))
+            tokens.append(Token("ident", '"' + sql[i + 1 : end] + '"', i))
             i = end + 1
         elif (word := _WORD.match(sql, i)) is not None:
             i = _word(sql, word.group(), i, pg, tokens)
@@ -101,8 +103,15 @@ def _block_comment(sql: str, i: int, nested: bool) -> int:
     return i
 
 
-def _quoted(sql: str, i: int, quote: str, tokens: list[Token], kind: str,
-            backslash: bool = False, start: int | None = None) -> int:
+def _quoted(
+    sql: str,
+    i: int,
+    quote: str,
+    tokens: list[Token],
+    kind: str,
+    backslash: bool = False,
+    start: int | None = None,
+) -> int:
     j = i + 1
     while True:
         end = sql.find(quote, j)
@@ -117,7 +126,7 @@ def _quoted(sql: str, i: int, quote: str, tokens: list[Token], kind: str,
             j = end + 2
             continue
         begin = i if start is None else start
-        tokens.append(Token(kind, sql[begin:end + 1], begin))
+        tokens.append(Token(kind, sql[begin : end + 1], begin))
         return end + 1
 
 
@@ -131,8 +140,10 @@ def _word(sql: str, word: str, i: int, pg: bool, tokens: list[Token]) -> int:
     if pg and prefix == "u" and sql.startswith("&'", after):
         return _quoted(sql, after + 1, "'", tokens, "string", start=i)
     if pg and prefix == "u" and sql.startswith('&"', after):
-        msg = ('read-only SQL does not take U&"..." identifiers (escapes can hide a name): '
-               "write the name plainly or in double quotes")
+        msg = (
+            'read-only SQL does not take U&"..." identifiers (escapes can hide a name): '
+            "write the name plainly or in double quotes"
+        )
         raise ReadOnlyError(msg)
     tokens.append(Token("word", word, i))
     return after
@@ -148,42 +159,135 @@ def _dollar(sql: str, i: int, tokens: list[Token]) -> int:
     end = sql.find(tag.group(), tag.end())
     if end < 0:
         _unterminated("dollar quote " + tag.group())
-    tokens.append(Token("string", sql[i:end + len(tag.group())], i))
+    tokens.append(Token("string", sql[i : end + len(tag.group())], i))
     return end + len(tag.group())
 
 
 # ---------------------------------------------------------------------------- the statement
-_READS = {"postgresql": ("select", "with", "values", "table", "explain", "show"),
-          "sqlite": ("select", "with", "values", "explain", "pragma")}
+_READS = {
+    "postgresql": ("select", "with", "values", "table", "explain", "show"),
+    "sqlite": ("select", "with", "values", "explain", "pragma"),
+}
 #: Statements that write or act (their first word): refused, --write runs them.
-_ACTIONS = frozenset((
-    "abort", "alter", "analyze", "analyse", "attach", "begin", "call", "checkpoint", "close",
-    "cluster", "comment", "commit", "copy", "create", "deallocate", "declare", "delete",
-    "detach", "discard", "do", "drop", "end", "execute", "fetch", "grant", "import", "insert",
-    "listen", "load", "lock", "merge", "move", "notify", "prepare", "reassign", "refresh",
-    "reindex", "release", "replace", "reset", "revoke", "rollback", "savepoint", "security",
-    "set", "start", "truncate", "unlisten", "update", "vacuum"))
+_ACTIONS = frozenset(
+    (
+        "abort",
+        "alter",
+        "analyze",
+        "analyse",
+        "attach",
+        "begin",
+        "call",
+        "checkpoint",
+        "close",
+        "cluster",
+        "comment",
+        "commit",
+        "copy",
+        "create",
+        "deallocate",
+        "declare",
+        "delete",
+        "detach",
+        "discard",
+        "do",
+        "drop",
+        "end",
+        "execute",
+        "fetch",
+        "grant",
+        "import",
+        "insert",
+        "listen",
+        "load",
+        "lock",
+        "merge",
+        "move",
+        "notify",
+        "prepare",
+        "reassign",
+        "refresh",
+        "reindex",
+        "release",
+        "replace",
+        "reset",
+        "revoke",
+        "rollback",
+        "savepoint",
+        "security",
+        "set",
+        "start",
+        "truncate",
+        "unlisten",
+        "update",
+        "vacuum",
+    )
+)
 #: Words that make a read statement write (writable CTEs, SELECT INTO, row locks).
 _WRITE_WORDS = frozenset(("insert", "update", "delete", "merge", "truncate", "into"))
 #: PostgreSQL functions with effects beyond the transaction or the session's own reads
 #: (settings, locks, files, programs, other sessions), and those that run SQL given as text
 #: (PostgreSQL 15: query_to_xml*, cursor_to_xml*, ts_stat, ts_rewrite(tsquery, text); the
 #: contrib modules' dblink*, crosstab*, connectby, xpath_table), where the check cannot see.
-_PG_CALLS = frozenset((
-    "set_config", "pg_notify", "nextval", "setval", "loread", "lowrite", "pg_read_file",
-    "pg_read_binary_file", "pg_stat_file", "pg_terminate_backend", "pg_cancel_backend",
-    "pg_reload_conf", "pg_rotate_logfile", "pg_switch_wal", "pg_promote",
-    "pg_create_restore_point", "pg_backup_start", "pg_backup_stop", "pg_start_backup",
-    "pg_stop_backup", "pg_log_backend_memory_contexts", "pg_logical_emit_message",
-    "pg_import_system_collations", "query_to_xml", "query_to_xmlschema",
-    "query_to_xml_and_xmlschema", "cursor_to_xml", "cursor_to_xmlschema", "ts_stat",
-    "ts_rewrite", "pg_logical_slot_get_changes", "pg_logical_slot_peek_changes", "connectby",
-    "xpath_table"))
+_PG_CALLS = frozenset(
+    (
+        "set_config",
+        "pg_notify",
+        "nextval",
+        "setval",
+        "loread",
+        "lowrite",
+        "pg_read_file",
+        "pg_read_binary_file",
+        "pg_stat_file",
+        "pg_terminate_backend",
+        "pg_cancel_backend",
+        "pg_reload_conf",
+        "pg_rotate_logfile",
+        "pg_switch_wal",
+        "pg_promote",
+        "pg_create_restore_point",
+        "pg_backup_start",
+        "pg_backup_stop",
+        "pg_start_backup",
+        "pg_stop_backup",
+        "pg_log_backend_memory_contexts",
+        "pg_logical_emit_message",
+        "pg_import_system_collations",
+        "query_to_xml",
+        "query_to_xmlschema",
+        "query_to_xml_and_xmlschema",
+        "cursor_to_xml",
+        "cursor_to_xmlschema",
+        "ts_stat",
+        "ts_rewrite",
+        "pg_logical_slot_get_changes",
+        "pg_logical_slot_peek_changes",
+        "connectby",
+        "xpath_table",
+    )
+)
 #: Families of them (a call of a name that starts so).
-_PG_CALL_PREFIXES = ("pg_advisory", "pg_try_advisory", "dblink", "lo_", "pg_ls_", "pg_file_",
-                     "pg_stat_reset", "pg_replication_", "pg_create_", "pg_drop_", "pg_copy_",
-                     "pg_wal_replay_", "binary_upgrade_", "table_to_xml", "schema_to_xml",
-                     "database_to_xml", "pg_logdir_", "crosstab")
+_PG_CALL_PREFIXES = (
+    "pg_advisory",
+    "pg_try_advisory",
+    "dblink",
+    "lo_",
+    "pg_ls_",
+    "pg_file_",
+    "pg_stat_reset",
+    "pg_replication_",
+    "pg_create_",
+    "pg_drop_",
+    "pg_copy_",
+    "pg_wal_replay_",
+    "binary_upgrade_",
+    "table_to_xml",
+    "schema_to_xml",
+    "database_to_xml",
+    "pg_logdir_",
+    "crosstab",
+)
 #: toaster's own functions (the triggers' functions the migrations and toaster.beliefs
 #: install, the read-only wrapper): no statement has a reason to call them.
 _PG_OWN = "toaster_"
@@ -207,8 +311,10 @@ def check_statement(sql: str, dialect: str) -> list[Token]:
         msg = 'SQL error: the statement is empty: give one, e.g. "SELECT 1"'
         raise ToasterError(msg)
     if any(t.kind == "semi" for t in tokens):
-        msg = ("read-only SQL runs exactly one statement (this has several): run them one at "
-               "a time, or all with --write")
+        msg = (
+            "read-only SQL runs exactly one statement (this has several): run them one at "
+            "a time, or all with --write"
+        )
         raise ReadOnlyError(msg)
     first = next((t for t in tokens if t.text != "("), tokens[0])
     word = first.name if first.kind == "word" else ""
@@ -219,19 +325,30 @@ def check_statement(sql: str, dialect: str) -> list[Token]:
         msg = f"SQL error: read-only SQL starts with {reads}, not {first.text[:40]!r}"
         raise ToasterError(msg)
     if word == "explain":
-        _check_explain(tokens[tokens.index(first) + 1:], dialect)
+        _check_explain(tokens[tokens.index(first) + 1 :], dialect)
     for index, token in enumerate(tokens):
         if token.kind == "word" and token.name in _WRITE_WORDS:
             _refuse(f"{token.name.upper()} (it writes)")
-        if token.kind == "word" and token.name == "for" and index + 1 < len(tokens) and \
-                tokens[index + 1].name in ("update", "share", "no", "key"):
+        if (
+            token.kind == "word"
+            and token.name == "for"
+            and index + 1 < len(tokens)
+            and tokens[index + 1].name in ("update", "share", "no", "key")
+        ):
             _refuse("row locks (FOR UPDATE / FOR SHARE)")
-        if dialect == "postgresql" and token.kind in ("word", "ident") and \
-                _PG_TEMP.fullmatch(token.name):
+        if (
+            dialect == "postgresql"
+            and token.kind in ("word", "ident")
+            and _PG_TEMP.fullmatch(token.name)
+        ):
             _refuse(f"{token.name} (the session's temporary schema, toaster's own)")
         called = index + 1 < len(tokens) and tokens[index + 1].text == "("
-        if dialect == "postgresql" and called and token.kind in ("word", "ident") and \
-                token.name.startswith(_PG_OWN):
+        if (
+            dialect == "postgresql"
+            and called
+            and token.kind in ("word", "ident")
+            and token.name.startswith(_PG_OWN)
+        ):
             _refuse(f"{token.name}() (toaster's own function)")
         if token.kind in ("word", "ident") and _denied_call(token.name, dialect, called):
             _refuse(f"{token.name}() (a side effect beyond the statement)")
@@ -276,12 +393,14 @@ def pyformat(sql: str, tokens: list[Token]) -> str:
         if colon.text != ":" or name.kind != "word" or name.start != colon.start + 1:
             continue
         prev = tokens[index - 1] if index else None
-        if prev is not None and prev.start + len(prev.text) == colon.start and \
-                prev.kind in ("word", "number", "ident"):
+        if (
+            prev is not None
+            and prev.start + len(prev.text) == colon.start
+            and prev.kind in ("word", "number", "ident")
+        ):
             continue  # a slice bound (a[1:n]), not a parameter
-        out.append(sql[last:colon.start].replace("%", "%%"))
+        out.append(sql[last : colon.start].replace("%", "%%"))
         out.append(f"%({name.text})s")
         last = name.start + len(name.text)
     out.append(sql[last:].replace("%", "%%"))
     return "".join(out)
-

@@ -44,6 +44,7 @@ class FactArrays(Protocol):
     @property
     def world(self) -> object:
         """The world whose rows the batch names (a new world: the arrays are rebuilt)."""
+
     @property
     def groups(self) -> Sequence[BatchGroup]: ...
     def facts(self) -> list[Fact]: ...
@@ -66,8 +67,9 @@ class Snapshot(NamedTuple):
         keys, codes = batch.keys()
         numbers = np.column_stack(batch.numbers()) if len(keys) else np.zeros((0, 3))
         default = tolerances["*"]
-        per_group = np.array([tolerances.get(g.prop, default) for g in batch.groups]
-                             or np.zeros((0, 3)), np.float64).reshape(-1, 3)
+        per_group = np.array(
+            [tolerances.get(g.prop, default) for g in batch.groups] or np.zeros((0, 3)), np.float64
+        ).reshape(-1, 3)
         sizes = np.fromiter((g.size for g in batch.groups), np.int64, len(batch.groups))
         tol = np.repeat(per_group, sizes, axis=0)
         order = np.argsort(keys, kind="stable")
@@ -85,8 +87,15 @@ class BatchState:
 
     __slots__ = ("codes", "fact", "keys", "numbers", "tkey", "world")
 
-    def __init__(self, world: object, keys: np.ndarray, codes: np.ndarray, numbers: np.ndarray,
-                 tkey: np.ndarray, fact: np.ndarray) -> None:
+    def __init__(
+        self,
+        world: object,
+        keys: np.ndarray,
+        codes: np.ndarray,
+        numbers: np.ndarray,
+        tkey: np.ndarray,
+        fact: np.ndarray,
+    ) -> None:
         self.world, self.keys, self.codes, self.numbers = world, keys, codes, numbers
         self.tkey, self.fact = tkey, fact
 
@@ -105,8 +114,11 @@ class BatchState:
             held = stored.get(key, given)
             tkey[j], fact[j] = key, held
             if held is not given:
-                numbers[j] = (np.nan if held.value_num is None else held.value_num,
-                              held.confidence, held.observability)
+                numbers[j] = (
+                    np.nan if held.value_num is None else held.value_num,
+                    held.confidence,
+                    held.observability,
+                )
                 if held.value_text != given.value_text:
                     codes[j] = -1  # compare again next time (the database decides)
         return cls(batch.world, snap.keys, codes, numbers, tkey, fact)
@@ -117,8 +129,12 @@ class BatchState:
         n_old = len(self.keys)
         if n_old == 0:
             nothing = np.zeros(len(new.keys), bool)
-            return (np.arange(len(new.keys)), nothing, np.zeros(len(new.keys), np.int64),
-                    np.zeros(0, np.int64))
+            return (
+                np.arange(len(new.keys)),
+                nothing,
+                np.zeros(len(new.keys), np.int64),
+                np.zeros(0, np.int64),
+            )
         pos = np.minimum(np.searchsorted(self.keys, new.keys), n_old - 1)
         found = self.keys[pos] == new.keys
         held = self.numbers[pos]
@@ -130,8 +146,15 @@ class BatchState:
         matched[pos[found]] = True
         return np.flatnonzero(~keep), keep, pos, np.flatnonzero(~matched)
 
-    def updated(self, new: Snapshot, touched: np.ndarray, keep: np.ndarray, pos: np.ndarray,
-                keys: list[Key], facts: list[Fact]) -> BatchState:
+    def updated(
+        self,
+        new: Snapshot,
+        touched: np.ndarray,
+        keep: np.ndarray,
+        pos: np.ndarray,
+        keys: list[Key],
+        facts: list[Fact],
+    ) -> BatchState:
         """The state once ``facts`` (at ``touched``) were written and the rest kept."""
         n = len(new.keys)
         numbers = new.numbers.copy()

@@ -60,9 +60,16 @@ class Store(WriterBase):
     (typed as the :class:`~toaster.db.handle.Handle` it uses)."""
 
     # ------------------------------------------------------------------ snapshot sync
-    def sync_snapshot(self, source: str, agent_id: str, t_ns: int,
-                      facts: Iterable[Fact] | FactArrays, *,
-                      actor: str | None = None, actors: Actors | None = None) -> SyncResult:
+    def sync_snapshot(
+        self,
+        source: str,
+        agent_id: str,
+        t_ns: int,
+        facts: Iterable[Fact] | FactArrays,
+        *,
+        actor: str | None = None,
+        actors: Actors | None = None,
+    ) -> SyncResult:
         """Make ``source``'s facts for ``agent_id`` at ``t_ns`` exactly ``facts`` (a list of
         facts, or a producer's :class:`~toaster.producers.batch.FactBatch`).
 
@@ -87,6 +94,7 @@ class Store(WriterBase):
             batch = facts
         else:
             given = list(facts)
+
         def write(conn: Connection) -> SyncResult:
             if batch is not None:
                 return self._sync_batch(conn, source, agent_id, t_ns, batch)
@@ -98,13 +106,17 @@ class Store(WriterBase):
         state = self._sources.get((source, agent_id))
         if state is None:
             state = SourceState()
-            rows = conn.execute(text(
-                "SELECT k.id, k.subject_id, k.property, k.target_id, f.value_text, f.value_num, "
-                "f.confidence, f.observability, k.property_type, k.sub_property, "
-                "k.subject_owner_id, k.target_owner_id, f.valid_from_ns "
-                "FROM fact_keys k JOIN facts f ON f.key_id = k.id "
-                "WHERE k.agent_id = :a AND f.source = :s AND f.valid_to_ns IS NULL"),
-                {"a": agent_id, "s": source}).all()
+            rows = conn.execute(
+                text(
+                    "SELECT k.id, k.subject_id, k.property, k.target_id, f.value_text, "
+                    "f.value_num, "
+                    "f.confidence, f.observability, k.property_type, k.sub_property, "
+                    "k.subject_owner_id, k.target_owner_id, f.valid_from_ns "
+                    "FROM fact_keys k JOIN facts f ON f.key_id = k.id "
+                    "WHERE k.agent_id = :a AND f.source = :s AND f.valid_to_ns IS NULL"
+                ),
+                {"a": agent_id, "s": source},
+            ).all()
             for row in rows:
                 fact = Fact(*row[1:12])
                 key = fact_key(fact)
@@ -121,8 +133,10 @@ class Store(WriterBase):
         self.check_agent(agent_id)
         state = self._state(conn, source, agent_id)
         if t_ns < state.last_t:
-            msg = (f"snapshot of {source!r} for {agent_id!r} at {format_ns(t_ns)} is older than "
-                   f"its previous one ({format_ns(state.last_t)}): send snapshots in time order")
+            msg = (
+                f"snapshot of {source!r} for {agent_id!r} at {format_ns(t_ns)} is older than "
+                f"its previous one ({format_ns(state.last_t)}): send snapshots in time order"
+            )
             raise TimeOrderError(msg)
         return state
 
@@ -136,8 +150,9 @@ class Store(WriterBase):
                 self._tolerances = tolerance.read(conn)
         return self._tolerances
 
-    def _sync(self, conn: Connection, source: str, agent_id: str, t_ns: int,
-              given: list[Fact]) -> SyncResult:
+    def _sync(
+        self, conn: Connection, source: str, agent_id: str, t_ns: int, given: list[Fact]
+    ) -> SyncResult:
         state = self._begin(conn, source, agent_id, t_ns)
         state.arrays = None
         old = state.facts
@@ -155,17 +170,38 @@ class Store(WriterBase):
             return SyncResult(0, 0, 0, 0, len(new))
         held_get = old.get
         table = self.tolerances(conn)
-        touched = [(key, check_fact(fact)) for key, fact in new.items()
-                   if (held := held_get(key)) != fact and not within(table, fact, held)]
+        touched = [
+            (key, check_fact(fact))
+            for key, fact in new.items()
+            if (held := held_get(key)) != fact and not within(table, fact, held)
+        ]
         gone = [key for key in old if key not in new]
-        result = self._write_diff(conn, state, agent_id, source, t_ns, touched,
-                                  [(key, old[key]) for key in gone], len(new))
+        result = self._write_diff(
+            conn,
+            state,
+            agent_id,
+            source,
+            t_ns,
+            touched,
+            [(key, old[key]) for key in gone],
+            len(new),
+        )
         state.last_list = given
         return result
 
-    def _write_diff(self, conn: Connection, state: SourceState, agent_id: str, source: str,
-                    t_ns: int, touched: list[tuple[Key, Fact]], gone: list[tuple[Key, Fact]],
-                    size: int, *, trust_cache: bool = False) -> SyncResult:
+    def _write_diff(
+        self,
+        conn: Connection,
+        state: SourceState,
+        agent_id: str,
+        source: str,
+        t_ns: int,
+        touched: list[tuple[Key, Fact]],
+        gone: list[tuple[Key, Fact]],
+        size: int,
+        *,
+        trust_cache: bool = False,
+    ) -> SyncResult:
         """Write a snapshot's differences (stated facts, ended facts); remember them.
 
         Stated facts are compared with the open interval, whoever wrote it; with
@@ -201,11 +237,17 @@ class Store(WriterBase):
         for key, _ in gone:
             del old[key]
         state.last_t = t_ns
-        return SyncResult(len(writes.appeared), len(writes.changed), len(writes.refreshed),
-                          len(writes.ended), size - len(touched))
+        return SyncResult(
+            len(writes.appeared),
+            len(writes.changed),
+            len(writes.refreshed),
+            len(writes.ended),
+            size - len(touched),
+        )
 
-    def _sync_batch(self, conn: Connection, source: str, agent_id: str, t_ns: int,
-                    batch: FactArrays) -> SyncResult:
+    def _sync_batch(
+        self, conn: Connection, source: str, agent_id: str, t_ns: int, batch: FactArrays
+    ) -> SyncResult:
         """:meth:`sync_snapshot` of a fact batch, diffed as arrays (:mod:`.diff`)."""
         state = self._begin(conn, source, agent_id, t_ns)
         arrays = state.arrays
@@ -218,17 +260,25 @@ class Store(WriterBase):
         touched, keep, old_pos, gone = arrays.diff(new)
         facts = [check_fact(f) for f in batch.facts_at(new.order[touched])]
         keys = list(map(_KEY, facts))
-        gone_items = list(zip(arrays.tkey[gone].tolist(), arrays.fact[gone].tolist(),
-                              strict=True))
-        result = self._write_diff(conn, state, agent_id, source, t_ns,
-                                  list(zip(keys, facts, strict=True)), gone_items, len(new.keys),
-                                  trust_cache=True)
+        gone_items = list(zip(arrays.tkey[gone].tolist(), arrays.fact[gone].tolist(), strict=True))
+        result = self._write_diff(
+            conn,
+            state,
+            agent_id,
+            source,
+            t_ns,
+            list(zip(keys, facts, strict=True)),
+            gone_items,
+            len(new.keys),
+            trust_cache=True,
+        )
         state.last_list = None
         state.arrays = arrays.updated(new, touched, keep, old_pos, keys, facts)
         return result
 
-    def _key_id_map(self, conn: Connection, agent_id: str,
-                    facts: list[tuple[Key, Fact]]) -> set[Key]:
+    def _key_id_map(
+        self, conn: Connection, agent_id: str, facts: list[tuple[Key, Fact]]
+    ) -> set[Key]:
         """Fill the key-id cache for ``facts``; return the keys that were just created."""
         missing = [(key, fact) for key, fact in facts if (agent_id, key) not in self._key_ids]
         if not missing:
@@ -237,17 +287,20 @@ class Store(WriterBase):
         cur = self.db.cursor()
         self._ensure_entities([fact for _, fact in missing])
         created = self.backend.insert_keys(
-            cur, agent_id, [(key, fact.property_type) for key, fact in missing])
+            cur, agent_id, [(key, fact.property_type) for key, fact in missing]
+        )
         found: dict[Key, int] = {}
         if len(created) != len(missing):
             found = self.backend.lookup_keys(
-                cur, agent_id, [key for key, _ in missing if key not in created])
+                cur, agent_id, [key for key, _ in missing if key not in created]
+            )
         for key, key_id in (*found.items(), *created.items()):
             self._key_ids[(agent_id, key)] = key_id
         return set(created)
 
-    def _resolve(self, conn: Connection, agent_id: str, items: list[tuple[Key, Fact]],
-                 writes: Writes) -> None:
+    def _resolve(
+        self, conn: Connection, agent_id: str, items: list[tuple[Key, Fact]], writes: Writes
+    ) -> None:
         """Compare stated facts with what is stored now (the open interval, whoever wrote it):
         a missing interval appears, another symbolic value changes, the rest refreshes."""
         if not self.agents().get(agent_id):
@@ -264,24 +317,35 @@ class Store(WriterBase):
             row = open_rows.get(key_id)
             last = row[5] if row is not None else ends.get(key_id)
             if last is not None and last > t_ns:
-                msg = (f"{fact.subject_id} {fact.property} {fact.target_id}".rstrip()
-                       + f" for {agent_id!r} at {format_ns(t_ns)} is older than its last "
-                       f"change ({format_ns(last)}): write each fact in time order")
+                msg = (
+                    f"{fact.subject_id} {fact.property} {fact.target_id}".rstrip()
+                    + f" for {agent_id!r} at {format_ns(t_ns)} is older than its last "
+                    f"change ({format_ns(last)}): write each fact in time order"
+                )
                 raise TimeOrderError(msg)
             if row is None:
                 writes.appear(key_id, fact)
             else:
-                held = Fact(fact.subject_id, fact.property, fact.target_id, row[0], row[1],
-                            row[2], row[3], fact.property_type, fact.sub_property,
-                            fact.subject_owner_id, fact.target_owner_id)
+                held = Fact(
+                    fact.subject_id,
+                    fact.property,
+                    fact.target_id,
+                    row[0],
+                    row[1],
+                    row[2],
+                    row[3],
+                    fact.property_type,
+                    fact.sub_property,
+                    fact.subject_owner_id,
+                    fact.target_owner_id,
+                )
                 writes.update(key_id, fact, held)
 
     def _apply(self, conn: Connection, writes: Writes) -> None:
         cur = self.db.cursor()
         backend = self.backend
         if writes.refreshed:  # first: a stale cache is found before anything is written
-            rows = [(f.value_num, f.confidence, f.observability, k)
-                    for k, f, _ in writes.refreshed]
+            rows = [(f.value_num, f.confidence, f.observability, k) for k, f, _ in writes.refreshed]
             if backend.refresh_intervals(cur, writes.t_ns, rows) != len(rows):
                 raise StaleCache
         if writes.closing:
@@ -299,8 +363,10 @@ class Store(WriterBase):
         if writes.events:
             backend.insert_events(cur, writes.events)
         if writes.retyped:
-            conn.execute(text("UPDATE fact_keys SET property_type = :p WHERE id = :k"),
-                         [{"p": p, "k": k} for k, p in writes.retyped])
+            conn.execute(
+                text("UPDATE fact_keys SET property_type = :p WHERE id = :k"),
+                [{"p": p, "k": k} for k, p in writes.retyped],
+            )
         if self._rules and not writes.empty:
             changes = writes.change_set()
             for actor in set(changes.actors.values()):
@@ -316,8 +382,9 @@ class Store(WriterBase):
         agents = self.agents()
         return bool(self._rules) and agent_id in agents and not all(agents.values())
 
-    def _writes(self, conn: Connection, agent_id: str, source: str, t_ns: int, *,
-                snapshot: bool = False) -> Writes:
+    def _writes(
+        self, conn: Connection, agent_id: str, source: str, t_ns: int, *, snapshot: bool = False
+    ) -> Writes:
         """The rows of one write of ``agent_id`` at ``t_ns``.
 
         The belief runs follow the rules' clock (``store_state.beliefs_ns``, the last run's
@@ -340,13 +407,16 @@ class Store(WriterBase):
         if snapshot and self._pending is not None and self._tick_ns is not None:
             t_ns = self._tick_ns  # a later source of the tick: the first one's stamp
         elif snapshot and self._clocked(agent_id):
-            last, last_self = conn.execute(text(
-                "UPDATE store_state SET beliefs_ns = beliefs_ns WHERE id = 1 "
-                "RETURNING beliefs_ns, beliefs_self")).one()
-            moved = max(self._moved_to.get((agent_id, s), t_ns)
-                        for s in (*self._tick_sources, source))
-            behind = last is not None and (
-                t_ns < last or (t_ns == last and last_self != agent_id))
+            last, last_self = conn.execute(
+                text(
+                    "UPDATE store_state SET beliefs_ns = beliefs_ns WHERE id = 1 "
+                    "RETURNING beliefs_ns, beliefs_self"
+                )
+            ).one()
+            moved = max(
+                self._moved_to.get((agent_id, s), t_ns) for s in (*self._tick_sources, source)
+            )
+            behind = last is not None and (t_ns < last or (t_ns == last and last_self != agent_id))
             if behind and last <= t_ns + LIVE_CLOCK_SKEW_NS:
                 t_ns = max(last + 1, moved)
             elif t_ns < moved:
@@ -361,9 +431,15 @@ class Store(WriterBase):
         for rule in self._rules:
             rule(conn, changes)
 
-    def sync_many(self, agent_id: str, t_ns: int,
-                  snapshots: Iterable[tuple[str, Iterable[Fact] | FactArrays]], *,
-                  actor: str | None = None, actors: Actors | None = None) -> list[SyncResult]:
+    def sync_many(
+        self,
+        agent_id: str,
+        t_ns: int,
+        snapshots: Iterable[tuple[str, Iterable[Fact] | FactArrays]],
+        *,
+        actor: str | None = None,
+        actors: Actors | None = None,
+    ) -> list[SyncResult]:
         """:meth:`sync_snapshot` of several sources for one agent at one time, in one
         transaction, the rules running once over all their changes (a producer tick).
         ``actor`` and ``actors`` (per fact) name who made the changes, as for
@@ -374,8 +450,9 @@ class Store(WriterBase):
             self._pending, self._tick_ns = [], None
             self._tick_sources = tuple(source for source, _ in given)
             try:
-                results = [self.sync_snapshot(source, agent_id, t_ns, facts)
-                           for source, facts in given]
+                results = [
+                    self.sync_snapshot(source, agent_id, t_ns, facts) for source, facts in given
+                ]
                 for changes in merged(self._pending):
                     self._run_rules(conn, changes)
             finally:
@@ -386,9 +463,16 @@ class Store(WriterBase):
             return self._retrying(write)
 
     # ------------------------------------------------------------------ single writes
-    def assert_fact(self, agent_id: str, fact: Fact, *, t_ns: int | None = None,
-                    source: str = "user", strict: bool = True,
-                    actor: str | None = None) -> str:
+    def assert_fact(
+        self,
+        agent_id: str,
+        fact: Fact,
+        *,
+        t_ns: int | None = None,
+        source: str = "user",
+        strict: bool = True,
+        actor: str | None = None,
+    ) -> str:
         """State one fact for an agent at ``t_ns`` (default now); return what happened
         (``appeared``, ``changed``, ``refreshed`` or ``unchanged``).
 
@@ -408,11 +492,20 @@ class Store(WriterBase):
             self.bump_epoch(conn)
         return writes.outcome()
 
-    def retract_facts(self, agent_id: str, property: str, subject_id: str | None = None,
-                      target_id: str | None = None, *, sub_property: str | None = None,
-                      subject_owner_id: str | None = None, target_owner_id: str | None = None,
-                      t_ns: int | None = None, source: str = "user",
-                      actor: str | None = None) -> int:
+    def retract_facts(
+        self,
+        agent_id: str,
+        property: str,
+        subject_id: str | None = None,
+        target_id: str | None = None,
+        *,
+        sub_property: str | None = None,
+        subject_owner_id: str | None = None,
+        target_owner_id: str | None = None,
+        t_ns: int | None = None,
+        source: str = "user",
+        actor: str | None = None,
+    ) -> int:
         """End the matching current facts of an agent at ``t_ns`` (default now).
 
         ``None`` or ``"NULL"`` for subject or target match any (the original's wildcard).
@@ -420,9 +513,13 @@ class Store(WriterBase):
         """
         check_id(property, "property")
         t_ns = now_ns() if t_ns is None else check_ns(t_ns)
-        filters = {"subject_id": subject_id, "target_id": target_id,
-                   "sub_property": sub_property, "subject_owner_id": subject_owner_id,
-                   "target_owner_id": target_owner_id}
+        filters = {
+            "subject_id": subject_id,
+            "target_id": target_id,
+            "sub_property": sub_property,
+            "subject_owner_id": subject_owner_id,
+            "target_owner_id": target_owner_id,
+        }
         with self.acting(actor), self.transaction() as conn:
             self.check_agent(agent_id)
             if not self.agents().get(agent_id):
@@ -431,16 +528,19 @@ class Store(WriterBase):
             writes = self._writes(conn, agent_id, source, t_ns)
             for key_id, fact, valid_from in rows:
                 if valid_from > t_ns:
-                    msg = (f"cannot end {fact.subject_id} {fact.property} {fact.target_id} at "
-                           f"{format_ns(t_ns)}: it started later, at {format_ns(valid_from)}")
+                    msg = (
+                        f"cannot end {fact.subject_id} {fact.property} {fact.target_id} at "
+                        f"{format_ns(t_ns)}: it started later, at {format_ns(valid_from)}"
+                    )
                     raise TimeOrderError(msg)
                 writes.end(key_id, fact)
             self._apply(conn, writes)
             self.bump_epoch(conn)
         return len(rows)
 
-    def record_event(self, agent_id: str, fact: Fact, *, t_ns: int | None = None,
-                     source: str = "user") -> None:
+    def record_event(
+        self, agent_id: str, fact: Fact, *, t_ns: int | None = None, source: str = "user"
+    ) -> None:
         """Record a user event (the original's set_info EVENT) for an agent."""
         fact = check_fact(fact)
         t_ns = now_ns() if t_ns is None else check_ns(t_ns)
@@ -448,9 +548,24 @@ class Store(WriterBase):
             self.check_agent(agent_id)
             key = fact_key(fact)
             self._key_id_map(conn, agent_id, [(key, fact)])
-            self.backend.insert_events(self.db.cursor(), [(
-                self._key_ids[(agent_id, key)], agent_id, "event", t_ns, fact.value_text,
-                fact.value_num, fact.confidence, fact.observability, None, source, now_ns())])
+            self.backend.insert_events(
+                self.db.cursor(),
+                [
+                    (
+                        self._key_ids[(agent_id, key)],
+                        agent_id,
+                        "event",
+                        t_ns,
+                        fact.value_text,
+                        fact.value_num,
+                        fact.confidence,
+                        fact.observability,
+                        None,
+                        source,
+                        now_ns(),
+                    )
+                ],
+            )
 
     def empty(self, agent_id: str | None = None) -> None:
         """Delete the facts, memory and events of one agent, or of every agent (EMPTY)."""

@@ -37,11 +37,15 @@ depends_on = None
 # The readable views of this revision, frozen (a revision never imports live view text; the
 # followed period is defined in toaster.rules.sqltext, and tests/rules/test_sqltext.py
 # checks that the views of a database at head are the ones it renders).
-_KEY = ("k.agent_id, k.subject_id, k.subject_owner_id, k.property, k.property_type, "
-        "k.sub_property, k.target_id, k.target_owner_id")
-_OWN = (f"SELECT {_KEY}, f.value_text, f.value_num, f.confidence, f.observability, "
-        "f.valid_from_ns, f.valid_to_ns, f.recorded_ns, f.source, f.id AS fact_id, "
-        "k.id AS key_id FROM facts f JOIN fact_keys k ON k.id = f.key_id")
+_KEY = (
+    "k.agent_id, k.subject_id, k.subject_owner_id, k.property, k.property_type, "
+    "k.sub_property, k.target_id, k.target_owner_id"
+)
+_OWN = (
+    f"SELECT {_KEY}, f.value_text, f.value_num, f.confidence, f.observability, "
+    "f.valid_from_ns, f.valid_to_ns, f.recorded_ns, f.source, f.id AS fact_id, "
+    "k.id AS key_id FROM facts f JOIN fact_keys k ON k.id = f.key_id"
+)
 # The self's intervals of a followed key, clipped to the period ({lo}/{hi}: MIN/MAX or
 # LEAST/GREATEST, the one difference between the backends).
 _FOLLOWED = (
@@ -54,8 +58,10 @@ _FOLLOWED = (
     "AND (w.to_ns IS NULL OR (f.valid_from_ns < w.to_ns AND w.to_ns > w.from_ns)) "
     "AND (f.valid_to_ns IS NULL OR f.valid_to_ns > w.from_ns)"
 )
-_EVENT_KEY = ("k.subject_id, k.subject_owner_id, k.property, k.property_type, k.sub_property, "
-              "k.target_id, k.target_owner_id")
+_EVENT_KEY = (
+    "k.subject_id, k.subject_owner_id, k.property, k.property_type, k.sub_property, "
+    "k.target_id, k.target_owner_id"
+)
 _EVENTS = (
     f"SELECT e.id, e.agent_id, e.kind, e.stamp_ns, {_EVENT_KEY}, e.value_text, e.value_num, "
     "e.confidence, e.observability, e.previous_text, e.source, e.recorded_ns, e.key_id "
@@ -70,8 +76,7 @@ _FOLLOWED_EVENTS = (
     "AND e.stamp_ns >= w.events_from_ns "
     "AND (w.events_to_ns IS NULL OR e.stamp_ns <= w.events_to_ns)"
 )
-_FUNCTIONS = {"sqlite": {"lo": "MIN", "hi": "MAX"},
-              "postgresql": {"lo": "LEAST", "hi": "GREATEST"}}
+_FUNCTIONS = {"sqlite": {"lo": "MIN", "hi": "MAX"}, "postgresql": {"lo": "LEAST", "hi": "GREATEST"}}
 
 
 def views(backend: str) -> list[tuple[str, str]]:
@@ -79,19 +84,23 @@ def views(backend: str) -> list[tuple[str, str]]:
     followed = _FOLLOWED.format(**_FUNCTIONS[backend])
     return [
         ("fact_history", f"{_OWN} UNION ALL {followed}"),
-        ("current_facts", f"{_OWN} WHERE f.valid_to_ns IS NULL UNION ALL {followed} "
-                          "AND w.to_ns IS NULL AND f.valid_to_ns IS NULL"),
-        ("memory", f"{_OWN} WHERE f.valid_to_ns IS NOT NULL UNION ALL {followed} "
-                   "AND (w.to_ns IS NOT NULL OR f.valid_to_ns IS NOT NULL)"),
-        ("event_log",
-         f"{_EVENTS} UNION ALL {_FOLLOWED_EVENTS.format(**_FUNCTIONS[backend])}"),
+        (
+            "current_facts",
+            f"{_OWN} WHERE f.valid_to_ns IS NULL UNION ALL {followed} "
+            "AND w.to_ns IS NULL AND f.valid_to_ns IS NULL",
+        ),
+        (
+            "memory",
+            f"{_OWN} WHERE f.valid_to_ns IS NOT NULL UNION ALL {followed} "
+            "AND (w.to_ns IS NOT NULL OR f.valid_to_ns IS NOT NULL)",
+        ),
+        ("event_log", f"{_EVENTS} UNION ALL {_FOLLOWED_EVENTS.format(**_FUNCTIONS[backend])}"),
     ]
 
 
 def _previous_views() -> list[tuple[str, str]]:
     """The views this revision replaces: those of 0001 (restored by the downgrade)."""
-    return list(importlib.import_module(
-        "toaster.migrations.versions.0001_initial_schema").VIEWS)
+    return list(importlib.import_module("toaster.migrations.versions.0001_initial_schema").VIEWS)
 
 
 def _cursor(bind: sa.Connection) -> Any:
@@ -119,18 +128,30 @@ def upgrade() -> None:
         sa.Column("position", sa.Integer(), nullable=False),
         sa.Column("member_id", sa.Text(), nullable=False),
         sa.CheckConstraint("position >= 1", name=op.f("ck_belief_chain_position_positive")),
-        sa.ForeignKeyConstraint(["holder_id"], ["agents.id"], ondelete="CASCADE",
-                                name=op.f("fk_belief_chain_holder_id_agents")),
-        sa.ForeignKeyConstraint(["member_id"], ["agents.id"], ondelete="CASCADE",
-                                name=op.f("fk_belief_chain_member_id_agents")),
+        sa.ForeignKeyConstraint(
+            ["holder_id"],
+            ["agents.id"],
+            ondelete="CASCADE",
+            name=op.f("fk_belief_chain_holder_id_agents"),
+        ),
+        sa.ForeignKeyConstraint(
+            ["member_id"],
+            ["agents.id"],
+            ondelete="CASCADE",
+            name=op.f("fk_belief_chain_member_id_agents"),
+        ),
         sa.PrimaryKeyConstraint("holder_id", "position", name=op.f("pk_belief_chain")),
     )
     with op.batch_alter_table("belief_chain", schema=None) as batch_op:
         batch_op.create_index("ix_belief_chain_member_id", ["member_id"], unique=False)
     op.create_table(
         "belief_follow",
-        sa.Column("id", sa.BigInteger().with_variant(sa.Integer(), "sqlite"),
-                  autoincrement=True, nullable=False),
+        sa.Column(
+            "id",
+            sa.BigInteger().with_variant(sa.Integer(), "sqlite"),
+            autoincrement=True,
+            nullable=False,
+        ),
         sa.Column("holder_id", sa.Text(), nullable=False),
         sa.Column("hkey", sa.BigInteger(), nullable=False),
         sa.Column("self_key", sa.BigInteger(), nullable=False),
@@ -139,18 +160,24 @@ def upgrade() -> None:
         sa.Column("events_from_ns", sa.BigInteger(), nullable=False),
         sa.Column("events_to_ns", sa.BigInteger(), nullable=True),
         sa.Column("pconf", sa.Float(), nullable=False),
-        sa.CheckConstraint("to_ns IS NULL OR to_ns >= from_ns",
-                           name=op.f("ck_belief_follow_valid_period")),
+        sa.CheckConstraint(
+            "to_ns IS NULL OR to_ns >= from_ns", name=op.f("ck_belief_follow_valid_period")
+        ),
         sa.CheckConstraint("pconf >= 0", name=op.f("ck_belief_follow_pconf_positive")),
         sa.PrimaryKeyConstraint("id", name=op.f("pk_belief_follow")),
     )
     with op.batch_alter_table("belief_follow", schema=None) as batch_op:
-        batch_op.create_index("uq_belief_follow_open_hkey", ["hkey"], unique=True,
-                              sqlite_where=sa.text("to_ns IS NULL"),
-                              postgresql_where=sa.text("to_ns IS NULL"))
+        batch_op.create_index(
+            "uq_belief_follow_open_hkey",
+            ["hkey"],
+            unique=True,
+            sqlite_where=sa.text("to_ns IS NULL"),
+            postgresql_where=sa.text("to_ns IS NULL"),
+        )
         batch_op.create_index("ix_belief_follow_hkey_from", ["hkey", "from_ns"], unique=False)
-        batch_op.create_index("ix_belief_follow_self_holder", ["self_key", "holder_id"],
-                              unique=False)
+        batch_op.create_index(
+            "ix_belief_follow_self_holder", ["self_key", "holder_id"], unique=False
+        )
     bind = op.get_bind()
     _replace_views(bind, views(bind.dialect.name))
 
@@ -177,29 +204,36 @@ def _copy_followed_periods(bind: sa.Connection) -> None:
         "valid_from_ns, valid_to_ns, recorded_ns, source) "
         "SELECT h.key_id, h.value_text, h.value_num, h.confidence, h.observability, "
         "h.valid_from_ns, h.valid_to_ns, h.recorded_ns, h.source "
-        "FROM fact_history h JOIN facts f ON f.id = h.fact_id AND f.key_id <> h.key_id")
+        "FROM fact_history h JOIN facts f ON f.id = h.fact_id AND f.key_id <> h.key_id"
+    )
     bind.exec_driver_sql(
         "INSERT INTO events (key_id, agent_id, kind, stamp_ns, value_text, value_num, "
         "confidence, observability, previous_text, source, recorded_ns) "
         "SELECT h.key_id, h.agent_id, h.kind, h.stamp_ns, h.value_text, h.value_num, "
         "h.confidence, h.observability, h.previous_text, h.source, h.recorded_ns "
-        "FROM event_log h JOIN events e ON e.id = h.id AND e.key_id <> h.key_id")
+        "FROM event_log h JOIN events e ON e.id = h.id AND e.key_id <> h.key_id"
+    )
 
 
 def _remove_nested_holders(bind: sa.Connection) -> None:
     """Remove the nested holders: their views, beliefs, chains and agent rows."""
     cursor = _cursor(bind)  # and standard quoting
-    holders = [row[0] for row in bind.execute(
-        sa.text("SELECT DISTINCT holder_id FROM belief_chain"))]
+    holders = [
+        row[0] for row in bind.execute(sa.text("SELECT DISTINCT holder_id FROM belief_chain"))
+    ]
     for holder in holders:
         for name in _view_names(holder):
             quoted = '"' + name.replace('"', '""') + '"'
             cursor.execute(f"DROP VIEW IF EXISTS {quoted}")
         for table in ("events", "facts", "fact_keys"):
             if table == "facts":
-                bind.execute(sa.text("DELETE FROM facts WHERE key_id IN "
-                                     "(SELECT id FROM fact_keys WHERE agent_id = :h)"),
-                             {"h": holder})
+                bind.execute(
+                    sa.text(
+                        "DELETE FROM facts WHERE key_id IN "
+                        "(SELECT id FROM fact_keys WHERE agent_id = :h)"
+                    ),
+                    {"h": holder},
+                )
             else:
                 bind.execute(sa.text(f"DELETE FROM {table} WHERE agent_id = :h"), {"h": holder})
         bind.execute(sa.text("DELETE FROM belief_chain WHERE holder_id = :h"), {"h": holder})

@@ -28,8 +28,11 @@ depends_on = None
 
 def upgrade() -> None:
     with op.batch_alter_table("store_state") as batch:
-        batch.add_column(sa.Column("control_version", sa.BigInteger(),
-                                   server_default=sa.text("0"), nullable=False))
+        batch.add_column(
+            sa.Column(
+                "control_version", sa.BigInteger(), server_default=sa.text("0"), nullable=False
+            )
+        )
     row_id = sa.BigInteger().with_variant(sa.Integer(), "sqlite")
     op.create_table(
         "control_commands",
@@ -40,16 +43,21 @@ def upgrade() -> None:
         sa.Column("state", sa.Text(), server_default=sa.text("'pending'"), nullable=False),
         sa.Column("answer_json", sa.Text(), nullable=True),
         sa.Column("done_ns", sa.BigInteger(), nullable=True),
-        sa.CheckConstraint("state IN ('pending', 'done', 'failed')",
-                           name=op.f("ck_control_commands_state_known")),
+        sa.CheckConstraint(
+            "state IN ('pending', 'done', 'failed')", name=op.f("ck_control_commands_state_known")
+        ),
         sa.PrimaryKeyConstraint("id", name=op.f("pk_control_commands")),
     )
     op.create_index("ix_control_commands_pending", "control_commands", ["state", "id"])
     if op.get_bind().dialect.name == "postgresql":
-        op.execute("CREATE FUNCTION toaster_notify_events() RETURNS trigger LANGUAGE plpgsql "
-                   "AS $$ BEGIN PERFORM pg_notify('toaster_events', ''); RETURN NULL; END $$")
-        op.execute("CREATE TRIGGER events_notify AFTER INSERT ON events FOR EACH STATEMENT "
-                   "EXECUTE FUNCTION toaster_notify_events()")
+        op.execute(
+            "CREATE FUNCTION toaster_notify_events() RETURNS trigger LANGUAGE plpgsql "
+            "AS $$ BEGIN PERFORM pg_notify('toaster_events', ''); RETURN NULL; END $$"
+        )
+        op.execute(
+            "CREATE TRIGGER events_notify AFTER INSERT ON events FOR EACH STATEMENT "
+            "EXECUTE FUNCTION toaster_notify_events()"
+        )
 
 
 def downgrade() -> None:

@@ -55,15 +55,16 @@ def _literal(value: object) -> str:
 def settings_view(defaults: dict[str, object]) -> str:
     """``belief_settings``: the stored value of each setting, else its default."""
     rows = ", ".join(f"('{key}', {_literal(value)})" for key, value in defaults.items())
-    return ("CREATE VIEW belief_settings AS WITH defaults (key, value_json) AS "
-            f"(VALUES {rows}) SELECT d.key, COALESCE(s.value_json, d.value_json) AS value_json, "
-            "CASE WHEN s.value_json IS NULL THEN 1 ELSE 0 END AS is_default "
-            "FROM defaults d LEFT JOIN settings s ON s.scope = 'beliefs' AND s.key = d.key")
+    return (
+        "CREATE VIEW belief_settings AS WITH defaults (key, value_json) AS "
+        f"(VALUES {rows}) SELECT d.key, COALESCE(s.value_json, d.value_json) AS value_json, "
+        "CASE WHEN s.value_json IS NULL THEN 1 ELSE 0 END AS is_default "
+        "FROM defaults d LEFT JOIN settings s ON s.scope = 'beliefs' AND s.key = d.key"
+    )
 
 
 #: The tables this revision guards (later revisions guard their own new tables).
-GUARDED_TABLES = ("fact_keys", "facts", "events", "fact_samples", "belief_follow",
-                  "belief_chain")
+GUARDED_TABLES = ("fact_keys", "facts", "events", "fact_samples", "belief_follow", "belief_chain")
 
 
 def _quoted(message: str) -> str:
@@ -75,14 +76,18 @@ def guard_tables(backend: str, tables: tuple[str, ...]) -> None:
     ``toaster_guard()`` exists on PostgreSQL from this revision on)."""
     for table in tables:
         if backend == "postgresql":
-            op.execute(f"CREATE TRIGGER {table}_guard BEFORE INSERT OR UPDATE OR DELETE OR "
-                       f"TRUNCATE ON {table} FOR EACH STATEMENT EXECUTE FUNCTION toaster_guard()")
+            op.execute(
+                f"CREATE TRIGGER {table}_guard BEFORE INSERT OR UPDATE OR DELETE OR "
+                f"TRUNCATE ON {table} FOR EACH STATEMENT EXECUTE FUNCTION toaster_guard()"
+            )
             continue
         message = _quoted(GUARD_MESSAGE.format(table=table))
         for action in ("insert", "update", "delete"):
-            op.execute(f"CREATE TRIGGER {table}_guard_{action} BEFORE {action.upper()} ON "
-                       f"{table} WHEN NOT EXISTS (SELECT 1 FROM rule_writer) "
-                       f"BEGIN SELECT RAISE(ABORT, {message}); END")
+            op.execute(
+                f"CREATE TRIGGER {table}_guard_{action} BEFORE {action.upper()} ON "
+                f"{table} WHEN NOT EXISTS (SELECT 1 FROM rule_writer) "
+                f"BEGIN SELECT RAISE(ABORT, {message}); END"
+            )
 
 
 def unguard_tables(backend: str, tables: tuple[str, ...]) -> None:
@@ -102,7 +107,8 @@ def _create_guards(backend: str) -> None:
             "CREATE FUNCTION toaster_guard() RETURNS trigger LANGUAGE plpgsql AS $$ BEGIN "
             "IF current_setting('toaster.writer', true) IS DISTINCT FROM 'rules' THEN "
             f"RAISE EXCEPTION USING MESSAGE = format({message}, TG_TABLE_NAME), "
-            "ERRCODE = 'insufficient_privilege'; END IF; RETURN NULL; END $$")
+            "ERRCODE = 'insufficient_privilege'; END IF; RETURN NULL; END $$"
+        )
     guard_tables(backend, GUARDED_TABLES)
 
 
@@ -129,6 +135,8 @@ def downgrade() -> None:
     """Store the defaults as rows again (what 0005 read); the rule text is not restored."""
     _drop_guards(op.get_bind().dialect.name)
     op.drop_table("rule_writer")
-    op.execute("INSERT INTO settings (scope, key, value_json) SELECT 'beliefs', key, value_json "
-               "FROM belief_settings WHERE is_default = 1")
+    op.execute(
+        "INSERT INTO settings (scope, key, value_json) SELECT 'beliefs', key, value_json "
+        "FROM belief_settings WHERE is_default = 1"
+    )
     op.execute("DROP VIEW belief_settings")

@@ -30,8 +30,16 @@ branch_labels = None
 depends_on = None
 
 _ROW_ID = sa.BigInteger().with_variant(sa.Integer(), "sqlite")
-_SCRATCH = ("belief_new_chain", "belief_mat", "belief_freeze", "belief_todo", "belief_in",
-            "belief_seen", "belief_focus", "belief_changed")
+_SCRATCH = (
+    "belief_new_chain",
+    "belief_mat",
+    "belief_freeze",
+    "belief_todo",
+    "belief_in",
+    "belief_seen",
+    "belief_focus",
+    "belief_changed",
+)
 
 
 def _scratch_tables() -> None:
@@ -56,8 +64,9 @@ def _scratch_tables() -> None:
         sa.Column("phase", sa.Text(), nullable=True),
         sa.Column("pconf", sa.Float(), nullable=True),
     )
-    op.create_index("ix_belief_seen_entity_holder", "belief_seen",
-                    ["entity_id", "phase", "holder_id"])
+    op.create_index(
+        "ix_belief_seen_entity_holder", "belief_seen", ["entity_id", "phase", "holder_id"]
+    )
     op.create_table(
         "belief_in",
         sa.Column("holder_id", sa.Text(), nullable=True),
@@ -109,8 +118,9 @@ def _scratch_tables() -> None:
 
 def upgrade() -> None:
     with op.batch_alter_table("store_state") as batch:
-        batch.add_column(sa.Column("holders_basis", sa.Text(), server_default=sa.text("''"),
-                                   nullable=False))
+        batch.add_column(
+            sa.Column("holders_basis", sa.Text(), server_default=sa.text("''"), nullable=False)
+        )
     op.create_table(
         "fact_inbox",
         sa.Column("id", _ROW_ID, autoincrement=True, nullable=False),

@@ -52,8 +52,10 @@ _DROP_AGENT_HOLDER = {
 
 
 def _clause(table: str, column: str, target: str) -> str:
-    return (f"CONSTRAINT fk_{table}_{column}_{target} FOREIGN KEY({column}) "
-            f"REFERENCES {target} (id) ON DELETE CASCADE")
+    return (
+        f"CONSTRAINT fk_{table}_{column}_{target} FOREIGN KEY({column}) "
+        f"REFERENCES {target} (id) ON DELETE CASCADE"
+    )
 
 
 def _move_foreign_keys(old: str, new: str) -> None:
@@ -61,8 +63,9 @@ def _move_foreign_keys(old: str, new: str) -> None:
     if bind.dialect.name == "postgresql":
         for table, column in _MOVED:
             op.drop_constraint(f"fk_{table}_{column}_{old}", table, type_="foreignkey")
-            op.create_foreign_key(f"fk_{table}_{column}_{new}", table, new, [column], ["id"],
-                                  ondelete="CASCADE")
+            op.create_foreign_key(
+                f"fk_{table}_{column}_{new}", table, new, [column], ["id"], ondelete="CASCADE"
+            )
         return
     cursor = bind.connection.dbapi_connection.cursor()  # type: ignore[union-attr]
     version = cursor.execute("PRAGMA schema_version").fetchone()[0]
@@ -70,9 +73,11 @@ def _move_foreign_keys(old: str, new: str) -> None:
     try:
         for table, column in _MOVED:
             before, after = _clause(table, column, old), _clause(table, column, new)
-            cursor.execute("UPDATE sqlite_master SET sql = replace(sql, ?, ?) "
-                           "WHERE type = 'table' AND name = ? AND instr(sql, ?) > 0",
-                           (before, after, table, before))
+            cursor.execute(
+                "UPDATE sqlite_master SET sql = replace(sql, ?, ?) "
+                "WHERE type = 'table' AND name = ? AND instr(sql, ?) > 0",
+                (before, after, table, before),
+            )
             if cursor.rowcount != 1:
                 msg = f"{table}: its foreign key {before!r} is not as revision 0001 made it"
                 raise RuntimeError(msg)
@@ -95,19 +100,26 @@ def upgrade() -> None:
         sa.Column("agent_id", sa.Text(), nullable=True),
         sa.Column("depth", sa.Integer(), nullable=False),
         sa.Column("registered_ns", sa.BigInteger(), nullable=False),
-        sa.CheckConstraint("(depth = 1 AND agent_id = id) OR (depth >= 2 AND agent_id IS NULL)",
-                           name=op.f("ck_holders_agent_or_nested")),
-        sa.ForeignKeyConstraint(["agent_id"], ["agents.id"], ondelete="CASCADE",
-                                name=op.f("fk_holders_agent_id_agents")),
+        sa.CheckConstraint(
+            "(depth = 1 AND agent_id = id) OR (depth >= 2 AND agent_id IS NULL)",
+            name=op.f("ck_holders_agent_or_nested"),
+        ),
+        sa.ForeignKeyConstraint(
+            ["agent_id"], ["agents.id"], ondelete="CASCADE", name=op.f("fk_holders_agent_id_agents")
+        ),
         sa.PrimaryKeyConstraint("id", name=op.f("pk_holders")),
         sa.UniqueConstraint("agent_id", name=op.f("uq_holders_agent_id")),
     )
-    op.execute("INSERT INTO holders (id, agent_id, depth, registered_ns) "
-               "SELECT id, id, 1, registered_ns FROM agents "
-               "WHERE id NOT IN (SELECT holder_id FROM belief_chain)")
-    op.execute("INSERT INTO holders (id, agent_id, depth, registered_ns) "
-               "SELECT c.holder_id, NULL, MAX(c.position), MIN(a.registered_ns) "
-               "FROM belief_chain c JOIN agents a ON a.id = c.holder_id GROUP BY c.holder_id")
+    op.execute(
+        "INSERT INTO holders (id, agent_id, depth, registered_ns) "
+        "SELECT id, id, 1, registered_ns FROM agents "
+        "WHERE id NOT IN (SELECT holder_id FROM belief_chain)"
+    )
+    op.execute(
+        "INSERT INTO holders (id, agent_id, depth, registered_ns) "
+        "SELECT c.holder_id, NULL, MAX(c.position), MIN(a.registered_ns) "
+        "FROM belief_chain c JOIN agents a ON a.id = c.holder_id GROUP BY c.holder_id"
+    )
     _move_foreign_keys("agents", "holders")
     _writer_role()
     # The nested holders' entity rows (kind 'belief'); their agent rows go with them.
@@ -125,11 +137,15 @@ def downgrade() -> None:
     for statement in _DROP_AGENT_HOLDER[op.get_bind().dialect.name]:
         op.execute(statement)
     _writer_role()
-    op.execute("INSERT INTO entities (id, name, kind, owner_id, created_ns) "
-               "SELECT id, id, 'belief', '', registered_ns FROM holders WHERE depth >= 2")
-    op.execute("INSERT INTO agents (id, num, is_self, registered_ns) "
-               "SELECT id, (SELECT COALESCE(MAX(num), 0) FROM agents) "
-               "+ ROW_NUMBER() OVER (ORDER BY id), false, registered_ns "
-               "FROM holders WHERE depth >= 2")
+    op.execute(
+        "INSERT INTO entities (id, name, kind, owner_id, created_ns) "
+        "SELECT id, id, 'belief', '', registered_ns FROM holders WHERE depth >= 2"
+    )
+    op.execute(
+        "INSERT INTO agents (id, num, is_self, registered_ns) "
+        "SELECT id, (SELECT COALESCE(MAX(num), 0) FROM agents) "
+        "+ ROW_NUMBER() OVER (ORDER BY id), false, registered_ns "
+        "FROM holders WHERE depth >= 2"
+    )
     _move_foreign_keys("holders", "agents")
     op.drop_table("holders")

@@ -41,10 +41,18 @@ def upgrade() -> None:
         "belief_groups",
         sa.Column("holder_id", sa.Text(), nullable=False),
         sa.Column("rep_id", sa.Text(), nullable=False),
-        sa.ForeignKeyConstraint(["holder_id"], ["holders.id"], ondelete="CASCADE",
-                                name=op.f("fk_belief_groups_holder_id_holders")),
-        sa.ForeignKeyConstraint(["rep_id"], ["holders.id"], ondelete="CASCADE",
-                                name=op.f("fk_belief_groups_rep_id_holders")),
+        sa.ForeignKeyConstraint(
+            ["holder_id"],
+            ["holders.id"],
+            ondelete="CASCADE",
+            name=op.f("fk_belief_groups_holder_id_holders"),
+        ),
+        sa.ForeignKeyConstraint(
+            ["rep_id"],
+            ["holders.id"],
+            ondelete="CASCADE",
+            name=op.f("fk_belief_groups_rep_id_holders"),
+        ),
         sa.PrimaryKeyConstraint("holder_id", name=op.f("pk_belief_groups")),
     )
     op.create_index("ix_belief_groups_rep_id", "belief_groups", ["rep_id"])

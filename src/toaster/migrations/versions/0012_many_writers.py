@@ -31,8 +31,11 @@ def upgrade() -> None:
     run_frozen(op.get_bind(), "0011_triggers", "drop")
     with op.batch_alter_table("store_state") as batch:
         batch.add_column(sa.Column("beliefs_ns", sa.BigInteger(), nullable=True))
-        batch.add_column(sa.Column("agents_version", sa.BigInteger(), nullable=False,
-                                   server_default=sa.text("0")))
+        batch.add_column(
+            sa.Column(
+                "agents_version", sa.BigInteger(), nullable=False, server_default=sa.text("0")
+            )
+        )
     run_frozen(op.get_bind(), "0012_triggers", "create")
 
 

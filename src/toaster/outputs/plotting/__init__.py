@@ -82,15 +82,25 @@ def output_format(path: str | Path, format: str | None = None) -> str:
     return name
 
 
-def plot_facts(db: Any, output: str | Path, *, subject: str | Sequence[str] | None = None,
-               property: str | Sequence[str] | None = None,
-               target: str | Sequence[str] | None = None,
-               agents: str | Sequence[str] | None = None, since: int | None = None,
-               until: int | None = None, reference: str | None = None,
-               format: str | None = None, title: str | None = None,
-               dpi: int = 120, numbers: str = "both", frame: TimeFrame | None = None,
-               max_facts: int | None = MAX_FACTS, progress: Progress | None = None
-               ) -> PlotResult:
+def plot_facts(
+    db: Any,
+    output: str | Path,
+    *,
+    subject: str | Sequence[str] | None = None,
+    property: str | Sequence[str] | None = None,
+    target: str | Sequence[str] | None = None,
+    agents: str | Sequence[str] | None = None,
+    since: int | None = None,
+    until: int | None = None,
+    reference: str | None = None,
+    format: str | None = None,
+    title: str | None = None,
+    dpi: int = 120,
+    numbers: str = "both",
+    frame: TimeFrame | None = None,
+    max_facts: int | None = MAX_FACTS,
+    progress: Progress | None = None,
+) -> PlotResult:
     """Write the timeline of the matching facts to ``output``.
 
     Args:
@@ -123,9 +133,18 @@ def plot_facts(db: Any, output: str | Path, *, subject: str | Sequence[str] | No
 
         _matplotlib()  # fail on a missing extra before reading the database
     report("reading facts", 0, None)
-    timeline = build_timeline(db, subject=subject, property=property, target=target,
-                              agents=agents, since=since, until=until, reference=reference,
-                              numbers=numbers != "off", frame=frame)
+    timeline = build_timeline(
+        db,
+        subject=subject,
+        property=property,
+        target=target,
+        agents=agents,
+        since=since,
+        until=until,
+        reference=reference,
+        numbers=numbers != "off",
+        frame=frame,
+    )
     panels(timeline, numbers)  # "only" with no number: one-line error before writing
     chosen = select_facts(timeline, max_facts, numbers_only=numbers == "only")
     timeline, left_out = chosen.timeline, chosen.left_out
@@ -138,17 +157,51 @@ def plot_facts(db: Any, output: str | Path, *, subject: str | Sequence[str] | No
         return PlotResult(write_csv(timeline, path, numbers), None, timeline, None, left_out)
     from toaster.outputs.plotting.render import render, text_settings
 
-    figure = render(timeline, title=title, numbers=numbers,
-                    on_panel=lambda done, total: report("drawing", done, total))
+    figure = render(
+        timeline,
+        title=title,
+        numbers=numbers,
+        on_panel=lambda done, total: report("drawing", done, total),
+    )
     report("saving", 0, None)
     with text_settings():  # tick labels are made while saving
         figure.savefig(path, format=fmt, dpi=dpi)
     return PlotResult(path, None, timeline, figure, left_out)
 
 
-__all__ = ["CSV_COLUMNS", "FALSE_BELIEF", "FORMATS", "IMAGE_FORMATS", "MAX_FACTS", "NUMBERS",
-           "UNAWARE", "UNITS", "Change", "Divergence", "Lane", "PlotResult", "Point", "Progress",
-           "Selection", "Series", "Signal", "Timeline", "add_signals", "build_timeline",
-           "check_max_facts", "check_numbers", "fact_label", "gnuplot_script", "number_unit",
-           "output_format", "panels", "plot_facts", "ranked", "select_facts", "signal_points",
-           "timeline_from_rows", "write_csv", "write_dat"]
+__all__ = [
+    "CSV_COLUMNS",
+    "FALSE_BELIEF",
+    "FORMATS",
+    "IMAGE_FORMATS",
+    "MAX_FACTS",
+    "NUMBERS",
+    "UNAWARE",
+    "UNITS",
+    "Change",
+    "Divergence",
+    "Lane",
+    "PlotResult",
+    "Point",
+    "Progress",
+    "Selection",
+    "Series",
+    "Signal",
+    "Timeline",
+    "add_signals",
+    "build_timeline",
+    "check_max_facts",
+    "check_numbers",
+    "fact_label",
+    "gnuplot_script",
+    "number_unit",
+    "output_format",
+    "panels",
+    "plot_facts",
+    "ranked",
+    "select_facts",
+    "signal_points",
+    "timeline_from_rows",
+    "write_csv",
+    "write_dat",
+]

@@ -28,6 +28,7 @@ _MIN_LABEL_FRACTION = 0.06
 def _matplotlib() -> Any:
     require("plot", "plot-facts")
     from matplotlib.figure import Figure
+
     return Figure
 
 
@@ -45,8 +46,13 @@ def number_gid(lane: Lane, agent: str) -> str:
     return f"numbers: {visible(lane.label)} | {visible(agent)}"
 
 
-def render(timeline: Timeline, *, title: str | None = None, numbers: str = "both",
-           on_panel: Callable[[int, int], None] | None = None) -> Any:
+def render(
+    timeline: Timeline,
+    *,
+    title: str | None = None,
+    numbers: str = "both",
+    on_panel: Callable[[int, int], None] | None = None,
+) -> Any:
     """A matplotlib ``Figure`` of the timeline (save it with ``fig.savefig(path)``).
 
     ``numbers``: ``both`` (bars, and a number panel under each fact that carries numbers),
@@ -63,16 +69,24 @@ def render(timeline: Timeline, *, title: str | None = None, numbers: str = "both
         return _figure(figure_cls, timeline, title, numbers, on_panel)
 
 
-def _figure(figure_cls: Any, timeline: Timeline, title: str | None, numbers: str,
-            on_panel: Callable[[int, int], None] | None) -> Any:
+def _figure(
+    figure_cls: Any,
+    timeline: Timeline,
+    title: str | None,
+    numbers: str,
+    on_panel: Callable[[int, int], None] | None,
+) -> Any:
     from matplotlib.patches import Patch
 
     shown = panels(timeline, numbers)
-    heights = [0.45 * len(lane.series) + 0.55 if kind == "bars" else NUMBER_PANEL_HEIGHT
-               for kind, lane in shown]
+    heights = [
+        0.45 * len(lane.series) + 0.55 if kind == "bars" else NUMBER_PANEL_HEIGHT
+        for kind, lane in shown
+    ]
     fig = figure_cls(figsize=(11, 1.1 + sum(heights)), layout="constrained")
-    axes = fig.subplots(len(shown), 1, sharex=True, squeeze=False,
-                        gridspec_kw={"height_ratios": heights})[:, 0]
+    axes = fig.subplots(
+        len(shown), 1, sharex=True, squeeze=False, gridspec_kw={"height_ratios": heights}
+    )[:, 0]
     span = (timeline.until_ns - timeline.since_ns) / NS_PER_S
     for i, (ax, (kind, lane)) in enumerate(zip(axes, shown, strict=True), 1):
         if kind == "bars":
@@ -83,18 +97,29 @@ def _figure(figure_cls: Any, timeline: Timeline, title: str | None, numbers: str
             on_panel(i, len(shown))
     _time_axis(axes[-1], timeline)
     facts = len({lane.label for _, lane in shown})
-    fig.suptitle(title or f"toaster facts ({facts}), reference agent: "
-                 f"{mpl_text(timeline.reference)}")
+    fig.suptitle(
+        title or f"toaster facts ({facts}), reference agent: {mpl_text(timeline.reference)}"
+    )
     notes = [mpl_text(note) for note in legend_notes(timeline)]
     handles = [Patch(visible=False, label=note) for note in notes[2:]]  # A>B: no symbol
     if any(kind == "bars" for kind, _ in shown):
-        handles = [Patch(facecolor="none", edgecolor="red", hatch="////", label=notes[0]),
-                   Patch(facecolor="none", edgecolor="grey", linestyle=":", label=notes[1]),
-                   Patch(facecolor="0.6", edgecolor="black",
-                         label="held value (opacity, black line = confidence)"), *handles]
+        handles = [
+            Patch(facecolor="none", edgecolor="red", hatch="////", label=notes[0]),
+            Patch(facecolor="none", edgecolor="grey", linestyle=":", label=notes[1]),
+            Patch(
+                facecolor="0.6",
+                edgecolor="black",
+                label="held value (opacity, black line = confidence)",
+            ),
+            *handles,
+        ]
     if handles:
-        fig.legend(handles=handles, loc="outside lower center", ncols=min(3, len(handles)),
-                   fontsize="small")
+        fig.legend(
+            handles=handles,
+            loc="outside lower center",
+            ncols=min(3, len(handles)),
+            fontsize="small",
+        )
     return fig
 
 
@@ -107,8 +132,9 @@ def _time_axis(ax: Any, timeline: Timeline) -> None:
     if not axis.elapsed:
         from matplotlib.ticker import FuncFormatter
 
-        ax.xaxis.set_major_formatter(FuncFormatter(
-            lambda x, _pos: axis.show(axis.origin_ns + round(x * NS_PER_S))))
+        ax.xaxis.set_major_formatter(
+            FuncFormatter(lambda x, _pos: axis.show(axis.origin_ns + round(x * NS_PER_S)))
+        )
         ax.tick_params(axis="x", labelrotation=15)
 
 
@@ -122,10 +148,15 @@ def _draw_numbers(ax: Any, lane: Lane, timeline: Timeline) -> None:
         xs, ys = signal.steps(timeline.since_ns, timeline.until_ns, timeline.axis)
         reference = signal.agent == timeline.reference
         style = {"linewidth": 2.4} if reference else {"linewidth": 1.4, "linestyle": "--"}
-        ax.plot(xs, ys, drawstyle="steps-post", label=mpl_text(f"{signal.agent} (reference)"
-                                                                if reference else signal.agent),
-                color=colours(timeline.agents.index(signal.agent) % 8),
-                gid=number_gid(lane, signal.agent), **style)
+        ax.plot(
+            xs,
+            ys,
+            drawstyle="steps-post",
+            label=mpl_text(f"{signal.agent} (reference)" if reference else signal.agent),
+            color=colours(timeline.agents.index(signal.agent) % 8),
+            gid=number_gid(lane, signal.agent),
+            **style,
+        )
     label = mpl_text(lane.number_label)
     ax.set_ylabel(label.replace(" (", "\n(") if len(label) > 18 else label, fontsize="small")
     ax.set_title(mpl_text(f"{lane.label}: number"), loc="left", fontsize="medium")
@@ -145,14 +176,25 @@ def _draw_lane(ax: Any, lane: Lane, timeline: Timeline, span: float) -> None:
                 continue
             x0, width = x(change.t_ns), (end - change.t_ns) / NS_PER_S
             conf = 1.0 if change.confidence is None else change.confidence
-            ax.broken_barh([(x0, width)], (row - BAR / 2, BAR),
-                           facecolors=colours((change.level - 1) % 10),
-                           alpha=0.3 + 0.7 * conf, edgecolor="none")
+            ax.broken_barh(
+                [(x0, width)],
+                (row - BAR / 2, BAR),
+                facecolors=colours((change.level - 1) % 10),
+                alpha=0.3 + 0.7 * conf,
+                edgecolor="none",
+            )
             y = row - BAR / 2 + BAR * conf
             ax.plot([x0, x0 + width], [y, y], color="black", linewidth=0.8)
             if width >= _MIN_LABEL_FRACTION * span:
-                ax.text(x0 + width / 2, row, mpl_text(f"{change.value} ({conf:.2g})"), ha="center",
-                        va="center", fontsize="small", clip_on=True)
+                ax.text(
+                    x0 + width / 2,
+                    row,
+                    mpl_text(f"{change.value} ({conf:.2g})"),
+                    ha="center",
+                    va="center",
+                    fontsize="small",
+                    clip_on=True,
+                )
     agents = [s.agent for s in lane.series]
     for div in timeline.divergences:
         if div.lane != lane.label:
@@ -164,8 +206,10 @@ def _draw_lane(ax: Any, lane: Lane, timeline: Timeline, span: float) -> None:
         else:
             style = {"facecolors": "none", "edgecolor": "grey", "linestyle": ":"}
         ax.broken_barh([(x0, width)], (row - BAR / 2 - 0.08, BAR + 0.16), **style)
-    ax.set_yticks(range(len(agents)), [mpl_text(f"{a} (reference)" if a == timeline.reference
-                                                else a) for a in agents])
+    ax.set_yticks(
+        range(len(agents)),
+        [mpl_text(f"{a} (reference)" if a == timeline.reference else a) for a in agents],
+    )
     ax.set_ylim(len(agents) - 0.5, -0.5)
     ax.set_title(mpl_text(lane.label), loc="left", fontsize="medium", fontweight="bold")
     ax.grid(axis="x", alpha=0.3)

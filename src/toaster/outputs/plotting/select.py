@@ -47,19 +47,29 @@ def ranked(timeline: Timeline, lanes: list[Lane] | None = None) -> list[Lane]:
     false = {d.lane for d in timeline.divergences if d.kind == FALSE_BELIEF}
 
     def key(lane: Lane) -> tuple[bool, bool, int, int, str]:
-        held_by_reference = any(c.value is not None for s in lane.series
-                                if s.agent == timeline.reference for c in s.changes)
+        held_by_reference = any(
+            c.value is not None
+            for s in lane.series
+            if s.agent == timeline.reference
+            for c in s.changes
+        )
         changes = sum(len(s.changes) - 1 for s in lane.series)
         changes += sum(len(sig.points) - 1 for sig in lane.signals)
         starts = [c.t_ns for s in lane.series for c in s.changes if c.value is not None]
-        return (lane.label not in false, not held_by_reference, -changes,
-                min(starts, default=timeline.until_ns), lane.label)
+        return (
+            lane.label not in false,
+            not held_by_reference,
+            -changes,
+            min(starts, default=timeline.until_ns),
+            lane.label,
+        )
 
     return sorted(timeline.lanes if lanes is None else lanes, key=key)
 
 
-def select_facts(timeline: Timeline, max_facts: int | None = MAX_FACTS, *,
-                 numbers_only: bool = False) -> Selection:
+def select_facts(
+    timeline: Timeline, max_facts: int | None = MAX_FACTS, *, numbers_only: bool = False
+) -> Selection:
     """Keep the ``max_facts`` most relevant facts of ``timeline`` (all with 0 or None);
     with ``numbers_only``, among the facts that carry numbers."""
     cap = check_max_facts(max_facts)
@@ -71,5 +81,4 @@ def select_facts(timeline: Timeline, max_facts: int | None = MAX_FACTS, *,
     lanes = [lane for lane in timeline.lanes if id(lane) in kept]
     labels = {lane.label for lane in lanes}
     divergences = [d for d in timeline.divergences if d.lane in labels]
-    return Selection(replace(timeline, lanes=lanes, divergences=divergences), total,
-                     total - cap)
+    return Selection(replace(timeline, lanes=lanes, divergences=divergences), total, total - cap)

@@ -33,9 +33,16 @@ NUMBERS = ("both", "only", "off")
 
 #: Units of ``value_num`` by property or (property, sub_property) (see docs/producers.md).
 UNITS: dict[str | tuple[str, str], str] = {
-    "Distance": "m", "IsMoving": "m/s", ("IsMovingToward", "direction"): "rad",
-    ("IsMovingToward", "distance"): "m", "IsLookingToward": "rad", "IsLookingAt": "rad",
-    "IsFacing": "rad", "IsNextTo": "m", "IsReachableBy": "m", "CanReach": "m",
+    "Distance": "m",
+    "IsMoving": "m/s",
+    ("IsMovingToward", "direction"): "rad",
+    ("IsMovingToward", "distance"): "m",
+    "IsLookingToward": "rad",
+    "IsLookingAt": "rad",
+    "IsFacing": "rad",
+    "IsNextTo": "m",
+    "IsReachableBy": "m",
+    "CanReach": "m",
 }
 
 
@@ -91,8 +98,9 @@ class Signal(NamedTuple):
         """The point in force at ``t_ns`` (the first one before the window start)."""
         return _in_force(self.points, t_ns)
 
-    def steps(self, since_ns: int, until_ns: int, axis: TimeFrame | None = None
-              ) -> tuple[list[float], list[float]]:
+    def steps(
+        self, since_ns: int, until_ns: int, axis: TimeFrame | None = None
+    ) -> tuple[list[float], list[float]]:
         """x (seconds since the start of ``axis``, default ``since_ns``) and y (NaN where
         nothing is held) of a post-step line: one entry per point plus one closing entry at
         ``until_ns``."""
@@ -138,8 +146,11 @@ class Lane:
     @property
     def number_label(self) -> str:
         """The y-axis label of the numbers: ``Distance (m)``, ``IsMovingToward/direction (rad)``."""
-        prop = (f"{self.key.property}/{self.key.sub_property}" if self.key.sub_property
-                else self.key.property)
+        prop = (
+            f"{self.key.property}/{self.key.sub_property}"
+            if self.key.sub_property
+            else self.key.property
+        )
         unit = self.unit
         return f"{prop} ({unit})" if unit else prop
 
@@ -193,8 +204,10 @@ def panels(timeline: Timeline, numbers: str = "both") -> list[tuple[str, Lane]]:
         if numbers != "off" and lane.signals:
             out.append(("numbers", lane))
     if not out:
-        msg = ("no numbers among the matching facts (none has a value_num): plot them "
-               "without --numbers only")
+        msg = (
+            "no numbers among the matching facts (none has a value_num): plot them "
+            "without --numbers only"
+        )
         raise InvalidInputError(msg)
     return out
 
@@ -209,8 +222,10 @@ def holder_note(agent: str) -> str | None:
 def legend_notes(timeline: Timeline) -> list[str]:
     """The words of a plot's legend: what the hatching, the dots and each ``A>B`` mean."""
     ref = timeline.reference
-    notes = [f"false belief: holds a value {ref} (reference) does not",
-             f"unaware: holds nothing while {ref} holds a value"]
+    notes = [
+        f"false belief: holds a value {ref} (reference) does not",
+        f"unaware: holds nothing while {ref} holds a value",
+    ]
     return notes + [f"{a} = {holder_note(a)}" for a in timeline.agents if holder_note(a)]
 
 
@@ -245,8 +260,10 @@ def check_agents(db: Any, agents: str | Sequence[str] | None) -> tuple[list[str]
     nested = [h for h in holders(db) if h not in names]
     for name in wanted:
         if name not in names and name not in nested:
-            msg = (f"unknown agent {shown(name)}: known agents are "
-                   f"{listed(names, none='none registered')}")
+            msg = (
+                f"unknown agent {shown(name)}: known agents are "
+                f"{listed(names, none='none registered')}"
+            )
             raise UnknownAgentError(msg)
     if not wanted:
         msg = "no agent to plot: register agents first (toaster set-info entity --kind robot)"
@@ -255,12 +272,19 @@ def check_agents(db: Any, agents: str | Sequence[str] | None) -> tuple[list[str]
     return wanted, (selves[0] if selves else wanted[0])
 
 
-def build_timeline(db: Any, *, subject: str | Sequence[str] | None = None,
-                   property: str | Sequence[str] | None = None,
-                   target: str | Sequence[str] | None = None,
-                   agents: str | Sequence[str] | None = None, since: int | None = None,
-                   until: int | None = None, reference: str | None = None,
-                   numbers: bool = True, frame: TimeFrame | None = None) -> Timeline:
+def build_timeline(
+    db: Any,
+    *,
+    subject: str | Sequence[str] | None = None,
+    property: str | Sequence[str] | None = None,
+    target: str | Sequence[str] | None = None,
+    agents: str | Sequence[str] | None = None,
+    since: int | None = None,
+    until: int | None = None,
+    reference: str | None = None,
+    numbers: bool = True,
+    frame: TimeFrame | None = None,
+) -> Timeline:
     """Read the matching intervals and turn them into a :class:`Timeline`.
 
     ``since``/``until`` default to the first and last time found in the matching intervals.
@@ -279,24 +303,44 @@ def build_timeline(db: Any, *, subject: str | Sequence[str] | None = None,
         msg = f"reference agent {reference!r} is not plotted: add it to the agents ({names})"
         raise InvalidInputError(msg)
     if since is not None and until is not None and until <= since:
-        msg = (f"empty time window: until {format_ns(until)} is not after since "
-               f"{format_ns(since)}; give a later --until")
+        msg = (
+            f"empty time window: until {format_ns(until)} is not after since "
+            f"{format_ns(since)}; give a later --until"
+        )
         raise InvalidInputError(msg)
-    rows = history(db, names, since=since, until=until, subject=_as_list(subject),
-                   property=_as_list(property), target=_as_list(target))
+    rows = history(
+        db,
+        names,
+        since=since,
+        until=until,
+        subject=_as_list(subject),
+        property=_as_list(property),
+        target=_as_list(target),
+    )
     if not rows:
-        wanted = ", ".join(f"{k}={v!r}" for k, v in (("subject", subject), ("property", property),
-                                                       ("target", target)) if v is not None)
-        msg = (f"no fact matches {wanted or 'the filters'} for {', '.join(names)} in the window;"
-               " check the names with toaster get-info facts")
+        wanted = ", ".join(
+            f"{k}={v!r}"
+            for k, v in (("subject", subject), ("property", property), ("target", target))
+            if v is not None
+        )
+        msg = (
+            f"no fact matches {wanted or 'the filters'} for {', '.join(names)} in the window;"
+            " check the names with toaster get-info facts"
+        )
         raise InvalidInputError(msg)
     since, until = _window(rows, since, until)
-    timeline = timeline_from_rows(rows, since, until, names, reference or default_ref,
-                                  show_all=agents is not None)
+    timeline = timeline_from_rows(
+        rows, since, until, names, reference or default_ref, show_all=agents is not None
+    )
     timeline.frame = frame if frame is not None else db.time_frame()
     if numbers:
-        add_signals(db, timeline, subject=_as_list(subject), property=_as_list(property),
-                    target=_as_list(target))
+        add_signals(
+            db,
+            timeline,
+            subject=_as_list(subject),
+            property=_as_list(property),
+            target=_as_list(target),
+        )
     return timeline
 
 
@@ -308,8 +352,9 @@ def add_signals(db: Any, timeline: Timeline, **filters: Any) -> None:
 
     def read(**more: Any) -> dict[tuple[str, ...], list[Any]]:
         found: dict[tuple[str, ...], list[Any]] = {}
-        for point in signal(db, timeline.agents, since=timeline.since_ns,
-                            until=timeline.until_ns, **filters, **more):
+        for point in signal(
+            db, timeline.agents, since=timeline.since_ns, until=timeline.until_ns, **filters, **more
+        ):
             found.setdefault(tuple(point[:5]), []).append(point)
         return found
 
@@ -323,8 +368,9 @@ def add_signals(db: Any, timeline: Timeline, **filters: Any) -> None:
     for lane in timeline.lanes:
         points = everything
         if counts[short(lane.key)] > 1:  # keys that differ by their owners only: one query each
-            points = read(subject_owner=lane.key.subject_owner_id,
-                          target_owner=lane.key.target_owner_id)
+            points = read(
+                subject_owner=lane.key.subject_owner_id, target_owner=lane.key.target_owner_id
+            )
         for series in lane.series:
             held = points.get((series.agent, *short(lane.key)), [])
             clipped = signal_points(held, timeline.since_ns, timeline.until_ns)
@@ -372,9 +418,15 @@ def _window(rows: Sequence[FactRow], since: int | None, until: int | None) -> tu
     return lo, hi
 
 
-def timeline_from_rows(rows: Iterable[FactRow], since: int, until: int,
-                       agents: Sequence[str], reference: str, *,
-                       show_all: bool = False) -> Timeline:
+def timeline_from_rows(
+    rows: Iterable[FactRow],
+    since: int,
+    until: int,
+    agents: Sequence[str],
+    reference: str,
+    *,
+    show_all: bool = False,
+) -> Timeline:
     """Build the timeline of ``rows`` (intervals of any agents) clipped to ``[since, until)``.
 
     A fact's lane shows the reference agent and the agents that held a fact with the same
@@ -384,8 +436,14 @@ def timeline_from_rows(rows: Iterable[FactRow], since: int, until: int,
     grouped: dict[FactKey, dict[str, list[FactRow]]] = {}
     askers: dict[tuple[str, str], set[str]] = {}  # (subject, property) -> agents holding any
     for row in rows:
-        key = FactKey(row.subject_id, row.subject_owner_id, row.property, row.sub_property,
-                      row.target_id, row.target_owner_id)
+        key = FactKey(
+            row.subject_id,
+            row.subject_owner_id,
+            row.property,
+            row.sub_property,
+            row.target_id,
+            row.target_owner_id,
+        )
         grouped.setdefault(key, {}).setdefault(row.agent_id, []).append(row)
         askers.setdefault((row.subject_id, row.property), set()).add(row.agent_id)
     lanes: list[Lane] = []
@@ -396,8 +454,9 @@ def timeline_from_rows(rows: Iterable[FactRow], since: int, until: int,
         concerned = askers[(key.subject_id, key.property)] | {reference}
         for agent in agents:
             if show_all or agent in concerned:
-                lane.series.append(Series(agent, _changes(by_agent.get(agent, []), values,
-                                                          since, until)))
+                lane.series.append(
+                    Series(agent, _changes(by_agent.get(agent, []), values, since, until))
+                )
         lanes.append(lane)
     divergences = [d for lane in lanes for d in _divergences(lane, reference, until)]
     return Timeline(since, until, list(agents), reference, lanes, divergences)
@@ -410,8 +469,15 @@ def _changes(rows: list[FactRow], values: list[str], since: int, until: int) -> 
         end = until if row.valid_to_ns is None else min(row.valid_to_ns, until)
         if end <= start:
             continue
-        points.append(Change(start, row.value_text, row.value_num, row.confidence,
-                             values.index(row.value_text) + 1))
+        points.append(
+            Change(
+                start,
+                row.value_text,
+                row.value_num,
+                row.confidence,
+                values.index(row.value_text) + 1,
+            )
+        )
         if end < until:
             points.append(Change(end, None, None, None, 0))
     out: list[Change] = []
@@ -437,10 +503,15 @@ def _divergences(lane: Lane, reference: str, until: int) -> list[Divergence]:
                 continue
             kind = UNAWARE if mine is None else FALSE_BELIEF
             last = out[-1] if out else None
-            if (last and last.agent == series.agent and last.end_ns == start
-                    and (last.value, last.reference_value, last.kind) == (mine, theirs, kind)):
+            if (
+                last
+                and last.agent == series.agent
+                and last.end_ns == start
+                and (last.value, last.reference_value, last.kind) == (mine, theirs, kind)
+            ):
                 out[-1] = last._replace(end_ns=end)
             else:
-                out.append(Divergence(lane.label, series.agent, reference, start, end, mine,
-                                      theirs, kind))
+                out.append(
+                    Divergence(lane.label, series.agent, reference, start, end, mine, theirs, kind)
+                )
     return out

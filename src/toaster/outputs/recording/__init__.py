@@ -63,8 +63,15 @@ from toaster.outputs.recording.input import (  # noqa: F401  (the input types, r
 from toaster.outputs.recording.msgs import EntityPose, FactTimeline, Messages, Scene, toaster_types
 from toaster.quoting import ros_name
 
-__all__ = ["EntityPose", "Frame", "Recorder", "RecordingResult", "event_line", "read_frames",
-           "record"]
+__all__ = [
+    "EntityPose",
+    "Frame",
+    "Recorder",
+    "RecordingResult",
+    "event_line",
+    "read_frames",
+    "record",
+]
 
 ENTITIES_TOPIC, AREAS_TOPIC, FACTS_TOPIC = "/toaster/entities", "/toaster/areas", "/toaster/facts"
 TF_TOPIC, AREA_LIST_TOPIC = "/tf", "/area_manager/areaList"
@@ -104,8 +111,14 @@ class Recorder:
     the only spelling of ROS 1 bags); ``toaster run`` reads both.
     """
 
-    def __init__(self, path: str | Path, *, frame_id: str = "map", distro: str | None = None,
-                 toaster_names: str | None = None) -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        frame_id: str = "map",
+        distro: str | None = None,
+        toaster_names: str | None = None,
+    ) -> None:
         fmt = bag_format(path, distro)
         types = toaster_types(toaster_spelling(fmt, toaster_names))
         self.bag = BagWriter(path, fmt, types | beliefs_types())
@@ -123,10 +136,14 @@ class Recorder:
 
     def __enter__(self) -> Recorder:
         self.bag.open()
-        for topic, msgtype in ((TF_TOPIC, TF_MESSAGE), (ENTITIES_TOPIC, MARKER_ARRAY),
-                               (AREAS_TOPIC, MARKER_ARRAY), (FACTS_TOPIC, self.bag.log_type),
-                               *((LIST_TOPICS[k], LIST_TYPES[k]) for k in LIST_TOPICS),
-                               (AREA_LIST_TOPIC, AREA_LIST)):
+        for topic, msgtype in (
+            (TF_TOPIC, TF_MESSAGE),
+            (ENTITIES_TOPIC, MARKER_ARRAY),
+            (AREAS_TOPIC, MARKER_ARRAY),
+            (FACTS_TOPIC, self.bag.log_type),
+            *((LIST_TOPICS[k], LIST_TYPES[k]) for k in LIST_TOPICS),
+            (AREA_LIST_TOPIC, AREA_LIST),
+        ):
             self.bag.connect(topic, msgtype)
         return self
 
@@ -139,8 +156,9 @@ class Recorder:
         return self.bag.file
 
     # -- writing --------------------------------------------------------------------------
-    def write_frame(self, t_ns: int, entities: Iterable[Any],
-                    areas: Iterable[Any] | None = None) -> None:
+    def write_frame(
+        self, t_ns: int, entities: Iterable[Any], areas: Iterable[Any] | None = None
+    ) -> None:
         """Write /tf, pdg's lists and the markers at ``t_ns``; with ``areas``, replace the
         areas (redrawn whenever the owner of one moved, or who is inside changed)."""
         poses = entity_poses(entities)
@@ -168,8 +186,10 @@ class Recorder:
         drawn = self.scene.area_markers(self.areas, occupied, t_ns)
         self._put(AREAS_TOPIC, t_ns, MARKER_ARRAY, {"markers": drawn})
         if self._areas_changed:
-            listed = [area_fields(area_id, spec, k, self._inside.get(area_id, ()))
-                      for k, (area_id, spec) in enumerate(sorted(self.areas.items()))]
+            listed = [
+                area_fields(area_id, spec, k, self._inside.get(area_id, ()))
+                for k, (area_id, spec) in enumerate(sorted(self.areas.items()))
+            ]
             self._put(AREA_LIST_TOPIC, t_ns, AREA_LIST, {"areaList": listed})
         self._areas_changed = False
 
@@ -188,8 +208,9 @@ class Recorder:
         if source == "area_manager":
             self._note_inside(held)
 
-    def write_beliefs(self, t_ns: int, holder: str, facts: Iterable[Fact | FactRow], *,
-                      is_self: bool = False) -> None:
+    def write_beliefs(
+        self, t_ns: int, holder: str, facts: Iterable[Fact | FactRow], *, is_self: bool = False
+    ) -> None:
         """Write everything ``holder`` (an agent, or a nested holder ``A>B``) believes at
         ``t_ns`` on its channel ``/toaster/beliefs/<holder>``."""
         topic = self.belief_topics.get(holder)
@@ -197,9 +218,18 @@ class Recorder:
             topic = self.belief_topics[holder] = holder_topic(holder)
             self.bag.connect(topic, BELIEFS_TYPE)
         _, items = _fact_items(facts, t_ns)
-        self._put(topic, t_ns, BELIEFS_TYPE, {
-            "header": {"stamp": t_ns, "frame_id": self.frame_id}, "holder": holder,
-            "chain": chain(holder), "is_self": is_self, "facts": items})
+        self._put(
+            topic,
+            t_ns,
+            BELIEFS_TYPE,
+            {
+                "header": {"stamp": t_ns, "frame_id": self.frame_id},
+                "holder": holder,
+                "chain": chain(holder),
+                "is_self": is_self,
+                "facts": items,
+            },
+        )
         self.beliefs += 1
 
     def _note_inside(self, facts: list[Fact]) -> None:
@@ -223,16 +253,19 @@ class Recorder:
         self.bag.write(topic, t_ns, self._messages.build(msgtype, fields), msgtype)
 
 
-def _fact_items(facts: Iterable[Fact | FactRow], t_ns: int
-                ) -> tuple[list[Fact], list[dict[str, Any]]]:
+def _fact_items(
+    facts: Iterable[Fact | FactRow], t_ns: int
+) -> tuple[list[Fact], list[dict[str, Any]]]:
     """The facts and their toaster_msgs/Fact fields at ``t_ns`` (a FactRow's start as
     ``timeStart``)."""
     from toaster.world.rosmsg import fact_fields
 
     rows = list(facts)
     held = [row if isinstance(row, Fact) else row.to_fact() for row in rows]
-    items = [fact_fields(fact, t_ns) | {"timeStart": getattr(row, "valid_from_ns", t_ns)}
-             for fact, row in zip(held, rows, strict=True)]
+    items = [
+        fact_fields(fact, t_ns) | {"timeStart": getattr(row, "valid_from_ns", t_ns)}
+        for fact, row in zip(held, rows, strict=True)
+    ]
     return held, items
 
 
@@ -250,10 +283,18 @@ def event_line(event: EventRow) -> str:
 
 
 # -- whole recordings ---------------------------------------------------------------------------
-def record(path: str | Path, frames: Iterable[Frame | Sequence[Any]], *, db: Any = None,
-           agent: str | Sequence[str] | None = None, since: int | None = None,
-           until: int | None = None, frame_id: str = "map", distro: str | None = None,
-           toaster_names: str | None = None) -> RecordingResult:
+def record(
+    path: str | Path,
+    frames: Iterable[Frame | Sequence[Any]],
+    *,
+    db: Any = None,
+    agent: str | Sequence[str] | None = None,
+    since: int | None = None,
+    until: int | None = None,
+    frame_id: str = "map",
+    distro: str | None = None,
+    toaster_names: str | None = None,
+) -> RecordingResult:
     """Record ``frames`` (in time order) and, with ``db``, the self agent's fact lists, the
     beliefs and the events of ``agent`` (default: every agent and holder) between ``since``
     and ``until`` (default: the first and last frame). ``distro`` and ``toaster_names`` as
@@ -275,11 +316,16 @@ def record(path: str | Path, frames: Iterable[Frame | Sequence[Any]], *, db: Any
         beliefs = BeliefTimeline.from_db(db, agent, lo, hi)
     # snapshots at every frame and every change in the window (a change between frames too)
     changes = {*timeline.boundaries(), *beliefs.boundaries()}
-    times = sorted({*(f.t_ns for f in frame_list),
-                    *(t for t in changes if (lo is None or t >= lo) and (hi is None or t <= hi))})
+    times = sorted(
+        {
+            *(f.t_ns for f in frame_list),
+            *(t for t in changes if (lo is None or t >= lo) and (hi is None or t <= hi)),
+        }
+    )
     with Recorder(path, frame_id=frame_id, distro=distro, toaster_names=toaster_names) as rec:
-        for kind, item in _merged(frame_list, events, timeline.snapshots(times),
-                                  beliefs.snapshots(times)):
+        for kind, item in _merged(
+            frame_list, events, timeline.snapshots(times), beliefs.snapshots(times)
+        ):
             if kind == "facts":
                 rec.write_fact_list(*item)
             elif kind == "beliefs":
@@ -288,17 +334,23 @@ def record(path: str | Path, frames: Iterable[Frame | Sequence[Any]], *, db: Any
                 rec.write_frame(item.t_ns, item.entities, item.areas)
             else:
                 rec.write_event(item)
-    return RecordingResult(rec.path, rec.mcap_path, rec.frames, rec.facts, rec.fact_lists,
-                           rec.beliefs)
+    return RecordingResult(
+        rec.path, rec.mcap_path, rec.frames, rec.facts, rec.fact_lists, rec.beliefs
+    )
 
 
-def _merged(frames: list[Frame], events: list[EventRow],
-            snapshots: Iterable[tuple[int, str, list[Any]]],
-            beliefs: Iterable[tuple[int, str, list[Any]]]) -> Iterator[tuple[str, Any]]:
+def _merged(
+    frames: list[Frame],
+    events: list[EventRow],
+    snapshots: Iterable[tuple[int, str, list[Any]]],
+    beliefs: Iterable[tuple[int, str, list[Any]]],
+) -> Iterator[tuple[str, Any]]:
     """Fact lists, beliefs, frames and events in time order (in that order at one time)."""
-    keyed = [((s[0], 0, k, "facts", s) for k, s in enumerate(snapshots)),
-             ((b[0], 1, k, "beliefs", b) for k, b in enumerate(beliefs)),
-             ((f.t_ns, 2, k, "frame", f) for k, f in enumerate(frames)),
-             ((e.stamp_ns, 3, k, "event", e) for k, e in enumerate(events))]
+    keyed = [
+        ((s[0], 0, k, "facts", s) for k, s in enumerate(snapshots)),
+        ((b[0], 1, k, "beliefs", b) for k, b in enumerate(beliefs)),
+        ((f.t_ns, 2, k, "frame", f) for k, f in enumerate(frames)),
+        ((e.stamp_ns, 3, k, "event", e) for k, e in enumerate(events)),
+    ]
     for *_, kind, item in heapq.merge(*keyed):
         yield kind, item

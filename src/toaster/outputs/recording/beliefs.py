@@ -66,8 +66,9 @@ class BeliefTimeline:
         self.timeline = FactTimeline(rows, key="agent_id", groups=sorted(holders))
 
     @classmethod
-    def from_db(cls, db: Any, agent: str | Sequence[str] | None, since: int | None,
-                until: int | None) -> BeliefTimeline:
+    def from_db(
+        cls, db: Any, agent: str | Sequence[str] | None, since: int | None, until: int | None
+    ) -> BeliefTimeline:
         """The intervals of ``agent`` (ids, exact; default every holder) that overlap the
         window, followed periods included (as ``fact_history`` shows them)."""
         from toaster import queries
@@ -77,8 +78,10 @@ class BeliefTimeline:
         rows = queries.history(db, wanted, since=since, until=until)
         for name in wanted or ():
             if name not in agents and not queries.history(db, name, limit=1):
-                msg = (f"unknown agent {name!r}: give an agent (toaster get-info AGENT) or a "
-                       "nested holder with beliefs (ANNE>SALLY)")
+                msg = (
+                    f"unknown agent {name!r}: give an agent (toaster get-info AGENT) or a "
+                    "nested holder with beliefs (ANNE>SALLY)"
+                )
                 raise InvalidInputError(msg)
         names = wanted if wanted is not None else [*agents, *(r.agent_id for r in rows)]
         return cls({name: agents.get(name, False) for name in names}, rows)

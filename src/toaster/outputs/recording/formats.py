@@ -56,8 +56,10 @@ def bag_format(path: str | Path, distro: str | None = None) -> BagFormat:
         msg = f"cannot record a ROS 1 bag into {str(path)!r}: name the file <name>.bag"
         raise InvalidInputError(msg)
     if is_bag and not fmt.ros1:
-        msg = (f"cannot record a {name} bag into {str(path)!r}: a .bag file is ROS 1 "
-               "(--distro noetic); a rosbag2 recording is a folder: drop the .bag suffix")
+        msg = (
+            f"cannot record a {name} bag into {str(path)!r}: a .bag file is ROS 1 "
+            "(--distro noetic); a rosbag2 recording is a folder: drop the .bag suffix"
+        )
         raise InvalidInputError(msg)
     return fmt
 
@@ -71,8 +73,10 @@ def toaster_spelling(fmt: BagFormat, names: str | None) -> str:
         msg = f"unknown toaster_msgs field names {names!r}: use ros1 or ros2"
         raise InvalidInputError(msg)
     if fmt.ros1 and names == "ros2":
-        msg = ("a ROS 1 bag holds toaster_msgs with the original's field names: drop "
-               "toaster_names='ros2' (--toaster-names ros2)")
+        msg = (
+            "a ROS 1 bag holds toaster_msgs with the original's field names: drop "
+            "toaster_names='ros2' (--toaster-names ros2)"
+        )
         raise InvalidInputError(msg)
     return names
 
@@ -82,6 +86,7 @@ def _rosbags() -> Any:
     import rosbags.rosbag1
     import rosbags.rosbag2
     import rosbags.typesys
+
     return rosbags
 
 
@@ -107,8 +112,9 @@ class BagWriter:
         else:
             # rosbags writes versions 8 and 9; below 9 its QoS profiles are Humble's strings
             plugin = rosbags.rosbag2.StoragePlugin.MCAP
-            self._writer = rosbags.rosbag2.Writer(self.path, version=min(max(fmt.version, 8), 9),
-                                                  storage_plugin=plugin)
+            self._writer = rosbags.rosbag2.Writer(
+                self.path, version=min(max(fmt.version, 8), 9), storage_plugin=plugin
+            )
             self._writer.version = fmt.version
             self._serialize = self.types.serialize_cdr
         self._conns: dict[str, Any] = {}

@@ -46,8 +46,10 @@ def entity_poses(entities: Iterable[Any]) -> list[EntityPose]:
     agents = {p.id for p in poses if p.kind in ("human", "robot")}
     for pose in poses:
         if pose.kind == "joint" and pose.owner not in agents:
-            msg = (f"invalid entity pose {pose.id!r}: joint owner {pose.owner!r} is not a human "
-                   "or robot of the same frame")
+            msg = (
+                f"invalid entity pose {pose.id!r}: joint owner {pose.owner!r} is not a human "
+                "or robot of the same frame"
+            )
             raise InvalidInputError(msg)
     return poses
 
@@ -63,11 +65,20 @@ def _entity(item: Any) -> EntityPose:
         owner = str(values.get("owner") or "")
         x, y, z, yaw = (float(values[k]) for k in ("x", "y", "z", "yaw"))
         pose = EntityPose(
-            str(values["id"]), kind if kind in KINDS else "object", x, y, z, yaw,
-            float(values.get("roll") or 0.0), float(values.get("pitch") or 0.0),
-            _size(values.get("size")), owner, str(values.get("name") or ""),
+            str(values["id"]),
+            kind if kind in KINDS else "object",
+            x,
+            y,
+            z,
+            yaw,
+            float(values.get("roll") or 0.0),
+            float(values.get("pitch") or 0.0),
+            _size(values.get("size")),
+            owner,
+            str(values.get("name") or ""),
             str(values.get("held_by") or ""),
-            None if values.get("t_ns") is None else int(values["t_ns"]))
+            None if values.get("t_ns") is None else int(values["t_ns"]),
+        )
     except (TypeError, ValueError, KeyError):
         msg = f"invalid entity pose {item!r}: {_POSE_HELP}"
         raise InvalidInputError(msg) from None
@@ -116,14 +127,15 @@ def _frame(item: Frame | Sequence[Any]) -> Frame:
     return Frame(int(frame.t_ns), entity_poses(frame.entities), areas)
 
 
-
 def check_frames(frames: Iterable[Frame | Sequence[Any]]) -> list[Frame]:
     """Checked frames in time order, or a one-line error naming the first bad one."""
     frame_list = [_frame(f) for f in frames]
     for before, after in pairwise(frame_list):
         if after.t_ns < before.t_ns:
-            msg = (f"frames out of time order: {after.t_ns} comes after {before.t_ns}; "
-                   "sort the frames by time")
+            msg = (
+                f"frames out of time order: {after.t_ns} comes after {before.t_ns}; "
+                "sort the frames by time"
+            )
             raise InvalidInputError(msg)
     return frame_list
 
@@ -141,10 +153,11 @@ def read_frames(path: str | Path) -> list[Frame]:
                 continue
             try:
                 item = json.loads(line)
-                frames.append(Frame(int(item["t_ns"]), item.get("entities", []),
-                                    item.get("areas")))
+                frames.append(Frame(int(item["t_ns"]), item.get("entities", []), item.get("areas")))
             except (ValueError, KeyError, TypeError) as exc:
-                msg = (f"{Path(path).name} line {number}: not a frame ({exc}); write "
-                       '{"t_ns": 0, "entities": [["pr2", "robot", 0, 0, 0, 0]]}')
+                msg = (
+                    f"{Path(path).name} line {number}: not a frame ({exc}); write "
+                    '{"t_ns": 0, "entities": [["pr2", "robot", 0, 0, 0, 0]]}'
+                )
                 raise FileFormatError(msg) from None
     return frames

@@ -26,8 +26,14 @@ from toaster.world.rosmsg import strip_frame
 from toaster.world.state import EntityPose, World
 
 TIME = "builtin_interfaces/msg/Time"
-_NP = {"bool": np.bool_, "float32": np.float32, "float64": np.float64, "byte": np.uint8,
-       "char": np.uint8, "octet": np.uint8}
+_NP = {
+    "bool": np.bool_,
+    "float32": np.float32,
+    "float64": np.float64,
+    "byte": np.uint8,
+    "char": np.uint8,
+    "octet": np.uint8,
+}
 
 
 # -- dicts to messages --------------------------------------------------------------------------
@@ -41,8 +47,10 @@ def toaster_types(names: str = "ros1") -> dict[str, Any]:
     types = shipped()
     if names == "ros1":
         return types
-    return {name: (consts, [(snake(field), spec) for field, spec in fields])
-            for name, (consts, fields) in types.items()}
+    return {
+        name: (consts, [(snake(field), spec) for field, spec in fields])
+        for name, (consts, fields) in types.items()
+    }
 
 
 @functools.cache
@@ -64,21 +72,26 @@ class Messages:
         """A ``msgtype`` message from ``value`` (a dict; a message passes through)."""
         if not isinstance(value, Mapping):
             if msgtype == TIME and isinstance(value, int | np.integer):
-                return self.store.types[TIME](sec=int(value) // 1_000_000_000,
-                                              nanosec=int(value) % 1_000_000_000)
+                return self.store.types[TIME](
+                    sec=int(value) // 1_000_000_000, nanosec=int(value) % 1_000_000_000
+                )
             return value
         plan = self._plan(msgtype)
         if msgtype.startswith("toaster_msgs/") and any(name not in value for name, *_ in plan):
             value = {snake(key): item for key, item in value.items()} | dict(value)
-        fields = {name: (self._convert(node, spec, value[name]) if name in value
-                         else self._zero(node, spec))
-                  for name, node, spec in plan}
+        fields = {
+            name: (
+                self._convert(node, spec, value[name]) if name in value else self._zero(node, spec)
+            )
+            for name, node, spec in plan
+        }
         return self.store.types[msgtype](**fields)
 
     def _plan(self, msgtype: str) -> list[tuple[str, str, Any]]:
         if msgtype not in self._plans:
-            self._plans[msgtype] = [(name, node.name, spec)
-                                    for name, (node, spec) in self.store.fielddefs[msgtype][1]]
+            self._plans[msgtype] = [
+                (name, node.name, spec) for name, (node, spec) in self.store.fielddefs[msgtype][1]
+            ]
         return self._plans[msgtype]
 
     def _convert(self, node: str, spec: Any, value: Any) -> Any:
@@ -143,15 +156,19 @@ class Scene:
                 world.held_by[world.index[pose.id]] = world.index[pose.held_by]
 
     def _row(self, pose: EntityPose) -> int:
-        return self.world.add_entity(pose.id, pose.kind, owner_id=pose.owner,
-                                     name=pose.name or pose.id)
+        return self.world.add_entity(
+            pose.id, pose.kind, owner_id=pose.owner, name=pose.name or pose.id
+        )
 
     def poses_of(self, ids: Iterable[str]) -> dict[str, tuple[float, ...]]:
         """(x, y, z, yaw) of those of ``ids`` in the frame."""
         world = self.world
         rows = {i: world.index[i] for i in ids if i in world.index}
-        return {i: (*world.pos[r].tolist(), float(world.rpy[r, 2]))
-                for i, r in rows.items() if world.active[r]}
+        return {
+            i: (*world.pos[r].tolist(), float(world.rpy[r, 2]))
+            for i, r in rows.items()
+            if world.active[r]
+        }
 
     def _header(self, item: dict[str, Any]) -> dict[str, Any]:
         item["header"] = {**item["header"], "frame_id": self.frame_id}
@@ -160,12 +177,19 @@ class Scene:
     def transforms(self, t_ns: int) -> dict[str, Any]:
         """tf2_msgs/TFMessage fields: every entity under the fixed frame, pdg's frame names
         without leading slashes, stamped with the frame's time."""
-        return {"transforms": [
-            {"header": {"stamp": t_ns, "frame_id": self.frame_id},
-             "child_frame_id": strip_frame(child),
-             "transform": {"translation": dict(zip("xyz", position, strict=True)),
-                           "rotation": dict(zip("xyzw", quat, strict=True))}}
-            for child, position, quat, _ in markers.transforms(self.world)]}
+        return {
+            "transforms": [
+                {
+                    "header": {"stamp": t_ns, "frame_id": self.frame_id},
+                    "child_frame_id": strip_frame(child),
+                    "transform": {
+                        "translation": dict(zip("xyz", position, strict=True)),
+                        "rotation": dict(zip("xyzw", quat, strict=True)),
+                    },
+                }
+                for child, position, quat, _ in markers.transforms(self.world)
+            ]
+        }
 
     def lists(self, t_ns: int) -> dict[str, dict[str, Any]]:
         """HumanListStamped / RobotListStamped / ObjectListStamped fields by kind."""
@@ -179,11 +203,11 @@ class Scene:
         out = [next(iter(arrays))[0]] + [m for array in arrays for m in array[1:]]
         return [self._header(m) for m in out]
 
-    def area_markers(self, areas: Mapping[str, Mapping[str, Any]], occupied: set[str],
-                     t_ns: int) -> list[dict[str, Any]]:
+    def area_markers(
+        self, areas: Mapping[str, Mapping[str, Any]], occupied: set[str], t_ns: int
+    ) -> list[dict[str, Any]]:
         """Polygons, discs and names; owner-relative areas where their owner is now."""
-        return [self._header(m) for m in markers.area_markers(self.world, areas, occupied,
-                                                               t_ns)]
+        return [self._header(m) for m in markers.area_markers(self.world, areas, occupied, t_ns)]
 
 
 # -- facts --------------------------------------------------------------------------------------
@@ -191,8 +215,9 @@ class FactTimeline:
     """Intervals grouped by a field (``source``: the self agent's producers; ``agent_id``: the
     holders), as the complete sets each group held over time."""
 
-    def __init__(self, rows: Iterable[FactRow], key: str = "source",
-                 groups: Iterable[str] = ()) -> None:
+    def __init__(
+        self, rows: Iterable[FactRow], key: str = "source", groups: Iterable[str] = ()
+    ) -> None:
         self.by_source: dict[str, list[FactRow]] = {group: [] for group in groups}
         for row in rows:
             self.by_source.setdefault(getattr(row, key), []).append(row)
@@ -205,13 +230,21 @@ class FactTimeline:
         selves = queries.agents(db, only_self=True)
         if not selves:
             return cls([])
-        return cls(queries.history(db, selves[0].id, since=since, until=until,
-                                   source=list(PRODUCERS)))
+        return cls(
+            queries.history(db, selves[0].id, since=since, until=until, source=list(PRODUCERS))
+        )
 
     def boundaries(self) -> list[int]:
         """Every time a fact started or ended."""
-        return sorted({t for rows in self.by_source.values() for r in rows
-                       for t in (r.valid_from_ns, r.valid_to_ns) if t is not None})
+        return sorted(
+            {
+                t
+                for rows in self.by_source.values()
+                for r in rows
+                for t in (r.valid_from_ns, r.valid_to_ns)
+                if t is not None
+            }
+        )
 
     def snapshots(self, times: Sequence[int]) -> Iterator[tuple[int, str, list[FactRow]]]:
         """(t, group, facts held at t) at the first time and whenever a group's facts
@@ -220,8 +253,9 @@ class FactTimeline:
         yield from heapq.merge(*streams, key=lambda item: item[0])
 
 
-def _changes(source: str, rows: list[FactRow], times: Sequence[int]
-             ) -> Iterator[tuple[int, str, list[FactRow]]]:
+def _changes(
+    source: str, rows: list[FactRow], times: Sequence[int]
+) -> Iterator[tuple[int, str, list[FactRow]]]:
     starts = sorted(range(len(rows)), key=lambda k: rows[k].valid_from_ns)
     ends: list[tuple[int, int]] = []
     active: set[int] = set()
@@ -239,6 +273,7 @@ def _changes(source: str, rows: list[FactRow], times: Sequence[int]
             active.discard(heapq.heappop(ends)[1])
         if last != (now := frozenset(active)):
             last = now
-            held = sorted((rows[k] for k in now),
-                          key=lambda r: (r.subject_id, r.property, r.target_id))
+            held = sorted(
+                (rows[k] for k in now), key=lambda r: (r.subject_id, r.property, r.target_id)
+            )
             yield t, source, held
