@@ -246,8 +246,8 @@ def _sqlite_engine(url: URL, timeout: float) -> Engine:
         if on_disk:
             cursor.execute("PRAGMA synchronous=NORMAL")
             # A producer tick dirties pages of ~10 indexes at random: a 64 MB page cache (not
-            # 2 MB) and a checkpoint every 8,000 WAL pages (not 1,000, so not every tick) took
-            # a 400-person crowd tick from 145 to 103 ms (bench_run.py, "400 at once").
+            # 2 MB) and a checkpoint every 8,000 WAL pages (not 1,000, so not every tick) make a
+            # crowd's ticks shorter (docs/producers.md, "Keeping up with a scene").
             cursor.execute("PRAGMA cache_size=-65536")
             cursor.execute("PRAGMA wal_autocheckpoint=8000")
             cursor.execute("PRAGMA temp_store=MEMORY")

@@ -1,8 +1,8 @@
 """Database maintenance on a thread of its own, beside a live writer.
 
 Maintaining between two ticks stalls the writer for as long as maintenance takes: a
-PostgreSQL VACUUM of the hot tables grows with them (0.18 s, then 0.30 s within an hour of
-30 Hz input) and SQLite's truncating checkpoint waits for readers. A :class:`Maintainer` runs
+PostgreSQL VACUUM of the hot tables grows with them (docs/live.md) and SQLite's truncating
+checkpoint waits for readers. A :class:`Maintainer` runs
 :meth:`toaster.db.dialects.Backend.maintain` with ``beside_writer=True`` on a connection of
 its own every ``every_s`` seconds: a VACUUM takes no lock that row writes wait for, and
 SQLite's passive checkpoint copies what it can without blocking the writer.

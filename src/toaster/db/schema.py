@@ -256,7 +256,7 @@ fact_samples = Table(
     Column("confidence", Float, nullable=False),
     Column("observability", Float, nullable=False),
     PrimaryKeyConstraint("fact_id", "until_ns"),
-    sqlite_with_rowid=False,  # the primary key is the table: ~40 bytes a sample
+    sqlite_with_rowid=False,  # the primary key is the table: one narrow row a sample
 )
 
 store_state = Table(

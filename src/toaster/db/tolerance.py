@@ -42,7 +42,7 @@ DEFAULTS: dict[str, Tolerance] = {
     "Distance": Tolerance(0.05, 0.05),  # metres: a quarter of the "close" band (0.2 m)
     # Speeds and approach figures come from 0.25-0.5 s windows: with 2 cm of tracker noise at
     # 30 Hz a speed has ~0.11 m/s of noise, so a tighter tolerance records the noise itself
-    # (bench_run.py, growth per hour: 0.1 m/s wrote a sample every 3 ticks per walker).
+    # (docs/store.md, "Continuous values").
     "IsMoving": Tolerance(0.25, 0.2),  # m/s; confidence = speed x 0.72 s/m
     # radians (direction: deviation, confidence = 1 - |dev|) or metres (distance: the
     # approach over the window, confidence = its share of the step): volatile pair relations

@@ -1,7 +1,8 @@
 """PostgreSQL (psycopg 3): each bulk operation is one statement over ``unnest`` arrays.
 
-Round trips cost ~100 µs here, so a tick issues a handful of statements whatever its size.
-Arrays travel in binary (``%b``): psycopg's text-array quoting costs ~1 µs per element.
+Each round trip costs a fixed latency, so a tick issues a handful of statements whatever its
+size. Arrays travel in binary (``%b``): psycopg's text-array quoting costs time per element
+(figures: docs/store.md).
 """
 
 from __future__ import annotations

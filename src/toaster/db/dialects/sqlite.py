@@ -1,7 +1,8 @@
 """SQLite: ``executemany`` for bulk writes, multi-row VALUES for look-ups.
 
 ``INDEXED BY uq_facts_open_key`` pins the partial "open interval" index when closing and
-refreshing intervals: left alone, SQLite prefers the (key, start) index and runs ~9x slower.
+refreshing intervals: left alone, SQLite prefers the (key, start) index and runs several times
+slower (docs/store.md).
 """
 
 from __future__ import annotations

@@ -2,8 +2,8 @@
 
 SQLite checks for interrupts (and calls progress handlers) only between steps of its
 virtual machine, never inside one function call: ``instr()`` of a 4 MiB text in a 2 MiB
-one ran 254 s under a 5 s deadline (its cost is the product of the lengths). So each open
-database's read-only statements run in a worker process (:func:`serve`, kept between
+one ran far past a 5 s deadline (its cost is the product of the lengths; docs/execute.md).
+So each open database's read-only statements run in a worker process (:func:`serve`, kept between
 statements) that the caller kills at the deadline (counted from when the worker says it
 is ready: its start-up, seconds on a loaded machine, has a bound of its own). It opens the
 file read-only (``mode=ro``) and runs each statement under ``PRAGMA query_only``, an
@@ -44,7 +44,7 @@ SQLITE_HEAP_LIMIT = 2**30
 #: The highest length limit setlimit() takes (SQLite lowers it to its own ceiling).
 _MAX_LENGTH = 2**31 - 1
 #: How long a new worker may take to start (its imports), apart from any statement's
-#: deadline: seconds on a loaded machine, ~40 ms on an idle one.
+#: deadline: seconds on a loaded machine (docs/execute.md).
 START_TIMEOUT_S = 60.0
 #: A batch of rows sent at once: at most this many rows, or one row past this many bytes.
 _BATCH_ROWS = 1000
@@ -145,7 +145,8 @@ _ERRORS = {"ReadOnlyError": ReadOnlyError, "ToasterError": ToasterError}
 
 class _Worker:
     """The process that runs one database's read-only statements, one at a time (starting
-    one costs ~40 ms: it is kept for the next statement, and killed at a deadline)."""
+    one takes far longer than a statement: it is kept for the next statement, and killed at a
+    deadline)."""
 
     def __init__(self, heap: int) -> None:
         root = str(Path(__file__).resolve().parents[3])
@@ -375,7 +376,7 @@ def serve() -> None:
 
 class _Reader:
     """The worker's read-only connection to the database file (kept between statements:
-    opening it reads the schema, ~3 ms), with ``query_only``, the heap limit and checked
+    opening it reads the schema), with ``query_only``, the heap limit and checked
     ``printf``/``format``; each statement runs in a transaction rolled back after it."""
 
     def __init__(self, path: str, heap: int, lock_timeout_s: float) -> None:

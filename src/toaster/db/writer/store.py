@@ -88,7 +88,7 @@ class Store(WriterBase):
         check_ns(t_ns)
         batch: FactArrays | None = None
         given: list[Fact] = []
-        if isinstance(facts, list):  # the common case first: a protocol check costs ~10 µs
+        if isinstance(facts, list):  # the common case first: a protocol check is slower
             given = facts
         elif isinstance(facts, FactArrays):
             batch = facts
