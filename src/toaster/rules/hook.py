@@ -60,9 +60,9 @@ VACUUM_SCRATCH_EVERY = 64
 @functools.cache
 def _scratch(backend: str) -> str:
     """PostgreSQL: the session's temporary scratch tables (00_temp, one round trip), kept
-    across commits. Emptying them at commit truncates every table and index, 16-37 ms a
-    commit taken while the run holds the rules' clock (the lock that serializes the runs of
-    several robots): a store's run empties them itself (99_clear) and the store vacuums
+    across commits. Emptying them at commit truncates every table and index, a cost taken
+    while the run holds the rules' clock (the lock that serializes the runs of several robots;
+    docs/beliefs.md): a store's run empties them itself (99_clear) and the store vacuums
     their dead rows after every :data:`VACUUM_SCRATCH_EVERY` runs, outside the transaction."""
     return ";\n".join(split(sqltext.render("00_temp", backend).replace(_EMPTIED_AT_COMMIT, "")))
 

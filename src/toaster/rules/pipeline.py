@@ -93,7 +93,7 @@ HOLDERS_ADDED = "EXISTS (SELECT 1 FROM belief_new_chain)"
 #: A change of who perceives what (rooms, containers, visibility, closed containers): look
 #: before and after the tick, for everything, to find what is seen again.
 PERCEPTION_CHANGED = (  # (each changed key's property looked up by its id: a join was
-    # planned as a scan of every key of the database, 85 ms per run with 100 holders)
+    # planned as a scan of every key of the database; docs/beliefs.md)
     "EXISTS (SELECT 1 FROM belief_changed b "
     "WHERE (SELECT k.property FROM fact_keys k WHERE k.id = b.key_id) IN ("
     "SELECT value FROM {{setting_list(copresence)}} "

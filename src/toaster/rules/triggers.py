@@ -13,7 +13,8 @@ of the pipeline (``20_perceive_1_before`` is 20_perceive with its constants), ``
 ``toaster_step_<unit>(p_self, p_t, p_recorded)`` that the run function calls (``PERFORM``). On
 SQLite a step's statements are inlined into the driver's block triggers where its placeholder
 ``{{unit:<name>}}`` stands, when the driver is installed (``compose``): a trigger per step on
-``belief_steps`` cost ~3 ms per run, as every insert there runs each trigger's program.
+``belief_steps`` made every run slower, as every insert there runs each trigger's program
+(docs/beliefs.md).
 
 A migration installs frozen copies (``migrations/frozen/NNNN_units.json``, the manifest: each
 unit's revision, and ``migrations/frozen/NNNN/<unit>.json``, written by :func:`freeze` for the
@@ -53,7 +54,7 @@ from toaster.rules.sqltext import AGENTS_CHANGED, UNGROUP
 #: Functions tuned as the rule's statements expect: the written join order, each statement
 #: planned with the run's values (SQLite's plans are pinned by CROSS JOIN / INDEXED BY), and no
 #: JIT: the recursive perception query's estimates (JSON settings, CTEs) passed JIT's cost
-#: thresholds, and compiling it took ~3 s for a statement that runs in milliseconds. The step
+#: thresholds, and compiling it took far longer than running it (docs/beliefs.md). The step
 #: functions need none of it: the run function's settings stay in force while it calls them.
 _PG_SETTINGS = "SET join_collapse_limit = 1 SET plan_cache_mode = force_custom_plan SET jit = off"
 _RUNS_GUARD = GUARD_MESSAGE.format(table="belief_runs")

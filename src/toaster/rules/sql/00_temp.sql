@@ -3,8 +3,8 @@
 -- never share rows; SQLite (one writer at a time) uses the schema's tables, the only ones its
 -- triggers can read. Emptied by 99_clear. For the SQL clients whose triggers create them they
 -- are also truncated at commit (ON COMMIT DELETE ROWS): temporary tables are never vacuumed,
--- so the dead rows of DELETE would pile up tick after tick in them and their indexes (a
--- 10-agent run slowed from 4.8k to 1k changes/s). A store's session creates them first,
+-- so the dead rows of DELETE would pile up tick after tick in them and their indexes, slowing
+-- every run (docs/beliefs.md). A store's session creates them first,
 -- without it, and vacuums them every few runs (toaster.beliefs.rules._scratch): truncating
 -- them at each commit cost as much as the run, while it held the rules' clock.
 {{#postgresql}}

@@ -2,7 +2,7 @@
 {{#postgresql}}
 -- A database's first rule run: the planner has no statistics of the tables the writer has just
 -- filled (a first tick registers thousands of keys), and planned the rule's joins as if they
--- held a few rows (a 5-agent first tick of 1,000 objects took minutes). Analyze them once;
+-- held a few rows (docs/beliefs.md). Analyze them once;
 -- autovacuum (or toaster db maintain) keeps them fresh afterwards.
 IF (SELECT reltuples FROM pg_class WHERE oid = CAST('fact_keys' AS regclass)) < 1 THEN
   ANALYZE fact_keys, facts, belief_follow;

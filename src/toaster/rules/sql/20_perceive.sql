@@ -110,7 +110,6 @@ WHERE cp.e IN (SELECT e FROM focus)
 GROUP BY cp.holder, cp.e
 {{#postgresql}};
 -- Temporary tables get no statistics unless asked: without them the planner probed the
--- index by entity alone in 35_freeze and filtered every holder (120 ms instead of 9 ms with 100
--- holders).
+-- index by entity alone in 35_freeze and filtered every holder (docs/beliefs.md).
 ANALYZE belief_seen
 {{/postgresql}}

@@ -13,7 +13,8 @@ WHERE hkey IS NULL
 -- the holder's key by uq_fact_keys_identity; OFFSET 0 keeps the order from being merged into
 -- the update's join): with the target table free to join first, a database with stale
 -- statistics planned a hash join of belief_in with every key of each holder, then a scan by
--- subject per pair (65 ms a run, growing with the number of robots whose keys share subjects).
+-- subject per pair (a cost growing with the number of robots whose keys share subjects;
+-- docs/beliefs.md).
 UPDATE belief_in SET hkey = r.hkey
 FROM (SELECT i.holder_id, i.self_key, hk.id AS hkey
       FROM belief_in i
