@@ -60,7 +60,7 @@ LIVE_PAGE_CACHE_KIB = 2000
 FOLLOW_GAP = 0.8
 #: ... and without input the next tick comes this many periods after the previous one (not
 #: one: a timer at the sensor's own rate beats against it, and half the poses then waited
-#: for the gap after a tick that had nothing new: p50 pose -> fact 27 ms instead of ~10)
+#: for the gap after a tick that had nothing new; docs/live.md)
 IDLE_WAIT = 1.5
 
 

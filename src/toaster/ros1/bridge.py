@@ -556,8 +556,7 @@ def start_bridge(
     root = logging.getLogger()
     handlers, level = list(root.handlers), root.level
     # rospy threads receive while the tick thread computes: hand the interpreter over every
-    # 1 ms instead of 5 so that a pose does not wait behind a tick (bench_live.py, 10 humans:
-    # p99 pose -> fact 45-55 ms before, see docs/ros1.md for after)
+    # 1 ms instead of 5 so that a pose does not wait behind a tick (docs/live.md, "Latency")
     sys.setswitchinterval(0.001)
     rospy.init_node(node_name, anonymous=False, disable_signals=True)
     for handler in handlers:  # rospy's logging set-up replaces them: keep the caller's too
