@@ -23,7 +23,7 @@ from toaster.world.tracks import read_obsmat, read_tracks
 
 DEFAULT_SELF = "toaster"
 #: Wall seconds between two database maintenances of a run (PostgreSQL VACUUM of the hot
-#: tables: these machines' server runs without autovacuum, and dead rows grew 40k a minute).
+#: tables: these machines' server runs without autovacuum, and dead rows piled up; docs/store.md).
 MAINTAIN_EVERY_S = 60.0
 
 

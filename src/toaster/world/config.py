@@ -40,12 +40,12 @@ DEFAULTS: dict[str, Any] = {
     # bound of Distance "far" (dist_far): nobody moves toward something "out" of range
     "toward_range": 8.0,
     # ... and toward a *person* only nearer than this; 0 (default): not toward people. In a
-    # crowd person-to-person pairs are ~98 % of all intervals (512 MB/h for 100 people at
-    # 30 Hz within 3.6 m, Hall's social distance, against 6 MB/h without; docs/producers.md)
+    # crowd person-to-person pairs are nearly all of the intervals, and their growth per hour
+    # is many times that of the crowd without them (docs/producers.md, "Relevance")
     "toward_range_humans": 0.0,
     # debounce: a reported state flips only after this much consistent evidence (seconds per
-    # property; docs/producers.md). 0.3 s: a standing person with 2 cm noise at 30 Hz flips
-    # IsMoving ~890 times a minute undebounced, 1-3 with it (0.2 s: 5-8); a walk start is
+    # property; docs/producers.md). 0.3 s: a standing person with 2 cm noise at 30 Hz no
+    # longer flickers between moving and not (docs/producers.md, "Debounce"); a walk start is
     # reported 0.3 s + 1 tick later; samples ≥ 0.3 s apart (ETH/UCY 2.5 Hz) are unaffected
     "min_duration": {"IsMoving": 0.3, "IsFacing": 0.3, "IsMovingToward": 0.3},
     # agent_monitor: Distance labels (upper bounds, metres)
