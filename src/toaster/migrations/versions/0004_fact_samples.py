@@ -7,7 +7,7 @@ past number within its tolerance (see docs/store.md, "Continuous values").
 PostgreSQL only (the one backend with these knobs): autovacuum visits ``facts`` after 2 % of
 its rows changed instead of 20 %: a robot closes and opens thousands of intervals an hour and
 the dead versions of closed ones would otherwise pile up. (A fill factor of 85 was measured and
-left out: the share of HOT updates stayed at ~75 % and the table grew 13 % larger.)
+left out: it made the table larger without more HOT updates; docs/store.md.)
 
 Revision ID: 0004
 Revises: 0003

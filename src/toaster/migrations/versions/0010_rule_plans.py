@@ -1,9 +1,9 @@
 """The rule's triggers with plans that do not grow with the database.
 
 - ``40_refresh`` (seeing again) found a holder's beliefs about a target by scanning all the
-  holder's keys per entity seen again (the keys' identity index matched the agent only): a
-  churn of 10 agents over 1,000 objects spent 26 % of its time there; it now reads the target
-  index, and the subject and target matches are separate branches (one OR condition before).
+  holder's keys per entity seen again (the keys' identity index matched the agent only), where
+  a churn of agents over many objects spent much of its time (docs/beliefs.md); it now reads
+  the target index, and the subject and target matches are separate branches (one OR condition before).
 - ``10_focus`` read every key of the database per run (SQLite joined the scratch table to
   ``fact_keys`` the wrong way round) and ``58_frozen`` every followed period: both now start
   from the run's own rows.
