@@ -97,7 +97,8 @@ def upsert_entities(
     conn: Connection, rows: list[tuple[str, str, str, str, bool | None]], *, t_ns: int, views: bool
 ) -> None:
     """:func:`upsert_entity` of many ``(id, kind, name, owner_id, agent)`` rows (none self)
-    in a few statements: a recording's thousands of people register in about a second."""
+    in a few statements, so that a recording's thousands of people register at once
+    (docs/producers.md, "Belief holders")."""
     check_ns(t_ns, "registration time")
     checked = [
         (entity_id, _entity_values(entity_id, kind, name, owner), agent)
