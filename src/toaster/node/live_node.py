@@ -472,7 +472,7 @@ class LiveNode:
             if hasattr(source, "on_push") and source is not self.simu:
                 source.on_push = self._woken
         # what exists now lives as long as the node: keep it out of the collector's full
-        # passes, which otherwise stalled a tick by tens of milliseconds
+        # passes, which otherwise stalled a tick (docs/live.md)
         gc.collect()
         gc.freeze()
         maintainer = None
