@@ -5,7 +5,7 @@
 -- are also truncated at commit (ON COMMIT DELETE ROWS): temporary tables are never vacuumed,
 -- so the dead rows of DELETE would pile up tick after tick in them and their indexes, slowing
 -- every run (docs/beliefs.md). A store's session creates them first,
--- without it, and vacuums them every few runs (toaster.beliefs.rules._scratch): truncating
+-- without it, and vacuums them every few runs (toaster.rules.hook): truncating
 -- them at each commit cost as much as the run, while it held the rules' clock.
 {{#postgresql}}
 CREATE TEMP TABLE IF NOT EXISTS belief_changed (key_id bigint PRIMARY KEY, refreshed boolean NOT NULL, prev_num float8, prev_conf float8, prev_obs float8, move text, actor_id text) ON COMMIT DELETE ROWS;
