@@ -36,6 +36,7 @@ from sqlalchemy import Connection, text
 
 from toaster.db import catalog
 from toaster.errors import InvalidInputError, ToasterError
+from toaster.model import check_id
 from toaster.timeutil import now_ns
 from toaster.world.config import DEFAULTS
 
@@ -111,7 +112,7 @@ def _text_list(value: object) -> bool:
 # -- monitored agents (agent_monitor services) ---------------------------------------------------
 def monitor_add(db: Any, agent_id: str, joints: Sequence[str] = ()) -> ControlState:
     """Monitor an agent (``add_agent``), optionally naming joints (``add_joint_to_agent``)."""
-    catalog.check_id(agent_id, "agent id")
+    check_id(agent_id, "agent id")
     with db.transaction(write=True) as conn:
         state = read_state(conn)
         agents = [a for a in _agents(state) if a != agent_id] + [agent_id]
@@ -181,7 +182,7 @@ def monitor_clear(db: Any, joints_only: bool = False) -> ControlState:
 # -- streams, hands ------------------------------------------------------------------------------
 def set_stream(db: Any, name: str, on: bool) -> None:
     """Switch an input stream on or off (``manage_stream``)."""
-    catalog.check_id(name, "stream name")
+    check_id(name, "stream name")
     with db.transaction(write=True) as conn:
         catalog.put_setting(conn, STREAMS, name, bool(on))
         catalog.bump_control(conn)
@@ -190,7 +191,7 @@ def set_stream(db: Any, name: str, on: bool) -> None:
 def put_in_hand(db: Any, object_id: str, agent_id: str, joint: str) -> None:
     """An object follows an agent's joint until removed (``put_in_hand``)."""
     for value, what in ((object_id, "object id"), (agent_id, "agent id"), (joint, "joint")):
-        catalog.check_id(value, what)
+        check_id(value, what)
     with db.transaction(write=True) as conn:
         catalog.put_setting(conn, IN_HAND, object_id, {"agent": agent_id, "joint": joint})
         catalog.bump_control(conn)
