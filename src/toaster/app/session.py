@@ -13,7 +13,8 @@ from typing import TYPE_CHECKING
 from toaster.db.database import Database, open_database
 
 if TYPE_CHECKING:
-    from toaster.db.writer.store import Rule, RuleFactory, Store
+    from toaster.db.writer.changes import Rule
+    from toaster.db.writer.store import RuleFactory, Store
 
 
 def belief_rule(store: Store) -> Rule:

@@ -5,13 +5,16 @@ from __future__ import annotations
 import itertools
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from toaster.cli.info import _self_agent, fact_options
 from toaster.cli.output import emit, emit_rows, listing_options, mode, say
 from toaster.db import readonly
+
+if TYPE_CHECKING:
+    from toaster.db.database import Database
 
 NAMES = ("SQL", "ARE_IN_TABLE", "EMPTY", "PRINT")
 
@@ -80,7 +83,7 @@ def execute(
 class Call:
     """One execute call: the database, its ARGUMENT, the output choice and the options."""
 
-    db: Any
+    db: Database
     argument: str | None
     fmt: str | None
     limit: int | None

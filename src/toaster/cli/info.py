@@ -4,12 +4,15 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from toaster.cli.checks import parse_time_option
 from toaster.cli.output import emit, listing_options, say
+
+if TYPE_CHECKING:
+    from toaster.db.database import Database
 
 GET_TYPES = ("FACT", "EVENT", "ONTOLOGY", "ID", "ENTITY", "AGENT", "PROPERTY")
 SET_TYPES = ("ENTITY", "FACT", "EVENT", "ONTOLOGY", "PROPERTY")
@@ -32,7 +35,7 @@ def fact_options(func: Any) -> Any:
     return func
 
 
-def _self_agent(db: Any, agent: str | None) -> str:
+def _self_agent(db: Database, agent: str | None) -> str:
     return agent or db.store().self_agent()
 
 
@@ -84,7 +87,7 @@ def get_info(
 class Ask:
     """One get-info request: the database, the options, the parsed times."""
 
-    db: Any
+    db: Database
     opts: dict[str, Any]
     limit: int | None
     at: int | None

@@ -4,14 +4,16 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager, suppress
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from sqlalchemy import Connection, Engine
 from sqlalchemy.exc import DBAPIError
 
 from toaster.db import migrate
 from toaster.db.dialects import Backend, backend_for
+from toaster.db.dialects.base import Cursor
 from toaster.db.engine import (
+    dbapi,
     default_url,
     describe,
     ensure_wal,
@@ -24,6 +26,8 @@ from toaster.db.engine import (
 from toaster.errors import DatabaseOpenError
 
 if TYPE_CHECKING:
+    from sqlalchemy.engine.interfaces import DBAPIConnection
+
     from toaster.db.writer.store import RuleFactory, Store
     from toaster.timeutil import TimeFrame
 
@@ -63,9 +67,9 @@ class Database:
                 self.raw_connection(self._conn)
         return self._conn
 
-    def raw_connection(self, conn: Connection) -> Any:
+    def raw_connection(self, conn: Connection) -> DBAPIConnection:
         """The DBAPI connection under ``conn``, with this handle's page cache bound."""
-        raw = conn.connection.dbapi_connection  # type: ignore[union-attr]
+        raw = dbapi(conn)
         if self.page_cache_kib is not None:
             self.backend.set_page_cache(raw, self.page_cache_kib)
         return raw
@@ -112,9 +116,9 @@ class Database:
                 conn.close()
         self.engine.dispose()
 
-    def cursor(self) -> Any:
+    def cursor(self) -> Cursor:
         """A raw DBAPI cursor on the shared connection (inside a transaction)."""
-        return self.connection.connection.dbapi_connection.cursor()  # type: ignore[union-attr]
+        return dbapi(self.connection).cursor()
 
     def maintain(self) -> None:
         """Reclaim what long runs leave behind, outside any transaction: PostgreSQL vacuums
@@ -123,7 +127,7 @@ class Database:
         if self.connection.in_transaction():
             msg = "maintain() runs outside a transaction: call it between ticks"
             raise RuntimeError(msg)
-        raw = self.connection.connection.dbapi_connection
+        raw = dbapi(self.connection)
         self.backend.maintain(raw)
 
     def vacuum_scratch(self) -> bool:
@@ -132,7 +136,7 @@ class Database:
         one."""
         if self.connection.in_transaction():
             return False
-        self.backend.vacuum_scratch(self.connection.connection.dbapi_connection)
+        self.backend.vacuum_scratch(dbapi(self.connection))
         return True
 
     def store(self) -> Store:

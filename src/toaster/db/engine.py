@@ -11,13 +11,19 @@ import math
 import os
 import sqlite3
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
-from sqlalchemy import URL, Engine, create_engine, event
+from sqlalchemy import URL, Connection, Engine, create_engine, event
 from sqlalchemy.engine import ExceptionContext, make_url
 from sqlalchemy.exc import ArgumentError
 
 from toaster.errors import DatabaseLockedError, DatabaseOpenError, InvalidInputError, ToasterError
 from toaster.model import check_text, shown
+
+if TYPE_CHECKING:
+    import psycopg
+    from sqlalchemy.engine.interfaces import DBAPIConnection
+    from sqlalchemy.pool import ConnectionPoolEntry
 
 DEFAULT_SQLITE_FILE = "toaster.db"
 ENV_VAR = "TOASTER_DB"
@@ -218,7 +224,7 @@ def _postgresql_engine(url: URL, timeout: float) -> Engine:
     )
 
     @event.listens_for(engine, "connect")
-    def _on_connect(dbapi_connection, _record) -> None:
+    def _on_connect(dbapi_connection: psycopg.Connection, _record: ConnectionPoolEntry) -> None:
         with dbapi_connection.cursor() as cursor:
             # The belief rules' recursive queries have huge cost estimates, which make
             # PostgreSQL JIT-compile them: seconds of compilation for milliseconds of work.
@@ -235,7 +241,7 @@ def _sqlite_engine(url: URL, timeout: float) -> Engine:
     engine = create_engine(url, connect_args={"timeout": timeout})
 
     @event.listens_for(engine, "connect")
-    def _on_connect(dbapi_connection, _record) -> None:
+    def _on_connect(dbapi_connection: sqlite3.Connection, _record: ConnectionPoolEntry) -> None:
         # Let SQLAlchemy emit BEGIN itself (the driver's implicit transactions are off).
         # Nothing here writes to the file: the journal mode (WAL) is set by the migrations
         # and by open_engine, on toaster's databases only.
@@ -254,7 +260,7 @@ def _sqlite_engine(url: URL, timeout: float) -> Engine:
         cursor.close()
 
     @event.listens_for(engine, "begin")
-    def _on_begin(conn) -> None:
+    def _on_begin(conn: Connection) -> None:
         conn.exec_driver_sql("BEGIN IMMEDIATE" if conn.info.get("write", False) else "BEGIN")
 
     return engine
@@ -371,6 +377,12 @@ def _locked(where: str, timeout_s: float, holder: str) -> DatabaseLockedError:
         f"was rolled back; retry when it is free, or wait longer with "
         f"{LOCK_TIMEOUT_VAR}=SECONDS"
     )
+
+
+def dbapi(conn: Connection) -> DBAPIConnection:
+    """The driver's connection under ``conn`` (sqlite3 or psycopg). SQLAlchemy types it
+    Optional: it is None only once ``conn`` is closed or invalidated, never while in use."""
+    return cast("DBAPIConnection", conn.connection.dbapi_connection)
 
 
 def ensure_wal(engine: Engine) -> None:

@@ -7,12 +7,12 @@ so that it does not import the handle that makes it (``Database.store()``).
 from __future__ import annotations
 
 from contextlib import AbstractContextManager
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Protocol
 
 if TYPE_CHECKING:
     from sqlalchemy import Connection
 
-    from toaster.db.dialects.base import Backend
+    from toaster.db.dialects.base import Backend, Cursor
 
 
 class Handle(Protocol):
@@ -28,7 +28,7 @@ class Handle(Protocol):
         """One transaction; nested calls join the open one. ``write`` takes the write lock
         up front (SQLite)."""
 
-    def cursor(self) -> Any:
+    def cursor(self) -> Cursor:
         """A raw DBAPI cursor on the long-lived connection (inside a transaction)."""
 
     def maintain(self) -> None:

@@ -93,7 +93,7 @@ metadata = MetaData(naming_convention=NAMING)
 RowId = BigInteger().with_variant(Integer(), "sqlite")
 
 
-def _text(name: str, **kwargs: object) -> Column:
+def _text(name: str, **kwargs: object) -> Column[str]:
     return Column(name, Text, nullable=False, server_default=text("''"), **kwargs)  # type: ignore[arg-type]
 
 

@@ -11,9 +11,11 @@ with a hash suffix on both backends, so the same name works everywhere.
 from __future__ import annotations
 
 import hashlib
-from typing import Any
 
 from sqlalchemy import Connection
+
+from toaster.db.dialects.base import Cursor
+from toaster.db.engine import dbapi
 
 MAX_IDENTIFIER_BYTES = 63
 PREFIXES = ("fact_table_", "memory_table_", "events_table_")
@@ -42,10 +44,10 @@ def quote_identifier(name: str) -> str:
     return '"' + name.replace('"', '""') + '"'
 
 
-def _ddl_cursor(conn: Connection) -> Any:
+def _ddl_cursor(conn: Connection) -> Cursor:
     # DDL goes to the driver without parameters, so that neither SQLAlchemy (':name') nor
     # psycopg ('%s') reads placeholders inside a quoted identifier.
-    return conn.connection.dbapi_connection.cursor()  # type: ignore[union-attr]
+    return dbapi(conn).cursor()
 
 
 def create_agent_views(conn: Connection, agent_id: str, num: int) -> None:

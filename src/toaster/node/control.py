@@ -30,14 +30,18 @@ import json
 import time
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import Connection, text
 
 from toaster.db import catalog
 from toaster.errors import InvalidInputError, ToasterError
+from toaster.model import check_id
 from toaster.timeutil import now_ns
 from toaster.world.config import DEFAULTS
+
+if TYPE_CHECKING:
+    from toaster.db.database import Database
 
 MONITOR, STREAMS, IN_HAND = "monitor", "streams", "in_hand"
 CLASSES = ("humans", "robots", "agents")
@@ -109,9 +113,9 @@ def _text_list(value: object) -> bool:
 
 
 # -- monitored agents (agent_monitor services) ---------------------------------------------------
-def monitor_add(db: Any, agent_id: str, joints: Sequence[str] = ()) -> ControlState:
+def monitor_add(db: Database, agent_id: str, joints: Sequence[str] = ()) -> ControlState:
     """Monitor an agent (``add_agent``), optionally naming joints (``add_joint_to_agent``)."""
-    catalog.check_id(agent_id, "agent id")
+    check_id(agent_id, "agent id")
     with db.transaction(write=True) as conn:
         state = read_state(conn)
         agents = [a for a in _agents(state) if a != agent_id] + [agent_id]
@@ -125,7 +129,7 @@ def monitor_add(db: Any, agent_id: str, joints: Sequence[str] = ()) -> ControlSt
         return read_state(conn)
 
 
-def monitor_remove(db: Any, agent_id: str, joint: str | None = None) -> ControlState:
+def monitor_remove(db: Database, agent_id: str, joint: str | None = None) -> ControlState:
     """Stop monitoring an agent (``remove_agent``) or one of its joints
     (``remove_joint_to_agent``)."""
     with db.transaction(write=True) as conn:
@@ -148,7 +152,7 @@ def monitor_remove(db: Any, agent_id: str, joint: str | None = None) -> ControlS
         return read_state(conn)
 
 
-def monitor_all(db: Any, which: str, on: bool = True) -> ControlState:
+def monitor_all(db: Database, which: str, on: bool = True) -> ControlState:
     """Monitor every human / robot / agent, now and later (``monitor_all_*``); ``on=False``
     stops monitoring that class (ids added one by one stay)."""
     if which not in CLASSES:
@@ -164,7 +168,7 @@ def monitor_all(db: Any, which: str, on: bool = True) -> ControlState:
         return read_state(conn)
 
 
-def monitor_clear(db: Any, joints_only: bool = False) -> ControlState:
+def monitor_clear(db: Database, joints_only: bool = False) -> ControlState:
     """Monitor nobody (``remove_all_agents``), or only forget joint choices
     (``remove_all_joints_to_agent``: every joint of a monitored agent again)."""
     with db.transaction(write=True) as conn:
@@ -179,24 +183,24 @@ def monitor_clear(db: Any, joints_only: bool = False) -> ControlState:
 
 
 # -- streams, hands ------------------------------------------------------------------------------
-def set_stream(db: Any, name: str, on: bool) -> None:
+def set_stream(db: Database, name: str, on: bool) -> None:
     """Switch an input stream on or off (``manage_stream``)."""
-    catalog.check_id(name, "stream name")
+    check_id(name, "stream name")
     with db.transaction(write=True) as conn:
         catalog.put_setting(conn, STREAMS, name, bool(on))
         catalog.bump_control(conn)
 
 
-def put_in_hand(db: Any, object_id: str, agent_id: str, joint: str) -> None:
+def put_in_hand(db: Database, object_id: str, agent_id: str, joint: str) -> None:
     """An object follows an agent's joint until removed (``put_in_hand``)."""
     for value, what in ((object_id, "object id"), (agent_id, "agent id"), (joint, "joint")):
-        catalog.check_id(value, what)
+        check_id(value, what)
     with db.transaction(write=True) as conn:
         catalog.put_setting(conn, IN_HAND, object_id, {"agent": agent_id, "joint": joint})
         catalog.bump_control(conn)
 
 
-def remove_from_hand(db: Any, object_id: str) -> bool:
+def remove_from_hand(db: Database, object_id: str) -> bool:
     """Release an object (``remove_from_hand``); False if it was in no hand."""
     with db.transaction(write=True) as conn:
         found = catalog.delete_setting(conn, IN_HAND, object_id) > 0
@@ -215,7 +219,7 @@ class Command:
     args: Any  # a dict when well-formed; the node refuses anything else
 
 
-def submit(db: Any, kind: str, args: Mapping[str, Any]) -> int:
+def submit(db: Database, kind: str, args: Mapping[str, Any]) -> int:
     """Queue a command or query for the node; return its id."""
     if kind not in COMMANDS + QUERIES:
         msg = f"unknown control command {kind!r}: use one of {', '.join(COMMANDS + QUERIES)}"
@@ -232,7 +236,7 @@ def submit(db: Any, kind: str, args: Mapping[str, Any]) -> int:
         return int(new_id)
 
 
-def ask(db: Any, kind: str, args: Mapping[str, Any], timeout_s: float = 2.0) -> Any:
+def ask(db: Database, kind: str, args: Mapping[str, Any], timeout_s: float = 2.0) -> Any:
     """Submit a query and wait for the node's answer; withdraw it if none came in time."""
     command_id = submit(db, kind, args)
     deadline = time.monotonic() + timeout_s

@@ -20,7 +20,7 @@ import signal
 import threading
 import time
 from collections.abc import Mapping, Sequence
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from toaster.db import catalog
 from toaster.db.maintenance import Maintainer
@@ -46,6 +46,9 @@ from toaster.world.config import make_config
 from toaster.world.drops import Drops
 from toaster.world.live import LiveSource, check_entity
 from toaster.world.state import World
+
+if TYPE_CHECKING:
+    from toaster.db.database import Database
 
 log = logging.getLogger("toaster.node")
 #: the periodic status lines (``toaster serve`` shows them at INFO)
@@ -75,7 +78,7 @@ class LiveNode:
 
     def __init__(
         self,
-        db: Any,
+        db: Database | None,
         *,
         config: Mapping[str, Any] | None = None,
         self_id: str = DEFAULT_SELF,
@@ -127,10 +130,11 @@ class LiveNode:
     # -- start-up -------------------------------------------------------------------------------
     def _load(self) -> None:
         """Register the self agent and read back what the database holds (a restart)."""
-        store = self.store
+        store, db = self.store, self.db
         assert store is not None
+        assert db is not None
         store.add_entity(self.self_id, "robot", is_self=True)
-        with self.db.transaction() as conn:
+        with db.transaction() as conn:
             rows = conn.exec_driver_sql(
                 "SELECT id, kind, name, owner_id FROM entities ORDER BY owner_id <> '', id"
             ).all()

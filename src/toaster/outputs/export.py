@@ -21,13 +21,16 @@ import csv
 import json
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from toaster.errors import InvalidInputError, UnknownAgentError
 from toaster.extras import require
 from toaster.model import EventRow, FactRow, check_list, listed, shown
 from toaster.quoting import csv_cells, csv_untext, json_line
 from toaster.timeutil import check_optional_ns, format_ns
+
+if TYPE_CHECKING:
+    from toaster.db.database import Database
 
 KINDS = ("facts", "memory", "history", "events")
 FORMATS = ("csv", "jsonl", "parquet")
@@ -74,7 +77,7 @@ def export_format(path: str | Path, format: str | None = None) -> str:
 
 
 def select_rows(
-    db: Any,
+    db: Database,
     kind: str,
     *,
     agent: str | Sequence[str] | None = None,
@@ -111,7 +114,7 @@ def select_rows(
     return read[kind](db, agent, since=since, until=until, **filters)
 
 
-def _check_agents(db: Any, agent: str | Sequence[str] | None) -> None:
+def _check_agents(db: Database, agent: str | Sequence[str] | None) -> None:
     if agent is None:
         return
     from toaster.queries import agents
@@ -124,7 +127,7 @@ def _check_agents(db: Any, agent: str | Sequence[str] | None) -> None:
 
 
 def export(
-    db: Any, kind: str, output: str | Path, *, format: str | None = None, **filters: Any
+    db: Database, kind: str, output: str | Path, *, format: str | None = None, **filters: Any
 ) -> ExportResult:
     """Write the rows of ``kind`` (facts, memory, history, events) matching ``filters``.
 

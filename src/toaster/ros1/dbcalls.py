@@ -10,7 +10,7 @@ import json
 import time
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import text
 
@@ -21,16 +21,19 @@ from toaster.model import Entity, EventRow, Fact, FactRow
 from toaster.node import control
 from toaster.world.rosmsg import fact_fields, fact_from_msg
 
+if TYPE_CHECKING:
+    from toaster.db.database import Database
+
 AREA_SCOPE, AREA_KEY = "ros1", "area_ids"  # {area name: the original's numeric id}
 
 
-def control_state(db: Any) -> control.ControlState:
+def control_state(db: Database) -> control.ControlState:
     """The stored control state (monitored agents, streams, held objects)."""
     with db.transaction() as conn:
         return control.read_state(conn)
 
 
-def entity_kind(db: Any, entity_id: str) -> str | None:
+def entity_kind(db: Database, entity_id: str) -> str | None:
     """The kind of a registered entity (human, robot, object, joint...), None if unknown."""
     with db.transaction() as conn:
         kind = conn.execute(
@@ -39,7 +42,7 @@ def entity_kind(db: Any, entity_id: str) -> str | None:
     return None if kind is None else str(kind)
 
 
-def run_command(db: Any, kind: str, args: dict[str, Any], wait_s: float) -> str | None:
+def run_command(db: Database, kind: str, args: dict[str, Any], wait_s: float) -> str | None:
     """Queue a node command; wait up to ``wait_s`` for it. The node's error, else None (also
     when no node took it in time: it stays queued for the next node)."""
     command_id = control.submit(db, kind, args)
@@ -59,7 +62,7 @@ def run_command(db: Any, kind: str, args: dict[str, Any], wait_s: float) -> str 
 
 
 # -- the original's numeric area ids -----------------------------------------------------------
-def area_numbers(db: Any) -> dict[str, int]:
+def area_numbers(db: Database) -> dict[str, int]:
     """{area name: number} for every stored area (areas made elsewhere get the first free
     numbers, kept from then on)."""
     with db.transaction(write=True) as conn:
@@ -79,7 +82,7 @@ def _first_free(used: Iterable[int]) -> int:
     return n
 
 
-def area_number(db: Any, requested: int, name: str) -> int:
+def area_number(db: Database, requested: int, name: str) -> int:
     """The number an added area gets: the one asked for, the one its name has, else the first
     free one (the original's id 0)."""
     numbers = area_numbers(db)
@@ -88,12 +91,12 @@ def area_number(db: Any, requested: int, name: str) -> int:
     return numbers.get(name) or _first_free(numbers.values())
 
 
-def area_name(db: Any, number: int) -> str | None:
+def area_name(db: Database, number: int) -> str | None:
     """The name of the area with that number."""
     return next((name for name, n in area_numbers(db).items() if n == number), None)
 
 
-def put_area(db: Any, name: str, spec: dict[str, Any], number: int) -> None:
+def put_area(db: Database, name: str, spec: dict[str, Any], number: int) -> None:
     """Store an area under its name; an area that had the same number is replaced (as the
     original's add_area with an existing id)."""
     numbers = area_numbers(db)
@@ -107,7 +110,7 @@ def put_area(db: Any, name: str, spec: dict[str, Any], number: int) -> None:
         catalog.put_setting(conn, AREA_SCOPE, AREA_KEY, numbers)
 
 
-def forget_area(db: Any, name: str | None) -> None:
+def forget_area(db: Database, name: str | None) -> None:
     """Drop one area's number (None: all of them)."""
     with db.transaction(write=True) as conn:
         numbers = dict(catalog.get_setting(conn, AREA_SCOPE, AREA_KEY, {}) or {})
@@ -154,7 +157,7 @@ def _number(value: str) -> int:
     return int(value) if value.isdigit() and int(value) < 2**32 else 0
 
 
-def property_fields(db: Any, entity_id: str | None) -> list[dict[str, Any]]:
+def property_fields(db: Database, entity_id: str | None) -> list[dict[str, Any]]:
     """Static properties as toaster_msgs/Property (one per entity; known keys only)."""
     grouped: dict[str, dict[str, str]] = {}
     for row in q.properties(db, entity_id):
@@ -172,7 +175,7 @@ def property_fields(db: Any, entity_id: str | None) -> list[dict[str, Any]]:
 
 
 # -- database_manager ---------------------------------------------------------------------------
-def _agent(db: Any, agent: str) -> str:
+def _agent(db: Database, agent: str) -> str:
     store = db.store()
     return (
         store.check_agent(agent)
@@ -181,7 +184,7 @@ def _agent(db: Any, agent: str) -> str:
     )
 
 
-def _facts(db: Any, req: Any, sub: str) -> list[dict[str, Any]]:
+def _facts(db: Database, req: Any, sub: str) -> list[dict[str, Any]]:
     agent = _agent(db, req.agentId)
     if sub == "VALUE":
         f = req.reqFact
@@ -203,7 +206,7 @@ def _facts(db: Any, req: Any, sub: str) -> list[dict[str, Any]]:
     return [row_fields(r) for r in reader(db, agent)]
 
 
-def _events(db: Any, req: Any, sub: str) -> list[dict[str, Any]]:
+def _events(db: Database, req: Any, sub: str) -> list[dict[str, Any]]:
     agent = req.agentId or None
     if sub == "VALUE":
         e = req.reqEvent
@@ -220,7 +223,7 @@ def _events(db: Any, req: Any, sub: str) -> list[dict[str, Any]]:
     return [event_fields(r) for r in rows]
 
 
-def _ontology(db: Any, req: Any, sub: str) -> list[dict[str, Any]]:
+def _ontology(db: Database, req: Any, sub: str) -> list[dict[str, Any]]:
     if sub == "LEAVE":
         rows = q.descendants(db, req.entityClass)
     else:
@@ -231,13 +234,13 @@ def _ontology(db: Any, req: Any, sub: str) -> list[dict[str, Any]]:
     ]
 
 
-def _ids(db: Any, req: Any, sub: str) -> list[dict[str, Any]]:
+def _ids(db: Database, req: Any, sub: str) -> list[dict[str, Any]]:
     if sub == "VALUE":
         return [id_fields(e) for e in q.entities(db, req.idString or None, name=req.name or None)]
     return [id_fields(e) for e in q.entities(db)]
 
 
-def get_info(db: Any, req: Any) -> dict[str, list[dict[str, Any]]]:
+def get_info(db: Database, req: Any) -> dict[str, list[dict[str, Any]]]:
     """The original's get_info by type and subType (FACT, EVENT, ONTOLOGY, ID/ENTITY, AGENT,
     PROPERTY)."""
     kind, sub = str(req.type).upper(), (str(req.subType).upper() or "ALL")
@@ -259,7 +262,7 @@ def get_info(db: Any, req: Any) -> dict[str, list[dict[str, Any]]]:
     raise InvalidInputError(msg)
 
 
-def set_info(db: Any, req: Any) -> None:
+def set_info(db: Database, req: Any) -> None:
     """The original's set_info: ENTITY, FACT (add or remove; "NULL" wildcards), EVENT."""
     store = db.store()
     kind = str(req.infoType).upper()
@@ -294,7 +297,7 @@ def set_info(db: Any, req: Any) -> None:
             )
 
 
-def execute(db: Any, req: Any) -> tuple[bool, list[str]]:
+def execute(db: Database, req: Any) -> tuple[bool, list[str]]:
     """The original's execute: SQL (read-only here), ARE_IN_TABLE, EMPTY, PRINT."""
     command = str(req.command).upper()
     if command == "SQL":
@@ -338,7 +341,7 @@ def execute(db: Any, req: Any) -> tuple[bool, list[str]]:
 PLOT_DIR = "plot_fact"  # the original's <package dir>/plot_fact, here under the working directory
 
 
-def plot_facts(db: Any, req: Any, directory: str | Path = PLOT_DIR) -> Path:
+def plot_facts(db: Database, req: Any, directory: str | Path = PLOT_DIR) -> Path:
     """The original's plot_facts: ``reqFact``'s timeline between ``subjectID`` and ``targetID``
     written as gnuplot data to ``directory/<reqFact>.dat`` (script ``.gp`` beside it).
 

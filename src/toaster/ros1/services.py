@@ -13,7 +13,7 @@ import math
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from toaster.errors import InvalidInputError
 from toaster.model import MAX_COORD, check_agent_id, check_id, shown
@@ -26,6 +26,9 @@ from toaster.world.drops import Refused
 from toaster.world.live import check_entity, quaternion_to_rpy
 from toaster.world.rosmsg import area_from_msg, quat, vec
 from toaster.world.state import KIND_CODES
+
+if TYPE_CHECKING:
+    from toaster.db.database import Database
 
 #: manage_stream flags (toaster_msgs/AddStream) -> toaster's ROS input streams
 STREAM_FLAGS = {
@@ -158,7 +161,7 @@ class Handlers:
                 control.set_stream(db, name, any(bool(getattr(req, f)) for f in flags))
         return resp
 
-    def _known(self, db: Any, entity_id: str, field: str, *, agent: bool = False) -> str:
+    def _known(self, db: Database, entity_id: str, field: str, *, agent: bool = False) -> str:
         """``entity_id`` if the database has it (an agent: a human or robot), else a
         :class:`ServiceError` naming the request field."""
         _checked_id(entity_id, field, f"{field} ({'agent' if agent else 'object'} id)", agent=agent)

@@ -30,7 +30,8 @@ from toaster.rules.sqltext import UNGROUP
 from toaster.timeutil import now_ns
 
 if TYPE_CHECKING:
-    from toaster.db.writer.store import ChangeSet, Store
+    from toaster.db.writer.changes import ChangeSet
+    from toaster.db.writer.store import Store
 
 SOURCE = "beliefs"
 SEPARATOR = HOLDER_SEPARATOR

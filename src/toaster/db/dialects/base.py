@@ -1,11 +1,17 @@
-"""What every backend shares: the fact key, the guarded tables and the ``Backend`` interface.
+"""What every backend shares: the fact key, the guarded tables, the ``Backend`` interface and
+the ``Cursor`` it is handed.
 
 The backend modules import this one, not the package (whose ``backend_for`` imports them).
 """
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any, Protocol
+
+if TYPE_CHECKING:
+    from sqlalchemy import Connection
+    from sqlalchemy.engine.interfaces import DBAPIConnection
 
 #: Natural key of a fact without the agent: subject, subject owner, property, sub-property,
 #: target, target owner.
@@ -30,6 +36,34 @@ GUARD_MESSAGE = (
 )
 
 
+class Cursor(Protocol):
+    """The part of a raw PEP 249 cursor toaster calls (sqlite3 or psycopg 3): statements in
+    the driver's own parameter style, rows as tuples; ``execute`` returns the cursor."""
+
+    @property
+    def description(self) -> Sequence[Sequence[Any]] | None:
+        """One sequence per result column, its name first; None without a result."""
+
+    @property
+    def rowcount(self) -> int:
+        """Rows the last statement changed (-1: not known)."""
+
+    def execute(self, operation: str, parameters: Any = ..., /) -> Any:
+        """Run one statement."""
+
+    def executemany(self, operation: str, seq_of_parameters: Any, /) -> Any:
+        """Run one statement once per parameter set."""
+
+    def fetchone(self) -> Any:
+        """The next row (a tuple), None after the last."""
+
+    def fetchall(self) -> Sequence[Any]:
+        """The remaining rows (tuples)."""
+
+    def close(self) -> None:
+        """Release the cursor."""
+
+
 class Backend(Protocol):
     """What the store needs from a backend; ``cur`` is a raw DBAPI cursor in a transaction."""
 
@@ -48,67 +82,69 @@ class Backend(Protocol):
     def named(self, sql: str) -> str:
         """``sql`` with ``:name`` placeholders rewritten to the driver's named style."""
 
-    def lookup_keys(self, cur: Any, agent_id: str, keys: list[Key]) -> dict[Key, int]:
+    def lookup_keys(self, cur: Cursor, agent_id: str, keys: list[Key]) -> dict[Key, int]:
         """Ids of the given keys of ``agent_id`` that exist."""
 
-    def insert_keys(self, cur: Any, agent_id: str, rows: list[tuple[Key, str]]) -> dict[Key, int]:
+    def insert_keys(
+        self, cur: Cursor, agent_id: str, rows: list[tuple[Key, str]]
+    ) -> dict[Key, int]:
         """Insert ``(key, property_type)`` rows (skipping existing ones); return their ids."""
 
-    def open_rows(self, cur: Any, key_ids: list[int]) -> dict[int, tuple[Any, ...]]:
+    def open_rows(self, cur: Cursor, key_ids: list[int]) -> dict[int, tuple[Any, ...]]:
         """Open intervals of these keys: key_id -> (value_text, value_num, confidence,
         observability, source, valid_from_ns)."""
 
-    def last_ends(self, cur: Any, key_ids: list[int]) -> dict[int, int]:
+    def last_ends(self, cur: Cursor, key_ids: list[int]) -> dict[int, int]:
         """key_id -> the end of its last interval, for the keys whose last one is closed."""
 
-    def close_intervals(self, cur: Any, t_ns: int, key_ids: list[int]) -> set[int]:
+    def close_intervals(self, cur: Cursor, t_ns: int, key_ids: list[int]) -> set[int]:
         """Close the open interval of each key at ``t_ns`` (one that started after ``t_ns``
         stays open: a later write opened it); return the keys closed."""
 
-    def refresh_intervals(self, cur: Any, t_ns: int, rows: list[tuple[Any, ...]]) -> int:
+    def refresh_intervals(self, cur: Cursor, t_ns: int, rows: list[tuple[Any, ...]]) -> int:
         """``(value_num, confidence, observability, key_id)``: refresh open intervals in
         place, keeping the numbers they held as a ``fact_samples`` row until ``t_ns`` (a second
         refresh at the same time keeps the first sample); return how many were refreshed."""
 
-    def insert_intervals(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
+    def insert_intervals(self, cur: Cursor, rows: list[tuple[Any, ...]]) -> None:
         """``(key_id, value_text, value_num, confidence, observability, valid_from_ns,
         recorded_ns, source)``: open new intervals."""
 
-    def insert_events(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
+    def insert_events(self, cur: Cursor, rows: list[tuple[Any, ...]]) -> None:
         """``(key_id, agent_id, kind, stamp_ns, value_text, value_num, confidence,
         observability, previous_text, source, recorded_ns)``: append events."""
 
-    def insert_entities(self, cur: Any, rows: list[tuple[str, str, int]]) -> None:
+    def insert_entities(self, cur: Cursor, rows: list[tuple[str, str, int]]) -> None:
         """``(id, owner_id, created_ns)``: register entities (kind '') unless they exist."""
 
-    def maintain(self, raw: Any, *, beside_writer: bool = False) -> None:
+    def maintain(self, raw: DBAPIConnection, *, beside_writer: bool = False) -> None:
         """Housekeeping of long runs on an idle DBAPI connection ``raw`` (no transaction);
         ``beside_writer``: on a connection of its own while a writer goes on, so nothing
         that would make the writer wait (:mod:`toaster.db.maintenance`)."""
 
-    def set_page_cache(self, raw: Any, kib: int) -> None:
+    def set_page_cache(self, raw: DBAPIConnection, kib: int) -> None:
         """Bound the page cache of the DBAPI connection ``raw`` to ``kib`` KiB (a no-op
         where the server holds the cache)."""
 
-    def vacuum_scratch(self, raw: Any) -> None:
+    def vacuum_scratch(self, raw: DBAPIConnection) -> None:
         """Reclaim the dead rows of the session's scratch tables of the belief rule on an idle
         DBAPI connection ``raw`` (a no-op where they are emptied otherwise)."""
 
-    def set_read_only(self, cur: Any) -> None:
+    def set_read_only(self, cur: Cursor) -> None:
         """Make the current transaction read-only, enforced by the database."""
 
-    def begin_writes(self, cur: Any) -> tuple[int, int]:
+    def begin_writes(self, cur: Cursor) -> tuple[int, int]:
         """Open a store write: take the rules' writer role (the guard triggers of the
         internal tables let this transaction through) and return ``store_state``'s
         ``(cache_epoch, agents_version)``."""
 
-    def end_writes(self, cur: Any) -> None:
+    def end_writes(self, cur: Cursor) -> None:
         """Give the writer role back before the commit (see :data:`GUARD_MESSAGE`)."""
 
-    def clear_read_only(self, cur: Any) -> None:
+    def clear_read_only(self, cur: Cursor) -> None:
         """Undo :meth:`set_read_only` for a pooled connection."""
 
-    def lock_registrations(self, conn: Any) -> None:
+    def lock_registrations(self, conn: Connection) -> None:
         """Hold, until the transaction ends, the lock under which agents are numbered (a
         no-op where writers already take turns)."""
 

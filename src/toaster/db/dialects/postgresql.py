@@ -9,19 +9,23 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterator
-from contextlib import contextmanager
-from typing import Any
+from contextlib import closing, contextmanager
+from typing import TYPE_CHECKING, Any
 
-from toaster.db.dialects.base import Key
+from toaster.db.dialects.base import Cursor, Key
+
+if TYPE_CHECKING:
+    from sqlalchemy import Connection
+    from sqlalchemy.engine.interfaces import DBAPIConnection
 
 
 @contextmanager
-def _autocommit(raw: Any) -> Iterator[Any]:
+def _autocommit(raw: DBAPIConnection) -> Iterator[Cursor]:
     """A cursor of the idle DBAPI connection ``raw`` outside any transaction (VACUUM cannot
     run in a transaction block)."""
     raw.autocommit = True
     try:
-        with raw.cursor() as cur:
+        with closing(raw.cursor()) as cur:  # what psycopg's own __exit__ does
             yield cur
     finally:
         raw.autocommit = False
@@ -56,7 +60,7 @@ class PostgreSQLBackend:
     def named(self, sql: str) -> str:
         return _NAMED.sub(r"%(\1)s", sql)
 
-    def lookup_keys(self, cur: Any, agent_id: str, keys: list[Key]) -> dict[Key, int]:
+    def lookup_keys(self, cur: Cursor, agent_id: str, keys: list[Key]) -> dict[Key, int]:
         cur.execute(
             f"SELECT k.id, k.subject_id, k.subject_owner_id, k.property, k.sub_property, "
             f"k.target_id, k.target_owner_id FROM unnest({_KEY_ARRAYS}) "
@@ -67,7 +71,9 @@ class PostgreSQLBackend:
         )
         return {tuple(row[1:]): row[0] for row in cur.fetchall()}
 
-    def insert_keys(self, cur: Any, agent_id: str, rows: list[tuple[Key, str]]) -> dict[Key, int]:
+    def insert_keys(
+        self, cur: Cursor, agent_id: str, rows: list[tuple[Key, str]]
+    ) -> dict[Key, int]:
         keys = [key for key, _ in rows]
         cur.execute(
             f"INSERT INTO fact_keys (agent_id, {_KEY_COLS}, property_type) "
@@ -77,7 +83,7 @@ class PostgreSQLBackend:
         )
         return {tuple(row[1:]): row[0] for row in cur.fetchall()}
 
-    def open_rows(self, cur: Any, key_ids: list[int]) -> dict[int, tuple[Any, ...]]:
+    def open_rows(self, cur: Cursor, key_ids: list[int]) -> dict[int, tuple[Any, ...]]:
         cur.execute(
             "SELECT key_id, value_text, value_num, confidence, observability, source, "
             "valid_from_ns FROM facts WHERE key_id = ANY(%b::bigint[]) AND valid_to_ns IS NULL",
@@ -85,7 +91,7 @@ class PostgreSQLBackend:
         )
         return {row[0]: tuple(row[1:]) for row in cur.fetchall()}
 
-    def last_ends(self, cur: Any, key_ids: list[int]) -> dict[int, int]:
+    def last_ends(self, cur: Cursor, key_ids: list[int]) -> dict[int, int]:
         cur.execute(
             "SELECT k, (SELECT f.valid_to_ns FROM facts f WHERE f.key_id = k "
             "ORDER BY f.valid_from_ns DESC LIMIT 1) FROM unnest(%b::bigint[]) AS k",
@@ -93,7 +99,7 @@ class PostgreSQLBackend:
         )
         return {row[0]: row[1] for row in cur.fetchall() if row[1] is not None}
 
-    def close_intervals(self, cur: Any, t_ns: int, key_ids: list[int]) -> set[int]:
+    def close_intervals(self, cur: Cursor, t_ns: int, key_ids: list[int]) -> set[int]:
         cur.execute(
             "UPDATE facts SET valid_to_ns = %s WHERE key_id = ANY(%b::bigint[]) "
             "AND valid_to_ns IS NULL AND valid_from_ns <= %s RETURNING key_id",
@@ -101,7 +107,7 @@ class PostgreSQLBackend:
         )
         return {row[0] for row in cur.fetchall()}
 
-    def refresh_intervals(self, cur: Any, t_ns: int, rows: list[tuple[Any, ...]]) -> int:
+    def refresh_intervals(self, cur: Cursor, t_ns: int, rows: list[tuple[Any, ...]]) -> int:
         # The CTEs and the UPDATE see the same snapshot: the samples get the values before.
         cur.execute(
             "WITH u AS (SELECT * FROM unnest(%b::float8[], %b::float8[], %b::float8[], "
@@ -116,7 +122,7 @@ class PostgreSQLBackend:
         )
         return cur.rowcount
 
-    def insert_intervals(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
+    def insert_intervals(self, cur: Cursor, rows: list[tuple[Any, ...]]) -> None:
         cur.execute(
             "INSERT INTO facts (key_id, value_text, value_num, confidence, observability, "
             "valid_from_ns, recorded_ns, source) SELECT * FROM unnest(%b::bigint[], %b::text[], "
@@ -124,7 +130,7 @@ class PostgreSQLBackend:
             _columns(rows, 8),
         )
 
-    def insert_events(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
+    def insert_events(self, cur: Cursor, rows: list[tuple[Any, ...]]) -> None:
         cur.execute(
             "INSERT INTO events (key_id, agent_id, kind, stamp_ns, value_text, value_num, "
             "confidence, observability, previous_text, source, recorded_ns) SELECT * FROM "
@@ -133,7 +139,7 @@ class PostgreSQLBackend:
             _columns(rows, 11),
         )
 
-    def insert_entities(self, cur: Any, rows: list[tuple[str, str, int]]) -> None:
+    def insert_entities(self, cur: Cursor, rows: list[tuple[str, str, int]]) -> None:
         cur.execute(
             "INSERT INTO entities (id, name, kind, owner_id, created_ns) SELECT u.i, u.i, '', "
             "u.o, u.t FROM unnest(%b::text[], %b::text[], %b::bigint[]) AS u(i, o, t) "
@@ -141,16 +147,16 @@ class PostgreSQLBackend:
             _columns(rows, 3),
         )
 
-    def maintain(self, raw: Any, *, beside_writer: bool = False) -> None:
+    def maintain(self, raw: DBAPIConnection, *, beside_writer: bool = False) -> None:
         # VACUUM takes a lock that only schema changes and other vacuums wait for: the same
         # statement serves beside a writer
         with _autocommit(raw) as cur:
             cur.execute("VACUUM (ANALYZE) facts, fact_samples, events, fact_keys, belief_follow")
 
-    def set_page_cache(self, raw: Any, kib: int) -> None:
+    def set_page_cache(self, raw: DBAPIConnection, kib: int) -> None:
         """Nothing to bound: the server holds the page cache (shared_buffers)."""
 
-    def vacuum_scratch(self, raw: Any) -> None:
+    def vacuum_scratch(self, raw: DBAPIConnection) -> None:
         with _autocommit(raw) as cur:
             cur.execute(
                 "SELECT c.relname FROM pg_class c WHERE c.relnamespace = "
@@ -160,7 +166,7 @@ class PostgreSQLBackend:
             if names:  # the session's temporary tables: the scratch tables (00_temp)
                 cur.execute("VACUUM " + ", ".join(f'pg_temp."{name}"' for name in names))
 
-    def begin_writes(self, cur: Any) -> tuple[int, int]:
+    def begin_writes(self, cur: Cursor) -> tuple[int, int]:
         # A transaction-local setting: other sessions never see it; one round trip in all.
         cur.execute(
             "SELECT cache_epoch, agents_version, "
@@ -169,16 +175,16 @@ class PostgreSQLBackend:
         epoch, agents, _ = cur.fetchone()
         return int(epoch), int(agents)
 
-    def end_writes(self, cur: Any) -> None:
+    def end_writes(self, cur: Cursor) -> None:
         """Nothing to do: the setting ends with the transaction."""
 
-    def set_read_only(self, cur: Any) -> None:
+    def set_read_only(self, cur: Cursor) -> None:
         cur.execute("SET TRANSACTION READ ONLY")
 
-    def clear_read_only(self, cur: Any) -> None:
+    def clear_read_only(self, cur: Cursor) -> None:
         """Nothing to undo: the setting ends with the transaction."""
 
-    def lock_registrations(self, conn: Any) -> None:
+    def lock_registrations(self, conn: Connection) -> None:
         conn.exec_driver_sql(
             "SELECT pg_advisory_xact_lock(hashtext('toaster agents ' || current_schema()))"
         )

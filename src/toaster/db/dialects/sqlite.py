@@ -8,9 +8,13 @@ slower (docs/store.md).
 from __future__ import annotations
 
 from collections.abc import Iterator
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from toaster.db.dialects.base import Key
+from toaster.db.dialects.base import Cursor, Key
+
+if TYPE_CHECKING:
+    from sqlalchemy import Connection
+    from sqlalchemy.engine.interfaces import DBAPIConnection
 
 # SQLite >= 3.32 accepts 32766 bound variables per statement; stay well below.
 _MAX_VARS = 30000
@@ -22,7 +26,7 @@ def _chunks(items: list[Any], size: int) -> Iterator[list[Any]]:
         yield items[start : start + size]
 
 
-def _insert_rows(cur: Any, head: str, rows: list[tuple[Any, ...]]) -> None:
+def _insert_rows(cur: Cursor, head: str, rows: list[tuple[Any, ...]]) -> None:
     """``head VALUES (…), (…)``: one statement per chunk, not one per row.
 
     The guard triggers give every INSERT into a guarded table a statement journal (a trigger
@@ -56,7 +60,7 @@ class SQLiteBackend:
     def named(self, sql: str) -> str:
         return sql  # sqlite3 takes :name as it is
 
-    def lookup_keys(self, cur: Any, agent_id: str, keys: list[Key]) -> dict[Key, int]:
+    def lookup_keys(self, cur: Cursor, agent_id: str, keys: list[Key]) -> dict[Key, int]:
         found: dict[Key, int] = {}
         for chunk in _chunks(keys, _MAX_VARS // 6):
             values = ",".join(["(?,?,?,?,?,?)"] * len(chunk))
@@ -76,7 +80,9 @@ class SQLiteBackend:
                 found[tuple(row[1:])] = row[0]
         return found
 
-    def insert_keys(self, cur: Any, agent_id: str, rows: list[tuple[Key, str]]) -> dict[Key, int]:
+    def insert_keys(
+        self, cur: Cursor, agent_id: str, rows: list[tuple[Key, str]]
+    ) -> dict[Key, int]:
         created: dict[Key, int] = {}
         for chunk in _chunks(rows, _MAX_VARS // 8):
             values = ",".join(["(?,?,?,?,?,?,?,?)"] * len(chunk))
@@ -94,7 +100,7 @@ class SQLiteBackend:
                 created[tuple(row[1:])] = row[0]
         return created
 
-    def open_rows(self, cur: Any, key_ids: list[int]) -> dict[int, tuple[Any, ...]]:
+    def open_rows(self, cur: Cursor, key_ids: list[int]) -> dict[int, tuple[Any, ...]]:
         found: dict[int, tuple[Any, ...]] = {}
         for chunk in _chunks(key_ids, _MAX_VARS):
             marks = ",".join("?" * len(chunk))
@@ -108,7 +114,7 @@ class SQLiteBackend:
                 found[row[0]] = tuple(row[1:])
         return found
 
-    def last_ends(self, cur: Any, key_ids: list[int]) -> dict[int, int]:
+    def last_ends(self, cur: Cursor, key_ids: list[int]) -> dict[int, int]:
         found: dict[int, int] = {}
         for chunk in _chunks(key_ids, _MAX_VARS):
             values = ",".join(["(?)"] * len(chunk))
@@ -120,7 +126,7 @@ class SQLiteBackend:
             found.update((row[0], row[1]) for row in cur.fetchall() if row[1] is not None)
         return found
 
-    def close_intervals(self, cur: Any, t_ns: int, key_ids: list[int]) -> set[int]:
+    def close_intervals(self, cur: Cursor, t_ns: int, key_ids: list[int]) -> set[int]:
         closed: set[int] = set()
         for chunk in _chunks(key_ids, _MAX_VARS):
             marks = ",".join("?" * len(chunk))
@@ -133,7 +139,7 @@ class SQLiteBackend:
             closed.update(row[0] for row in cur.fetchall())
         return closed
 
-    def refresh_intervals(self, cur: Any, t_ns: int, rows: list[tuple[Any, ...]]) -> int:
+    def refresh_intervals(self, cur: Cursor, t_ns: int, rows: list[tuple[Any, ...]]) -> int:
         for chunk in _chunks([row[3] for row in rows], _MAX_VARS):
             marks = ",".join("?" * len(chunk))
             cur.execute(
@@ -155,7 +161,7 @@ class SQLiteBackend:
             updated += cur.rowcount
         return updated
 
-    def insert_intervals(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
+    def insert_intervals(self, cur: Cursor, rows: list[tuple[Any, ...]]) -> None:
         _insert_rows(
             cur,
             "INSERT INTO facts (key_id, value_text, value_num, confidence, "
@@ -163,7 +169,7 @@ class SQLiteBackend:
             rows,
         )
 
-    def insert_events(self, cur: Any, rows: list[tuple[Any, ...]]) -> None:
+    def insert_events(self, cur: Cursor, rows: list[tuple[Any, ...]]) -> None:
         _insert_rows(
             cur,
             "INSERT INTO events (key_id, agent_id, kind, stamp_ns, value_text, "
@@ -172,17 +178,17 @@ class SQLiteBackend:
             rows,
         )
 
-    def insert_entities(self, cur: Any, rows: list[tuple[str, str, int]]) -> None:
+    def insert_entities(self, cur: Cursor, rows: list[tuple[str, str, int]]) -> None:
         cur.executemany(
             "INSERT INTO entities (id, name, kind, owner_id, created_ns) "
             "VALUES (?, ?, '', ?, ?) ON CONFLICT DO NOTHING",
             [(entity_id, entity_id, owner, t) for entity_id, owner, t in rows],
         )
 
-    def vacuum_scratch(self, raw: Any) -> None:
+    def vacuum_scratch(self, raw: DBAPIConnection) -> None:
         """Nothing to do: SQLite's scratch tables are the schema's, emptied by each run."""
 
-    def maintain(self, raw: Any, *, beside_writer: bool = False) -> None:
+    def maintain(self, raw: DBAPIConnection, *, beside_writer: bool = False) -> None:
         cur = raw.cursor()
         if beside_writer:
             # optimize writes statistics under the write lock: a bounded sample keeps that
@@ -196,12 +202,12 @@ class SQLiteBackend:
             cur.execute("PRAGMA wal_checkpoint(TRUNCATE)")  # the WAL back to zero bytes
         cur.close()
 
-    def set_page_cache(self, raw: Any, kib: int) -> None:
+    def set_page_cache(self, raw: DBAPIConnection, kib: int) -> None:
         cur = raw.cursor()
         cur.execute(f"PRAGMA cache_size=-{int(kib)}")
         cur.close()
 
-    def begin_writes(self, cur: Any) -> tuple[int, int]:
+    def begin_writes(self, cur: Cursor) -> tuple[int, int]:
         # One writer at a time in SQLite: a row in rule_writer, deleted before the commit,
         # is seen only by this transaction.
         cur.execute("INSERT OR IGNORE INTO rule_writer (id, holder) VALUES (1, 'store')")
@@ -210,14 +216,14 @@ class SQLiteBackend:
         ).fetchone()
         return int(epoch), int(agents)
 
-    def end_writes(self, cur: Any) -> None:
+    def end_writes(self, cur: Cursor) -> None:
         cur.execute("DELETE FROM rule_writer")
 
-    def set_read_only(self, cur: Any) -> None:
+    def set_read_only(self, cur: Cursor) -> None:
         cur.execute("PRAGMA query_only = ON")
 
-    def clear_read_only(self, cur: Any) -> None:
+    def clear_read_only(self, cur: Cursor) -> None:
         cur.execute("PRAGMA query_only = OFF")
 
-    def lock_registrations(self, conn: Any) -> None:
+    def lock_registrations(self, conn: Connection) -> None:
         """Nothing to take: a SQLite writer holds the database's one write lock."""

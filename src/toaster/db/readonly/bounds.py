@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from toaster.errors import InvalidInputError, ToasterError
+
+if TYPE_CHECKING:
+    from sqlalchemy import Connection
 
 DEFAULT_MAX_ROWS = 100_000
 DEFAULT_MAX_BYTES = 32 * 2**20
@@ -78,7 +81,7 @@ def too_big_error(bounds: Limits, value: str | None = None) -> ToasterError:
     )
 
 
-def require_own_transaction(conn: Any) -> None:
+def require_own_transaction(conn: Connection) -> None:
     """Refuse to run inside the caller's transaction (the statement's must be rolled back)."""
     if conn.in_transaction():
         msg = (

@@ -9,7 +9,7 @@ import re
 import weakref
 from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple, cast
 
 from toaster.db.readonly.bounds import (
     Limits,
@@ -21,6 +21,13 @@ from toaster.db.readonly.bounds import (
 )
 from toaster.db.readonly.tokens import check_statement, pyformat, tokenize
 from toaster.errors import ReadOnlyError, ToasterError
+
+if TYPE_CHECKING:
+    import psycopg
+    from sqlalchemy import Connection
+
+    from toaster.db.database import Database
+    from toaster.db.dialects.base import Cursor
 
 #: The PostgreSQL role read-only statements run as (NOLOGIN, SELECT on toaster's schema).
 READER_ROLE = "toaster_reader"
@@ -100,7 +107,7 @@ _CURSOR = "toaster_rows"
 _BATCH = 256
 _RELATION_DENIED = re.compile(r"permission denied for (table|view|materialized view|relation)")
 #: Connections where READER_ROLE cannot be used, and why (they run as their own role).
-_NO_READER: weakref.WeakKeyDictionary[Any, str] = weakref.WeakKeyDictionary()
+_NO_READER: weakref.WeakKeyDictionary[psycopg.Connection, str] = weakref.WeakKeyDictionary()
 
 
 class _Denied(Exception):
@@ -121,12 +128,12 @@ class _State(NamedTuple):
 
 
 @contextmanager
-def read_postgresql(db: Any, sql: str, params: Any, bounds: Limits) -> Iterator[ReadRows]:
+def read_postgresql(db: Database, sql: str, params: Any, bounds: Limits) -> Iterator[ReadRows]:
     """Run one read statement on PostgreSQL (see the module's doc) and give its rows, fetched
     in batches from the wrapper's result (held by the server) while the transaction is open;
     roll back whatever happens. Sets up READER_ROLE and the wrapper on first use
     (:func:`ensure_reader_role`)."""
-    raw = db.connection.connection.dbapi_connection
+    raw = cast("psycopg.Connection", db.connection.connection.dbapi_connection)  # psycopg's
     text = _pg_text(raw, sql, params)
     check_statement(text, "postgresql")
     require_own_transaction(db.connection)
@@ -153,7 +160,7 @@ def read_postgresql(db: Any, sql: str, params: Any, bounds: Limits) -> Iterator[
         prepared = True
 
 
-def ensure_reader_role(cur: Any) -> str | None:
+def ensure_reader_role(cur: Cursor) -> str | None:
     """Create :data:`READER_ROLE` if missing (NOLOGIN, no attributes), let the current role
     take it, and grant it USAGE on ``current_schema()`` and SELECT on its tables and views.
 
@@ -209,7 +216,7 @@ def ensure_reader_role(cur: Any) -> str | None:
     return None
 
 
-def _savepoint(cur: Any, statement: str) -> str | None:
+def _savepoint(cur: Cursor, statement: str) -> str | None:
     """Run ``statement`` in a savepoint: None, or ``SQLSTATE message`` when it failed."""
     import psycopg
 
@@ -223,7 +230,7 @@ def _savepoint(cur: Any, statement: str) -> str | None:
     return None
 
 
-def _prepare(db: Any, raw: Any) -> None:
+def _prepare(db: Database, raw: psycopg.Connection) -> None:
     """(Re)create this session's wrapper, owned by READER_ROLE when it is usable."""
     import psycopg
 
@@ -250,7 +257,7 @@ def _prepare(db: Any, raw: Any) -> None:
         _NO_READER[raw] = reason
 
 
-def _role(raw: Any, state: _State) -> str | None:
+def _role(raw: psycopg.Connection, state: _State) -> str | None:
     """The role the statement runs as, or None when the wrapper must be (re)made. A
     superuser never runs statements as itself (it can always make the reader role)."""
     if state.owner == READER_ROLE and state.reader_ready:
@@ -261,7 +268,9 @@ def _role(raw: Any, state: _State) -> str | None:
 
 
 @contextmanager
-def _pg_transaction(db: Any, raw: Any, bounds: Limits) -> Iterator[tuple[Any, _State]]:
+def _pg_transaction(
+    db: Database, raw: psycopg.Connection, bounds: Limits
+) -> Iterator[tuple[Cursor, _State]]:
     """A read-only transaction with the statement's bounds, always rolled back; then session
     advisory locks it left (they outlive rollbacks) close the connection."""
     import psycopg
@@ -271,7 +280,7 @@ def _pg_transaction(db: Any, raw: Any, bounds: Limits) -> Iterator[tuple[Any, _S
     trans = conn.begin()
     before: int | None = None
     try:
-        cur = raw.cursor()
+        cur: Cursor = raw.cursor()
         db.backend.set_read_only(cur)
         temp_kb = max(2**20, 2 * bounds.max_bytes >> 10)
         cur.execute(
@@ -295,7 +304,7 @@ def _pg_transaction(db: Any, raw: Any, bounds: Limits) -> Iterator[tuple[Any, _S
             _check_advisory(conn, raw, before)
 
 
-def _check_advisory(conn: Any, raw: Any, before: int) -> None:
+def _check_advisory(conn: Connection, raw: psycopg.Connection, before: int) -> None:
     import psycopg
     from psycopg import pq
 
@@ -317,7 +326,7 @@ def _check_advisory(conn: Any, raw: Any, before: int) -> None:
         raise ReadOnlyError(msg)
 
 
-def _pg_text(raw: Any, sql: str, params: Any) -> str:
+def _pg_text(raw: psycopg.Connection, sql: str, params: Any) -> str:
     """The statement with its parameters as literals (psycopg's client-side binding)."""
     import psycopg
 
@@ -337,7 +346,13 @@ def _pg_text(raw: Any, sql: str, params: Any) -> str:
 
 
 def _pg_start(
-    db: Any, cur: Any, raw: Any, text: str, state: _State, role: str, bounds: Limits
+    db: Database,
+    cur: Cursor,
+    raw: psycopg.Connection,
+    text: str,
+    state: _State,
+    role: str,
+    bounds: Limits,
 ) -> ReadRows:
     """Describe the statement, run it through the wrapper as ``role`` (a plpgsql set-returning
     function runs to its end on the first FETCH), check what is left, then give its rows."""
@@ -400,12 +415,14 @@ def _pg_start(
     return ReadRows(names, _pg_rows(cur, first, bounds), bounds.max_rows)
 
 
-def _fetch(cur: Any) -> list[tuple[Any, ...]]:
+def _fetch(cur: Cursor) -> list[tuple[Any, ...]]:
     cur.execute(f"FETCH FORWARD {_BATCH} FROM {_CURSOR}")
     return [tuple(r) for r in cur.fetchall()]
 
 
-def _pg_rows(cur: Any, batch: list[tuple[Any, ...]], bounds: Limits) -> Iterator[tuple[Any, ...]]:
+def _pg_rows(
+    cur: Cursor, batch: list[tuple[Any, ...]], bounds: Limits
+) -> Iterator[tuple[Any, ...]]:
     """The rows, a batch at a time: the client holds one batch."""
     import psycopg
 
@@ -419,7 +436,9 @@ def _pg_rows(cur: Any, batch: list[tuple[Any, ...]], bounds: Limits) -> Iterator
             raise _pg_error(exc.sqlstate, first_line(exc), bounds) from None
 
 
-def _describe(raw: Any, text: str, bounds: Limits) -> tuple[list[str], list[list[int]]]:
+def _describe(
+    raw: psycopg.Connection, text: str, bounds: Limits
+) -> tuple[list[str], list[list[int]]]:
     """Column names and ``[type, modifier, table, column number]`` of ``text``, parsed (not
     run) by the server as one statement of the extended protocol, which refuses several."""
     from psycopg import pq

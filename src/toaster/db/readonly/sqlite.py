@@ -22,10 +22,10 @@ import subprocess
 import sys
 import threading
 import weakref
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any
 from urllib.parse import quote
 
 from toaster.db.readonly.bounds import (
@@ -38,6 +38,9 @@ from toaster.db.readonly.bounds import (
 )
 from toaster.db.readonly.tokens import SQLITE_CALLS, check_statement
 from toaster.errors import ReadOnlyError, ToasterError
+
+if TYPE_CHECKING:
+    from toaster.db.database import Database
 
 #: SQLite's heap limit in the worker.
 SQLITE_HEAP_LIMIT = 2**30
@@ -204,12 +207,12 @@ class _Worker:
 
 
 #: Each open database's worker.
-_WORKERS: weakref.WeakKeyDictionary[Any, _Worker] = weakref.WeakKeyDictionary()
+_WORKERS: weakref.WeakKeyDictionary[Database, _Worker] = weakref.WeakKeyDictionary()
 _WORKERS_LOCK = threading.Lock()
 
 
 @contextmanager
-def _worker(db: Any) -> Iterator[_Worker]:
+def _worker(db: Database) -> Iterator[_Worker]:
     """This database's worker, started if needed, for one statement at a time."""
     heap = SQLITE_HEAP_LIMIT
     with _WORKERS_LOCK:
@@ -229,7 +232,7 @@ def _worker(db: Any) -> Iterator[_Worker]:
 class _Deadline:
     """Kills ``process`` after ``seconds`` unless stopped before (once stopped, never)."""
 
-    def __init__(self, process: Any, seconds: float) -> None:
+    def __init__(self, process: subprocess.Popen[bytes], seconds: float) -> None:
         self._process = process
         self._lock = threading.Lock()
         self._stopped = False
@@ -253,7 +256,7 @@ class _Deadline:
 
 
 @contextmanager
-def read_sqlite(db: Any, sql: str, params: Any, bounds: Limits) -> Iterator[ReadRows]:
+def read_sqlite(db: Database, sql: str, params: Any, bounds: Limits) -> Iterator[ReadRows]:
     """Run one read statement on SQLite in a process of its own (see the module's doc) and
     give its rows once it is done; the process is killed at the deadline."""
     from toaster.db.engine import lock_timeout, sqlite_file
@@ -300,8 +303,11 @@ def read_sqlite(db: Any, sql: str, params: Any, bounds: Limits) -> Iterator[Read
                 worker.stop()
 
 
-def _rows(process: Any, batches: int, read: list[bool]) -> Iterator[tuple[Any, ...]]:
+def _rows(
+    process: subprocess.Popen[bytes], batches: int, read: list[bool]
+) -> Iterator[tuple[Any, ...]]:
     """The rows sent by the worker, one batch held at a time."""
+    assert process.stdout is not None  # a pipe
     for _ in range(batches):
         batch = _receive(process.stdout)
         if batch is None:
@@ -310,7 +316,7 @@ def _rows(process: Any, batches: int, read: list[bool]) -> Iterator[tuple[Any, .
     read[0] = True
 
 
-def _ended(process: Any) -> ToasterError:
+def _ended(process: subprocess.Popen[bytes]) -> ToasterError:
     """The error of a worker that closed its output without an answer (it died)."""
     try:
         status = process.wait(timeout=1)
@@ -445,7 +451,9 @@ class _Reader:
         return value
 
 
-def _authorizer(refused: list[str]) -> Any:
+def _authorizer(
+    refused: list[str],
+) -> Callable[[int, str | None, str | None, str | None, str | None], int]:
     """Allow reading tables, functions but :data:`SQLITE_CALLS` and reading pragmas; deny
     the rest (transactions, savepoints, ATTACH, writes, DDL), noting what in ``refused``."""
 
@@ -472,7 +480,7 @@ def _authorizer(refused: list[str]) -> Any:
 
 
 def _fetch(
-    cur: Any,
+    cur: sqlite3.Cursor,
     sql: str,
     params: Any,
     bounds: Limits,

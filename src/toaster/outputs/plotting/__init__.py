@@ -51,6 +51,7 @@ from toaster.outputs.plotting.timeline import (
 )
 
 if TYPE_CHECKING:
+    from toaster.db.database import Database
     from toaster.timeutil import TimeFrame
 
 IMAGE_FORMATS = ("png", "svg", "pdf")
@@ -83,7 +84,7 @@ def output_format(path: str | Path, format: str | None = None) -> str:
 
 
 def plot_facts(
-    db: Any,
+    db: Database,
     output: str | Path,
     *,
     subject: str | Sequence[str] | None = None,

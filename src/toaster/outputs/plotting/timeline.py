@@ -16,11 +16,14 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from itertools import pairwise
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from toaster.errors import InvalidInputError, UnknownAgentError
 from toaster.model import FactKey, FactRow, check_list, check_text, listed, shown
 from toaster.timeutil import TimeFrame, check_optional_ns, format_ns
+
+if TYPE_CHECKING:
+    from toaster.db.database import Database
 
 #: Divergence kinds: the agent holds a value the reference does not share, or holds nothing
 #: while the reference holds a value.
@@ -248,7 +251,7 @@ def _as_list(value: str | Sequence[str] | None, what: str = "filter") -> list[st
     return [check_text(name, what) for name in names]
 
 
-def check_agents(db: Any, agents: str | Sequence[str] | None) -> tuple[list[str], str]:
+def check_agents(db: Database, agents: str | Sequence[str] | None) -> tuple[list[str], str]:
     """The agents to plot (default all; nested holders such as ``ANNE>SALLY`` when named) and
     the reference one; unknown names raise."""
     from toaster.beliefs.api import holders
@@ -273,7 +276,7 @@ def check_agents(db: Any, agents: str | Sequence[str] | None) -> tuple[list[str]
 
 
 def build_timeline(
-    db: Any,
+    db: Database,
     *,
     subject: str | Sequence[str] | None = None,
     property: str | Sequence[str] | None = None,
@@ -344,7 +347,7 @@ def build_timeline(
     return timeline
 
 
-def add_signals(db: Any, timeline: Timeline, **filters: Any) -> None:
+def add_signals(db: Database, timeline: Timeline, **filters: Any) -> None:
     """Give each lane of ``timeline`` the :class:`Signal` of every plotted agent that held a
     number there, read with :func:`toaster.queries.signal` (``filters``: subject, property,
     target, as for the timeline) and clipped to the window."""

@@ -28,7 +28,7 @@ from __future__ import annotations
 import heapq
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from toaster.errors import InvalidInputError
 from toaster.model import EventRow, Fact, FactRow
@@ -62,6 +62,9 @@ from toaster.outputs.recording.input import (  # noqa: F401  (the input types, r
 )
 from toaster.outputs.recording.msgs import EntityPose, FactTimeline, Messages, Scene, toaster_types
 from toaster.quoting import ros_name
+
+if TYPE_CHECKING:
+    from toaster.db.database import Database
 
 __all__ = [
     "EntityPose",
@@ -287,7 +290,7 @@ def record(
     path: str | Path,
     frames: Iterable[Frame | Sequence[Any]],
     *,
-    db: Any = None,
+    db: Database | None = None,
     agent: str | Sequence[str] | None = None,
     since: int | None = None,
     until: int | None = None,

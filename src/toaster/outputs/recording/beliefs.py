@@ -14,12 +14,15 @@ Each agent of the chain is one name token (:func:`toaster.quoting.ros_name`); th
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from toaster.errors import InvalidInputError
 from toaster.model import FactRow
 from toaster.outputs.recording.msgs import FactTimeline
 from toaster.quoting import ros_name
+
+if TYPE_CHECKING:
+    from toaster.db.database import Database
 
 BELIEFS_TOPIC = "/toaster/beliefs"
 BELIEFS_TYPE = "toaster_recording/msg/Beliefs"
@@ -67,7 +70,7 @@ class BeliefTimeline:
 
     @classmethod
     def from_db(
-        cls, db: Any, agent: str | Sequence[str] | None, since: int | None, until: int | None
+        cls, db: Database, agent: str | Sequence[str] | None, since: int | None, until: int | None
     ) -> BeliefTimeline:
         """The intervals of ``agent`` (ids, exact; default every holder) that overlap the
         window, followed periods included (as ``fact_history`` shows them)."""

@@ -15,7 +15,7 @@ import functools
 import heapq
 import re
 from collections.abc import Iterable, Iterator, Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -24,6 +24,9 @@ from toaster.outputs import markers
 from toaster.producers.registry import NAMES as PRODUCERS
 from toaster.world.rosmsg import strip_frame
 from toaster.world.state import EntityPose, World
+
+if TYPE_CHECKING:
+    from toaster.db.database import Database
 
 TIME = "builtin_interfaces/msg/Time"
 _NP = {
@@ -223,7 +226,7 @@ class FactTimeline:
             self.by_source.setdefault(getattr(row, key), []).append(row)
 
     @classmethod
-    def from_db(cls, db: Any, since: int | None, until: int | None) -> FactTimeline:
+    def from_db(cls, db: Database, since: int | None, until: int | None) -> FactTimeline:
         """The intervals of the store's self agent from the four producers in the window."""
         from toaster import queries
 
