@@ -16,8 +16,13 @@ from sqlalchemy import Connection
 
 #: The unit created last and dropped first: the driver, which calls the others (and holds the
 #: inlined ones' statements: it is created again when one of them changes).
-_DRIVER = "pipeline"
+DRIVER = "pipeline"
 _PLACEHOLDER = re.compile(r"\{\{unit:(\w+)\}\}")
+
+
+def placeholder(unit: str) -> str:
+    """Where the driver's frozen text takes ``unit``'s inlined statements (:func:`compose`)."""
+    return f"{{{{unit:{unit}}}}}"
 
 
 def compose(sql: list[str], inline: Callable[[str], list[str]]) -> list[str]:
@@ -73,7 +78,7 @@ def unit_statements(
     refs = manifest(revision)
     order = sorted(
         only if only is not None else refs,
-        key=lambda unit: (unit == _DRIVER) == (which == "create"),
+        key=lambda unit: (unit == DRIVER) == (which == "create"),
     )
     return compose(
         [s for unit in order for s in _unit(refs[unit], unit, backend)[which]],
@@ -99,6 +104,6 @@ def swap_units(conn: Connection, old: str, new: str) -> None:
         for refs in (before, after)
         for u in changed & refs.keys()
     ):
-        changed.add(_DRIVER)
+        changed.add(DRIVER)
     _execute(conn, unit_statements(old, backend, "drop", changed & before.keys()))
     _execute(conn, unit_statements(new, backend, "create", changed & after.keys()))

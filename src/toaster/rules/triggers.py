@@ -36,7 +36,7 @@ from pathlib import Path
 from typing import Any
 
 from toaster.db.dialects import GUARD_MESSAGE
-from toaster.migrations.frozen_triggers import compose
+from toaster.migrations.frozen_triggers import DRIVER, compose, placeholder
 from toaster.rules import sqltext
 from toaster.rules.pipeline import (
     CLOCK,
@@ -59,10 +59,9 @@ from toaster.rules.sqltext import AGENTS_CHANGED, UNGROUP
 _PG_SETTINGS = "SET join_collapse_limit = 1 SET plan_cache_mode = force_custom_plan SET jit = off"
 _RUNS_GUARD = GUARD_MESSAGE.format(table="belief_runs")
 BACKENDS = ("sqlite", "postgresql")
-#: The scratch tables' units (before and after a run: they read no run values) and the
-#: driver's (the loader creates it last and drops it first).
+#: The scratch tables' units (before and after a run: they read no run values); the driver's
+#: unit is the loader's DRIVER (created last, dropped first).
 SCRATCH = ("00_temp", "99_clear")
-PIPELINE_UNIT = "pipeline"
 #: One unit as frozen: per backend, its ``create`` and ``drop`` statements, and the statements
 #: it puts where the driver holds its placeholder (``inline``, SQLite's steps).
 Unit = dict[str, dict[str, list[str]]]
@@ -283,7 +282,7 @@ def _sqlite_enter(block: Block) -> str:
 
 def _sqlite_call(unit: str) -> list[str]:
     """The placeholder of the unit's statements (none when it has none)."""
-    return [f"{{{{unit:{unit}}}}}"] if _unit_sql(unit, "sqlite") else []
+    return [placeholder(unit)] if _unit_sql(unit, "sqlite") else []
 
 
 def _sqlite_trigger(name: str, block: str, body: list[str]) -> str:
@@ -359,7 +358,7 @@ def units() -> dict[str, Unit]:
         raise ValueError(msg)
     found["inbox"] = {"sqlite": _sqlite_inbox(), "postgresql": _pg_inbox()}
     found["ungroup"] = {"sqlite": _sqlite_ungroup(), "postgresql": _pg_ungroup()}
-    found[PIPELINE_UNIT] = {"sqlite": _sqlite_pipeline(), "postgresql": _pg_pipeline()}
+    found[DRIVER] = {"sqlite": _sqlite_pipeline(), "postgresql": _pg_pipeline()}
     return found
 
 
