@@ -15,12 +15,14 @@ import toaster
 from tests.outputs.conftest import T0, S, run_scenario
 from toaster import Fact
 from toaster.errors import InvalidInputError
+from toaster.outputs.markers import TOPICS as ENTITY_TOPICS
 from toaster.outputs.recording import (
+    AREAS_TOPIC,
     CUBE,
     CYLINDER,
-    ENTITIES_TOPIC,
     FACTS_TOPIC,
     LINE_STRIP,
+    MARKER_TOPICS,
     SPHERE_LIST,
     TEXT,
     EntityPose,
@@ -35,8 +37,7 @@ mcap_ros2 = pytest.importorskip("mcap_ros2.decoder")
 AREAS = [("kitchen", [(0.0, 0.0), (3.0, 0.0), (3.0, 2.0), (0.0, 2.0)])]
 FIXED_TOPICS = {
     ("/tf", "tf2_msgs/msg/TFMessage"),
-    (ENTITIES_TOPIC, "visualization_msgs/msg/MarkerArray"),
-    ("/toaster/areas", "visualization_msgs/msg/MarkerArray"),
+    *((topic, "visualization_msgs/msg/MarkerArray") for topic in MARKER_TOPICS),
     (FACTS_TOPIC, "rcl_interfaces/msg/Log"),
     ("/pdg/humanList", "toaster_msgs/msg/HumanListStamped"),
     ("/pdg/robotList", "toaster_msgs/msg/RobotListStamped"),
@@ -91,6 +92,17 @@ def _on(messages: list[tuple[str, str, int, Any]], topic: str) -> list[tuple[int
     return [(stamp, msg) for t, _, stamp, msg in messages if t == topic]
 
 
+def _entities(messages: list[tuple[str, str, int, Any]]) -> list[list[Any]]:
+    """The entity markers of each frame: the objects', humans' and robots' arrays joined, each
+    starting with its DELETEALL."""
+    frames: dict[int, list[Any]] = {}
+    for topic in ENTITY_TOPICS.values():
+        for stamp, array in _on(messages, topic):
+            assert array.markers[0].action == 3  # DELETEALL
+            frames.setdefault(stamp, []).extend(array.markers[1:])
+    return [frames[stamp] for stamp in sorted(frames)]
+
+
 @pytest.mark.slow
 def test_recording_replays_frames_and_facts(run_db: toaster.Database, tmp_path: Path) -> None:
     """Entities, areas and the database's events come back, typed as ROS tools expect."""
@@ -121,18 +133,15 @@ def test_recording_replays_frames_and_facts(run_db: toaster.Database, tmp_path: 
         set(),
     ]
     assert mug_on("bob", T0 + 17 * S) == {"shelf"}
-    frames = [m for _, m in _on(messages, ENTITIES_TOPIC)]
+    frames = _entities(messages)
     assert len(frames) == 6
-    names = [{m.text for m in f.markers if m.type == TEXT} for f in frames]
+    names = [{m.text for m in f if m.type == TEXT} for f in frames]
     assert names[0] == {"pr2", "alice", "mug", "bob"}
     assert names[5] == {"pr2", "alice", "mug"}  # bob left: DELETEALL first, no bob marker
-    assert frames[5].markers[0].action == 3
     # bodies are drawn by toaster.outputs.markers: namespace = entity id, id 0 = the body
-    alice = next(m for m in frames[5].markers if m.ns == "alice" and m.id == 0)
+    alice = next(m for m in frames[5] if m.ns == "alice" and m.id == 0)
     assert alice.type == CYLINDER and alice.pose.position.x == pytest.approx(7.0)
-    outline = [
-        m for _, a in _on(messages, "/toaster/areas") for m in a.markers if m.type == LINE_STRIP
-    ]
+    outline = [m for _, a in _on(messages, AREAS_TOPIC) for m in a.markers if m.type == LINE_STRIP]
     assert [(p.x, p.y) for p in outline[0].points] == [*AREAS[0][1], AREAS[0][1][0]]
     lines = [(stamp - T0, m.msg) for stamp, m in _on(messages, FACTS_TOPIC)]
     assert (10 * S, "pr2: mug IsOn table ended") in lines
@@ -179,8 +188,8 @@ def test_shapes_use_entity_sizes(tmp_path: Path) -> None:
         EntityPose("alice/head", "joint", 1.0, 1.0, 1.6, 0.0, owner="alice"),
     ]
     result = record(tmp_path / "shapes", [(T0, entities, None)])
-    ((_, array),) = _on(_read(result.mcap), ENTITIES_TOPIC)
-    body = {m.ns: m for m in array.markers if m.id == 0 and m.ns}
+    (array,) = _entities(_read(result.mcap))
+    body = {m.ns: m for m in array if m.id == 0 and m.ns}
     assert {ns: m.type for ns, m in body.items()} == {
         "table": CUBE,
         "ball": CUBE,
@@ -193,9 +202,9 @@ def test_shapes_use_entity_sizes(tmp_path: Path) -> None:
     assert scale["pr2"] == pytest.approx((0.5, 0.5, 1.3))
     assert scale["alice"] == pytest.approx((0.5, 0.5, 1.7))  # the human default
     assert body["pr2"].pose.position.z == pytest.approx(0.65)  # agents stand on the floor
-    arrows = {m.ns for m in array.markers if m.type == 0}
+    arrows = {m.ns for m in array if m.type == 0}
     assert arrows == {"pr2", "alice"}
-    (joints,) = [m for m in array.markers if m.type == SPHERE_LIST]
+    (joints,) = [m for m in array if m.type == SPHERE_LIST]
     assert joints.ns == "alice" and [(p.x, p.y, p.z) for p in joints.points] == [(1, 1, 1.6)]
     assert joints.scale.x < 0.1
 
@@ -220,7 +229,7 @@ def test_circles_and_owner_relative_areas(tmp_path: Path) -> None:
         for k in range(2)
     ]
     messages = _read(record(tmp_path / "areas", frames).mcap)
-    drawn = [m for _, m in _on(messages, "/toaster/areas")]
+    drawn = [m for _, m in _on(messages, AREAS_TOPIC)]
     assert len(drawn) == 2  # redrawn as the owner moved
     first = {(m.ns, m.type): m for m in drawn[0].markers}
     disc = first["table_zone", CYLINDER]
@@ -319,7 +328,7 @@ def test_fact_lists_hold_the_current_facts(db_url: str, tmp_path: Path) -> None:
     assert inside == [(0, []), (S, ["alice"]), (3 * S, [])]
     colours = [
         next(m.color.r for m in a.markers if m.type == LINE_STRIP)
-        for _, a in _on(messages, "/toaster/areas")
+        for _, a in _on(messages, AREAS_TOPIC)
     ]
     assert colours[1] > colours[0] == colours[2]
 
@@ -518,7 +527,7 @@ def test_run_records_what_it_saw(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     messages = _read(next((tmp_path / "bag").glob("*.mcap")))
     topics = {topic for topic, *_ in messages}
-    assert {ENTITIES_TOPIC, FACTS_TOPIC} <= topics
+    assert {*MARKER_TOPICS, FACTS_TOPIC} <= topics
     with toaster.connect(url) as db:
         stored = len(toaster.queries.events(db))
     assert sum(topic == FACTS_TOPIC for topic, *_ in messages) == stored
@@ -610,3 +619,34 @@ def test_recording_replays_as_input(tmp_path: Path, name: str) -> None:
     expected = {f for f in _self_facts(f"sqlite:///{first}") if f[2] != "IsInHand"}
     assert {f[2] for f in expected} >= {"isPresent", "IsInRoom", "IsInArea", "IsMoving", "IsAt"}
     assert _self_facts(f"sqlite:///{second}") == expected
+
+
+def test_motion_markers_show_agent_monitors_facts(tmp_path: Path) -> None:
+    """marker_motion, as live: at each frame, agent_monitor's last fact list as arrows (IsMoving
+    along the heading, IsMovingToward to the target) and lines (IsLookingAt from the head)."""
+    from toaster.outputs.recording import MOTION_TOPIC, Recorder
+
+    entities = [
+        EntityPose("alice", "human", 1.0, 1.0, 0.0, 0.0),
+        EntityPose("alice/head", "joint", 1.0, 1.0, 1.6, 0.0, owner="alice", name="head"),
+        EntityPose("mug", "object", 3.0, 1.0, 0.8, 0.0),
+    ]
+    facts = [
+        Fact("alice", "IsMoving", "", value_num=0.5),
+        Fact("alice", "IsMovingToward", "mug"),
+        Fact("alice", "IsLookingAt", "mug"),
+    ]
+    with Recorder(tmp_path / "motion") as rec:
+        rec.write_frame(T0, entities)
+        rec.write_fact_list(T0 + S, "agent_monitor", facts)
+        rec.write_frame(T0 + S, entities)
+    drawn = [array.markers for _, array in _on(_read(rec.mcap_path), MOTION_TOPIC)]
+    assert [[m.action for m in markers] for markers in drawn] == [[3], [3, 0, 0, 0]]
+    shapes = {m.ns: m for m in drawn[1][1:]}
+    assert shapes["IsMoving"].type == 0 and shapes["IsMoving"].scale.x == pytest.approx(0.5)
+    toward = [(p.x, p.y, p.z) for p in shapes["IsMovingToward"].points]
+    assert toward == [(1.0, 1.0, 0.0), (3.0, 1.0, 0.8)]
+    assert (shapes["IsLookingAt"].points[0].z, shapes["IsLookingAt"].header.frame_id) == (
+        1.6,
+        "map",
+    )

@@ -21,6 +21,7 @@ from click.testing import CliRunner
 import toaster
 from tests.outputs.conftest import SYSTEM_PYTHON, require_system_rosbag
 from toaster.cli import cli
+from toaster.outputs.markers import AREAS_TOPIC, TOPICS
 from toaster.outputs.recording import CUBE, CYLINDER, LINE_STRIP, Recorder, record
 from toaster.world.rosmsg import rpy_to_quat
 
@@ -92,8 +93,12 @@ def test_sally_anne_scene_and_beliefs(db_url: str, tmp_path: Path) -> None:
     wall_tf = frames["WALL"].transform.translation
     assert (wall_tf.x, wall_tf.y, wall_tf.z) == pytest.approx(declared["WALL"]["position"])
 
-    _, drawn = topics["/toaster/entities"][0]
-    bodies = {m.ns: m for m in drawn.markers if m.id == 0 and m.ns}
+    bodies = {
+        m.ns: m
+        for topic in TOPICS.values()
+        for m in topics[topic][0][1].markers
+        if m.id == 0 and m.ns
+    }
     for entity_id, entity in declared.items():
         if "size" in entity:
             body = bodies[entity_id]
@@ -171,7 +176,7 @@ def test_flat_areas_circles_and_owner_relative(tmp_path: Path) -> None:
     _run(f"sqlite:///{tmp_path / 'flat.db'}", FLAT, bag, "--until", "20s")
     topics = _rosbags_read(bag)
     areas = _scenario(FLAT)["areas"]
-    drawn = topics["/toaster/areas"]
+    drawn = topics[AREAS_TOPIC]
     first = {(m.ns, m.type): m for m in drawn[0][1].markers}
     circles = {name: spec for name, spec in areas.items() if spec["shape"] == "circle"}
     assert circles
@@ -245,7 +250,7 @@ for topic, msg, t in bag.read_messages():
     t = t.to_nsec()
     if topic == "/tf" and "tf" not in out:
         out["tf"] = [[tr.header.frame_id, tr.child_frame_id] for tr in msg.transforms]
-    elif topic == "/toaster/entities" and "wall" not in out:
+    elif topic == "/toaster_visualizer/marker_object" and "wall" not in out:
         m = next(m for m in msg.markers if m.ns == "WALL" and m.id == 0)
         out["wall"] = [m.type, m.scale.x, m.scale.y, m.scale.z, m.header.frame_id]
     elif topic.startswith("/toaster/beliefs/") and t <= 10 * 10**9:

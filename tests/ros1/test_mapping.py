@@ -302,10 +302,12 @@ def test_world_as_frames_lists_and_markers() -> None:
     assert lists["human"][0]["meAgent"]["skeletonNames"] == ["head"]
     assert lists["object"][0]["meEntity"]["id"] == "cup"
     arrays = markers.entity_markers(world, 5)
-    assert arrays["marker_object"][0]["action"] == markers.DELETEALL
-    cup = next(m for m in arrays["marker_object"] if m["type"] == markers.CUBE and m["ns"] == "cup")
+    assert arrays[markers.OBJECTS_TOPIC][0]["action"] == markers.DELETEALL
+    cup = next(
+        m for m in arrays[markers.OBJECTS_TOPIC] if m["type"] == markers.CUBE and m["ns"] == "cup"
+    )
     assert cup["scale"] == {"x": 0.1, "y": 0.1, "z": 0.12}
-    assert any(m["type"] == markers.SPHERE_LIST for m in arrays["marker_human"])
+    assert any(m["type"] == markers.SPHERE_LIST for m in arrays[markers.HUMANS_TOPIC])
     areas = {
         "front": {
             "shape": "polygon",
@@ -334,17 +336,3 @@ def test_world_as_frames_lists_and_markers() -> None:
     )
     assert [m["ns"] for m in motion[1:]] == ["IsMoving", "IsLookingAt"]
     assert motion[2]["points"][0]["z"] == pytest.approx(1.7)  # from bob's head
-
-
-def test_rviz_config_shows_the_published_marker_topics() -> None:
-    import yaml
-
-    from toaster import ros1
-    from toaster.ros1.bridge import MARKER_TOPICS
-
-    config = yaml.safe_load((Path(ros1.__file__).parent / "toaster.rviz").read_text())
-    displays = config["Visualization Manager"]["Displays"]
-    topics = {d["Marker Topic"] for d in displays if d["Class"] == "rviz/MarkerArray"}
-    assert topics == {f"/toaster_visualizer/{t}" for t in MARKER_TOPICS}
-    assert any(d["Class"] == "rviz/TF" for d in displays)
-    assert config["Visualization Manager"]["Global Options"]["Fixed Frame"] == "map"

@@ -6,6 +6,10 @@ use the entities' sizes (``world.size``) when known, else a default per kind: hu
 cylinders with a heading arrow and their joints as spheres, robots boxes, objects boxes,
 areas polygons or discs (brighter while something is inside) and the motion and attention
 facts of agent_monitor arrows and lines (``marker_motion``).
+
+The topics are the original toaster_visualizer's (:data:`MARKER_TOPICS`), the same live (the ROS 1
+bridge), in recordings (``.bag`` and ``.mcap``) and in the shipped RViz config
+(``toaster/ros1/toaster.rviz``).
 """
 
 from __future__ import annotations
@@ -27,7 +31,15 @@ ARROW, CUBE, SPHERE, CYLINDER, LINE_STRIP, LINE_LIST, SPHERE_LIST, TEXT = 0, 1, 
 ADD, DELETEALL = 0, 3
 DEFAULT_SIZE = {HUMAN: (0.5, 0.5, 1.7), ROBOT: (0.6, 0.6, 1.2), OBJECT: (0.2, 0.2, 0.2)}
 COLORS = {HUMAN: (1.0, 0.8, 0.2), ROBOT: (0.4, 0.6, 1.0), OBJECT: (0.0, 1.0, 1.0)}
-TOPICS = {HUMAN: "marker_human", ROBOT: "marker_robot", OBJECT: "marker_object"}
+#: the original toaster_visualizer's MarkerArray topics, live and recorded alike
+OBJECTS_TOPIC = "/toaster_visualizer/marker_object"
+HUMANS_TOPIC = "/toaster_visualizer/marker_human"
+ROBOTS_TOPIC = "/toaster_visualizer/marker_robot"
+AREAS_TOPIC = "/toaster_visualizer/marker_area"
+MOTION_TOPIC = "/toaster_visualizer/marker_motion"
+MARKER_TOPICS = (OBJECTS_TOPIC, AREAS_TOPIC, HUMANS_TOPIC, ROBOTS_TOPIC, MOTION_TOPIC)
+#: the entity marker topic of each kind
+TOPICS = {HUMAN: HUMANS_TOPIC, ROBOT: ROBOTS_TOPIC, OBJECT: OBJECTS_TOPIC}
 
 
 def live_rows(world: World) -> np.ndarray:
@@ -159,7 +171,7 @@ def _size(world: World, row: int) -> tuple[float, float, float]:
 
 
 def entity_markers(world: World, t_ns: int) -> dict[str, list[dict[str, Any]]]:
-    """Arrays for marker_human, marker_robot and marker_object."""
+    """Arrays by topic (:data:`TOPICS`): marker_human, marker_robot and marker_object."""
     out: dict[str, list[dict[str, Any]]] = {topic: [_clear(t_ns)] for topic in TOPICS.values()}
     rows = live_rows(world).tolist()
     skeleton: dict[int, list[int]] = {}

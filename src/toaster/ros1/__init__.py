@@ -9,6 +9,7 @@ package imports rospy. :mod:`toaster.world.rosmsg` has no rospy import at all.
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from toaster.ros1.available import INSTALL_HINT, RosUnavailableError, import_rospy
@@ -16,6 +17,9 @@ from toaster.ros1.messages import DEBIAN_DIST, ros_path
 
 if TYPE_CHECKING:
     from toaster.ros1.bridge import Bridge
+
+#: the shipped RViz config (``rviz -d``): the marker topics, /tf, fixed frame map
+RVIZ_CONFIG = Path(__file__).with_name("toaster.rviz")
 
 
 def start_bridge(node: Any, **kwargs: Any) -> Bridge:
@@ -28,6 +32,7 @@ def start_bridge(node: Any, **kwargs: Any) -> Bridge:
 __all__ = [
     "DEBIAN_DIST",
     "INSTALL_HINT",
+    "RVIZ_CONFIG",
     "RosUnavailableError",
     "import_rospy",
     "ros_path",

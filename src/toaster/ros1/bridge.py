@@ -51,7 +51,6 @@ from toaster.world.state import World
 VIEW_EVERY = 3
 #: the node's status line (std_msgs/String, latched) and the service that answers it now
 STATUS_TOPIC, STATUS_SERVICE = "/toaster/status", "/toaster/get_status"
-MARKER_TOPICS = ("marker_object", "marker_area", "marker_human", "marker_robot", "marker_motion")
 SIMU_LISTS = {
     "toaster_simu_human": ("/toaster_simu/humanList", "HumanListStamped"),
     "toaster_simu_robot": ("/toaster_simu/robotList", "RobotListStamped"),
@@ -308,7 +307,7 @@ class Bridge:
         self.area_pub = pub("/area_manager/areaList", reg.msg("AreaList"), queue_size=10)
         self.tf_pub = pub("/tf", TFMessage, queue_size=100) if self.publish_tf else None
         self.marker_pubs = (
-            {t: pub(f"/toaster_visualizer/{t}", MarkerArray, queue_size=10) for t in MARKER_TOPICS}
+            {t: pub(t, MarkerArray, queue_size=10) for t in markers.MARKER_TOPICS}
             if self.markers
             else {}
         )
@@ -508,12 +507,12 @@ class _Output:
         if not wanted:
             return
         arrays: dict[str, list[dict[str, Any]]] = {}
-        if wanted & {"marker_object", "marker_human", "marker_robot"}:
+        if wanted & set(markers.TOPICS.values()):
             arrays |= markers.entity_markers(world, t_ns)
-        if "marker_area" in wanted:
-            arrays["marker_area"] = markers.area_markers(world, areas, occupied, t_ns)
-        if "marker_motion" in wanted:
-            arrays["marker_motion"] = markers.motion_markers(
+        if markers.AREAS_TOPIC in wanted:
+            arrays[markers.AREAS_TOPIC] = markers.area_markers(world, areas, occupied, t_ns)
+        if markers.MOTION_TOPIC in wanted:
+            arrays[markers.MOTION_TOPIC] = markers.motion_markers(
                 world, facts.get("agent_monitor", []), t_ns
             )
         for topic in wanted:

@@ -10,8 +10,11 @@ Foxglove and Lichtblick open the ``.mcap`` (or the ``.bag``) directly; ``ros2 ba
   :func:`toaster.quoting.ros_name`), full 3D poses;
 * ``/pdg/humanList``, ``/pdg/robotList``, ``/pdg/objectList`` (``toaster_msgs``): the entities
   as pdg publishes them, joints as skeleton joints;
-* ``/toaster/entities`` and ``/toaster/areas`` (``visualization_msgs/MarkerArray``): shapes
-  drawn by :mod:`toaster.outputs.markers` (real sizes, circles, owner-relative areas);
+* ``/toaster_visualizer/marker_object``, ``marker_human``, ``marker_robot``, ``marker_area`` and
+  ``marker_motion`` (``visualization_msgs/MarkerArray``): the live bridge's markers on the original
+  toaster_visualizer's topics (:data:`toaster.outputs.markers.MARKER_TOPICS`), drawn by
+  :mod:`toaster.outputs.markers` (real sizes, circles, owner-relative areas, agent_monitor's
+  motion and attention facts);
 * ``/area_manager/areaList`` (``toaster_msgs/AreaList``): the areas and who is inside;
 * ``/<producer>/factList`` (``toaster_msgs/FactList``): the self agent's facts of pdg,
   area_manager, agent_monitor and move3d_facts whenever they changed (from the store);
@@ -34,11 +37,14 @@ from toaster.errors import InvalidInputError
 from toaster.model import EventRow, Fact, FactRow
 from toaster.outputs.markers import (  # noqa: F401  (re-exported marker constants)
     ADD,
+    AREAS_TOPIC,
     ARROW,
     CUBE,
     CYLINDER,
     DELETEALL,
     LINE_STRIP,
+    MARKER_TOPICS,
+    MOTION_TOPIC,
     SPHERE,
     SPHERE_LIST,
     TEXT,
@@ -76,7 +82,7 @@ __all__ = [
     "record",
 ]
 
-ENTITIES_TOPIC, AREAS_TOPIC, FACTS_TOPIC = "/toaster/entities", "/toaster/areas", "/toaster/facts"
+FACTS_TOPIC = "/toaster/facts"
 TF_TOPIC, AREA_LIST_TOPIC = "/tf", "/area_manager/areaList"
 LIST_TOPICS = {"human": "/pdg/humanList", "robot": "/pdg/robotList", "object": "/pdg/objectList"}
 MARKER_ARRAY = "visualization_msgs/msg/MarkerArray"
@@ -134,6 +140,7 @@ class Recorder:
         self._inside: dict[str, set[str]] = {}
         self._areas_changed = False
         self._owners: dict[str, tuple[float, ...]] = {}
+        self._motion: list[Fact] = []  # agent_monitor's facts now, drawn on marker_motion
         self.belief_topics: dict[str, str] = {}
         self.frames = self.facts = self.fact_lists = self.beliefs = 0
 
@@ -141,13 +148,13 @@ class Recorder:
         self.bag.open()
         for topic, msgtype in (
             (TF_TOPIC, TF_MESSAGE),
-            (ENTITIES_TOPIC, MARKER_ARRAY),
-            (AREAS_TOPIC, MARKER_ARRAY),
+            *((topic, MARKER_ARRAY) for topic in MARKER_TOPICS),
             (FACTS_TOPIC, self.bag.log_type),
             *((LIST_TOPICS[k], LIST_TYPES[k]) for k in LIST_TOPICS),
             (AREA_LIST_TOPIC, AREA_LIST),
         ):
-            self.bag.connect(topic, msgtype)
+            # the areas are written only when they change: latched, as a late RViz needs them
+            self.bag.connect(topic, msgtype, latched=topic in (AREAS_TOPIC, AREA_LIST_TOPIC))
         return self
 
     def __exit__(self, exc_type: object, *exc: object) -> None:
@@ -163,7 +170,8 @@ class Recorder:
         self, t_ns: int, entities: Iterable[Any], areas: Iterable[Any] | None = None
     ) -> None:
         """Write /tf, pdg's lists and the markers at ``t_ns``; with ``areas``, replace the
-        areas (redrawn whenever the owner of one moved, or who is inside changed)."""
+        areas (redrawn whenever the owner of one moved, or who is inside changed). The motion
+        markers show agent_monitor's facts of the last :meth:`write_fact_list`."""
         poses = entity_poses(entities)
         new_areas = None if areas is None else dict(area_spec(item) for item in areas)
         scene = self.scene
@@ -171,7 +179,10 @@ class Recorder:
         self._put(TF_TOPIC, t_ns, TF_MESSAGE, scene.transforms(t_ns))
         for kind, fields in scene.lists(t_ns).items():
             self._put(LIST_TOPICS[kind], t_ns, LIST_TYPES[kind], fields)
-        self._put(ENTITIES_TOPIC, t_ns, MARKER_ARRAY, {"markers": scene.entity_markers(t_ns)})
+        for topic, drawn in scene.entity_markers(t_ns).items():
+            self._put(topic, t_ns, MARKER_ARRAY, {"markers": drawn})
+        motion = scene.motion_markers(self._motion, t_ns)
+        self._put(MOTION_TOPIC, t_ns, MARKER_ARRAY, {"markers": motion})
         if new_areas is not None:
             self.areas, self._areas_changed = new_areas, True
         owners = scene.poses_of({spec.get("owner") or "" for spec in self.areas.values()} - {""})
@@ -210,6 +221,8 @@ class Recorder:
         self.fact_lists += 1
         if source == "area_manager":
             self._note_inside(held)
+        elif source == "agent_monitor":
+            self._motion = held
 
     def write_beliefs(
         self, t_ns: int, holder: str, facts: Iterable[Fact | FactRow], *, is_self: bool = False

@@ -158,9 +158,14 @@ class BagWriter:
         """Whether ``topic`` has a connection."""
         return topic in self._conns
 
-    def connect(self, topic: str, msgtype: str) -> None:
-        """Add ``topic`` of ``msgtype`` (its definition, dependencies included, goes in the bag)."""
-        self._conns[topic] = self._writer.add_connection(topic, msgtype, typestore=self.types)
+    def connect(self, topic: str, msgtype: str, *, latched: bool = False) -> None:
+        """Add ``topic`` of ``msgtype`` (its definition, dependencies included, goes in the bag);
+        ``latched``: a ROS 1 bag marks it latched, so ``rosbag play`` hands its last message to
+        subscribers that come later (an RViz started after the bag)."""
+        extra = {"latching": 1} if latched and self.fmt.ros1 else {}
+        self._conns[topic] = self._writer.add_connection(
+            topic, msgtype, typestore=self.types, **extra
+        )
 
     def write(self, topic: str, t_ns: int, message: Any, msgtype: str) -> None:
         """Log ``message`` on ``topic`` at ``t_ns``."""

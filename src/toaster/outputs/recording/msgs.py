@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from toaster.model import FactRow
+from toaster.model import Fact, FactRow
 from toaster.outputs import markers
 from toaster.producers.registry import NAMES as PRODUCERS
 from toaster.world.rosmsg import strip_frame
@@ -200,17 +200,21 @@ class Scene:
         items = markers.entity_list_fields(self.world, t_ns)
         return {kind: {"header": header, f"{kind}List": items[kind]} for kind in items}
 
-    def entity_markers(self, t_ns: int) -> list[dict[str, Any]]:
-        """Bodies, heading arrows, joints and names, after one DELETEALL."""
-        arrays = markers.entity_markers(self.world, t_ns).values()
-        out = [next(iter(arrays))[0]] + [m for array in arrays for m in array[1:]]
-        return [self._header(m) for m in out]
+    def entity_markers(self, t_ns: int) -> dict[str, list[dict[str, Any]]]:
+        """Bodies, heading arrows, joints and names by topic (objects, humans, robots), each
+        array after a DELETEALL."""
+        arrays = markers.entity_markers(self.world, t_ns)
+        return {topic: [self._header(m) for m in array] for topic, array in arrays.items()}
 
     def area_markers(
         self, areas: Mapping[str, Mapping[str, Any]], occupied: set[str], t_ns: int
     ) -> list[dict[str, Any]]:
         """Polygons, discs and names; owner-relative areas where their owner is now."""
         return [self._header(m) for m in markers.area_markers(self.world, areas, occupied, t_ns)]
+
+    def motion_markers(self, facts: Sequence[Fact], t_ns: int) -> list[dict[str, Any]]:
+        """agent_monitor's motion and attention ``facts`` as arrows and lines."""
+        return [self._header(m) for m in markers.motion_markers(self.world, facts, t_ns)]
 
 
 # -- facts --------------------------------------------------------------------------------------
