@@ -277,7 +277,8 @@ class AgentMonitor:
     ) -> None:
         """IsMovingToward by direction and by distance for moving bodies or joints.
 
-        Only targets nearer than ``toward_range`` (2D, from the mover's position) count.
+        Only targets nearer than ``toward_range`` (2D, from the mover's position) count, and
+        never what the mover's agent holds (it moves with the hand: issue 27 item 4).
         """
         cfg = self.config
         gap = ns(cfg, "motion_max_gap")
@@ -292,7 +293,11 @@ class AgentMonitor:
         body = np.where(owner >= 0, owner, movers)
         t_rows = targets[ti]
         reach = np.where(world.kind[t_rows] == HUMAN, cfg["toward_range_humans"], rng)
+        # what the mover's agent holds moves with it: never a target of its own motion
+        hand = world.held_by[t_rows]
+        holder = np.where(hand >= 0, world.owner[np.maximum(hand, 0)], -1)
         keep = (after < reach) & (t_rows != body[mi]) & (t_rows != movers[mi])
+        keep &= holder != body[mi]
         mi, ti, dx, dy, after = mi[keep], ti[keep], dx[keep], dy[keep], after[keep]
         _, ref_dir, _ = _speed(world, movers, ns(cfg, f"{part}_direction_window"), gap)
         heading = bearing(ref_dir, now)
