@@ -241,7 +241,7 @@ class AgentMonitor:
         ai, ti, d = ai[near], ti[near], dist[near]
         if ai.size == 0:
             return
-        axis = gaze_axis(world.rpy[heads[ai]])
+        axis = gaze_axis(world.rpy[heads])[ai]  # one rotation per head, not per pair
         delta = points[ti] - hp[ai]
         cos = np.einsum("ij,ij->i", delta, axis) / d
         ang = np.arccos(np.clip(cos, -1.0, 1.0))
