@@ -241,7 +241,9 @@ def test_facts_and_areas_survive_the_wire(reg: Any) -> None:
     msg.serialize(buf)
     back = reg.msg("Fact")()
     back.deserialize(buf.getvalue())
-    assert back.valueType and back.time == 42 and mapping.fact_from_msg(back) == fact
+    # the original's Distance: valueType 0, the label in stringValue, metres in doubleValue
+    assert (back.valueType, back.stringValue, back.doubleValue) == (False, "close", 0.12)
+    assert back.time == 42 and mapping.fact_from_msg(back) == fact
     assert mapping.fact_from_msg(reg.msg("Fact")(subjectId="a", property="p")).value_text == "true"
     from toaster.ros1.messages import to_msg
 

@@ -21,7 +21,9 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from toaster.errors import InvalidInputError
-from toaster.model import Fact, check_agent_id, check_id, shown
+from toaster.model import check_agent_id, check_id, shown
+from toaster.world.factmsg import fact_fields as fact_fields  # the bridge's, recordings'
+from toaster.world.factmsg import fact_from_msg as fact_from_msg
 from toaster.world.geometry import (
     IDENTITY,
     Quat,
@@ -409,49 +411,7 @@ def list_updates(msg: Any) -> tuple[list[PoseUpdate], list[str]]:
     return updates, bad
 
 
-# -- facts and areas ----------------------------------------------------------------------------
-def fact_fields(fact: Fact, t_ns: int) -> dict[str, Any]:
-    """toaster_msgs/Fact fields of a fact held at ``t_ns`` (valueType 1 when it has a
-    number)."""
-    num = fact.value_num
-    has_num = num is not None
-    return {
-        "property": fact.property,
-        "propertyType": fact.property_type,
-        "subProperty": fact.sub_property,
-        "subjectId": fact.subject_id,
-        "targetId": fact.target_id,
-        "subjectOwnerId": fact.subject_owner_id,
-        "targetOwnerId": fact.target_owner_id,
-        "valueType": has_num,
-        "factObservability": float(fact.observability),
-        "doubleValue": float(num) if num is not None else 0.0,
-        "stringValue": fact.value_text,
-        "confidence": float(fact.confidence),
-        "time": t_ns,
-        "timeStart": t_ns,
-        "timeEnd": 0,
-    }
-
-
-def fact_from_msg(msg: Any) -> Fact:
-    """A toaster Fact from a toaster_msgs/Fact (or Event): a number only when valueType is
-    1; an empty string value means "true"."""
-    return Fact(
-        str(msg.subjectId),
-        str(msg.property),
-        str(msg.targetId),
-        str(msg.stringValue) or "true",
-        float(msg.doubleValue) if msg.valueType else None,
-        float(msg.confidence),
-        float(msg.factObservability),
-        str(msg.propertyType),
-        str(msg.subProperty),
-        str(msg.subjectOwnerId),
-        str(msg.targetOwnerId),
-    )
-
-
+# -- areas (facts: toaster.world.factmsg) ------------------------------------------------------
 def area_from_msg(msg: Any) -> tuple[str, dict[str, Any]]:
     """(name, spec) of a toaster_msgs/Area, as the original read it: zmin = zmax = 0 and a
     circle's height 0 mean no vertical band; factType interaction / density."""
