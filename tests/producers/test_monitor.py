@@ -207,3 +207,60 @@ def test_presence_and_in_hand(scene):
         scene.step()
     facts = PerceptionFacts().compute(scene.world, scene.t)
     assert set(props(facts, "isPresent")) == {("bob", "")}
+
+
+def test_a_held_object_is_no_target_of_its_holders_motion(scene):
+    """Issue 27 item 4: after put_in_hand the hand (and the body carrying it) "moved toward"
+    the object it holds, at confidence 1; the original does not. Another agent moving toward
+    the held object still does."""
+    scene.add("bob", pos=(0, 0, 0), rightHand=(0.3, -0.2, 1.0))
+    scene.add("ann", pos=(-3, -0.2, 0))
+    scene.add("cube", "object", pos=(0.6, -0.2, 1.0))
+    scene.world.put_in_hand("cube", "bob", "rightHand")
+    monitor = AgentMonitor({"min_duration": {"IsMoving": 0, "IsMovingToward": 0}})
+    for k in range(8):  # the hand reaches forward while the body stays still
+        scene.world.set_joint_local("bob/rightHand", (0.3 + 0.05 * k, -0.2, 1.0))
+        scene.put("bob", (0, 0, 0))
+        scene.put("ann", (-3, -0.2, 0))
+        scene.step()
+        facts = monitor.compute(scene.world, scene.t - S // 10)
+    assert ("bob/rightHand", "") in props(facts, "IsMoving")
+    assert not [f for f in facts if f.property == "IsMovingToward" and f.target_id == "cube"]
+    for k in range(10):  # bob walks on carrying it; ann walks toward him and the cube
+        scene.put("bob", (0.1 * k, 0, 0))
+        scene.put("ann", (-3 + 0.12 * k, -0.2, 0))
+        scene.step()
+        facts = monitor.compute(scene.world, scene.t - S // 10)
+    toward = {(f.subject_id, f.target_id) for f in facts if f.property == "IsMovingToward"}
+    assert ("bob", "") in props(facts, "IsMoving") and ("ann", "cube") in toward
+    assert not {pair for pair in toward if pair[0].startswith("bob") and pair[1] == "cube"}
+
+
+def test_toward_people_for_agents_monitored_by_id(scene):
+    """The original computes IsMovingToward toward everyone for the agents it monitors
+    (add_agent): an agent named by its id gets it toward people too; the default class
+    ("humans", a crowd) keeps toward_range_humans (0: not toward people)."""
+    scene.add("bob", pos=(0, 0, 0))
+    scene.add("ann", pos=(5, 0.2, 0))
+    scene.add("cup", "object", pos=(5, -0.2, 0))
+    walk(scene, "bob", (0, 0), (1.0, 0), 10)
+    crowd = AgentMonitor().compute(scene.world, scene.t)
+    assert set(props(crowd, "IsMovingToward", "direction")) == {("bob", "cup")}
+    for which in (["humans", "bob"], ["bob"]):
+        named = AgentMonitor({"monitored_agents": which}).compute(scene.world, scene.t)
+        assert set(props(named, "IsMovingToward", "direction")) == {("bob", "cup"), ("bob", "ann")}
+        assert ("bob", "ann") in props(named, "IsMovingToward", "distance")
+
+
+def test_body_approach_needs_more_than_the_threshold(scene):
+    """The original's body Δdistance threshold is about 3.6e-12 m (a conversion bug): any
+    approach counts. toaster's is 0.12 m/s over the window (0.03 m in 0.25 s): passing 5 m
+    beside a post (0.016 m nearer in the window) is no approach; threshold 0 gives the original's."""
+    scene.add("bob", pos=(0, 0, 0))
+    scene.add("post", "object", pos=(1.0, 5.0, 0))
+    walk(scene, "bob", (0.0, 0.0), (1.0, 0.0), 9)  # at x = 0.8 now, 0.55 one window ago
+    keys = {"min_duration": {"IsMoving": 0, "IsMovingToward": 0}}
+    facts = AgentMonitor(keys).compute(scene.world, scene.t)
+    assert ("bob", "post") not in props(facts, "IsMovingToward", "distance")
+    zero = AgentMonitor({**keys, "body_toward_speed_threshold": 0}).compute(scene.world, scene.t)
+    assert ("bob", "post") in props(zero, "IsMovingToward", "distance")

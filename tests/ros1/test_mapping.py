@@ -15,6 +15,7 @@ import pytest
 from toaster.errors import InvalidInputError
 from toaster.model import Fact
 from toaster.outputs import markers
+from toaster.world import geometry
 from toaster.world import rosmsg as mapping
 from toaster.world.rosmsg import TfTree
 from toaster.world.state import World
@@ -45,7 +46,7 @@ def tf_msg(*edges: tuple[str, str, tuple[float, float, float], float, int]) -> A
         tr.header.stamp.secs, tr.header.stamp.nsecs = divmod(stamp, 1_000_000_000)
         tr.transform.translation.x, tr.transform.translation.y = x, y
         tr.transform.translation.z = z
-        q = mapping.rpy_to_quat(0.0, 0.0, yaw)
+        q = geometry.rpy_to_quat(0.0, 0.0, yaw)
         r = tr.transform.rotation
         r.x, r.y, r.z, r.w = q
         out.append(tr)
@@ -76,7 +77,7 @@ def test_tf_chain_is_composed_up_to_map(reg: Any) -> None:
     cup = by_id["cup"]
     assert cup.position == pytest.approx((1.0, 1.0, 0.6)) and cup.t_ns == 7
     assert mapping.quat(type("Q", (), dict(zip("xyzw", cup.quat, strict=True)))()) == (
-        pytest.approx(mapping.rpy_to_quat(0.0, 0.0, math.pi / 2))
+        pytest.approx(geometry.rpy_to_quat(0.0, 0.0, math.pi / 2))
     )
     hand = by_id["bob/rightHand"]
     assert (hand.kind, hand.owner_id, hand.joint, hand.t_ns) == ("joint", "bob", "rightHand", None)
@@ -223,7 +224,7 @@ def test_entity_lists_hri_frames_and_ids(reg: Any) -> None:
         ("bob", "human", "", "", 9),
         ("bob/head", "joint", "bob", "head", 4),
     ]
-    assert updates[1].quat == mapping.IDENTITY and "nan" in problems[0]
+    assert updates[1].quat == geometry.IDENTITY and "nan" in problems[0]
     assert mapping.hri_target("face_7") == mapping.FrameTarget("7/head", "joint", "7", "head")
     assert mapping.hri_target("body_7") == mapping.FrameTarget("7", "human")
     assert mapping.hri_target("map") is None
@@ -240,7 +241,9 @@ def test_facts_and_areas_survive_the_wire(reg: Any) -> None:
     msg.serialize(buf)
     back = reg.msg("Fact")()
     back.deserialize(buf.getvalue())
-    assert back.valueType and back.time == 42 and mapping.fact_from_msg(back) == fact
+    # the original's Distance: valueType 0, the label in stringValue, metres in doubleValue
+    assert (back.valueType, back.stringValue, back.doubleValue) == (False, "close", 0.12)
+    assert back.time == 42 and mapping.fact_from_msg(back) == fact
     assert mapping.fact_from_msg(reg.msg("Fact")(subjectId="a", property="p")).value_text == "true"
     from toaster.ros1.messages import to_msg
 

@@ -44,8 +44,8 @@ DEFAULTS: dict[str, Tolerance] = {
     # 30 Hz a speed has ~0.11 m/s of noise, so a tighter tolerance records the noise itself
     # (docs/store.md, "Continuous values").
     "IsMoving": Tolerance(0.25, 0.2),  # m/s; confidence = speed x 0.72 s/m
-    # radians (direction: deviation, confidence = 1 - |dev|) or metres (distance: the
-    # approach over the window, confidence = its share of the step): volatile pair relations
+    # direction: value = confidence = 1 - |deviation| / 1 rad (the original's); distance:
+    # metres approached over the window, confidence = its share of the step: volatile pairs
     "IsMovingToward": Tolerance(0.3, 0.3),
     "IsLookingToward": Tolerance(0.05, 0.05),  # radians: 3 degrees
     "IsLookingAt": Tolerance(0.05, 0.05),

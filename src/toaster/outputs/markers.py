@@ -14,7 +14,6 @@ bridge), in recordings (``.bag`` and ``.mcap``) and in the shipped RViz config
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -22,8 +21,13 @@ import numpy as np
 
 from toaster.model import Fact
 from toaster.quoting import ros_name
+from toaster.world.geometry import (
+    Quat,
+    from_local_xy,
+    rotation_matrices,
+    rpy_to_quats,
+)
 from toaster.world.history import NO_TIME
-from toaster.world.rosmsg import Quat, rotate, rpy_to_quat
 from toaster.world.state import HUMAN, JOINT, OBJECT, ROBOT, World
 
 FRAME = "map"
@@ -61,9 +65,14 @@ def frame_of(world: World, row: int) -> str:
     return f"/{ros_name(world.ids[row])}"
 
 
-def quat_of(world: World, row: int) -> Quat:
-    r, p, y = (float(v) for v in world.rpy[row])
-    return rpy_to_quat(r, p, y)
+def quats_of(world: World, rows: Sequence[int], yaw_only: bool = False) -> dict[int, Quat]:
+    """Orientation (x, y, z, w) of each row (``yaw_only``: of its heading alone)."""
+    rpy = world.rpy[np.asarray(rows, dtype=np.int64)]
+    if yaw_only:
+        rpy = rpy * [0.0, 0.0, 1.0]
+    return {
+        r: (x, y, z, w) for r, (x, y, z, w) in zip(rows, rpy_to_quats(rpy).tolist(), strict=True)
+    }
 
 
 def _xyz(values: Sequence[float]) -> dict[str, float]:
@@ -77,15 +86,18 @@ def _pose(position: Sequence[float], q: Quat = (0.0, 0.0, 0.0, 1.0)) -> dict[str
 def transforms(world: World) -> list[tuple[str, tuple[float, float, float], Quat, int]]:
     """(child frame, position, quaternion, stamp) of every live entity, parent "map"."""
     out = []
-    for r in live_rows(world).tolist():
+    rows = live_rows(world).tolist()
+    quats = quats_of(world, rows)
+    for r in rows:
         x, y, z = (float(v) for v in world.pos[r])
-        out.append((frame_of(world, r), (x, y, z), quat_of(world, r), int(world.t_ns[r])))
+        out.append((frame_of(world, r), (x, y, z), quats[r], int(world.t_ns[r])))
     return out
 
 
 def entity_list_fields(world: World, t_ns: int) -> dict[str, list[dict[str, Any]]]:
     """pdg/humanList, robotList, objectList items (toaster_msgs Human / Robot / Object)."""
     rows = live_rows(world).tolist()
+    quats = quats_of(world, rows)
     joints: dict[int, list[int]] = {}
     for r in rows:
         if world.kind[r] == JOINT:
@@ -96,7 +108,7 @@ def entity_list_fields(world: World, t_ns: int) -> dict[str, list[dict[str, Any]
             "id": world.ids[r],
             "name": world.names[r],
             "time": int(world.t_ns[r]),
-            "pose": _pose(world.pos[r], quat_of(world, r)),
+            "pose": _pose(world.pos[r], quats[r]),
         }
 
     def agent(r: int) -> dict[str, Any]:
@@ -174,6 +186,8 @@ def entity_markers(world: World, t_ns: int) -> dict[str, list[dict[str, Any]]]:
     """Arrays by topic (:data:`TOPICS`): marker_human, marker_robot and marker_object."""
     out: dict[str, list[dict[str, Any]]] = {topic: [_clear(t_ns)] for topic in TOPICS.values()}
     rows = live_rows(world).tolist()
+    quats, headings = quats_of(world, rows), quats_of(world, rows, yaw_only=True)
+    ups = dict(zip(rows, rotation_matrices(world.rpy[rows])[:, :, 2].tolist(), strict=True))
     skeleton: dict[int, list[int]] = {}
     for r in rows:
         if world.kind[r] == JOINT:
@@ -185,12 +199,11 @@ def entity_markers(world: World, t_ns: int) -> dict[str, list[dict[str, Any]]]:
         topic, color, eid = TOPICS[kind], COLORS[kind], world.ids[r]
         sx, sy, sz = _size(world, r)
         x, y, z = (float(v) for v in world.pos[r])
-        yaw = float(world.rpy[r, 2])
         items = out[topic]
         if kind == OBJECT:
             # an object's box stands on its position (as the spatial producer sees it)
-            q = quat_of(world, r)
-            lift = rotate(q, (0.0, 0.0, sz / 2))
+            q = quats[r]
+            lift = [c * sz / 2 for c in ups[r]]
             items.append(
                 marker(
                     eid,
@@ -213,7 +226,7 @@ def entity_markers(world: World, t_ns: int) -> dict[str, list[dict[str, Any]]]:
                     scale=(sx, sy, sz),
                     color=color,
                     alpha=0.8,
-                    pose=_pose((x, y, z + sz / 2), rpy_to_quat(0.0, 0.0, yaw)),
+                    pose=_pose((x, y, z + sz / 2), headings[r]),
                 )
             )
             items.append(
@@ -224,7 +237,7 @@ def entity_markers(world: World, t_ns: int) -> dict[str, list[dict[str, Any]]]:
                     t_ns,
                     scale=(0.6, 0.08, 0.08),
                     color=color,
-                    pose=_pose((x, y, z + 0.8 * sz), rpy_to_quat(0.0, 0.0, yaw)),
+                    pose=_pose((x, y, z + 0.8 * sz), headings[r]),
                 )
             )
             joints = skeleton.get(r, [])
@@ -262,10 +275,9 @@ def _area_outline(world: World, spec: Mapping[str, Any]) -> tuple[list[list[floa
     owner = spec.get("owner") or ""
     if owner and owner in world.index:
         row = world.index[owner]
-        ox, oy, oz = (float(v) for v in world.pos[row])
-        c, s = math.cos(float(world.rpy[row, 2])), math.sin(float(world.rpy[row, 2]))
-        points = [[ox + c * px - s * py, oy + s * px + c * py] for px, py in points]
-        z += oz
+        turned = from_local_xy(np.asarray(points, float), world.pos[row, :2], world.rpy[row, 2])
+        points = turned.tolist()
+        z += float(world.pos[row, 2])
     return points, z
 
 
@@ -285,10 +297,11 @@ def area_markers(
             cz = float(rest[0]) if rest else 0.0
             if owner:
                 row = world.index[owner]
-                yaw = float(world.rpy[row, 2])
-                c, s = math.cos(yaw), math.sin(yaw)
-                ox, oy, oz = (float(v) for v in world.pos[row])
-                cx, cy, cz = ox + c * cx - s * cy, oy + s * cx + c * cy, cz + oz
+                turned = from_local_xy(
+                    np.array([[cx, cy]], float), world.pos[row, :2], world.rpy[row, 2]
+                )
+                cx, cy = turned[0].tolist()
+                cz += float(world.pos[row, 2])
             radius = float(spec["radius"])
             height = float(spec.get("height") or 0.02)
             out.append(
@@ -345,6 +358,8 @@ def motion_markers(world: World, facts: Sequence[Fact], t_ns: int) -> list[dict[
     out = [_clear(t_ns)]
     counts: dict[str, int] = {}
     index = world.index
+    movers = {index.get(f.subject_id, -1) for f in facts if f.property == "IsMoving"}
+    headings = quats_of(world, sorted(movers - {-1}), yaw_only=True)
     for fact in facts:
         s = index.get(fact.subject_id)
         if s is None:
@@ -355,7 +370,6 @@ def motion_markers(world: World, facts: Sequence[Fact], t_ns: int) -> list[dict[
         mid = counts[ns] = counts.get(ns, -1) + 1
         if fact.property == "IsMoving":
             length = max(0.2, float(fact.value_num or 0.0))
-            yaw = float(world.rpy[s, 2])
             out.append(
                 marker(
                     ns,
@@ -365,7 +379,7 @@ def motion_markers(world: World, facts: Sequence[Fact], t_ns: int) -> list[dict[
                     scale=(length, 0.1, 0.1),
                     color=(1.0, 0.0, 0.0),
                     alpha=min(1.0, 0.3 + fact.confidence),
-                    pose=_pose(start, rpy_to_quat(0.0, 0.0, yaw)),
+                    pose=_pose(start, headings[s]),
                 )
             )
         elif fact.property == "IsMovingToward" and target is not None:

@@ -6,11 +6,13 @@ deliberate (see docs/producers.md): angles are wrapped to (-pi, pi]; the head jo
 name for every agent (no hard-coded ids), also for looked-at agents; the body Δdistance
 threshold is 0.12 m/s × the window (not ~0); the joint Δdistance sign is fixed (fires when the
 joint approaches); IsMovingToward/distance confidence is the share of the motion spent
-approaching (0..1); Distance "out" is not emitted unless ``distance_emit_out``.
+approaching (0..1); Distance "out" is not emitted unless ``distance_emit_out``; a held object
+is no target of its holder's motion. docs/original.md lists every difference with its test.
 
 Relevance (:mod:`toaster.producers.relevance`): pair facts are computed only for pairs within
 range, found with a KD-tree on the targets built once per tick: IsMovingToward within
-``toward_range`` (2D), Distance within ``dist_far``, IsLookingToward / IsLookingAt within
+``toward_range`` (2D; toward a person within ``toward_range_humans``, unless the mover is
+monitored by its id), Distance within ``dist_far``, IsLookingToward / IsLookingAt within
 ``look_toward_distance``. Debounce (:mod:`toaster.producers.debounce`): IsMoving of bodies and
 joints is reported after ``min_duration["IsMoving"]`` of consistent evidence; the reported
 state (not the raw one) selects the movers (IsMovingToward) and the still agents (joints).
@@ -112,6 +114,15 @@ class AgentMonitor:
                 mask[world.index[item[1:]]] = False
         mask &= (kind == HUMAN) | (kind == ROBOT)
         return np.flatnonzero(mask & live)
+
+    def named_agents(self, world: World) -> np.ndarray:
+        """Per row, whether ``monitored_agents`` names it by its id (not through a class)."""
+        which = self.config["monitored_agents"]
+        mask = np.zeros(world.n, bool)
+        if not isinstance(which, str):
+            named = [i for i in which if i not in _CLASSES and not str(i).startswith("-")]
+            mask[world.rows_of(named)] = True
+        return mask
 
     def _joint_names(self, world: World) -> np.ndarray:
         if self._names_cache[0] != world.n:
@@ -241,7 +252,7 @@ class AgentMonitor:
         ai, ti, d = ai[near], ti[near], dist[near]
         if ai.size == 0:
             return
-        axis = gaze_axis(world.rpy[heads[ai]])
+        axis = gaze_axis(world.rpy[heads])[ai]  # one rotation per head, not per pair
         delta = points[ti] - hp[ai]
         cos = np.einsum("ij,ij->i", delta, axis) / d
         ang = np.arccos(np.clip(cos, -1.0, 1.0))
@@ -277,7 +288,8 @@ class AgentMonitor:
     ) -> None:
         """IsMovingToward by direction and by distance for moving bodies or joints.
 
-        Only targets nearer than ``toward_range`` (2D, from the mover's position) count.
+        Only targets nearer than ``toward_range`` (2D, from the mover's position) count, and
+        never what the mover's agent holds (it moves with the hand: issue 27 item 4).
         """
         cfg = self.config
         gap = ns(cfg, "motion_max_gap")
@@ -291,8 +303,16 @@ class AgentMonitor:
         owner = world.owner[movers]
         body = np.where(owner >= 0, owner, movers)
         t_rows = targets[ti]
-        reach = np.where(world.kind[t_rows] == HUMAN, cfg["toward_range_humans"], rng)
+        # toward a person: within toward_range_humans, unless the mover's agent is monitored
+        # by its id (add_agent), as the original computes it for the agents it monitors
+        named = self.named_agents(world)[body[mi]]
+        people = (world.kind[t_rows] == HUMAN) & ~named
+        reach = np.where(people, cfg["toward_range_humans"], rng)
+        # what the mover's agent holds moves with it: never a target of its own motion
+        hand = world.held_by[t_rows]
+        holder = np.where(hand >= 0, world.owner[np.maximum(hand, 0)], -1)
         keep = (after < reach) & (t_rows != body[mi]) & (t_rows != movers[mi])
+        keep &= holder != body[mi]
         mi, ti, dx, dy, after = mi[keep], ti[keep], dx[keep], dy[keep], after[keep]
         _, ref_dir, _ = _speed(world, movers, ns(cfg, f"{part}_direction_window"), gap)
         heading = bearing(ref_dir, now)
@@ -308,12 +328,13 @@ class AgentMonitor:
         self._movers[part] = movers
         before = np.where(continuing, prev, NO_TIME)[mi]
         ok = self._toward_state[(part, "direction")].update(pairs, conf > 0, clock, before)
+        held = np.maximum(conf[ok], 0.0)
         out.add(
             "IsMovingToward",
             movers[mi[ok]],
             targets[ti[ok]],
-            value_num=dev[ok],
-            conf=np.maximum(conf[ok], 0.0),
+            value_num=held,  # the original's: the confidence (docs/original.md)
+            conf=held,
             obs=obs,
             property_type="motion",
             sub_property="direction",

@@ -25,7 +25,7 @@ import numpy as np
 from toaster.model import Fact
 from toaster.producers.batch import FactBatch
 from toaster.world.config import make_config, ns
-from toaster.world.geometry import gaze_axis
+from toaster.world.geometry import gaze_axis, to_local
 from toaster.world.state import OBJECT, ROBOT, World
 
 #: Target sample points, as fractions of the box size from its centre.
@@ -441,8 +441,7 @@ def relative_position_from(
 
     origin = eye[0] if reference_id is None else centre(reference_id)
     d = centre(object_id) - origin
-    c, s = np.cos(yaw), np.sin(yaw)
-    local = [float(c * d[0] + s * d[1]), float(-s * d[0] + c * d[1]), float(d[2])]
+    local = to_local(d, np.array([0.0, 0.0, yaw])).tolist()
     order = np.argsort(-np.abs(local), kind="stable")
     words = [
         RELATIVE_WORDS[i][0 if local[i] > 0 else 1]

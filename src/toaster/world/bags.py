@@ -80,36 +80,36 @@ class BagSource:
         problems: Counter[str],
         areas: dict[str, dict[str, Any]] | None = None,
     ) -> None:
-        from toaster.world.live import quaternion_to_rpy
+        from toaster.world.geometry import check_quat, quats_to_rpy
 
         self.name = name
         self.areas = dict(areas or {})  # the last AreaList of the bag (toaster's recordings)
         self.problems = problems
-        rpy, good = [], []
+        quats, good = [], []
         for i, update in enumerate(updates):
             try:
                 check_id(update.entity_id, "entity id")
                 if update.owner_id:
                     check_id(update.owner_id, "owner id")
-                angles = quaternion_to_rpy(*update.quat)
+                q = check_quat(update.quat)
             except ValueError as exc:  # InvalidInputError is one
                 problems[f"{shown(update.entity_id)}: {exc}"] += 1
                 continue
-            if not np.isfinite([*update.position, *angles]).all():
+            if not np.isfinite(update.position).all():
                 problems[f"{update.entity_id}: non-finite pose ignored"] += 1
             elif np.abs(update.position).max() > MAX_COORD:
                 problems[f"{update.entity_id}: pose beyond ±{MAX_COORD:g} m ignored"] += 1
             elif not 0 <= int(times[i]) <= MAX_NS:
                 problems[f"{update.entity_id}: stamp {int(times[i])} ns out of range ignored"] += 1
             else:
-                rpy.append(angles)
+                quats.append(q)
                 good.append(i)
         keep = np.array(good, np.int64)
         order = np.argsort(times[keep], kind="stable")
         self.times = times[keep][order]
         self.updates = [updates[good[i]] for i in order]
         self.pos = np.array([u.position for u in self.updates], float).reshape(-1, 3)
-        self.rpy = np.array(rpy, float).reshape(-1, 3)[order]
+        self.rpy = quats_to_rpy(quats)[order]
         self._next = 0
         self.start_ns = int(self.times[0]) if len(self.times) else 0
         self.end_ns = int(self.times[-1]) if len(self.times) else 0

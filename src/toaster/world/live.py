@@ -32,29 +32,18 @@ from toaster.model import (
 )
 from toaster.timeutil import NS_PER_S, check_ns, now_ns
 from toaster.world.drops import Drops, Refused, refuse_if
+from toaster.world.geometry import check_quat, quats_to_rpy
+from toaster.world.geometry import quaternion_to_rpy as quaternion_to_rpy  # its old home
 from toaster.world.history import NO_TIME
 from toaster.world.state import KIND_CODES, World
 
 #: Entities a live world holds at most: a publisher inventing new ids cannot make the world
 #: (and the database's entities) grow without end; poses of further new ids are refused.
 MAX_LIVE_ENTITIES = 100_000
-#: (entity id, kind, owner id, joint name, t_ns, position, rpy, confidence)
-_Pose = tuple[
-    str, str, str, str, int, tuple[float, float, float], tuple[float, float, float], float
-]
-
-
-def quaternion_to_rpy(x: float, y: float, z: float, w: float) -> tuple[float, float, float]:
-    """Roll, pitch, yaw (radians, ZYX as ROS) of a quaternion; it need not be normalised."""
-    norm = math.sqrt(x * x + y * y + z * z + w * w)
-    if not math.isfinite(norm) or norm == 0.0:
-        msg = f"quaternion ({x}, {y}, {z}, {w}) has no orientation: give a non-zero quaternion"
-        raise ValueError(msg)
-    x, y, z, w = x / norm, y / norm, z / norm, w / norm
-    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
-    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return roll, pitch, yaw
+#: (entity id, kind, owner id, joint name, t_ns, position, orientation, confidence); the
+#: orientation is roll, pitch, yaw, or a unit quaternion (x, y, z, w) turned into angles for
+#: all poses of a tick at once (:meth:`LiveSource.advance`)
+_Pose = tuple[str, str, str, str, int, tuple[float, float, float], tuple[float, ...], float]
 
 
 def _numbers(values: object, field: str, what: str, bound: float, most: int = 4) -> list[float]:
@@ -114,14 +103,14 @@ def _checked(
     if quat is not None:
         q = _numbers(quat, "orientation", "quaternion", 1e150)
         try:
-            angles = list(quaternion_to_rpy(*q))
+            angles = list(check_quat(q))
         except (TypeError, ValueError) as exc:
             raise Refused(str(exc), "orientation") from None
     elif rpy is not None:
         angles = _numbers(rpy, "orientation", "roll, pitch, yaw (rad)", MAX_COORD, 3)
     else:
         angles = [0.0, 0.0, *_numbers([yaw], "orientation", "yaw (rad)", MAX_COORD, 1)]
-    if len(angles) != 3:
+    if len(angles) != 3 and quat is None:
         msg = f"orientation {shown(angles)} must be roll, pitch, yaw"
         raise Refused(msg, "orientation")
     if isinstance(t_ns, np.integer):
@@ -205,7 +194,7 @@ class LiveSource:
             joint,
             stamp,
             (x, y, z),
-            (angles[0], angles[1], angles[2]),
+            tuple(angles),
             conf,
         )
         with self._lock:
@@ -281,12 +270,18 @@ class LiveSource:
                 )
             world.history.clear_rows(back)
             world.t_ns[back] = NO_TIME
+        rpy = np.zeros((len(applied), 3))
+        turned = [i for i, p in enumerate(applied) if len(p[6]) == 4]
+        rpy[turned] = quats_to_rpy([applied[i][6] for i in turned])
+        angles = [i for i, p in enumerate(applied) if len(p[6]) == 3]
+        if angles:
+            rpy[angles] = [applied[i][6] for i in angles]
         world.observe(
             self.name,
             rows,
             stamps,
             np.array([p[5] for p in applied]),
-            np.array([p[6] for p in applied]),
+            rpy,
             np.array([p[7] for p in applied]),
         )
 

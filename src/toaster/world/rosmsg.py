@@ -18,14 +18,25 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any, NamedTuple
 
+import numpy as np
+
 from toaster.errors import InvalidInputError
-from toaster.model import Fact, check_agent_id, check_id, shown
+from toaster.model import check_agent_id, check_id, shown
+from toaster.world.factmsg import fact_fields as fact_fields  # the bridge's, recordings'
+from toaster.world.factmsg import fact_from_msg as fact_from_msg
+from toaster.world.geometry import (
+    IDENTITY,
+    Quat,
+    Vec,
+    check_quat,
+    compose_poses,
+    quat_mul,
+    rotate,
+)
+from toaster.world.geometry import rpy_to_quat as rpy_to_quat  # its old home
 
 FIXED_FRAME = "map"
 ENTITY_KINDS = ("human", "robot", "object", "joint")
-Vec = tuple[float, float, float]
-Quat = tuple[float, float, float, float]  # x, y, z, w
-IDENTITY: Quat = (0.0, 0.0, 0.0, 1.0)
 
 
 class PoseUpdate(NamedTuple):
@@ -71,46 +82,6 @@ def stamp_ns(stamp: Any) -> int:
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
-def quat_mul(a: Quat, b: Quat) -> Quat:
-    """Hamilton product a·b of (x, y, z, w) quaternions."""
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    return (
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-        aw * bw - ax * bx - ay * by - az * bz,
-    )
-
-
-def rotate(q: Quat, v: Vec) -> Vec:
-    """Vector ``v`` rotated by the unit quaternion ``q``."""
-    x, y, z, _ = quat_mul(quat_mul(q, (v[0], v[1], v[2], 0.0)), (-q[0], -q[1], -q[2], q[3]))
-    return (x, y, z)
-
-
-def normalised(q: Quat) -> Quat:
-    """``q`` of unit length; ValueError for a zero or non-finite quaternion."""
-    norm = math.sqrt(sum(c * c for c in q))
-    if not math.isfinite(norm) or norm == 0.0:
-        msg = f"quaternion {q} has no orientation: give a non-zero quaternion"
-        raise ValueError(msg)
-    return (q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm)
-
-
-def rpy_to_quat(roll: float, pitch: float, yaw: float) -> Quat:
-    """Quaternion (x, y, z, w) of roll, pitch, yaw (ZYX, as ROS)."""
-    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
-    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
-    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
-    return (
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-        cr * cp * cy + sr * sp * sy,
-    )
-
-
 def vec(p: Any) -> Vec:
     """(x, y, z) of a Point / Vector3; ValueError when not finite."""
     out = (float(p.x), float(p.y), float(p.z))
@@ -125,7 +96,7 @@ def quat(q: Any) -> Quat:
     out = (float(q.x), float(q.y), float(q.z), float(q.w))
     if out == (0.0, 0.0, 0.0, 0.0):
         return IDENTITY
-    return normalised(out)
+    return check_quat(out)
 
 
 def strip_frame(frame: str) -> str:
@@ -276,25 +247,45 @@ class TfTree:
         """Pose of ``frame`` in the fixed frame and its newest stamp (None when all stamps
         are 0, as static transforms); None when no chain of transforms reaches the fixed
         frame."""
-        frame = strip_frame(frame)
-        t: Vec = (0.0, 0.0, 0.0)
-        q: Quat = IDENTITY
-        newest = 0
-        current = frame
+        return self.lookup_many([frame])[0]
+
+    def lookup_many(self, frames: list[str]) -> list[tuple[Vec, Quat, int | None] | None]:
+        """:meth:`lookup` of many frames, composed together (one rotation batch per level)."""
+        chains: list[list[tuple[str, Vec, Quat, int]] | None] = []
         with self._lock:
-            for _ in range(self.MAX_DEPTH):
-                if current == self.fixed:
-                    return t, q, (newest or None)
-                edge = self._edges.get(current)
-                if edge is None:
-                    return None
-                parent, et, eq, stamp = edge
-                r = rotate(eq, t)
-                t = (et[0] + r[0], et[1] + r[1], et[2] + r[2])
-                q = quat_mul(eq, q)
-                newest = max(newest, stamp)
-                current = parent
-        return None
+            for frame in frames:
+                current = strip_frame(frame)
+                edges: list[tuple[str, Vec, Quat, int]] = []
+                while current != self.fixed and len(edges) < self.MAX_DEPTH:
+                    edge = self._edges.get(current)
+                    if edge is None:
+                        break
+                    edges.append(edge)
+                    current = edge[0]
+                chains.append(edges if current == self.fixed else None)
+        found = [c for c in chains if c is not None]
+        depth = max((len(c) for c in found), default=0)
+        # level k holds each chain's k-th transform from the frame up, identity past its end
+        lt = np.zeros((depth, len(found), 3))
+        lq = np.tile(np.asarray(IDENTITY), (depth, len(found), 1))
+        for i, chain in enumerate(found):
+            for k, (_, et, eq, _) in enumerate(chain):
+                lt[k, i], lq[k, i] = et, eq
+        t, q = np.zeros((len(found), 3)), np.tile(np.asarray(IDENTITY), (len(found), 1))
+        for k in range(depth):
+            t, q = compose_poses(lt[k], lq[k], t, q)
+        out: list[tuple[Vec, Quat, int | None] | None] = []
+        i = 0
+        for edges_up in chains:
+            if edges_up is None:
+                out.append(None)
+                continue
+            x, y, z = t[i].tolist()
+            qx, qy, qz, qw = q[i].tolist()
+            newest = max((e[3] for e in edges_up), default=0)
+            out.append(((x, y, z), (qx, qy, qz, qw), newest or None))
+            i += 1
+        return out
 
     def frames(self) -> list[str]:
         """Every child frame known."""
@@ -322,10 +313,9 @@ def tf_updates(
     changed = set(changed)
     updates: list[PoseUpdate] = []
     lost: list[str] = []
-    for frame, target in targets.items():
-        if not changed.intersection(tree.chain(frame)):
-            continue
-        found = tree.lookup(frame)
+    wanted = [frame for frame in targets if changed.intersection(tree.chain(frame))]
+    for frame, found in zip(wanted, tree.lookup_many(wanted), strict=True):
+        target = targets[frame]
         if found is None:
             lost.append(frame)
             continue
@@ -421,49 +411,7 @@ def list_updates(msg: Any) -> tuple[list[PoseUpdate], list[str]]:
     return updates, bad
 
 
-# -- facts and areas ----------------------------------------------------------------------------
-def fact_fields(fact: Fact, t_ns: int) -> dict[str, Any]:
-    """toaster_msgs/Fact fields of a fact held at ``t_ns`` (valueType 1 when it has a
-    number)."""
-    num = fact.value_num
-    has_num = num is not None
-    return {
-        "property": fact.property,
-        "propertyType": fact.property_type,
-        "subProperty": fact.sub_property,
-        "subjectId": fact.subject_id,
-        "targetId": fact.target_id,
-        "subjectOwnerId": fact.subject_owner_id,
-        "targetOwnerId": fact.target_owner_id,
-        "valueType": has_num,
-        "factObservability": float(fact.observability),
-        "doubleValue": float(num) if num is not None else 0.0,
-        "stringValue": fact.value_text,
-        "confidence": float(fact.confidence),
-        "time": t_ns,
-        "timeStart": t_ns,
-        "timeEnd": 0,
-    }
-
-
-def fact_from_msg(msg: Any) -> Fact:
-    """A toaster Fact from a toaster_msgs/Fact (or Event): a number only when valueType is
-    1; an empty string value means "true"."""
-    return Fact(
-        str(msg.subjectId),
-        str(msg.property),
-        str(msg.targetId),
-        str(msg.stringValue) or "true",
-        float(msg.doubleValue) if msg.valueType else None,
-        float(msg.confidence),
-        float(msg.factObservability),
-        str(msg.propertyType),
-        str(msg.subProperty),
-        str(msg.subjectOwnerId),
-        str(msg.targetOwnerId),
-    )
-
-
+# -- areas (facts: toaster.world.factmsg) ------------------------------------------------------
 def area_from_msg(msg: Any) -> tuple[str, dict[str, Any]]:
     """(name, spec) of a toaster_msgs/Area, as the original read it: zmin = zmax = 0 and a
     circle's height 0 mean no vertical band; factType interaction / density."""

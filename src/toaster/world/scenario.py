@@ -18,7 +18,7 @@ from toaster.documents import located, read_document
 from toaster.errors import FileFormatError, InvalidInputError
 from toaster.model import MAX_COORD, check_id, check_text, shown
 from toaster.timeutil import check_ns, check_rate, parse_duration, parse_time
-from toaster.world.geometry import wrap_angle
+from toaster.world.geometry import from_frames, to_frames, wrap_angle
 from toaster.world.state import MOBILITIES, World
 
 ACTIONS = (
@@ -574,15 +574,14 @@ class ScenarioSource:
             if head < 0 or agent not in self._present:
                 continue
             a, tg = world.row(agent), world.row(target)
-            head_world = world.pos[a] + _rot_yaw(world.rpy[a, 2]) @ world.local_pos[head]
-            d = world.pos[tg] - head_world
-            yaw = math.atan2(d[1], d[0])
-            pitch = -math.atan2(d[2], math.hypot(d[0], d[1]))
+            head_world, _ = from_frames(
+                world.pos[[a]], world.rpy[[a]], world.local_pos[[head]], world.local_rpy[[head]]
+            )
+            d = world.pos[tg] - head_world[0]
+            gaze = [0.0, -math.atan2(d[2], math.hypot(d[0], d[1])), math.atan2(d[1], d[0])]
+            _, head_rpy = to_frames(world.pos[[a]], world.rpy[[a]], head_world, np.array([gaze]))
             world.set_joint_local(
-                world.ids[head],
-                world.local_pos[head],
-                [0.0, pitch, wrap_angle(yaw - world.rpy[a, 2])],
-                t_ns,
+                world.ids[head], world.local_pos[head], head_rpy[0].tolist(), t_ns
             )
         for agent, (target, jid, lpos, _) in self._pointing.items():
             a, tg = world.row(agent), world.row(target)
@@ -590,8 +589,3 @@ class ScenarioSource:
             yaw = wrap_angle(math.atan2(d[1], d[0]) - world.rpy[a, 2])
             local = [ARM_LENGTH * math.cos(yaw), ARM_LENGTH * math.sin(yaw), lpos[2]]
             world.set_joint_local(jid, local, [0.0, 0.0, yaw], t_ns)
-
-
-def _rot_yaw(yaw: float) -> np.ndarray:
-    c, s = math.cos(yaw), math.sin(yaw)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])

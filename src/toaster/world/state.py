@@ -19,7 +19,7 @@ from typing import NamedTuple
 import numpy as np
 
 from toaster.errors import InvalidInputError, UnknownEntityError
-from toaster.world.geometry import rotation_matrices, wrap_angle
+from toaster.world.geometry import from_frames, to_frames
 from toaster.world.history import DEFAULT_HORIZON_NS, NO_TIME, History
 
 KIND_CODES = {"human": 0, "robot": 1, "object": 2, "joint": 3}
@@ -309,10 +309,9 @@ class World:
 
     def _set_local_from_world(self, joints: np.ndarray) -> None:
         agents = self.owner[joints]
-        rot = rotation_matrices(self.rpy[agents])
-        delta = self.pos[joints] - self.pos[agents]
-        self.local_pos[joints] = np.einsum("nji,nj->ni", rot, delta)
-        self.local_rpy[joints] = wrap_angle(self.rpy[joints] - self.rpy[agents])
+        self.local_pos[joints], self.local_rpy[joints] = to_frames(
+            self.pos[agents], self.rpy[agents], self.pos[joints], self.rpy[joints]
+        )
 
     def set_shape(
         self,
@@ -369,11 +368,9 @@ class World:
         joints = np.flatnonzero(self.kind[:n] == JOINT)
         if joints.size:
             agents = self.owner[joints]
-            rot = rotation_matrices(self.rpy[agents])
-            self.pos[joints] = self.pos[agents] + np.einsum(
-                "nij,nj->ni", rot, self.local_pos[joints]
+            self.pos[joints], self.rpy[joints] = from_frames(
+                self.pos[agents], self.rpy[agents], self.local_pos[joints], self.local_rpy[joints]
             )
-            self.rpy[joints] = wrap_angle(self.rpy[agents] + self.local_rpy[joints])
             self.t_ns[joints] = np.maximum(self.t_ns[joints], self.t_ns[agents])
         held = np.flatnonzero(self.held_by[:n] >= 0)
         if held.size:

@@ -21,7 +21,7 @@ import numpy as np
 from toaster.errors import FileFormatError, InvalidInputError
 from toaster.model import MAX_COORD, check_id, shown
 from toaster.timeutil import MAX_NS, MAX_RATE_HZ, MIN_RATE_HZ, NS_PER_S, check_ns
-from toaster.world.live import quaternion_to_rpy
+from toaster.world.geometry import check_quat, quats_to_rpy
 from toaster.world.state import World
 
 OBSMAT_FPS = 25.0  # ETH/UCY videos: 25 fps, annotated every 10 frames (0.4 s, 2.5 Hz)
@@ -340,6 +340,7 @@ def read_tracks(path: str | Path) -> TrackSource:
     n = len(rows)
     t = np.zeros(n, np.int64)
     pos, rpy, conf = np.zeros((n, 3)), np.zeros((n, 3)), np.ones(n)
+    quats = np.full((n, 4), np.nan)  # rows given as quaternions, turned into angles at once
     ids: list[str] = []
     kinds: dict[str, str] = {}
     for i, (line, row) in enumerate(rows):
@@ -355,7 +356,7 @@ def read_tracks(path: str | Path) -> TrackSource:
                 for key in ("qx", "qy", "qz", "qw")
             ]
             try:
-                rpy[i] = quaternion_to_rpy(*q)
+                quats[i] = check_quat(q)
             except ValueError as exc:
                 msg = f"{where}: {exc}"
                 raise FileFormatError(msg) from None
@@ -383,4 +384,6 @@ def read_tracks(path: str | Path) -> TrackSource:
             raise FileFormatError(msg)
         ids.append(eid)
         kinds.setdefault(eid, kind)
+    turned = ~np.isnan(quats[:, 3])
+    rpy[turned] = quats_to_rpy(quats[turned])
     return TrackSource(t, ids, kinds, pos, rpy, conf, name=path.stem)

@@ -38,7 +38,6 @@ NUMBERS = ("both", "only", "off")
 UNITS: dict[str | tuple[str, str], str] = {
     "Distance": "m",
     "IsMoving": "m/s",
-    ("IsMovingToward", "direction"): "rad",
     ("IsMovingToward", "distance"): "m",
     "IsLookingToward": "rad",
     "IsLookingAt": "rad",
@@ -148,7 +147,7 @@ class Lane:
 
     @property
     def number_label(self) -> str:
-        """The y-axis label of the numbers: ``Distance (m)``, ``IsMovingToward/direction (rad)``."""
+        """The y-axis label of the numbers: ``Distance (m)``, ``IsMovingToward/distance (m)``."""
         prop = (
             f"{self.key.property}/{self.key.sub_property}"
             if self.key.sub_property
