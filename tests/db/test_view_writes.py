@@ -155,6 +155,7 @@ def _second(db_url: str, tmp_path: Path) -> Iterator[str]:
         yield url
 
 
+@pytest.mark.slow
 def test_the_original_columns_write_as_fact_inbox_does(
     db: toaster.Database, db_url: str, tmp_path: Path
 ) -> None:
@@ -273,12 +274,14 @@ BAD = [
 
 
 def _dump(db: toaster.Database) -> list[Any]:
-    return [
-        q.execute(db, f"SELECT * FROM {table} ORDER BY 1").rows
-        for table in ("facts", "fact_keys", "events", "entities", "belief_follow")
-    ]
+    with db.transaction() as conn:
+        return [
+            conn.exec_driver_sql(f"SELECT * FROM {table} ORDER BY 1").all()
+            for table in ("facts", "fact_keys", "events", "entities", "belief_follow")
+        ]
 
 
+@pytest.mark.slow
 def test_bad_rows_get_one_line_and_write_nothing(db: toaster.Database) -> None:
     """Each bad row fails with one line naming what to fix; nothing is written."""
     _setup(db)
@@ -341,6 +344,7 @@ def _documented_script() -> str:
     return section.split("```sql\n", 1)[1].split("```", 1)[0]
 
 
+@pytest.mark.slow
 def test_the_documented_script_runs_in_the_command_line_client(
     db: toaster.Database, db_url: str
 ) -> None:
