@@ -2,7 +2,8 @@
 
 Its frozen file is what the package renders; ``toaster db upgrade`` from 0016 on a database
 with agents keeps the data and makes every agent's views writable (agents without views stay
-so); ``downgrade 0016`` gives back 0016's views without triggers.
+so, and ``toaster db views`` makes theirs writable too); ``downgrade 0016`` gives back 0016's
+views without triggers.
 """
 
 from __future__ import annotations
@@ -120,3 +121,16 @@ def test_upgrade_from_0016_keeps_the_data_and_adds_the_triggers(empty_url: str) 
         q.execute(db, 'DELETE FROM "fact_table_ROBOT"', write=True)
         assert [r.property for r in q.memory(db, "ROBOT")] == ["IsOn"]
         assert migrate.current_revision(db.engine) == "0017"
+    # An agent registered without views gets them, triggers included, from `toaster db views`.
+    result = runner.invoke(cli, ["--db", empty_url, "db", "views", "CROWD_1"])
+    assert result.exit_code == 0, result.output
+    with toaster.connect(empty_url) as db:
+        made = _objects(db.engine)
+        assert len(made["triggers"]) == len(head["triggers"]) * 4 // 3
+        q.execute(
+            db,
+            'INSERT INTO "events_table_CROWD_1" (subject_id, predicate, time) '
+            "VALUES ('CROWD_1', 'Waves', 5)",
+            write=True,
+        )
+        assert [e.kind for e in q.events(db, "CROWD_1")] == ["event"]
