@@ -286,6 +286,7 @@ RELEASED_FROZEN = {
     "0016/pipeline.json": "2cd0b616cefbf61ebcfc65a39112438ad253242fde55c8fb8a809498a12dd252",
     "0016/reperceive.json": "135c9e86cf9d73fb4d44164a57a78491b43c0dd872d94d3de0dfc431fdf1c4dd",
     "0016/ungroup.json": "3f38619715bb5f9b468e20ff9bcc93255a26f476ede03caac98d64b047e22a0a",
+    "0017_agent_views.json": "995cb30a52dc1255763c94f1f41a58851767b1c7b9807dcf52585f192320d41b",
 }
 
 

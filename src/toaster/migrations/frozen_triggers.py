@@ -107,3 +107,25 @@ def swap_units(conn: Connection, old: str, new: str) -> None:
         changed.add(DRIVER)
     _execute(conn, unit_statements(old, backend, "drop", changed & before.keys()))
     _execute(conn, unit_statements(new, backend, "create", changed & after.keys()))
+
+
+# -- The per-agent views and their write triggers (revision 0017) -----------------------------
+_TEMPLATE = re.compile(r"\{\{(\w+)\}\}")
+
+
+def agent_statements(
+    name: str, backend: str, which: str, views: dict[str, str], num: int
+) -> list[str]:
+    """The frozen ``which`` templates of ``migrations/frozen/<name>.json`` for one agent:
+    ``{{fact_table}}``, ``{{memory_table}}``, ``{{events_table}}`` filled with ``views`` (the
+    quoted names) and ``{{num}}`` with the agent's number."""
+    values = {**views, "num": str(int(num))}
+    return [
+        _TEMPLATE.sub(lambda m: values[m.group(1)], template)
+        for template in _frozen(f"{name}.json")[backend][which]
+    ]
+
+
+def execute_frozen(conn: Connection, sql: list[str]) -> None:
+    """Execute statements (:func:`agent_statements`) on the raw cursor."""
+    _execute(conn, sql)
