@@ -110,6 +110,7 @@ def diff(
     a = f"{agent}>{about}" if about else agent
     b = other or api.self_agent(app.db)
     key = ["subject_id", "property", "target_id", "sub_property"]
+    records: list[tuple[Any, ...]]
     if mode(fmt) in ("json", "csv"):
         columns = ["agent_a", "agent_b", *api.BeliefDiff._fields]
         records = [(a, b, *row) for row in rows]
