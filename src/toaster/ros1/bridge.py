@@ -22,6 +22,7 @@ from toaster.errors import InvalidInputError, one_line
 from toaster.model import Fact
 from toaster.outputs import markers
 from toaster.producers.registry import NAMES as PRODUCERS
+from toaster.producers.seen import SeenFacts
 from toaster.ros1 import messages
 from toaster.ros1.available import import_rospy
 from toaster.ros1.dbcalls import AREA_KEY, AREA_SCOPE
@@ -142,6 +143,8 @@ class Bridge:
         self.publish_lists = publish_lists and not pdg_lists  # never read back what we publish
         self.ros4hri = ros4hri
         self.tracked: dict[str, set[str] | None] = {"body": None, "face": None}
+        # ROS4HRI's tracked lists are what the robot detects: IsSeen (producers/seen.py)
+        self.seen = next((p for p in node.producers if p.name == SeenFacts.name), None)
         self.sources: dict[str, LiveSource] = {}
         self.subscribers: list[Any] = []
         self.services: list[Any] = []
@@ -268,7 +271,9 @@ class Bridge:
         return target if tracked is None or human in tracked else None
 
     def _on_tracked(self, msg: Any, which: str) -> None:
-        self.tracked[which] = tracked_ids(msg)
+        self.tracked[which] = ids = tracked_ids(msg)
+        if self.seen is not None:
+            self.seen.report(f"ros4hri_{which}", ids, self.node.self_id)
 
     def _on_pose(self, msg: Any, topic: str, target: FrameTarget) -> None:
         try:
