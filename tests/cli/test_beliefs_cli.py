@@ -87,3 +87,28 @@ def test_with_several_robots_commands_say_how_to_name_one(sally_anne) -> None:
     assert len(diff.output.strip().splitlines()) == 1
     named = sally_anne("beliefs", "diff", "SALLY", "--at", "4s", "--other", "ROBOT", "--json")
     assert named.exit_code == 0 and "BASKET" in named.output
+
+
+def test_diff_names_the_two_agents_in_its_header(sally_anne) -> None:
+    """The columns of `beliefs diff` name whose value each is (they read value_a / value_b,
+    leaving the reader to guess which agent is a); JSON lines name them in agent_a/agent_b."""
+    piped = sally_anne("beliefs", "diff", "SALLY", "--at", "4s").output.splitlines()
+    header = piped[0].split("\t")
+    assert header[4:] == [
+        "value (SALLY)",
+        "confidence (SALLY)",
+        "value (ROBOT)",
+        "confidence (ROBOT)",
+    ]
+    assert any(line.split("\t")[:3] == ["MARBLE", "IsIn", "BASKET"] for line in piped[1:])
+    nested = sally_anne(
+        "beliefs", "diff", "ANNE", "--about", "SALLY", "--at", "4s", "--other", "SALLY"
+    )
+    assert "value (ANNE>SALLY)" in nested.output.splitlines()[0]
+    rows = [
+        json.loads(x)
+        for x in sally_anne("beliefs", "diff", "SALLY", "--at", "4s", "--json").output.splitlines()
+    ]
+    assert {(r["agent_a"], r["agent_b"]) for r in rows} == {("SALLY", "ROBOT")}
+    csv = sally_anne("beliefs", "diff", "SALLY", "--at", "4s", "--csv").output.splitlines()
+    assert csv[0].startswith("agent_a,agent_b,subject_id")

@@ -87,3 +87,23 @@ def test_queries_without_a_node_and_bad_options_are_one_line_errors(db_url):
     assert "add --ros1" in result.stderr
     result = toaster_cli(db_url, "entity", "pose", "bob", "1", ok=False)
     assert "give X Y or X Y Z" in result.stderr
+
+
+def test_serve_reuses_the_databases_self_agent(db_url):
+    """A database whose self agent is PR2: `serve` without --self runs as PR2 (it added a
+    second self agent, "toaster", and every command defaulting to the self agent then
+    stopped with "not exactly one self agent"); another --self is refused in one line."""
+    toaster_cli(db_url, "set-info", "ENTITY", "--id", "PR2", "--type", "robot", "--self")
+    toaster_cli(db_url, "serve", "--seconds", "0.3")
+    with toaster.connect(db_url) as db:
+        assert {a: s for a, s in db.store().agents().items() if s} == {"PR2": True}
+    for entity in ("cup", "t"):
+        toaster_cli(db_url, "set-info", "ENTITY", "--id", entity, "--type", "object")
+    toaster_cli(
+        db_url, "set-info", "FACT", "--subject", "cup", "--property", "IsOn", "--target", "t"
+    )
+    assert "cup" in toaster_cli(db_url, "get-info", "FACT", "CURRENT").stdout
+    bad = toaster_cli(db_url, "serve", "--seconds", "0.3", "--self", "R2", ok=False)
+    assert bad.returncode == 1 and "Traceback" not in bad.stderr
+    assert "the database's self agent is PR2" in bad.stderr
+    toaster_cli(db_url, "serve", "--seconds", "0.3", "--self", "PR2")

@@ -10,15 +10,17 @@ from toaster.world.config import make_config
 
 
 def test_each_builtin_is_the_producer_its_name_says() -> None:
-    every = builtin_producers(make_config({}), {}, spatial=True)
+    every = builtin_producers(make_config({}), {}, spatial=True, live=True)
     assert [p.name for p in every] == list(NAMES)
-    assert NAMES == ("pdg", "area_manager", "agent_monitor", "move3d_facts")  # the original's
+    # the original's, and IsSeen (which its documentation lists from pdg) for live nodes
+    assert NAMES == ("pdg", "area_manager", "agent_monitor", "move3d_facts", "pdg_seen")
 
 
 def test_spatial_producers_only_when_asked() -> None:
     plain = builtin_producers(make_config({}), {}, spatial=False)
     assert [p.name for p in plain] == [b.name for b in BUILTINS if b.wanted == "always"]
     assert "move3d_facts" not in [p.name for p in plain]
+    assert "pdg_seen" not in [p.name for p in plain]  # toaster run: only a live node
 
 
 def test_the_names_load_light() -> None:

@@ -8,7 +8,7 @@ from typing import Any
 import click
 
 from toaster.cli.checks import parse_json_option, parse_time_option
-from toaster.cli.output import emit, listing_options, say
+from toaster.cli.output import emit, listing_options, mode, say
 
 
 def _at(value: str | None) -> int | None:
@@ -101,11 +101,23 @@ def diff(
     fmt: str | None,
     limit: int | None,
 ) -> None:
-    """False-belief report: where AGENT and OTHER disagree (value_a = AGENT's)."""
+    """False-belief report: where AGENT and OTHER disagree, each one's value and confidence
+    under its name (--json / --csv: value_a is AGENT's, value_b OTHER's, named in agent_a and
+    agent_b)."""
     from toaster.beliefs import api
 
     rows = api.false_beliefs(app.db, agent, other, about=about, at=_at(at))
-    emit(rows, fmt, limit=limit, empty="(no disagreement)")
+    a = f"{agent}>{about}" if about else agent
+    b = other or api.self_agent(app.db)
+    key = ["subject_id", "property", "target_id", "sub_property"]
+    records: list[tuple[Any, ...]]
+    if mode(fmt) in ("json", "csv"):
+        columns = ["agent_a", "agent_b", *api.BeliefDiff._fields]
+        records = [(a, b, *row) for row in rows]
+    else:
+        columns = [*key, f"value ({a})", f"confidence ({a})", f"value ({b})", f"confidence ({b})"]
+        records = [tuple(row) for row in rows]
+    emit(records, fmt, columns=columns, limit=limit, empty="(no disagreement)")
 
 
 @beliefs.command("history")

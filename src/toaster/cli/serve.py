@@ -5,13 +5,38 @@ from __future__ import annotations
 import logging
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from toaster.cli.rosopts import pose_topics as parse_pose_topics
 from toaster.cli.rosopts import ros_input_options
 from toaster.errors import InvalidInputError
+
+if TYPE_CHECKING:
+    from toaster.db.database import Database
+
+
+DEFAULT_SELF = "toaster"
+
+
+def self_agent_of(db: Database, requested: str | None) -> str:
+    """The node's self agent: ``requested``, else the database's one self agent, else
+    ``toaster``. A second self agent would break every command that defaults to the self
+    agent, so another id than the one the database has is refused."""
+    selves = sorted(agent for agent, is_self in db.store().agents().items() if is_self)
+    if requested is None:
+        if len(selves) > 1:
+            msg = f"the database has several self agents ({', '.join(selves)}): give --self ID"
+            raise InvalidInputError(msg)
+        return selves[0] if selves else DEFAULT_SELF
+    if selves and requested not in selves:
+        msg = (
+            f"--self {requested!r}: the database's self agent is {', '.join(selves)}; leave "
+            "--self out to use it (two self agents break the commands that default to it)"
+        )
+        raise InvalidInputError(msg)
+    return requested
 
 
 @click.command("serve")
@@ -32,9 +57,10 @@ from toaster.errors import InvalidInputError
 @click.option(
     "--self",
     "self_id",
-    default="toaster",
-    show_default=True,
-    help="The robot whose perception the world state is.",
+    default=None,
+    metavar="ID",
+    help="The robot whose perception the world state is (default: the database's self "
+    "agent, else toaster).",
 )
 @click.option(
     "--holders",
@@ -71,7 +97,7 @@ def serve(
     app: Any,
     rate: float,
     config_file: Path | None,
-    self_id: str,
+    self_id: str | None,
     holders: str,
     seconds: float | None,
     status_every: float,
@@ -115,6 +141,7 @@ def serve(
     status.addHandler(handler)
     status.setLevel(logging.INFO)
     status.propagate = False
+    self_id = self_agent_of(app.db, self_id)
     node = LiveNode(app.db, config=config, self_id=self_id, holders=choice)
     bridge = None
     if ros1:

@@ -105,7 +105,7 @@ class LiveNode:
         )
         self.outputs = list(outputs)
         self.producers: list[Any] = builtin_producers(
-            self.config, {}, spatial=bool(self.config.get("spatial"))
+            self.config, {}, spatial=bool(self.config.get("spatial")), live=True
         )
         # the control plane changes these two: areas, and which agents are monitored
         self.areas = next(p for p in self.producers if isinstance(p, AreaManager))

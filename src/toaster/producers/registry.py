@@ -30,11 +30,12 @@ class Producer(Protocol):
 
 class Builtin(NamedTuple):
     """A built-in producer: its name, how to build it from thresholds and areas, and when a
-    run wants it (``always``, or ``spatial``: when the input asks for the spatial facts)."""
+    run wants it (``always``; ``spatial``: when the input asks for the spatial facts;
+    ``live``: in a live node, ``toaster serve``)."""
 
     name: str
     factory: Callable[[Mapping[str, Any], Areas], Producer]
-    wanted: Literal["always", "spatial"]
+    wanted: Literal["always", "spatial", "live"]
 
 
 def _pdg(config: Mapping[str, Any], areas: Areas) -> Producer:
@@ -61,18 +62,28 @@ def _move3d_facts(config: Mapping[str, Any], areas: Areas) -> Producer:
     return SpatialFacts(config)
 
 
+def _pdg_seen(config: Mapping[str, Any], areas: Areas) -> Producer:
+    from toaster.producers.seen import SeenFacts
+
+    return SeenFacts(config)
+
+
 #: In the order a tick computes them.
 BUILTINS: tuple[Builtin, ...] = (
     Builtin("pdg", _pdg, "always"),
     Builtin("area_manager", _area_manager, "always"),
     Builtin("agent_monitor", _agent_monitor, "always"),
     Builtin("move3d_facts", _move3d_facts, "spatial"),
+    Builtin("pdg_seen", _pdg_seen, "live"),
 )
 #: The producers' names, each a ``/<name>/factList`` topic of the bridge and of recordings.
 NAMES: tuple[str, ...] = tuple(b.name for b in BUILTINS)
 
 
-def builtin_producers(config: Mapping[str, Any], areas: Areas, *, spatial: bool) -> list[Producer]:
+def builtin_producers(
+    config: Mapping[str, Any], areas: Areas, *, spatial: bool, live: bool = False
+) -> list[Producer]:
     """The built-in producers a run wants, built in :data:`BUILTINS` order; ``spatial`` adds
-    those wanted only for the spatial facts."""
-    return [b.factory(config, areas) for b in BUILTINS if b.wanted == "always" or spatial]
+    those wanted only for the spatial facts, ``live`` those of a live node."""
+    wanted = {"always"} | ({"spatial"} if spatial else set()) | ({"live"} if live else set())
+    return [b.factory(config, areas) for b in BUILTINS if b.wanted in wanted]

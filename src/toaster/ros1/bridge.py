@@ -22,9 +22,11 @@ from toaster.errors import InvalidInputError, one_line
 from toaster.model import Fact
 from toaster.outputs import markers
 from toaster.producers.registry import NAMES as PRODUCERS
+from toaster.producers.seen import SeenFacts
 from toaster.ros1 import messages
 from toaster.ros1.available import import_rospy
 from toaster.ros1.dbcalls import AREA_KEY, AREA_SCOPE
+from toaster.ros1.published import TABLES_TOPIC, AreaOut, TablesOut
 from toaster.ros1.services import DbPool, Handlers
 from toaster.ros1.watchers import Watchers
 from toaster.world.drops import Drops
@@ -34,7 +36,6 @@ from toaster.world.rosmsg import (
     FrameTarget,
     PoseUpdate,
     TfTree,
-    area_fields,
     fact_fields,
     frame_target,
     hri_target,
@@ -141,6 +142,8 @@ class Bridge:
         self.publish_lists = publish_lists and not pdg_lists  # never read back what we publish
         self.ros4hri = ros4hri
         self.tracked: dict[str, set[str] | None] = {"body": None, "face": None}
+        # ROS4HRI's tracked lists are what the robot detects: IsSeen (producers/seen.py)
+        self.seen = next((p for p in node.producers if p.name == SeenFacts.name), None)
         self.sources: dict[str, LiveSource] = {}
         self.subscribers: list[Any] = []
         self.services: list[Any] = []
@@ -267,7 +270,9 @@ class Bridge:
         return target if tracked is None or human in tracked else None
 
     def _on_tracked(self, msg: Any, which: str) -> None:
-        self.tracked[which] = tracked_ids(msg)
+        self.tracked[which] = ids = tracked_ids(msg)
+        if self.seen is not None:
+            self.seen.report(f"ros4hri_{which}", ids, self.node.self_id)
 
     def _on_pose(self, msg: Any, topic: str, target: FrameTarget) -> None:
         try:
@@ -305,6 +310,9 @@ class Bridge:
             p: pub(f"/{p}/factList", reg.msg("FactList"), queue_size=10) for p in PRODUCERS
         }
         self.area_pub = pub("/area_manager/areaList", reg.msg("AreaList"), queue_size=10)
+        self.areas_out = AreaOut(self.node, reg, self.area_pub, self.area_numbers)
+        self.tables_pub = pub(TABLES_TOPIC, reg.msg("DatabaseTables"), queue_size=1)
+        self.tables_out = TablesOut(self.node, reg, self.tables_pub)
         self.tf_pub = pub("/tf", TFMessage, queue_size=100) if self.publish_tf else None
         self.marker_pubs = (
             {t: pub(t, MarkerArray, queue_size=10) for t in markers.MARKER_TOPICS}
@@ -339,6 +347,7 @@ class Bridge:
             self.registry,
             lambda line: self.warnings.add(line, line),
             log=self.rospy.loginfo,
+            area_lists=self.areas_out.ask,
         )
         watchers = self.watchers = Watchers(self.rospy, self.registry, url)
 
@@ -347,7 +356,16 @@ class Bridge:
             resp.answer = True
             return resp
 
-        table = [*handlers.table(), ("/database_manager/watch", "Watch", open_watch)]
+        def publish_all_areas(req: Any, resp: Any) -> Any:
+            on = self.areas_out.toggle()
+            self.rospy.loginfo(f"/area_manager/areaList is {'on' if on else 'off'}")
+            return resp
+
+        table = [
+            *handlers.table(),
+            ("/database_manager/watch", "Watch", open_watch),
+            ("/area_manager/publish_all_areas", "Empty", publish_all_areas),
+        ]
         for name, type_name, handler in table:
             srv = self.registry.srv(type_name)
             self.services.append(self.rospy.Service(name, srv, self._guard(name, srv, handler)))
@@ -385,6 +403,7 @@ class Bridge:
         for pub in [
             *self.fact_pubs.values(),
             self.area_pub,
+            self.tables_pub,
             self.tf_pub,
             self.status_pub,
             *self.marker_pubs.values(),
@@ -445,9 +464,11 @@ class _Output:
                         factList=[fact_cls(**fact_fields(f, t_ns)) for f in facts.get(producer, [])]
                     )
                 )
+        b.areas_out.answer(t_ns, world)  # print_area's lists, asked from service threads
         self.ticks += 1
         if (self.ticks - 1) % VIEW_EVERY:  # fact lists every tick; views at 1/VIEW_EVERY
             return
+        b.tables_out.publish()
         if b.tf_pub is not None:
             b.tf_pub.publish(self._tf(t_ns, world))
         inside: dict[str, list[str]] = {}
@@ -455,20 +476,7 @@ class _Output:
             if fact.property in ("IsInArea", "IsInRoom", "IsAt"):
                 inside.setdefault(fact.target_id, []).append(fact.subject_id)
         areas = b.node.areas.areas
-        if b.area_pub.get_num_connections():
-            numbers = b.area_numbers(frozenset(areas))
-            b.area_pub.publish(
-                messages.to_msg(
-                    reg.msg("AreaList"),
-                    {
-                        "areaList": [
-                            area_fields(name, spec, numbers.get(name, 0), inside.get(name, []))
-                            for name, spec in sorted(areas.items())
-                        ]
-                    },
-                    reg,
-                )
-            )
+        b.areas_out.publish(t_ns, world)
         self._markers(t_ns, facts, world, areas, set(inside))
         if any(p.get_num_connections() for p in b.list_pubs.values()):
             lists = markers.entity_list_fields(world, t_ns)

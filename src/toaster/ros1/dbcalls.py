@@ -25,6 +25,7 @@ if TYPE_CHECKING:
     from toaster.db.database import Database
 
 AREA_SCOPE, AREA_KEY = "ros1", "area_ids"  # {area name: the original's numeric id}
+KEYBOARD_SCOPE, KEYBOARD_KEY = "keyboard", "entity"  # set_entity_keyboard's choice
 
 
 def control_state(db: Database) -> control.ControlState:
@@ -116,6 +117,20 @@ def forget_area(db: Database, name: str | None) -> None:
         numbers = dict(catalog.get_setting(conn, AREA_SCOPE, AREA_KEY, {}) or {})
         numbers = {} if name is None else {k: v for k, v in numbers.items() if k != name}
         catalog.put_setting(conn, AREA_SCOPE, AREA_KEY, numbers)
+
+
+def set_keyboard_entity(db: Database, entity_id: str) -> None:
+    """toaster_simu's set_entity_keyboard: the keyboard-controlled entity, kept as the
+    setting ``keyboard.entity`` (one at a time, as the original)."""
+    with db.transaction(write=True) as conn:
+        catalog.put_setting(conn, KEYBOARD_SCOPE, KEYBOARD_KEY, entity_id)
+
+
+def keyboard_entity(db: Database) -> str | None:
+    """The entity set_entity_keyboard chose last (None: none)."""
+    with db.transaction() as conn:
+        found = catalog.get_setting(conn, KEYBOARD_SCOPE, KEYBOARD_KEY, None)
+    return found if isinstance(found, str) else None
 
 
 # -- rows as message fields ---------------------------------------------------------------------
@@ -371,3 +386,75 @@ def plot_facts(db: Database, req: Any, directory: str | Path = PLOT_DIR) -> Path
         until=until,
     )
     return path
+
+
+# -- load_save ----------------------------------------------------------------------------------
+SQLITE_OK, SQLITE_ERROR, SQLITE_CANTOPEN = 0, 1, 14  # the status codes load_save answers
+_SQLITE_MAGIC = b"SQLite format 3\0"
+_VERSIONS = ("cache_epoch", "control_version", "agents_version")
+
+
+def _sqlite_file(path: Path) -> bool:
+    with path.open("rb") as f:
+        return f.read(16) == _SQLITE_MAGIC
+
+
+def _revision(conn: Any, what: str) -> str:
+    import sqlite3
+
+    try:
+        return str(conn.execute("SELECT version_num FROM alembic_version").fetchone()[0])
+    except (sqlite3.Error, TypeError):
+        msg = f"load_save: {what} is not a toaster database (no schema revision)"
+        raise InvalidInputError(msg) from None
+
+
+def load_save(db: Database, file_name: str, to_save: bool) -> None:
+    """The original's load_save, with SQLite's online-backup API between the live database
+    and ``file_name``: ``to_save`` copies the live database into the file (made or replaced;
+    an existing file must be an SQLite database), else the file, a toaster database at the
+    live one's schema revision, replaces the live database. After a load every store and a
+    running node re-read what they cache (cache epoch, control and agent versions moved past
+    both). PostgreSQL: refused (pg_dump / pg_restore do it on the server's side)."""
+    import sqlite3
+
+    if db.dialect_name != "sqlite":
+        msg = (
+            "load_save: the database is PostgreSQL, which keeps no in-memory copy to save: "
+            "use pg_dump / pg_restore on the server"
+        )
+        raise InvalidInputError(msg)
+    from sqlalchemy.engine import make_url
+
+    live_path = make_url(db.url).database
+    path = Path(str(file_name)).expanduser()
+    if not file_name or live_path is None or path.resolve() == Path(live_path).resolve():
+        msg = f"load_save: fileName {str(file_name)!r} must name another file than the live one"
+        raise InvalidInputError(msg)
+    if (path.exists() or not to_save) and not (path.is_file() and _sqlite_file(path)):
+        what = "is no SQLite file to replace" if to_save else "is no SQLite database to load"
+        msg = f"load_save: {str(path)!r} {what}"
+        raise InvalidInputError(msg)
+    live = sqlite3.connect(live_path, timeout=30)
+    other = sqlite3.connect(path, timeout=30)
+    try:
+        if to_save:
+            live.backup(other)
+            return
+        if _revision(other, repr(str(path))) != _revision(live, "the live database"):
+            msg = f"load_save: {str(path)!r} is at another schema revision than the live database"
+            raise InvalidInputError(msg)
+        columns = ", ".join(_VERSIONS)
+        before = live.execute(f"SELECT {columns} FROM store_state WHERE id = 1").fetchone()
+        loaded = other.execute(f"SELECT {columns} FROM store_state WHERE id = 1").fetchone()
+        other.backup(live)
+        moved = [max(a, b) + 1 for a, b in zip(before, loaded, strict=True)]
+        with live:
+            live.execute(
+                "UPDATE store_state SET cache_epoch = ?, control_version = ?, agents_version = ? "
+                "WHERE id = 1",
+                moved,
+            )
+    finally:
+        live.close()
+        other.close()

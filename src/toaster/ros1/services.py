@@ -125,7 +125,8 @@ def _checked_id(value: object, field: str, what: str, *, agent: bool = False) ->
 
 
 class Handlers:
-    """Service handlers over a connection pool; ``ask_timeout`` bounds world queries."""
+    """Service handlers over a connection pool; ``ask_timeout`` bounds world queries;
+    ``area_lists(timeout)`` gives the areas' entity lists as of the node's next tick."""
 
     def __init__(
         self,
@@ -135,8 +136,10 @@ class Handlers:
         *,
         ask_timeout: float = 2.0,
         log: Callable[[str], None] | None = None,
+        area_lists: Callable[[float], dict[str, Any] | None] | None = None,
     ) -> None:
         self.pool = pool
+        self.area_lists = area_lists
         self.registry = registry
         self.warn = warn
         self.ask_timeout = ask_timeout
@@ -215,6 +218,14 @@ class Handlers:
     def remove_entity(self, req: Any, resp: Any) -> Any:
         kind = str(req.type).lower()
         self._command("remove_entity", {"id": _entity_id(req, kind)})
+        resp.answer = True
+        return resp
+
+    def set_entity_keyboard(self, req: Any, resp: Any) -> Any:
+        """Chooses the one keyboard-controlled entity (a known one), kept in the database
+        (setting keyboard.entity); toaster opens no keyboard window (docs/ros1.md)."""
+        with self.pool.db() as db:
+            dbcalls.set_keyboard_entity(db, self._known(db, req.id, "id"))
         resp.answer = True
         return resp
 
@@ -344,22 +355,44 @@ class Handlers:
             dbcalls.forget_area(db, None)
         return resp
 
+    def _area_line(self, number: object, name: str, spec: Any, lists: Any) -> str:
+        found = lists.get(name) if lists is not None else None
+        if found is None:
+            return f"area {number} {name!r}: {spec}"
+        return (
+            f"area {number} {name!r}: inside {found.inside}; upcoming {found.upcoming}; "
+            f"leaving {found.leaving}; {spec}"
+        )
+
+    def _lists(self) -> Any:
+        """The areas' entity lists from the node's next tick (None without a bridge)."""
+        if self.area_lists is None:
+            return None
+        found = self.area_lists(self.ask_timeout)
+        if found is None:
+            msg = f"no tick of the node came within {self.ask_timeout:g} s"
+            raise ServiceError(msg, "id")
+        return found
+
     def print_area(self, req: Any, resp: Any) -> Any:
+        """Logs the area and the entities inside it, upcoming and leaving."""
         with self.pool.db() as db:
             name = dbcalls.area_name(db, int(req.id))
             spec = db.store().areas().get(name) if name is not None else None
-        if spec is None:
+        if spec is None or name is None:
             msg = f"print_area: no area with id {req.id}"
             raise ServiceError(msg, "id")
-        self.log(f"area {req.id} {name!r}: {spec}")
+        self.log(self._area_line(req.id, name, spec, self._lists()))
         resp.answer = True
         return resp
 
     def print_all_areas(self, req: Any, resp: Any) -> Any:
         with self.pool.db() as db:
             numbers = dbcalls.area_numbers(db)
-            for name, spec in db.store().areas().items():
-                self.log(f"area {numbers.get(name, '?')} {name!r}: {spec}")
+            areas = db.store().areas()
+        lists = self._lists()
+        for name, spec in areas.items():
+            self.log(self._area_line(numbers.get(name, "?"), name, spec, lists))
         return resp
 
     def get_relative_position(self, req: Any, resp: Any) -> Any:
@@ -422,6 +455,24 @@ class Handlers:
         resp.boolAnswer = True
         return resp
 
+    def load_save(self, req: Any, resp: Any) -> Any:
+        """sqlstatus: SQLite's status code (0 when done); a refusal is also a warning line."""
+        import sqlite3
+
+        try:
+            with self.pool.db() as db:
+                dbcalls.load_save(db, str(req.fileName), bool(req.toSave))
+            resp.sqlstatus = dbcalls.SQLITE_OK
+            what = "saved to" if req.toSave else "loaded from"
+            self.log(f"load_save: the database {what} {visible(str(req.fileName))}")
+        except InvalidInputError as exc:
+            self.warn(str(exc))
+            resp.sqlstatus = dbcalls.SQLITE_ERROR
+        except sqlite3.Error as exc:
+            self.warn(f"load_save {visible(str(req.fileName))}: {exc}")
+            resp.sqlstatus = getattr(exc, "sqlite_errorcode", dbcalls.SQLITE_CANTOPEN)
+        return resp
+
     def table(self) -> list[tuple[str, str, Callable[[Any, Any], Any]]]:
         """(service name, toaster_msgs service type, handler) of every service."""
         out: list[tuple[str, str, Callable[[Any, Any], Any]]] = [
@@ -468,6 +519,8 @@ class Handlers:
             ("/database_manager/get_info", "GetInfoDB", self.get_info),
             ("/database_manager/set_info", "SetInfoDB", self.set_info),
             ("/database_manager/plot_facts", "PlotFactsDB", self.plot_facts),
+            ("/database_manager/load_save", "LoadSaveDB", self.load_save),
+            ("/toaster_simu/set_entity_keyboard", "AddAgent", self.set_entity_keyboard),
         ]
         out += [
             (f"/agent_monitor/{name}", "MonitorAll", self.monitor_all(which))
