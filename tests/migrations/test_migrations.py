@@ -286,6 +286,8 @@ RELEASED_FROZEN = {
     "0016/pipeline.json": "2cd0b616cefbf61ebcfc65a39112438ad253242fde55c8fb8a809498a12dd252",
     "0016/reperceive.json": "135c9e86cf9d73fb4d44164a57a78491b43c0dd872d94d3de0dfc431fdf1c4dd",
     "0016/ungroup.json": "3f38619715bb5f9b468e20ff9bcc93255a26f476ede03caac98d64b047e22a0a",
+    "0019_units.json": "8301fa685bdd05c3ec429a86842b173ac5aee3637095790cb06dd9bf498788a9",
+    "0019/40_refresh.json": "0dff62f4662fca403c5efc6d00aea0e13b313845ac630d22a26ff055bbcadb0b",
 }
 
 
