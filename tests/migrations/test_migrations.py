@@ -287,6 +287,8 @@ RELEASED_FROZEN = {
     "0016/reperceive.json": "135c9e86cf9d73fb4d44164a57a78491b43c0dd872d94d3de0dfc431fdf1c4dd",
     "0016/ungroup.json": "3f38619715bb5f9b468e20ff9bcc93255a26f476ede03caac98d64b047e22a0a",
     "0017_agent_views.json": "995cb30a52dc1255763c94f1f41a58851767b1c7b9807dcf52585f192320d41b",
+    "0018_units.json": "ec0755fb7c50ca50b2d2a8cc7c2507940051cbbe4ca4561c35fa2730bc80dfdd",
+    "0018/40_refresh.json": "0dff62f4662fca403c5efc6d00aea0e13b313845ac630d22a26ff055bbcadb0b",
 }
 
 

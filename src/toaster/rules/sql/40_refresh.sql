@@ -41,8 +41,24 @@ arrived(holder_id, entity_id, pconf) AS (
   {{pinned_join}} belief_seen s ON s.entity_id = k.target_id AND s.phase = 'after'
   WHERE b.move = 'after'
 ),
+-- Who perceived a thing leave (its subject or where it was, before the tick) saw where it was
+-- just before, so it is no longer wherever the holder believed it was either: a nested holder
+-- that perceives it before the tick only through the actor of the move (A saw B see it leave).
+departed(holder_id, entity_id, pconf) AS (
+  SELECT s.holder_id, k.subject_id, s.pconf
+  FROM belief_changed b {{pinned_join}} fact_keys k ON k.id = b.key_id
+  {{pinned_join}} belief_seen s ON s.entity_id = k.subject_id AND s.phase = 'before'
+  WHERE b.move = 'before'
+  UNION
+  SELECT s.holder_id, k.subject_id, s.pconf
+  FROM belief_changed b {{pinned_join}} fact_keys k ON k.id = b.key_id
+  {{pinned_join}} belief_seen s ON s.entity_id = k.target_id AND s.phase = 'before'
+  WHERE b.move = 'before'
+),
 stale(holder_id, entity_id, pconf) AS (
-  SELECT holder_id, entity_id, pconf FROM newly UNION SELECT holder_id, entity_id, pconf FROM arrived
+  SELECT holder_id, entity_id, pconf FROM newly
+  UNION SELECT holder_id, entity_id, pconf FROM arrived
+  UNION SELECT holder_id, entity_id, pconf FROM departed
 ),
 -- Containers whose closed fact ended at :t, with the holders who see them afterwards: opening
 -- a container shows its content (and that what was believed inside is no longer there).
