@@ -289,6 +289,8 @@ RELEASED_FROZEN = {
     "0017_agent_views.json": "995cb30a52dc1255763c94f1f41a58851767b1c7b9807dcf52585f192320d41b",
     "0018_units.json": "ec0755fb7c50ca50b2d2a8cc7c2507940051cbbe4ca4561c35fa2730bc80dfdd",
     "0018/40_refresh.json": "0dff62f4662fca403c5efc6d00aea0e13b313845ac630d22a26ff055bbcadb0b",
+    "0019_units.json": "a6ed8555dac949ccd8c95f5c0b1c4efa47e5b66877c9ffd8f1b8bdb8770dac2f",
+    "0019/10_focus.json": "c6ea450f2bc9fac01c14c30836edf0131362c5b3caae1f35baa3fb7dc4b3f752",
 }
 
 
@@ -355,14 +357,18 @@ def _frozen_objects(backend: str, create: list[str]) -> set[str]:
 
 
 def _frozen_sets(backend: str) -> dict[str, set[str]]:
-    """What revisions 0015 and 0016 install (their frozen files, not the package's rendering)."""
+    """What revisions 0015, 0016, 0018 and 0019 install (their frozen files, not the package's
+    rendering)."""
     frozen = Path(toaster.__file__).parent / "migrations" / "frozen"
     whole = json.loads((frozen / "0015_triggers.json").read_text(encoding="utf-8"))
     return {
         "0015": _frozen_objects(backend, whole[backend]["create"]),
-        "0016": _frozen_objects(
-            backend, frozen_triggers.unit_statements("0016", backend, "create")
-        ),
+        **{
+            revision: _frozen_objects(
+                backend, frozen_triggers.unit_statements(revision, backend, "create")
+            )
+            for revision in ("0016", "0018", "0019")
+        },
     }
 
 
@@ -436,3 +442,19 @@ def test_the_step_units_replace_the_whole_set_and_back(empty_url: str, tmp_path:
         whole, units = _inbox_story(empty_url, "0015"), _inbox_story(other, "0016")
     assert whole == units
     assert len(whole[0]) > 30 and len({row[0] for row in whole[0]}) > 3  # holders' rows too
+
+
+def test_a_revision_swaps_the_units_it_changed_and_back(empty_url: str) -> None:
+    """0018 <-> 0019 (swap_units: 10_focus, and SQLite's driver that inlines it) installs
+    exactly each revision's frozen objects."""
+    engine = make_engine(empty_url)
+    expected = _frozen_sets(engine.dialect.name)
+    if engine.dialect.name == "postgresql":
+        assert expected["0018"] != expected["0019"]
+    migrate.upgrade(engine, "0018")
+    assert _rule_objects(engine) == expected["0018"]
+    migrate.upgrade(engine, "0019")
+    assert _rule_objects(engine) == expected["0019"]
+    migrate.downgrade(engine, "0018")
+    assert _rule_objects(engine) == expected["0018"]
+    engine.dispose()
