@@ -157,6 +157,7 @@ def key(fact: toaster.Fact | toaster.FactRow) -> tuple[str, str, str]:
     return (fact.subject_id, fact.property, fact.target_id)
 
 
+@pytest.mark.slow
 def test_rostopic_echo_decodes_every_fact_list(
     world: RosClient, tools: Tools, db: toaster.Database
 ) -> None:
@@ -191,6 +192,7 @@ FACT = (
 )
 
 
+@pytest.mark.slow
 def test_rosservice_call_of_the_database_manager_services(
     world: RosClient, tools: Tools, db: toaster.Database
 ) -> None:
@@ -233,6 +235,7 @@ def test_rosservice_call_of_the_database_manager_services(
     assert status["success"] is True and "ticks" in status["message"]
 
 
+@pytest.mark.slow
 def test_rosmsg_and_rossrv_show_the_shipped_definitions(tools: Tools) -> None:
     shipped = MSGS / "toaster_msgs" / "msg" / "Fact.msg"
     fields = [
@@ -276,6 +279,7 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, toaster.Da
     return bag, toaster.connect(url)
 
 
+@pytest.mark.slow
 def test_rosbag_and_rostopic_echo_read_a_recording(
     ros_env: dict[str, str], tools: Tools, recorded: tuple[Path, toaster.Database]
 ) -> None:
@@ -312,6 +316,7 @@ def env_command(cache: Path) -> list[str]:
     return [sys.executable, "-m", "toaster", "ros1", "env", "--cache", str(cache)]
 
 
+@pytest.mark.slow
 def test_concurrent_calls_build_one_whole_tree(tmp_path: Path) -> None:
     """Three shells evaluating the line at once: one tree, built once, no half tree left;
     Debian's Python imports every package from it; evaluating the line again does not
