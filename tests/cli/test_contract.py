@@ -109,6 +109,7 @@ NOT_LISTINGS = {
     "record": "writes a bag",
     "relative-position": "a running node's answer (JSON)",
     "relpos": "one position",
+    "ros1 env": "shell exports",
     "run": "writes; a run report",
     "serve": "a live node",
     "set-info": "writes",

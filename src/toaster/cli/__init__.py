@@ -64,6 +64,7 @@ def _register() -> None:
     from toaster.cli.export import export, record
     from toaster.cli.info import get_info, set_info
     from toaster.cli.plot import plot_facts
+    from toaster.cli.ros1 import ros1_group
     from toaster.cli.run import area, relpos, run
     from toaster.cli.serve import serve
     from toaster.cli.tolerance import tolerance
@@ -85,6 +86,7 @@ def _register() -> None:
         record,
         relative_position,
         relpos,
+        ros1_group,
         run,
         serve,
         set_info,

@@ -57,7 +57,7 @@ class Registry:
         return self.services[name if "/" in name else f"toaster_msgs/{name}"]
 
 
-def _standard_texts() -> dict[str, str]:
+def standard_texts() -> dict[str, str]:
     """Own text of each standard type (and of the types they embed), from Debian's classes."""
     texts: dict[str, str] = {}
     for full, (module, cls) in STANDARD.items():
@@ -114,7 +114,7 @@ def _build(root: Path) -> Registry:
     import genpy.dynamic  # type: ignore[import-not-found]
 
     shipped, services = _shipped(root)
-    texts = _standard_texts()
+    texts = standard_texts()
     texts.update(shipped)
     for name, (request, response) in services.items():
         texts[f"{name}Request"], texts[f"{name}Response"] = request, response
