@@ -43,6 +43,16 @@ def test_as_of_matches_intervals_at_every_instant(timeline: toaster.Store) -> No
         assert got == expected, t
 
 
+def test_as_of_filters_by_the_interval_source(timeline: toaster.Store) -> None:
+    """source= filters beliefs_at by the intervals' source, as it does the other reads (it
+    once failed: source is an interval's column, not its key's)."""
+    db = timeline.db
+    timeline.sync_snapshot("gaze", "PR2_ROBOT", 70, [Fact("BOB", "IsLookingToward", "MUG")])
+    assert {r.source for r in q.beliefs_at(db, "PR2_ROBOT", 75)} == {"pdg", "gaze"}
+    assert [r.subject_id for r in q.beliefs_at(db, "PR2_ROBOT", 75, source="gaze")] == ["BOB"]
+    assert [r.target_id for r in q.beliefs_at(db, "PR2_ROBOT", 75, source="pdg")] == ["SHELF"]
+
+
 def test_fact_value_now_and_then(timeline: toaster.Store) -> None:
     """One fact's value now and at a past time; None when it does not hold."""
     db = timeline.db

@@ -212,8 +212,10 @@ def beliefs_at(db: Database, agent: str, t_ns: int, **filters: Any) -> list[Fact
     A holder key that followed the self agent's key at ``t_ns`` (``belief_follow``) takes the
     self's interval then, clipped to the period, confidence x the period's ``pconf``."""
     backend = db.backend
+    # source is the interval's ('beliefs' for a followed one): it filters the union's rows
+    held_where, held_params = _where({"source": filters.pop("source", None)})
     where, params = _where({"agent": check_id(agent, "agent id"), **filters}, prefix="k.")
-    params["t"] = check_ns(t_ns)
+    params.update(held_params, t=check_ns(t_ns))
     samples = backend.sample_join.format(fact="f.id")
     own = (
         f"SELECT {_KEY_ONLY}, f.value_text, {_numbers_at()}, f.valid_from_ns, "
@@ -232,7 +234,7 @@ def beliefs_at(db: Database, agent: str, t_ns: int, **filters: Any) -> list[Fact
     )
     sql = (
         f"SELECT {FACT_COLUMNS} FROM ({own} UNION ALL {followed}) AS held "
-        "ORDER BY subject_id, property, target_id, key_id"
+        f"WHERE {held_where} ORDER BY subject_id, property, target_id, key_id"
     )
     return _rows(db, sql, params)
 
