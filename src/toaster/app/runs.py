@@ -5,6 +5,10 @@ load_session`), registers its entities and areas, ticks it (optionally paced to 
 clock) and, when asked, writes the run as a rosbag2/MCAP recording. Every check that can
 fail (the recording folder, the optional extras, the rate, the input file) happens before the
 first write.
+
+Ticks (:func:`tick_times`): a recording or track file ticks on its own sample times, so that
+every sample is answered at its own time (the facts' times are the samples'); a scenario, or
+any input run with a rate, ticks on a fixed grid from its start.
 """
 
 from __future__ import annotations
@@ -15,11 +19,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from toaster.errors import InvalidInputError
 
 if TYPE_CHECKING:
     from toaster.db import Database
-    from toaster.producers import Stats
+    from toaster.producers import Runner, Session, Stats
 
 #: ``progress(ticks_done, ticks_total)``, called after every tick
 Progress = Callable[[int, int], None]
@@ -67,6 +73,66 @@ def check_run(
     return None if rate_hz is None else check_rate(rate_hz, "--rate")
 
 
+def tick_times(session: Session, end_ns: int, rate_hz: float | None = None) -> np.ndarray:
+    """When a run of ``session`` ticks, up to ``end_ns``.
+
+    With ``rate_hz``, or for an input without samples of its own (a scenario), a fixed grid
+    from the start. Else the input's own sample times (``source.sample_times()``: a track file's
+    or bag's perception stamps, a toaster recording's ticks), so that no sample waits for the
+    next grid point and is answered from the one before; through a gap longer than 1.5 steps
+    of the input's rate, ticks at that rate fill in (timeouts such as ``presence_timeout``
+    still pass while nothing is perceived).
+    """
+    from toaster.timeutil import NS_PER_S, check_rate
+
+    start = session.start_ns
+    samplers = [getattr(s, "sample_times", None) for s in session.sources]
+    step = round(NS_PER_S / check_rate(rate_hz or session.rate_hz))
+    if rate_hz is not None or not samplers or None in samplers:
+        return np.arange(start, end_ns + 1, step, dtype=np.int64)
+    times = np.unique(np.concatenate([np.asarray(f(), np.int64) for f in samplers if f]))
+    times = times[(times >= start) & (times <= end_ns)]
+    if not len(times) or times[0] != start:
+        times = np.concatenate([[start], times])
+    gaps = np.flatnonzero(np.diff(times) > 1.5 * step)
+    fill = [
+        np.arange(times[k] + step, times[k + 1] - step // 2, step, dtype=np.int64) for k in gaps
+    ]
+    return np.unique(np.concatenate([times, *fill])) if fill else times
+
+
+def tick(
+    runner: Runner,
+    times: np.ndarray,
+    *,
+    realtime: bool = False,
+    on_tick: Callable[[int], None] | None = None,
+    maintain_every_s: float | None = None,
+) -> None:
+    """Tick ``runner`` at ``times`` (ns, increasing), paced to the wall clock if ``realtime``,
+    maintaining the database every ``maintain_every_s`` wall seconds (as ``Runner.run``)."""
+    from toaster.producers.runner import MAINTAIN_EVERY_S
+
+    every = MAINTAIN_EVERY_S if maintain_every_s is None else maintain_every_s
+    wall0 = last = time.monotonic()
+    start = int(times[0]) if len(times) else 0
+    for t in times.tolist():
+        if realtime:
+            delay = (t - start) / 1e9 - (time.monotonic() - wall0)
+            if delay > 0:
+                time.sleep(delay)
+        runner.tick(t)
+        if on_tick is not None:
+            on_tick(t)
+        if runner.store is not None and time.monotonic() - last >= every:
+            now = time.monotonic()
+            runner.store.db.maintain()
+            last = time.monotonic()
+            runner.stats.seconds["maintain"] = runner.stats.seconds.get("maintain", 0.0) + (
+                last - now
+            )
+
+
 def run_file(
     path: str | Path,
     db: Database | None = None,
@@ -85,7 +151,8 @@ def run_file(
     """Tick ``path`` into ``db`` (None: compute only) and report what happened.
 
     Args:
-        rate_hz: ticks per second (default: the file's own rate).
+        rate_hz: ticks per second on a fixed grid (default: a recording's or track file's own
+            sample times, a scenario's rate; :func:`tick_times`).
         until_ns: stop after this much input time (from the input's start).
         realtime: pace the ticks to the wall clock.
         fps, holders, config, tf_map, pose_topics: as :func:`toaster.producers.load_session`.
@@ -122,8 +189,7 @@ def run_file(
     )
     if store is not None:
         session.register(store)
-    hz = rate_hz or session.rate_hz
-    total = max(1, int((end - session.start_ns) * hz / 1e9) + 1)
+    times = tick_times(session, end, rate_hz)
     frames: list[tuple[Any, ...]] = []
     done = 0
 
@@ -133,10 +199,10 @@ def run_file(
             frames.append(session.frame(t_ns, with_areas=not frames))
         done += 1
         if progress is not None:
-            progress(done, total)
+            progress(done, len(times))
 
     wall = time.perf_counter()
-    runner.run(session.start_ns, end, hz, realtime=realtime, on_tick=on_tick)
+    tick(runner, times, realtime=realtime, on_tick=on_tick)
     wall_s = time.perf_counter() - wall
     recording = None
     if record_dir is not None:

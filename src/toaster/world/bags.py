@@ -116,6 +116,10 @@ class BagSource:
         self.kinds = {u.entity_id: u.kind for u in self.updates if u.kind != "joint"}
         self.sample_hz = _sample_hz(self.times, self.updates)
 
+    def sample_times(self) -> np.ndarray:
+        """Every distinct time a pose was perceived at."""
+        return np.unique(self.times)
+
     def setup(self, world: World) -> None:
         """Register every entity of the bag (agents before their joints); not perceived, so
         not live, until its first pose."""
