@@ -8,7 +8,8 @@ first write.
 
 Ticks (:func:`tick_times`): a recording or track file ticks on its own sample times, so that
 every sample is answered at its own time (the facts' times are the samples'); a scenario, or
-any input run with a rate, ticks on a fixed grid from its start.
+any input run with a rate, ticks on a fixed grid from its start. A toaster recording replays
+the run that made it (:mod:`toaster.app.replay`).
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ class RunReport:
     input_s: float
     wall_s: float
     recording: Any = None
+    notes: tuple[str, ...] = ()
 
 
 def needed_extras(path: str | Path, record_dir: str | Path | None = None) -> list[tuple[str, str]]:
@@ -158,13 +160,17 @@ def run_file(
         fps, holders, config, tf_map, pose_topics: as :func:`toaster.producers.load_session`.
         record_dir: also write the run as a rosbag2/MCAP recording in this new folder, or as
             a ROS 1 bag for a ``.bag`` name (:mod:`toaster.outputs.recording`; needs
-            ``toaster[rosbag]``).
+            ``toaster[rosbag]``), with what replays it whole (``/toaster/run``,
+            ``/toaster/world``).
         progress: called after each tick with (ticks done, ticks in all).
 
     Areas stored in ``db`` are added to the file's, and the file's are stored; the same input
-    into a fresh database gives the same facts and events.
+    into a fresh database gives the same facts and events. A toaster recording replays the run
+    that made it (:mod:`toaster.app.replay`): the same facts, events and beliefs.
     """
+    from toaster.app import replay
     from toaster.producers import Runner, load_session
+    from toaster.world.recorded import world_fields
 
     path = Path(path)
     rate_hz = check_run(path, record_dir=record_dir, rate_hz=rate_hz)
@@ -178,6 +184,8 @@ def run_file(
         tf_map=tf_map,
         pose_topics=pose_topics,
     )
+    session = replay.as_recorded(session, holders=holders, config=config)
+    notes = replay.old_recording_note(path, session)
     end = session.end_ns if until_ns is None else min(session.end_ns, session.start_ns + until_ns)
     runner = Runner(
         session.world,
@@ -187,16 +195,19 @@ def run_file(
         agent_id=session.self_id,
         config=session.config,
     )
-    if store is not None:
+    if db is not None and store is not None:
+        notes += replay.apply_settings(session, db)
         session.register(store)
     times = tick_times(session, end, rate_hz)
     frames: list[tuple[Any, ...]] = []
+    world: list[tuple[int, dict[str, Any]]] = []
     done = 0
 
     def on_tick(t_ns: int) -> None:
         nonlocal done
         if record_dir is not None:
             frames.append(session.frame(t_ns, with_areas=not frames))
+            world.append((t_ns, world_fields(session.world, t_ns)))
         done += 1
         if progress is not None:
             progress(done, len(times))
@@ -208,5 +219,13 @@ def run_file(
     if record_dir is not None:
         from toaster.outputs.recording import record
 
-        recording = record(record_dir, frames, db=db)
-    return RunReport(path.name, runner.stats, (end - session.start_ns) / 1e9, wall_s, recording)
+        info = replay.run_info(session, db)
+        recording = record(record_dir, frames, db=db, run=info, world=world)
+    return RunReport(
+        path.name,
+        runner.stats,
+        (end - session.start_ns) / 1e9,
+        wall_s,
+        recording,
+        tuple(notes),
+    )

@@ -132,6 +132,8 @@ def _report(report: Any) -> None:
             f"  {name:<14} {seconds * 1e3:9.1f} ms  "
             f"({seconds / max(stats.ticks, 1) * 1e3:.3f} ms/tick)"
         )
+    for note in report.notes:
+        click.echo(f"note: {note}")
     if report.recording is not None:
         result = report.recording
         click.echo(
