@@ -36,6 +36,8 @@ pytestmark = pytest.mark.slow  # each case runs a scenario twice (seconds)
 
 pytest.importorskip("rosbags")
 
+S = 1_000_000_000
+
 EXAMPLES = Path(toaster.__file__).parent / "examples"
 SCENARIOS = sorted(p.name for p in EXAMPLES.glob("scenario_*.yaml"))
 KEY = (
@@ -180,3 +182,24 @@ def test_an_older_recording_replays_from_pdg_lists_with_a_note(tmp_path: Path):
         assert [a.id for a in toaster.queries.agents(db, only_self=True)] == ["toaster"]
         assert "SALLY" not in {a.id for a in toaster.queries.agents(db)}
         assert toaster.queries.history(db, "toaster")
+
+
+def test_a_damaged_recorded_world_is_refused_in_one_line(tmp_path: Path):
+    """A /toaster/world whose arrays do not fit its entities fails before anything is
+    written, naming the bag."""
+    from toaster.errors import FileFormatError
+    from toaster.outputs.recording import Recorder
+    from toaster.world.recorded import RunInfo
+
+    info = RunInfo(0, S, "pr2", "humans", {}, {}, [("pr2", "robot", "pr2", "", "full")])
+    bag = tmp_path / "bad.bag"
+    with Recorder(bag) as rec:
+        rec.write_run(info)
+        rec.write_world(0, {"header": {"stamp": 0}, "ids": ["pr2"], "poses": [0.0] * 5})
+    with (
+        toaster.connect(f"sqlite:///{tmp_path / 'b.db'}") as db,
+        pytest.raises(FileFormatError, match=r"bad.bag.*perceived_ns has 0, not 1"),
+    ):
+        run_file(bag, db)
+    with toaster.connect(f"sqlite:///{tmp_path / 'b.db'}") as db:
+        assert toaster.queries.agents(db) == []

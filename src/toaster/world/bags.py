@@ -248,8 +248,15 @@ def read_bag(
             msg = f"cannot read bag {str(path)!r}: {str(exc).splitlines()[0]}"
             raise FileFormatError(msg) from None
         raise
-    if run and states:
-        return WorldReplay(path.name, RunInfo.from_msg(run[0][1], run[0][0]), states)
+    if run:
+        try:
+            return WorldReplay(path.name, RunInfo.from_msg(run[0][1], run[0][0]), states)
+        except (ValueError, TypeError) as exc:  # json's errors are ValueErrors
+            msg = (
+                f"cannot replay {path.name!r}: its /toaster/run and /toaster/world do not "
+                f"fit ({exc}); record the run again"
+            )
+            raise FileFormatError(msg) from None
     if not updates:
         msg = (
             f"bag {path.name!r} holds no pose toaster can use: give --tf-map for its /tf "

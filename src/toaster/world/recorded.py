@@ -20,7 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from toaster.world.state import JOINT, World
+from toaster.errors import InvalidInputError
+from toaster.world.state import JOINT, KIND_CODES, World
 
 RUN_TOPIC, WORLD_TOPIC = "/toaster/run", "/toaster/world"
 RUN_TYPE, WORLD_TYPE = "toaster_recording/msg/Run", "toaster_recording/msg/World"
@@ -121,15 +122,26 @@ class RunInfo:
 
     @classmethod
     def from_msg(cls, msg: Any, start_ns: int) -> RunInfo:
-        """A RunInfo from a decoded Run message (logged at ``start_ns``)."""
+        """A RunInfo from a decoded Run message (logged at ``start_ns``); ValueError (one
+        line) for one whose fields do not parse."""
+        from toaster.world.areaspec import normalize_area
+
         holders = str(msg.holders_json)
+        areas = json.loads(msg.areas_json)
+        if not isinstance(areas, dict) or not (holders in ("humans", "none") or holders[:1] == "["):
+            text = "areas_json is not a mapping of specs, or holders_json not humans|none|[ids]"
+            raise ValueError(text)
+        try:
+            areas = {str(k): normalize_area(str(k), spec) for k, spec in areas.items()}
+        except InvalidInputError as exc:
+            raise ValueError(str(exc)) from None
         return cls(
             start_ns,
             int(msg.end_ns),
             str(msg.self_id),
             holders if holders in ("humans", "none") else tuple(json.loads(holders)),
             json.loads(msg.config_json),
-            json.loads(msg.areas_json),
+            areas,
             [
                 tuple(map(str, row))  # type: ignore[misc]
                 for row in zip(msg.ids, msg.kinds, msg.names, msg.owners, msg.mobility, strict=True)
@@ -184,6 +196,7 @@ class WorldReplay:
     def __init__(self, name: str, info: RunInfo, states: Sequence[tuple[int, Any]]) -> None:
         self.name, self.info = name, info
         ordered = sorted(states, key=lambda item: item[0])
+        check_recorded(info, ordered)
         self.times = np.array([t for t, _ in ordered], np.int64)
         self.states = [msg for _, msg in ordered]
         self._next = 0
@@ -213,13 +226,46 @@ class WorldReplay:
             apply_state(world, self.states[end - 1])
 
 
+def check_recorded(info: RunInfo, states: Sequence[tuple[int, Any]]) -> None:
+    """Refuse (ValueError, one line) a recorded run whose entities or states do not fit
+    together, before anything is replayed."""
+    known: set[str] = set()
+    for entity_id, kind, _, owner, _ in info.entities:
+        if entity_id in known or kind not in KIND_CODES:
+            msg = f"entity {entity_id!r} of kind {kind!r} is declared twice or of no known kind"
+            raise ValueError(msg)
+        if kind == "joint" and owner not in known:
+            msg = f"joint {entity_id!r} comes before its agent {owner!r}"
+            raise ValueError(msg)
+        known.add(entity_id)
+    if not states:
+        msg = "no world state"
+        raise ValueError(msg)
+    for t_ns, state in states:
+        n = len(state.ids)
+        sizes = {
+            "perceived_ns": (len(state.perceived_ns), n),
+            "poses": (len(state.poses), 6 * n),
+            "local_poses": (len(state.local_poses), 6 * n),
+            "sizes": (len(state.sizes), 3 * n),
+            "held_by": (len(state.held_by), n),
+            "roles": (len(state.roles), n),
+            "closed": (len(state.closed), n),
+        }
+        wrong = [f"{k} has {got}, not {want}" for k, (got, want) in sizes.items() if got != want]
+        unknown = (set(state.ids) | set(state.held_by)) - known - {""}
+        if wrong or unknown or len(set(state.ids)) < n:
+            what = "; ".join(wrong) or f"unknown or repeated entities {sorted(unknown)[:3]}"
+            msg = f"the world state at {t_ns} ns does not fit: {what}"
+            raise ValueError(msg)
+        if not (np.isfinite(state.poses).all() and np.isfinite(state.local_poses).all()):
+            msg = f"the world state at {t_ns} ns holds a non-finite pose"
+            raise ValueError(msg)
+
+
 def apply_state(world: World, msg: Any) -> None:
     """Set ``world`` to a World message (``msg``: its decoded fields)."""
-    rows = world.rows_of(msg.ids)
-    if len(rows) != len(msg.ids):
-        unknown = sorted(set(msg.ids) - set(world.index))
-        msg_text = f"world state names entities the run did not declare: {unknown[:3]}"
-        raise ValueError(msg_text)
+    rows = world.rows_of(msg.ids)  # (checked by check_recorded: every id is known)
     present = np.zeros(world.n, bool)
     present[rows] = True
     for gone in np.flatnonzero(world.active[: world.n] & ~present).tolist():
