@@ -17,16 +17,16 @@ if TYPE_CHECKING:
     from toaster.producers import Session
 
 
-def run_info(session: Session, db: Database | None) -> RunInfo:
+def run_info(session: Session, db: Database | None, end_ns: int, rate_hz: float) -> RunInfo:
     """How ``session`` is set up, for ``/toaster/run``: its self agent, holders, thresholds
     (``spatial`` set when the spatial producer runs), areas, entities, the store's belief
-    settings."""
+    settings, the run's end and tick rate (that of its grid, or of its gaps)."""
     config = dict(session.config)
     if any(p.name == "move3d_facts" for p in session.producers):
         config["spatial"] = True
     return RunInfo(
         session.start_ns,
-        session.end_ns,
+        end_ns,
         session.self_id,
         session.belief_holders,
         config,
@@ -34,7 +34,7 @@ def run_info(session: Session, db: Database | None) -> RunInfo:
         world_entities(session.world),
         belief_settings(db) if db is not None else {},
         session.agent_views,
-        session.rate_hz,
+        rate_hz,
     )
 
 

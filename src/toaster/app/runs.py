@@ -219,7 +219,7 @@ def run_file(
     if record_dir is not None:
         from toaster.outputs.recording import record
 
-        info = replay.run_info(session, db)
+        info = replay.run_info(session, db, end, rate_hz or session.rate_hz)
         recording = record(record_dir, frames, db=db, run=info, world=world)
     return RunReport(
         path.name,

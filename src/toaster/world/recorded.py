@@ -47,7 +47,8 @@ string[] owners
 string[] mobility
 # Whether the agents got their per-agent views (fact_table_<id>).
 bool agent_views
-# The run's last tick time, and its tick rate (Hz) when it ticked on a fixed grid.
+# The run's last tick time, and its tick rate (Hz): of its grid, or of the ticks that
+# filled the gaps between its samples.
 int64 end_ns
 float64 rate_hz
 """
