@@ -104,8 +104,8 @@ def old_recording_note(path: Path, session: Session) -> list[str]:
     if source is None or isinstance(source, WorldReplay) or not getattr(source, "toaster", False):
         return []
     return [
-        f"{path.name}: a toaster recording without /toaster/run and /toaster/world (made "
-        "before they were recorded): replayed from pdg's lists, without sizes, shape roles, "
+        f"{path.name}: a toaster recording without /toaster/run and /toaster/world (an older "
+        "one, or one of toaster record): replayed from pdg's lists, without sizes, shape roles, "
         "lids, held objects, belief holders or its self agent (facts go to 'toaster'); "
         "record the run again to replay it whole"
     ]

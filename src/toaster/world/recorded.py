@@ -132,8 +132,9 @@ class RunInfo:
         if not isinstance(areas, dict) or not (holders in ("humans", "none") or holders[:1] == "["):
             text = "areas_json is not a mapping of specs, or holders_json not humans|none|[ids]"
             raise ValueError(text)
-        try:
-            areas = {str(k): normalize_area(str(k), spec) for k, spec in areas.items()}
+        try:  # checked, and kept as the run stored them (a scenario's specs as written)
+            for area_id, spec in areas.items():
+                normalize_area(str(area_id), spec)
         except InvalidInputError as exc:
             raise ValueError(str(exc)) from None
         return cls(
