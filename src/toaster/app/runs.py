@@ -5,6 +5,11 @@ load_session`), registers its entities and areas, ticks it (optionally paced to 
 clock) and, when asked, writes the run as a rosbag2/MCAP recording. Every check that can
 fail (the recording folder, the optional extras, the rate, the input file) happens before the
 first write.
+
+Ticks (:func:`tick_times`): a recording or track file ticks on its own sample times, so that
+every sample is answered at its own time (the facts' times are the samples'); a scenario, or
+any input run with a rate, ticks on a fixed grid from its start. A toaster recording replays
+the run that made it (:mod:`toaster.app.replay`).
 """
 
 from __future__ import annotations
@@ -15,11 +20,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from toaster.errors import InvalidInputError
 
 if TYPE_CHECKING:
     from toaster.db import Database
-    from toaster.producers import Stats
+    from toaster.producers import Runner, Session, Stats
 
 #: ``progress(ticks_done, ticks_total)``, called after every tick
 Progress = Callable[[int, int], None]
@@ -36,6 +43,7 @@ class RunReport:
     input_s: float
     wall_s: float
     recording: Any = None
+    notes: tuple[str, ...] = ()
 
 
 def needed_extras(path: str | Path, record_dir: str | Path | None = None) -> list[tuple[str, str]]:
@@ -67,6 +75,66 @@ def check_run(
     return None if rate_hz is None else check_rate(rate_hz, "--rate")
 
 
+def tick_times(session: Session, end_ns: int, rate_hz: float | None = None) -> np.ndarray:
+    """When a run of ``session`` ticks, up to ``end_ns``.
+
+    With ``rate_hz``, or for an input without samples of its own (a scenario), a fixed grid
+    from the start. Else the input's own sample times (``source.sample_times()``: a track file's
+    or bag's perception stamps, a toaster recording's ticks), so that no sample waits for the
+    next grid point and is answered from the one before; through a gap longer than 1.5 steps
+    of the input's rate, ticks at that rate fill in (timeouts such as ``presence_timeout``
+    still pass while nothing is perceived).
+    """
+    from toaster.timeutil import NS_PER_S, check_rate
+
+    start = session.start_ns
+    samplers = [getattr(s, "sample_times", None) for s in session.sources]
+    step = round(NS_PER_S / check_rate(rate_hz or session.rate_hz))
+    if rate_hz is not None or not samplers or None in samplers:
+        return np.arange(start, end_ns + 1, step, dtype=np.int64)
+    times = np.unique(np.concatenate([np.asarray(f(), np.int64) for f in samplers if f]))
+    times = times[(times >= start) & (times <= end_ns)]
+    if not len(times) or times[0] != start:
+        times = np.concatenate([[start], times])
+    gaps = np.flatnonzero(np.diff(times) > 1.5 * step)
+    fill = [
+        np.arange(times[k] + step, times[k + 1] - step // 2, step, dtype=np.int64) for k in gaps
+    ]
+    return np.unique(np.concatenate([times, *fill])) if fill else times
+
+
+def tick(
+    runner: Runner,
+    times: np.ndarray,
+    *,
+    realtime: bool = False,
+    on_tick: Callable[[int], None] | None = None,
+    maintain_every_s: float | None = None,
+) -> None:
+    """Tick ``runner`` at ``times`` (ns, increasing), paced to the wall clock if ``realtime``,
+    maintaining the database every ``maintain_every_s`` wall seconds (as ``Runner.run``)."""
+    from toaster.producers.runner import MAINTAIN_EVERY_S
+
+    every = MAINTAIN_EVERY_S if maintain_every_s is None else maintain_every_s
+    wall0 = last = time.monotonic()
+    start = int(times[0]) if len(times) else 0
+    for t in times.tolist():
+        if realtime:
+            delay = (t - start) / 1e9 - (time.monotonic() - wall0)
+            if delay > 0:
+                time.sleep(delay)
+        runner.tick(t)
+        if on_tick is not None:
+            on_tick(t)
+        if runner.store is not None and time.monotonic() - last >= every:
+            now = time.monotonic()
+            runner.store.db.maintain()
+            last = time.monotonic()
+            runner.stats.seconds["maintain"] = runner.stats.seconds.get("maintain", 0.0) + (
+                last - now
+            )
+
+
 def run_file(
     path: str | Path,
     db: Database | None = None,
@@ -85,19 +153,24 @@ def run_file(
     """Tick ``path`` into ``db`` (None: compute only) and report what happened.
 
     Args:
-        rate_hz: ticks per second (default: the file's own rate).
+        rate_hz: ticks per second on a fixed grid (default: a recording's or track file's own
+            sample times, a scenario's rate; :func:`tick_times`).
         until_ns: stop after this much input time (from the input's start).
         realtime: pace the ticks to the wall clock.
         fps, holders, config, tf_map, pose_topics: as :func:`toaster.producers.load_session`.
         record_dir: also write the run as a rosbag2/MCAP recording in this new folder, or as
             a ROS 1 bag for a ``.bag`` name (:mod:`toaster.outputs.recording`; needs
-            ``toaster[rosbag]``).
+            ``toaster[rosbag]``), with what replays it whole (``/toaster/run``,
+            ``/toaster/world``).
         progress: called after each tick with (ticks done, ticks in all).
 
     Areas stored in ``db`` are added to the file's, and the file's are stored; the same input
-    into a fresh database gives the same facts and events.
+    into a fresh database gives the same facts and events. A toaster recording replays the run
+    that made it (:mod:`toaster.app.replay`): the same facts, events and beliefs.
     """
+    from toaster.app import replay
     from toaster.producers import Runner, load_session
+    from toaster.world.recorded import world_fields
 
     path = Path(path)
     rate_hz = check_run(path, record_dir=record_dir, rate_hz=rate_hz)
@@ -111,6 +184,8 @@ def run_file(
         tf_map=tf_map,
         pose_topics=pose_topics,
     )
+    session = replay.as_recorded(session, holders=holders, config=config)
+    notes = replay.old_recording_note(path, session)
     end = session.end_ns if until_ns is None else min(session.end_ns, session.start_ns + until_ns)
     runner = Runner(
         session.world,
@@ -120,27 +195,37 @@ def run_file(
         agent_id=session.self_id,
         config=session.config,
     )
-    if store is not None:
+    if db is not None and store is not None:
+        notes += replay.apply_settings(session, db)
         session.register(store)
-    hz = rate_hz or session.rate_hz
-    total = max(1, int((end - session.start_ns) * hz / 1e9) + 1)
+    times = tick_times(session, end, rate_hz)
     frames: list[tuple[Any, ...]] = []
+    world: list[tuple[int, dict[str, Any]]] = []
     done = 0
 
     def on_tick(t_ns: int) -> None:
         nonlocal done
         if record_dir is not None:
             frames.append(session.frame(t_ns, with_areas=not frames))
+            world.append((t_ns, world_fields(session.world, t_ns)))
         done += 1
         if progress is not None:
-            progress(done, total)
+            progress(done, len(times))
 
     wall = time.perf_counter()
-    runner.run(session.start_ns, end, hz, realtime=realtime, on_tick=on_tick)
+    tick(runner, times, realtime=realtime, on_tick=on_tick)
     wall_s = time.perf_counter() - wall
     recording = None
     if record_dir is not None:
         from toaster.outputs.recording import record
 
-        recording = record(record_dir, frames, db=db)
-    return RunReport(path.name, runner.stats, (end - session.start_ns) / 1e9, wall_s, recording)
+        info = replay.run_info(session, db, end, rate_hz or session.rate_hz)
+        recording = record(record_dir, frames, db=db, run=info, world=world)
+    return RunReport(
+        path.name,
+        runner.stats,
+        (end - session.start_ns) / 1e9,
+        wall_s,
+        recording,
+        tuple(notes),
+    )

@@ -22,7 +22,12 @@ from toaster.errors import InvalidInputError
 @click.argument(
     "path", metavar="SCENARIO_OR_RECORDING", type=click.Path(exists=True, path_type=Path)
 )
-@click.option("--rate", type=float, help="Ticks per second (default: the file's, 30 / 2.5 Hz).")
+@click.option(
+    "--rate",
+    type=float,
+    help="Ticks per second on a fixed grid (default: a recording's own sample times, a "
+    "scenario's rate).",
+)
 @click.option("--until", "until", metavar="T", help="Stop after this much input time (20s).")
 @click.option("--realtime", is_flag=True, help="Pace ticks to the wall clock.")
 @click.option(
@@ -127,6 +132,8 @@ def _report(report: Any) -> None:
             f"  {name:<14} {seconds * 1e3:9.1f} ms  "
             f"({seconds / max(stats.ticks, 1) * 1e3:.3f} ms/tick)"
         )
+    for note in report.notes:
+        click.echo(f"note: {note}")
     if report.recording is not None:
         result = report.recording
         click.echo(

@@ -12,7 +12,10 @@ as the live ROS bridge (:mod:`toaster.world.rosmsg`):
   ``ObjectListStamped`` on any topic (pdg, toaster_simu), joints included, with the
   original's camelCase field names or ROS 2 snake_case ones;
 * ``toaster_msgs/AreaList`` (``/area_manager/areaList``): the last one gives the areas, so
-  toaster's own recordings replay with their areas.
+  toaster's own recordings replay with their areas;
+* toaster's own recordings' ``/toaster/run`` and ``/toaster/world``
+  (:mod:`toaster.world.recorded`): when a bag has both, it replays the recorded world
+  exactly (a :class:`~toaster.world.recorded.WorldReplay`) and the other topics are not read.
 
 Poses are replayed by their stamps (the header's, else the bag's receive time), deterministically:
 the same bag gives the same facts at any speed. Messages that cannot be used are counted and
@@ -33,6 +36,7 @@ from toaster.errors import FileFormatError
 from toaster.extras import require
 from toaster.model import MAX_COORD, check_id, shown
 from toaster.timeutil import MAX_NS, MAX_RATE_HZ, MIN_RATE_HZ
+from toaster.world.recorded import RUN_TYPE, WORLD_TYPE, RunInfo, WorldReplay, recorded_types
 from toaster.world.state import World
 
 TF_TYPES = ("tf2_msgs/msg/TFMessage",)
@@ -40,6 +44,8 @@ POSE_TYPE = "geometry_msgs/msg/PoseStamped"
 LIST_TYPES = tuple(f"toaster_msgs/msg/{k}ListStamped" for k in ("Human", "Robot", "Object"))
 AREA_TYPE = "toaster_msgs/msg/AreaList"
 MSG_DIR = Path(__file__).resolve().parent.parent / "ros1" / "msgs"
+#: Topics every toaster recording has (a bag with them is one of toaster's own)
+TOASTER_TOPICS = ("/toaster/entities", "/toaster/facts")
 
 
 def is_bag(path: Path) -> bool:
@@ -65,7 +71,7 @@ def typestore() -> Any:
     from rosbags.typesys import Stores, get_typestore
 
     store = get_typestore(Stores.LATEST)
-    store.register(toaster_types())
+    store.register(toaster_types() | recorded_types())
     return store
 
 
@@ -115,6 +121,11 @@ class BagSource:
         self.end_ns = int(self.times[-1]) if len(self.times) else 0
         self.kinds = {u.entity_id: u.kind for u in self.updates if u.kind != "joint"}
         self.sample_hz = _sample_hz(self.times, self.updates)
+        self.toaster = False  # a toaster recording (one without /toaster/world: older)
+
+    def sample_times(self) -> np.ndarray:
+        """Every distinct time a pose was perceived at."""
+        return np.unique(self.times)
 
     def setup(self, world: World) -> None:
         """Register every entity of the bag (agents before their joints); not perceived, so
@@ -160,7 +171,7 @@ def read_bag(
     *,
     tf_map: str | Path | Mapping[str, Any] | None = None,
     pose_topics: Mapping[str, tuple[str, str]] | None = None,
-) -> BagSource:
+) -> BagSource | WorldReplay:
     """Read a bag's poses (see the module's doc); one-line errors for unreadable bags."""
     require("rosbag", "reading bags")
     from rosbags.highlevel import AnyReader
@@ -181,20 +192,29 @@ def read_bag(
             times.append(update.t_ns if update.t_ns else received_ns)
             updates.append(update)
 
+    run: list[tuple[int, Any]] = []
+    states: list[tuple[int, Any]] = []
     try:
         with AnyReader([path], default_typestore=typestore()) as reader:
+            topics_seen = {c.topic for c in reader.connections}
+            recorded = {c.msgtype for c in reader.connections} >= {RUN_TYPE, WORLD_TYPE}
+            poses = () if recorded else (*TF_TYPES, *LIST_TYPES, AREA_TYPE)
             wanted = [
                 c
                 for c in reader.connections
-                if c.msgtype in (*TF_TYPES, *LIST_TYPES, AREA_TYPE)
-                or (c.msgtype == POSE_TYPE and c.topic in topics)
+                if c.msgtype in poses
+                or (recorded and c.msgtype in (RUN_TYPE, WORLD_TYPE))
+                or (c.msgtype == POSE_TYPE and c.topic in topics and not recorded)
             ]
-            for topic in set(topics) - {c.topic for c in reader.connections}:
+            for topic in set(topics) - topics_seen:
                 problems[f"topic {topic} is not in the bag"] += 1
             for conn, received_ns, raw in reader.messages(connections=wanted):
-                msg = reader.deserialize(raw, conn.msgtype)
+                msg: Any = reader.deserialize(raw, conn.msgtype)
                 try:
-                    if conn.msgtype in TF_TYPES:
+                    if conn.msgtype in (RUN_TYPE, WORLD_TYPE):
+                        stamp = mapping.stamp_ns(msg.header.stamp)
+                        (run if conn.msgtype == RUN_TYPE else states).append((stamp, msg))
+                    elif conn.msgtype in TF_TYPES:
                         changed, _ = tree.update(msg)
                         for frame in changed:
                             hri = mapping.hri_target(frame)
@@ -228,10 +248,21 @@ def read_bag(
             msg = f"cannot read bag {str(path)!r}: {str(exc).splitlines()[0]}"
             raise FileFormatError(msg) from None
         raise
+    if run:
+        try:
+            return WorldReplay(path.name, RunInfo.from_msg(run[0][1], run[0][0]), states)
+        except (ValueError, TypeError) as exc:  # json's errors are ValueErrors
+            msg = (
+                f"cannot replay {path.name!r}: its /toaster/run and /toaster/world do not "
+                f"fit ({exc}); record the run again"
+            )
+            raise FileFormatError(msg) from None
     if not updates:
         msg = (
             f"bag {path.name!r} holds no pose toaster can use: give --tf-map for its /tf "
             "frames or --pose-topic TOPIC=ID for PoseStamped topics"
         )
         raise FileFormatError(msg)
-    return BagSource(path.name, np.array(times, np.int64), updates, problems, areas)
+    source = BagSource(path.name, np.array(times, np.int64), updates, problems, areas)
+    source.toaster = bool(set(TOASTER_TOPICS) & topics_seen)
+    return source

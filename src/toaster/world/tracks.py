@@ -59,6 +59,10 @@ class TrackSource:
         if len(steps):
             self.sample_hz = _clamp_rate(NS_PER_S / float(np.median(steps)))
 
+    def sample_times(self) -> np.ndarray:
+        """Every distinct sample time."""
+        return np.unique(self.t)
+
     def setup(self, world: World) -> None:
         """Register every track id (not yet perceived, so not live until its first sample)."""
         for eid, kind in self.kinds.items():

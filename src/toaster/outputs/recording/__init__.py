@@ -20,7 +20,10 @@ Foxglove and Lichtblick open the ``.mcap`` (or the ``.bag``) directly; ``ros2 ba
   area_manager, agent_monitor and move3d_facts whenever they changed (from the store);
 * ``/toaster/beliefs/<holder>`` (``toaster_recording/Beliefs``): everything each agent (and
   nested holder) believes, whenever it changed (:mod:`toaster.outputs.recording.beliefs`);
-* ``/toaster/facts`` (``Log``): one line per belief change (an event).
+* ``/toaster/facts`` (``Log``): one line per belief change (an event);
+* ``/toaster/run`` and ``/toaster/world`` (``toaster_recording/Run``, ``World``): how the run
+  was set up and the world its producers saw at every tick, so that ``toaster run`` on the
+  recording reproduces the run's database (:mod:`toaster.world.recorded`).
 
 Poses are not in the fact store: callers hand :func:`record` (or :class:`Recorder`) frames
 ``(t_ns, entities, areas)`` (:mod:`toaster.outputs.recording.input`).
@@ -68,6 +71,14 @@ from toaster.outputs.recording.input import (  # noqa: F401  (the input types, r
 )
 from toaster.outputs.recording.msgs import EntityPose, FactTimeline, Messages, Scene, toaster_types
 from toaster.quoting import ros_name
+from toaster.world.recorded import (
+    RUN_TOPIC,
+    RUN_TYPE,
+    WORLD_TOPIC,
+    WORLD_TYPE,
+    RunInfo,
+    recorded_types,
+)
 
 if TYPE_CHECKING:
     from toaster.db.database import Database
@@ -130,7 +141,7 @@ class Recorder:
     ) -> None:
         fmt = bag_format(path, distro)
         types = toaster_types(toaster_spelling(fmt, toaster_names))
-        self.bag = BagWriter(path, fmt, types | beliefs_types())
+        self.bag = BagWriter(path, fmt, types | beliefs_types() | recorded_types())
         self.path, self.distro, self.version = self.bag.path, fmt.distro, fmt.version
         self.types = self.bag.types
         self._messages = Messages(self.types)
@@ -256,6 +267,18 @@ class Recorder:
         if inside != self._inside:
             self._inside, self._areas_changed = inside, True
 
+    def write_run(self, info: RunInfo) -> None:
+        """Write how the run was set up on ``/toaster/run`` (once, at its start)."""
+        self.bag.connect(RUN_TOPIC, RUN_TYPE)
+        self._put(RUN_TOPIC, info.start_ns, RUN_TYPE, info.fields())
+
+    def write_world(self, t_ns: int, fields: Mapping[str, Any]) -> None:
+        """Write the world the producers saw at ``t_ns`` on ``/toaster/world``
+        (:func:`toaster.world.recorded.world_fields`)."""
+        if not self.bag.has(WORLD_TOPIC):
+            self.bag.connect(WORLD_TOPIC, WORLD_TYPE)
+        self._put(WORLD_TOPIC, t_ns, WORLD_TYPE, fields)
+
     def write_fact_line(self, t_ns: int, text: str, *, name: str = "toaster") -> None:
         """Write one INFO line on the facts channel."""
         self._put(FACTS_TOPIC, t_ns, self.bag.log_type, self.bag.log_fields(t_ns, name, text))
@@ -310,11 +333,15 @@ def record(
     frame_id: str = "map",
     distro: str | None = None,
     toaster_names: str | None = None,
+    run: RunInfo | None = None,
+    world: Iterable[tuple[int, Mapping[str, Any]]] = (),
 ) -> RecordingResult:
     """Record ``frames`` (in time order) and, with ``db``, the self agent's fact lists, the
     beliefs and the events of ``agent`` (default: every agent and holder) between ``since``
     and ``until`` (default: the first and last frame). ``distro`` and ``toaster_names`` as
-    :class:`Recorder`. Returns the bag and the file to open."""
+    :class:`Recorder`. ``run`` and ``world`` (``(t_ns, World fields)`` in time order) are what
+    ``toaster run`` records so that the recording replays whole (:mod:`toaster.world.recorded`).
+    Returns the bag and the file to open."""
     frame_list = check_frames(frames)
     if not frame_list and db is None:
         msg = "nothing to record: give at least one frame or a database"
@@ -339,8 +366,10 @@ def record(
         }
     )
     with Recorder(path, frame_id=frame_id, distro=distro, toaster_names=toaster_names) as rec:
+        if run is not None:
+            rec.write_run(run)
         for kind, item in _merged(
-            frame_list, events, timeline.snapshots(times), beliefs.snapshots(times)
+            frame_list, events, timeline.snapshots(times), beliefs.snapshots(times), world
         ):
             if kind == "facts":
                 rec.write_fact_list(*item)
@@ -348,6 +377,8 @@ def record(
                 rec.write_beliefs(*item, is_self=beliefs.is_self[item[1]])
             elif kind == "frame":
                 rec.write_frame(item.t_ns, item.entities, item.areas)
+            elif kind == "world":
+                rec.write_world(*item)
             else:
                 rec.write_event(item)
     return RecordingResult(
@@ -360,13 +391,16 @@ def _merged(
     events: list[EventRow],
     snapshots: Iterable[tuple[int, str, list[Any]]],
     beliefs: Iterable[tuple[int, str, list[Any]]],
+    world: Iterable[tuple[int, Mapping[str, Any]]] = (),
 ) -> Iterator[tuple[str, Any]]:
-    """Fact lists, beliefs, frames and events in time order (in that order at one time)."""
+    """Fact lists, beliefs, frames, world states and events in time order (in that order at
+    one time)."""
     keyed = [
         ((s[0], 0, k, "facts", s) for k, s in enumerate(snapshots)),
         ((b[0], 1, k, "beliefs", b) for k, b in enumerate(beliefs)),
         ((f.t_ns, 2, k, "frame", f) for k, f in enumerate(frames)),
-        ((e.stamp_ns, 3, k, "event", e) for k, e in enumerate(events)),
+        ((w[0], 3, k, "world", w) for k, w in enumerate(world)),
+        ((e.stamp_ns, 4, k, "event", e) for k, e in enumerate(events)),
     ]
     for *_, kind, item in heapq.merge(*keyed):
         yield kind, item
