@@ -87,6 +87,14 @@ def self_agent_of(db: Database, requested: str | None) -> str:
     "on /toaster/status. 0: none.",
 )
 @click.option(
+    "--stamp",
+    type=click.Choice(["perception", "wall"]),  # toaster.node.stamps.STAMP_MODES
+    default="perception",
+    show_default=True,
+    help="A tick's time, hence its facts': the newest pose stamp it applies (if not older "
+    "than the node's max_stamp_lag, else the wall clock; docs/time.md), or the wall clock.",
+)
+@click.option(
     "--ros1",
     is_flag=True,
     help="Bridge to ROS 1 (needs Debian's ROS 1 packages; see docs/ros1.md).",
@@ -101,6 +109,7 @@ def serve(
     holders: str,
     seconds: float | None,
     status_every: float,
+    stamp: str,
     ros1: bool,
     tf_map: Path | None,
     pose_topics: tuple[str, ...],
@@ -142,7 +151,7 @@ def serve(
     status.setLevel(logging.INFO)
     status.propagate = False
     self_id = self_agent_of(app.db, self_id)
-    node = LiveNode(app.db, config=config, self_id=self_id, holders=choice)
+    node = LiveNode(app.db, config=config, self_id=self_id, holders=choice, stamp=stamp)
     bridge = None
     if ros1:
         from toaster.ros1.bridge import start_bridge

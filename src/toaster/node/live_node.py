@@ -1,15 +1,15 @@
 """A live node: sources in, producers ticked at a rate, the store written once per tick,
 outputs published, control changes applied between ticks (``toaster serve``).
 
-One tick: apply the control plane if its version moved (areas, monitored agents, streams, held
-objects, commands), let every source apply its newest poses, register entities seen for the
-first time, compute the producers and write all their snapshots in one transaction, publish
-the facts to the outputs, then answer pending queries from the world as it is now. The loop
-never queues input (sources keep the newest pose per entity), counts ticks that overran their
-period, and stops between two ticks when asked (SIGINT/SIGTERM in :func:`serve`): the last
-tick is committed whole or not at all. A restart on the same database carries on: entities,
-areas and control state are read back, and the store's open intervals continue. No error
-inside a tick stops the node: :mod:`toaster.node.faults` says what happens instead.
+One tick, at the perception time (:mod:`toaster.node.stamps`): apply the control plane if its
+version moved (areas, monitored agents, streams, held objects, commands), let every source
+apply its newest poses, register entities seen for the first time, compute the producers and
+write all their snapshots in one transaction, publish the facts, answer pending queries from
+the world as it is now. The loop never queues input (sources keep the newest pose per entity),
+counts overruns, and stops between two ticks when asked (SIGINT/SIGTERM in :func:`serve`): the
+last tick is committed whole or not at all. A restart on the same database carries on
+(entities, areas, control state, open intervals). No error inside a tick stops the node:
+:mod:`toaster.node.faults` says what happens instead.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from toaster.errors import InvalidInputError, ToasterError, UnknownEntityError
 from toaster.model import Fact, shown
 from toaster.node import control
 from toaster.node.faults import GAP_SOURCE, RECONNECT_KINDS, Faults
+from toaster.node.stamps import TickClock
 from toaster.node.stats import LiveStats
 from toaster.producers.areas import AreaManager, multiple_relative_position, relative_position
 from toaster.producers.batch import FactBatch
@@ -65,6 +66,8 @@ FOLLOW_GAP = 0.8
 #: one: a timer at the sensor's own rate beats against it, and half the poses then waited
 #: for the gap after a tick that had nothing new; docs/live.md)
 IDLE_WAIT = 1.5
+#: a tick is at its newest pose's stamp if at most this old (s), else on the wall clock (stamps.py)
+MAX_STAMP_LAG_S = 1.0
 
 
 class Output(Protocol):
@@ -85,6 +88,7 @@ class LiveNode:
         holders: str | Sequence[str] = "none",
         sources: Sequence[Source] | None = None,
         outputs: Sequence[Output] = (),
+        stamp: str = "perception",
     ) -> None:
         self.db = db
         if db is not None:
@@ -100,9 +104,7 @@ class LiveNode:
         # their pose is sent again every tick until moved or removed
         self.simu = LiveSource("toaster_simu", drops=self.drops)
         self._simulated: dict[str, dict[str, Any]] = {}
-        self.sources: list[Source] = [self.simu] + (
-            list(sources) if sources is not None else [self.api]
-        )
+        self.sources: list[Source] = [self.simu, *(sources if sources is not None else [self.api])]
         self.outputs = list(outputs)
         self.producers: list[Any] = builtin_producers(
             self.config, {}, spatial=bool(self.config.get("spatial")), live=True
@@ -115,6 +117,7 @@ class LiveNode:
         )
         self.stats = LiveStats()
         self.faults = Faults(self.warn)
+        self.clock = TickClock(stamp, MAX_STAMP_LAG_S, self.warn)  # each tick's time
         self._version = -1
         self._last_t = 0
         self.wake = threading.Event()  # set by sources when a pose arrives
@@ -362,11 +365,11 @@ class LiveNode:
         self._registered.update(world.ids[r] for r in new)
 
     def tick(self, t_ns: int | None = None) -> dict[str, list[Fact]]:
-        """One tick at ``t_ns`` (default: now); returns the facts per producer, none when
-        the tick was not stored. It never raises: a failed tick is rolled back and handled
-        as :mod:`toaster.node.faults` says (logged once, a new connection after a database
-        fault, the gap recorded once a tick is stored again)."""
-        t = max(now_ns() if t_ns is None else t_ns, self._last_t + 1)  # time only moves on
+        """One tick at ``t_ns`` (default: the perception time, :mod:`toaster.node.stamps`);
+        returns the facts per producer, none when the tick was not stored. It never raises: a
+        failed tick is rolled back and handled as :mod:`toaster.node.faults` says."""
+        now = self.clock.now(self.sources, self.world) if t_ns is None else t_ns
+        t = max(now, self._last_t + 1)  # time only moves on
         self._last_t = t
         try:
             return self._tick(t)
@@ -457,11 +460,10 @@ class LiveNode:
 
         Ticks follow the input: a tick starts as soon as a source received a pose, but not
         sooner than ``FOLLOW_GAP`` of a period after the previous one (``rate_hz`` caps the
-        rate), and without input ``IDLE_WAIT`` periods after it. So a 30 Hz sensor's pose
-        becomes a fact in one tick's computation time instead of waiting up to a period.
-        A tick that takes longer than the period counts as an overrun; the next one may start
-        at once (no burst of catch-up ticks). After a tick that failed on a database fault the
-        next attempt waits for the backoff (:mod:`toaster.node.faults`), or for ``stop``.
+        rate), and without input ``IDLE_WAIT`` periods after it. A tick that takes longer than
+        the period counts as an overrun; the next one may start at once (no burst of catch-up
+        ticks). After a tick that failed on a database fault the next attempt waits for the
+        backoff (:mod:`toaster.node.faults`), or for ``stop``.
         Every ``maintain_every_s`` seconds the database is maintained on a thread and
         connection of its own (:mod:`toaster.db.maintenance`), never between two ticks, where
         it stalled the node. Every ``status_every_s`` seconds (0: never) a status line is

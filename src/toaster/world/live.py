@@ -210,6 +210,15 @@ class LiveSource:
     def setup(self, world: World) -> None:
         """Nothing to register up front; entities are added when first pushed."""
 
+    def newest_stamp(self, wall_ns: int) -> int | None:
+        """The newest stamp (offset added) of the poses a tick at ``wall_ns`` would apply, once
+        stamps far from it are shifted (a live node's perception time, docs/time.md)."""
+        with self._lock:
+            self._align(wall_ns)
+            off = self.offset_ns
+            due = (p[4] + off for q in self._pending.values() for p in q if p[4] + off <= wall_ns)
+            return max(due, default=None)
+
     def advance(self, world: World, t_ns: int) -> None:
         """Apply, per entity, the newest buffered pose stamped at or before ``t_ns``."""
         with self._lock:
@@ -295,7 +304,8 @@ class LiveSource:
             f"stamps are {abs(self.offset_ns) / NS_PER_S:.1f} s "
             f"{'behind' if self.offset_ns > 0 else 'ahead of'} the node's "
             "clock (simulated time, a looping bag or an unsynchronised "
-            "clock?): shifted to it"
+            "clock?): shifted to it; play bags with --clock and use_sim_time, synchronise "
+            "clocks (NTP)"
         )
 
     def take_warnings(self) -> list[str]:
