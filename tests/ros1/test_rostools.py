@@ -104,6 +104,8 @@ def node_args(tmp_path_factory: pytest.TempPathFactory) -> list[str]:
         "/mocap/pen=pen:object",
         "--pose-topic",
         "/mocap/ann=ann:human",
+        "--pose-topic",
+        "/mocap/pr2=pr2:robot",
     ]
 
 
@@ -119,6 +121,8 @@ def world(node: NodeProcess, client: RosClient, db: toaster.Database) -> RosClie
     client.publish("/mocap/cup", "geometry_msgs/PoseStamped", pose_msg(*CUP), rate=20)
     client.publish("/mocap/pen", "geometry_msgs/PoseStamped", pose_msg(0.5, 0.5, 0.8), rate=20)
     client.publish("/mocap/ann", "geometry_msgs/PoseStamped", pose_msg(*ANN), rate=20)
+    # a robot 2 m behind bob, facing him: pdg_seen's simulated camera sees bob
+    client.publish("/mocap/pr2", "geometry_msgs/PoseStamped", pose_msg(-2, 0), rate=20)
     hand = {
         "header": {"frame_id": "map", "stamp": "now"},
         "child_frame_id": "bob_hand",
@@ -145,6 +149,7 @@ EXPECTED = {
     "area_manager": ("cup", "IsInRoom", "kitchen"),
     "agent_monitor": ("bob/rightHand", "Distance", "cup"),
     "move3d_facts": ("ann", "IsVisibleBy", "bob"),
+    "pdg_seen": ("bob", "IsSeen", "pr2"),
 }
 
 
@@ -182,7 +187,10 @@ def test_rostopic_echo_decodes_every_fact_list(
         for f in tools.yaml("rostopic", "echo", "-n", "1", "/agent_monitor/factList")["factList"]
         if (f["subjectId"], f["targetId"]) == ("bob/rightHand", "cup")
     )
-    assert distance["valueType"] and distance["doubleValue"] == pytest.approx(math.dist(HAND, CUP))
+    # the original's Distance: valueType 0, the metres in doubleValue (docs/original.md)
+    assert distance["valueType"] == 0 and distance["doubleValue"] == pytest.approx(
+        math.dist(HAND, CUP)
+    )
     assert distance["subjectOwnerId"] == "bob"
 
 

@@ -49,7 +49,7 @@ PACKAGE_XML = """\
   <name>{name}</name>
   <version>{version}</version>
   <description>{name} as toaster speaks it (written by `toaster ros1 env`)</description>
-  <maintainer email="toaster@localhost">toaster</maintainer>
+  <maintainer email="toaster@example.org">toaster</maintainer>
   <license>BSD</license>
   <buildtool_depend>catkin</buildtool_depend>
 </package>
@@ -72,16 +72,23 @@ def default_cache(environ: Mapping[str, str] = os.environ) -> Path:
 
 def definitions(root: Path = MSG_ROOT) -> dict[str, dict[str, str]]:
     """Message and service texts by package and path in it (``{"toaster_msgs": {"msg/Fact.msg":
-    text}}``): those shipped under ``root`` and the recordings' ``toaster_recording/Beliefs``."""
+    text}}``): those shipped under ``root`` and the recordings' own ``toaster_recording``
+    types (Beliefs, Run, World)."""
     from toaster.outputs.recording.beliefs import BELIEFS_MSG, BELIEFS_TYPE
+    from toaster.world.recorded import RUN_MSG, RUN_TYPE, WORLD_MSG, WORLD_TYPE
 
     out: dict[str, dict[str, str]] = {}
     for path in sorted(root.glob("*/*/*.*")):
         if path.parent.name in ("msg", "srv") and path.suffix == f".{path.parent.name}":
             package = path.parents[1].name
             out.setdefault(package, {})[f"{path.parent.name}/{path.name}"] = path.read_text()
-    package, kind, name = BELIEFS_TYPE.split("/")
-    out.setdefault(package, {})[f"{kind}/{name}.{kind}"] = BELIEFS_MSG
+    for type_name, text in (
+        (BELIEFS_TYPE, BELIEFS_MSG),
+        (RUN_TYPE, RUN_MSG),
+        (WORLD_TYPE, WORLD_MSG),
+    ):
+        package, kind, name = type_name.split("/")
+        out.setdefault(package, {})[f"{kind}/{name}.{kind}"] = text
     return out
 
 
