@@ -26,7 +26,7 @@ from toaster.errors import InvalidInputError
 
 if TYPE_CHECKING:
     from toaster.db import Database
-    from toaster.producers import Runner, Session, Stats
+    from toaster.producers import Session, Stats
 
 #: ``progress(ticks_done, ticks_total)``, called after every tick
 Progress = Callable[[int, int], None]
@@ -101,38 +101,6 @@ def tick_times(session: Session, end_ns: int, rate_hz: float | None = None) -> n
         np.arange(times[k] + step, times[k + 1] - step // 2, step, dtype=np.int64) for k in gaps
     ]
     return np.unique(np.concatenate([times, *fill])) if fill else times
-
-
-def tick(
-    runner: Runner,
-    times: np.ndarray,
-    *,
-    realtime: bool = False,
-    on_tick: Callable[[int], None] | None = None,
-    maintain_every_s: float | None = None,
-) -> None:
-    """Tick ``runner`` at ``times`` (ns, increasing), paced to the wall clock if ``realtime``,
-    maintaining the database every ``maintain_every_s`` wall seconds (as ``Runner.run``)."""
-    from toaster.producers.runner import MAINTAIN_EVERY_S
-
-    every = MAINTAIN_EVERY_S if maintain_every_s is None else maintain_every_s
-    wall0 = last = time.monotonic()
-    start = int(times[0]) if len(times) else 0
-    for t in times.tolist():
-        if realtime:
-            delay = (t - start) / 1e9 - (time.monotonic() - wall0)
-            if delay > 0:
-                time.sleep(delay)
-        runner.tick(t)
-        if on_tick is not None:
-            on_tick(t)
-        if runner.store is not None and time.monotonic() - last >= every:
-            now = time.monotonic()
-            runner.store.db.maintain()
-            last = time.monotonic()
-            runner.stats.seconds["maintain"] = runner.stats.seconds.get("maintain", 0.0) + (
-                last - now
-            )
 
 
 def run_file(
@@ -213,7 +181,7 @@ def run_file(
             progress(done, len(times))
 
     wall = time.perf_counter()
-    tick(runner, times, realtime=realtime, on_tick=on_tick)
+    runner.run_at(times.tolist(), realtime=realtime, on_tick=on_tick)
     wall_s = time.perf_counter() - wall
     recording = None
     if record_dir is not None:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -143,17 +143,35 @@ class Runner:
         on_tick: Callable[[int], None] | None = None,
         maintain_every_s: float | None = MAINTAIN_EVERY_S,
     ) -> Stats:
-        """Tick from start to end (inclusive) at ``rate_hz``; pace to the clock if realtime.
+        """Tick from start to end (inclusive) at ``rate_hz`` (:meth:`run_at` on that grid)."""
+        step = round(NS_PER_S / check_rate(rate_hz))
+        return self.run_at(
+            range(start_ns, end_ns + 1, step),
+            realtime=realtime,
+            on_tick=on_tick,
+            maintain_every_s=maintain_every_s,
+        )
+
+    def run_at(
+        self,
+        times: Iterable[int],
+        *,
+        realtime: bool = False,
+        on_tick: Callable[[int], None] | None = None,
+        maintain_every_s: float | None = MAINTAIN_EVERY_S,
+    ) -> Stats:
+        """Tick at ``times`` (ns, increasing); pace them to the clock from the first if
+        ``realtime``.
 
         Every ``maintain_every_s`` seconds of wall time the database is maintained between two
         ticks (:meth:`toaster.db.Database.maintain`: PostgreSQL vacuums the hot tables).
         """
-        step = round(NS_PER_S / check_rate(rate_hz))
         wall0 = last_maintained = time.monotonic()
-        t = start_ns
-        while t <= end_ns:
+        first: int | None = None
+        for t in times:
+            first = t if first is None else first
             if realtime:
-                delay = (t - start_ns) / NS_PER_S - (time.monotonic() - wall0)
+                delay = (t - first) / NS_PER_S - (time.monotonic() - wall0)
                 if delay > 0:
                     time.sleep(delay)
             self.tick(t)
@@ -168,7 +186,6 @@ class Runner:
                 self.store.db.maintain()
                 last_maintained = time.monotonic()
                 self._add("maintain", last_maintained - now)
-            t += step
         return self.stats
 
 
