@@ -10,7 +10,7 @@ latency only. Quoted: medians over repeats of p50 / p99 in ms, ticks and overrun
 
 Run: .venv/bin/python benchmarks/bench_live.py [--no-pg | --only-pg] [--seconds 20] [--repeats 3]
      [--humans 10,100] [--quick]
-(``--quick``: 3 humans, 3 s, one run per path: a smoke run.)
+(``--quick``: 3 humans, 2 s, one run per path: a smoke run.)
 """
 
 from __future__ import annotations
@@ -233,7 +233,7 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="small sizes (a smoke run)")
     args = parser.parse_args()
     if args.quick:
-        args.seconds, args.repeats, args.humans = 3.0, 1, "3"
+        args.seconds, args.repeats, args.humans = 2.0, 1, "3"
     backends = ([] if args.only_pg else ["sqlite"]) + ([] if args.no_pg else ["postgresql"])
     print(
         f"Live latency, pose published -> fact (ms; median over {args.repeats} runs of each "

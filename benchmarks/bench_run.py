@@ -4,8 +4,8 @@ Run: .venv/bin/python benchmarks/bench_run.py [--pg URL] [--no-pg | --only-pg]
      [--only tick|crowd|size|pg-long] [--repeats N] [--long SECONDS] [--quick]
 
 ``--quick`` (a smoke run of every section, figures meaningless): a 200-entity scene with 5
-humans, 3 ticks, one run; one 40-person crowd for 10 s; growth from 4 s and 8 s replays of 20
-people; 10 s of PostgreSQL long run reported every 5 s.
+humans holding beliefs, 3 ticks, one run; one 40-person crowd for 10 s; growth from 2 s and 4 s
+replays of 20 people; 4 s of PostgreSQL long run reported every 2 s.
 
 1. **One full tick**: the producer benchmark's scene (1,000 entities, 100 areas, 20 humans with
    a head and a hand; every entity jitters 2 cm a tick at 30 Hz) and a 10,000-entity scene with
@@ -75,14 +75,16 @@ SIZES: dict[str, Any] = {
     "growth_s": (40, 120),  # the two replays' input seconds
     "long_people": 100,
     "long_report_s": 60,
+    "holders": ("none", "humans"),  # who holds beliefs in section 1's scenes
 }
 QUICK: dict[str, Any] = {
     "scenes": [(200, 5, "200 ent / 100 areas / 5 humans", {"sqlite": 20, "postgresql": 33})],
     "crowds": [("40 crossing, 2.5 Hz", 40, 2.5, 10.0, 2.0, {"sqlite": 30, "postgresql": 10})],
     "growth": [("20 at once", 20, 0.0, ())],
-    "growth_s": (4, 8),
+    "growth_s": (2, 4),
     "long_people": 20,
-    "long_report_s": 5,
+    "long_report_s": 2,
+    "holders": ("humans",),
 }
 #: the previous release's behaviour, for the same-run "before" column
 BEFORE = {"toward_range": 1e9, "min_duration": {"IsMoving": 0.0, "IsFacing": 0.0}}
@@ -247,7 +249,7 @@ def bench_ticks(backends: list[str], pg: str | None, ticks: int, repeats: int) -
         for backend in backends:
             if backend not in targets:
                 continue
-            for holders in ("none", "humans"):
+            for holders in SIZES["holders"]:
                 figures: dict[str, list[tuple[float, float]]] = {"before": [], "now": []}
                 for run in range(repeats):  # the heavy baseline last: it leaves the server busy
                     for case in ("now", "before") if run == repeats - 1 else ("now",):
@@ -487,7 +489,7 @@ def main() -> None:
     args = parser.parse_args()
     if args.quick:
         SIZES.update(QUICK)
-        args.ticks, args.repeats, args.long = 3, 1, 10.0
+        args.ticks, args.repeats, args.long = 3, 1, 4.0
     pg = None if args.no_pg else args.pg
     if pg:
         try:

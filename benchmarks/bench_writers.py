@@ -49,7 +49,8 @@ def _schema(url: str) -> str:
     with engine.begin() as conn:
         conn.exec_driver_sql(f'CREATE SCHEMA "{name}"')
     engine.dispose()
-    schema_url = f"{url}?options=-csearch_path%3D{name}"
+    sep = "&" if "?" in url else "?"
+    schema_url = f"{url}{sep}options=-csearch_path%3D{name}"
     engine = make_engine(schema_url)
     migrate.upgrade(engine)
     engine.dispose()

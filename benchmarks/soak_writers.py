@@ -10,7 +10,7 @@ ticks (one line per distinct error) and ticks that met a lock time-out (rolled b
 written again), then what ``toaster db check`` says.
 Usage: python benchmarks/soak_writers.py --writers 8 --minutes 10 [--db URL] [--quick]
        (default: a fresh schema of the local PostgreSQL; ``--db sqlite`` a fresh file;
-       ``--quick``: 2 writers for 6 s, nothing kept afterwards: a smoke run)
+       ``--quick``: 2 writers for 3 s, nothing kept afterwards: a smoke run)
 """
 
 from __future__ import annotations
@@ -104,10 +104,10 @@ def main() -> None:
     parser.add_argument("--writers", type=int, default=8)
     parser.add_argument("--minutes", type=float, default=10.0)
     parser.add_argument("--db", default="postgresql://postgres@127.0.0.1:5432/test")
-    parser.add_argument("--quick", action="store_true", help="2 writers for 6 s (a smoke run)")
+    parser.add_argument("--quick", action="store_true", help="2 writers for 3 s (a smoke run)")
     args = parser.parse_args()
     if args.quick:
-        args.writers, args.minutes = 2, 0.1
+        args.writers, args.minutes = 2, 0.05
     folder = Path(tempfile.mkdtemp(prefix="soak_writers_"))
     if args.db == "sqlite":
         url = f"sqlite:///{folder / 'soak.db'}"
