@@ -19,12 +19,15 @@ holders that perceive alike (setting group_holders); "alone" is the same case wi
 group_holders = false, every holder computed by itself. Each case runs ``--repeats`` times
 (fresh database each time); the table gives the median rate (and the range).
 Usage: python benchmarks/bench_beliefs.py [--ticks 10] [--entities 1000] [--writes 300]
-       [--repeats 3] [--pg URL] [--only SUBSTRING]
+       [--repeats 3] [--pg URL] [--no-pg | --only-pg] [--only SUBSTRING] [--quick]
+(``--quick``: 2 ticks of 50 entities, 10 single writes, one run of three of the cases: a smoke
+run. PostgreSQL schemas are private to the run and dropped at its end.)
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import tempfile
 import time
@@ -37,13 +40,32 @@ from toaster.beliefs import api
 PG = "postgresql://postgres@127.0.0.1:5432/test"
 
 
+_SCHEMAS: list[str] = []  # created by this run, dropped at its end
+
+
+def _engine(url: str) -> sa.Engine:
+    return sa.create_engine(url.replace("postgresql://", "postgresql+psycopg://"))
+
+
 def _pg_schema(url: str, name: str) -> str:
-    engine = sa.create_engine(url.replace("postgresql://", "postgresql+psycopg://"))
+    name = f"{name}_{os.getpid()}"
+    engine = _engine(url)
     with engine.begin() as conn:
         conn.exec_driver_sql(f'DROP SCHEMA IF EXISTS "{name}" CASCADE')
         conn.exec_driver_sql(f'CREATE SCHEMA "{name}"')
     engine.dispose()
-    return f"{url}?options=-csearch_path%3D{name}"
+    if name not in _SCHEMAS:
+        _SCHEMAS.append(name)
+    sep = "&" if "?" in url else "?"
+    return f"{url}{sep}options=-csearch_path%3D{name}"
+
+
+def _drop_schemas(url: str) -> None:
+    engine = _engine(url)
+    with engine.begin() as conn:
+        for name in _SCHEMAS:
+            conn.exec_driver_sql(f'DROP SCHEMA IF EXISTS "{name}" CASCADE')
+    engine.dispose()
 
 
 def _holder_rows(db: toaster.Database) -> int:
@@ -167,22 +189,40 @@ def main() -> None:
     parser.add_argument("--writes", type=int, default=300)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--pg", default=PG, help="PostgreSQL URL ('' to skip)")
+    parser.add_argument("--no-pg", action="store_true", help="SQLite only")
+    parser.add_argument("--only-pg", action="store_true", help="PostgreSQL only")
+    parser.add_argument("--quick", action="store_true", help="small sizes (a smoke run)")
     parser.add_argument(
         "--only",
         default="",
         help="run the cases whose label contains this (e.g. 'depth 2', 'sqlite')",
     )
     args = parser.parse_args()
+    if args.quick:
+        args.ticks, args.entities, args.writes, args.repeats = 2, 50, 10, 1
+    cases = [CASES[i] for i in (0, 6, 10)] if args.quick else CASES
+    backends = [
+        b
+        for b in ("sqlite", "postgresql")
+        if not (b == "postgresql" and (args.no_pg or not args.pg))
+        and not (b == "sqlite" and args.only_pg)
+    ]
+    try:
+        _run(args, cases, backends)
+    finally:
+        if _SCHEMAS:
+            _drop_schemas(args.pg)
+
+
+def _run(args: argparse.Namespace, cases: list[tuple], backends: list[str]) -> None:
     print(
         f"{'backend':10} {'agents':>6} {'depth':>5} {'rules':>7} {'churn':>5} "
         f"{'changed facts/s':>16} {'range':>15} {'vs no rules':>11} {'holder rows/change':>18}"
     )
     with tempfile.TemporaryDirectory() as tmp:
-        for backend in ("sqlite", "postgresql"):
-            if backend == "postgresql" and not args.pg:
-                continue
+        for backend in backends:
             baseline = None
-            for n, (agents, depth, rules, churn, share, grouped) in enumerate(CASES):
+            for n, (agents, depth, rules, churn, share, grouped) in enumerate(cases):
                 label = (
                     f"{backend} {agents} agents depth {depth} {_label(rules, share, grouped)}"
                     f"{' churn' if churn else ''}"
@@ -212,10 +252,8 @@ def main() -> None:
             f"\nsingle writes (one change per transaction, 10 agents in the room)\n"
             f"{'backend':10} {'library/s':>10} {'fact_inbox/s':>13} {'inbox vs library':>17}"
         )
-        for backend in ("sqlite", "postgresql"):
-            if (backend == "postgresql" and not args.pg) or (
-                args.only and "single" not in args.only
-            ):
+        for backend in backends:
+            if args.only and "single" not in args.only:
                 continue
             rates = []
             for n, raw in enumerate((False, True)):

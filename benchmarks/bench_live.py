@@ -8,7 +8,9 @@ and 50 objects at 30 Hz, moving each human into and out of a zone once a second.
 the same run: the same scene pushed in-process into a `LiveNode` (no ROS transport), database
 latency only. Quoted: medians over repeats of p50 / p99 in ms, ticks and overruns.
 
-Run: .venv/bin/python benchmarks/bench_live.py [--no-pg] [--seconds 20] [--repeats 3]
+Run: .venv/bin/python benchmarks/bench_live.py [--no-pg | --only-pg] [--seconds 20] [--repeats 3]
+     [--humans 10,100] [--quick]
+(``--quick``: 3 humans, 2 s, one run per path: a smoke run.)
 """
 
 from __future__ import annotations
@@ -223,12 +225,16 @@ def api_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dic
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--pg", default=os.environ.get("TOASTER_BENCH_PG", PG_DEFAULT))
-    parser.add_argument("--no-pg", action="store_true")
+    parser.add_argument("--no-pg", action="store_true", help="SQLite only")
+    parser.add_argument("--only-pg", action="store_true", help="PostgreSQL only")
     parser.add_argument("--seconds", type=float, default=20.0)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--humans", default="10,100")
+    parser.add_argument("--quick", action="store_true", help="small sizes (a smoke run)")
     args = parser.parse_args()
-    backends = ["sqlite"] + ([] if args.no_pg else ["postgresql"])
+    if args.quick:
+        args.seconds, args.repeats, args.humans = 2.0, 1, "3"
+    backends = ([] if args.only_pg else ["sqlite"]) + ([] if args.no_pg else ["postgresql"])
     print(
         f"Live latency, pose published -> fact (ms; median over {args.repeats} runs of each "
         f"run's p50 / p99; {args.seconds:.0f} s per run, 30 Hz, 50 objects, 2 joints per "

@@ -1,12 +1,14 @@
 """One full tick (areas + agent monitoring + snapshot diff, no database) vs a naive loop.
 
-Run: .venv/bin/python benchmarks/bench_producers.py
+Run: .venv/bin/python benchmarks/bench_producers.py [--quick]
+(``--quick``: the 1,000-entity scene only, 5 ticks, one naive loop: a smoke run.)
 """
 
 from __future__ import annotations
 
 import math
 import statistics
+import sys
 import time
 
 import numpy as np
@@ -79,7 +81,9 @@ def naive(world, areas, t):
     return facts
 
 
-def measure(n: int, agents: int = 20, repeats: int = 30) -> tuple[float, float, float, float, int]:
+def measure(
+    n: int, agents: int = 20, repeats: int = 30, naive_repeats: int = 3
+) -> tuple[float, float, float, float, int]:
     """(median ms, naive median ms, best ms, naive best ms, monitor facts per tick)."""
     world, areas, pos, rng = build(n, agents=agents)
     managers = [AreaManager(areas), AgentMonitor()]
@@ -95,7 +99,7 @@ def measure(n: int, agents: int = 20, repeats: int = 30) -> tuple[float, float, 
         times.append(time.perf_counter() - start)
         t += S // 30
     naive_times = []
-    for _ in range(3):
+    for _ in range(naive_repeats):
         start = time.perf_counter()
         naive(world, areas, t)
         naive_times.append(time.perf_counter() - start)
@@ -116,8 +120,12 @@ def main() -> None:
         f"{'entities':>9} {'areas':>6} {'agents':>6} {'tick ms':>9} {'naive ms':>9} {'ratio':>7}"
         f" {'target':>8} {'best ms':>8} {'naive best':>10} {'ratio':>6} {'monitor facts':>13}"
     )
-    for n, agents, target in ((1_000, 20, 5.0), (10_000, 20, 50.0), (10_000, 30, 50.0)):
-        fast, slow, fast_min, slow_min, facts = measure(n, agents)
+    quick = "--quick" in sys.argv[1:]
+    scenes = ((1_000, 20, 5.0), (10_000, 20, 50.0), (10_000, 30, 50.0))
+    for n, agents, target in scenes[:1] if quick else scenes:
+        fast, slow, fast_min, slow_min, facts = (
+            measure(n, agents, 5, 1) if quick else measure(n, agents)
+        )
         print(
             f"{n:>9} {100:>6} {agents:>6} {fast:>9.2f} {slow:>9.1f} {slow / fast:>6.0f}× "
             f"{'≤' + str(target):>8} {fast_min:>8.2f} {slow_min:>10.1f} "

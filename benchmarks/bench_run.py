@@ -1,7 +1,11 @@
 """Ticks and replays with the database, the way users run them (``Runner`` / ``toaster run``).
 
-Run: .venv/bin/python benchmarks/bench_run.py [--pg URL] [--no-pg] [--only tick|crowd|size]
-     [--repeats N] [--long SECONDS]
+Run: .venv/bin/python benchmarks/bench_run.py [--pg URL] [--no-pg | --only-pg]
+     [--only tick|crowd|size|pg-long] [--repeats N] [--long SECONDS] [--quick]
+
+``--quick`` (a smoke run of every section, figures meaningless): a 200-entity scene with 5
+humans holding beliefs, 3 ticks, one run; one 40-person crowd for 10 s; growth from 2 s and 4 s
+replays of 20 people; 4 s of PostgreSQL long run reported every 2 s.
 
 1. **One full tick**: the producer benchmark's scene (1,000 entities, 100 areas, 20 humans with
    a head and a hand; every entity jitters 2 cm a tick at 30 Hz) and a 10,000-entity scene with
@@ -52,6 +56,36 @@ from toaster.world import World
 S = 1_000_000_000
 PG_DEFAULT = "postgresql://postgres@127.0.0.1:5432/test"
 TOASTER = str(Path(sys.executable).parent / "toaster")
+#: sizes of each section; ``--quick`` replaces them with :data:`QUICK`
+SIZES: dict[str, Any] = {
+    "scenes": [
+        (1_000, 20, "1,000 ent / 100 areas / 20 humans", {"sqlite": 20, "postgresql": 33}),
+        (10_000, 30, "10,000 ent / 100 areas / 30 humans", {"sqlite": 100}),
+    ],
+    "crowds": [  # label, people, Hz, input seconds, arrivals, targets
+        ("400 crossing, 2.5 Hz", 400, 2.5, 200.0, 2.0, {"sqlite": 30, "postgresql": 10}),
+        ("400 crossing, 30 Hz", 400, 30.0, 100.0, 2.0, {"sqlite": 1, "postgresql": 1}),
+        ("400 at once, 2.5 Hz", 400, 2.5, 60.0, 0.0, {"sqlite": 0, "postgresql": 0}),
+    ],
+    "growth": [  # label, people, arrivals, extra arguments of toaster run
+        ("100 at once", 100, 0.0, ()),
+        ("400 crossing", 400, 2.0, ()),
+        ("100, toward people 3.6m", 100, 0.0, ("--config", "social.yaml")),
+    ],
+    "growth_s": (40, 120),  # the two replays' input seconds
+    "long_people": 100,
+    "long_report_s": 60,
+    "holders": ("none", "humans"),  # who holds beliefs in section 1's scenes
+}
+QUICK: dict[str, Any] = {
+    "scenes": [(200, 5, "200 ent / 100 areas / 5 humans", {"sqlite": 20, "postgresql": 33})],
+    "crowds": [("40 crossing, 2.5 Hz", 40, 2.5, 10.0, 2.0, {"sqlite": 30, "postgresql": 10})],
+    "growth": [("20 at once", 20, 0.0, ())],
+    "growth_s": (2, 4),
+    "long_people": 20,
+    "long_report_s": 2,
+    "holders": ("humans",),
+}
 #: the previous release's behaviour, for the same-run "before" column
 BEFORE = {"toward_range": 1e9, "min_duration": {"IsMoving": 0.0, "IsFacing": 0.0}}
 
@@ -64,7 +98,8 @@ class PgSchema:
 
         self.base = base
         self.name = f"bench_run_{os.getpid()}_{int(time.time() * 1000) % 100000}"
-        self.conn = psycopg.connect(base, autocommit=True)
+        plain = base.replace("postgresql+psycopg://", "postgresql://", 1)  # psycopg's form
+        self.conn = psycopg.connect(plain, autocommit=True)
         self.conn.execute(f"CREATE SCHEMA {self.name}")
 
     @property
@@ -207,18 +242,14 @@ def bench_ticks(backends: list[str], pg: str | None, ticks: int, repeats: int) -
         f"{'scene':<34} {'backend':<11} {'holders':<8} {'no-db ms':>9} {'before ms':>10}"
         f" {'rows':>7} {'tick ms':>8} {'rows':>6} {'db/geom':>8} {'target':>7}"
     )
-    scenes = [
-        (1_000, 20, "1,000 ent / 100 areas / 20 humans", {"sqlite": 20, "postgresql": 33}),
-        (10_000, 30, "10,000 ent / 100 areas / 30 humans", {"sqlite": 100}),
-    ]
-    for n, agents, label, targets in scenes:
+    for n, agents, label, targets in SIZES["scenes"]:
         geom = statistics.median(
             time_ticks(scene_session(n, agents, {}, "none"), None, ticks)[0] for _ in range(repeats)
         )
         for backend in backends:
             if backend not in targets:
                 continue
-            for holders in ("none", "humans"):
+            for holders in SIZES["holders"]:
                 figures: dict[str, list[tuple[float, float]]] = {"before": [], "now": []}
                 for run in range(repeats):  # the heavy baseline last: it leaves the server busy
                     for case in ("now", "before") if run == repeats - 1 else ("now",):
@@ -285,15 +316,10 @@ def bench_crowd(backends: list[str], pg: str | None, repeats: int) -> None:
         f"{'crowd':<26} {'backend':<11} {'input s':>8} {'no-db ×':>8} {'×':>7} {'target':>7}"
         f" {'store ms/tick':>14}"
     )
-    cases = [
-        ("400 crossing, 2.5 Hz", 2.5, 200.0, 2.0, {"sqlite": 30, "postgresql": 10}),
-        ("400 crossing, 30 Hz", 30.0, 100.0, 2.0, {"sqlite": 1, "postgresql": 1}),
-        ("400 at once, 2.5 Hz", 2.5, 60.0, 0.0, {"sqlite": 0, "postgresql": 0}),
-    ]
     with tempfile.TemporaryDirectory() as tmp:
-        for label, hz, seconds, arrivals, targets in cases:
+        for label, people, hz, seconds, arrivals, targets in SIZES["crowds"]:
             csv = Path(tmp) / f"crowd_{hz}_{arrivals}.csv"
-            crowd.write_crowd(csv, 400, hz, seconds, arrivals=arrivals)
+            crowd.write_crowd(csv, people, hz, seconds, arrivals=arrivals)
             base = statistics.median(
                 seconds / toaster_run(csv, None, hz)[0] for _ in range(repeats)
             )
@@ -322,7 +348,8 @@ def bench_crowd(backends: list[str], pg: str | None, repeats: int) -> None:
 def bench_size(backends: list[str], pg: str | None) -> None:
     print(
         "\n3. Growth per hour: crowds at 30 Hz with 2 cm tracker noise (`toaster run`, defaults;"
-        " slope between a 40 s and a 120 s replay; target ≤ 100 MB/h for 100 people);\n"
+        f" slope between a {SIZES['growth_s'][0]} s and a {SIZES['growth_s'][1]} s replay;"
+        " target ≤ 100 MB/h for 100 people);\n"
         "   last rows: the same with IsMovingToward toward people asked for (opt-in)"
     )
     print(
@@ -332,14 +359,12 @@ def bench_size(backends: list[str], pg: str | None) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         social = Path(tmp) / "social.yaml"
         social.write_text("toward_range_humans: 3.6\n")
-        for label, people, arrivals, extra in (
-            ("100 at once", 100, 0.0, ()),
-            ("400 crossing", 400, 2.0, ()),
-            ("100, toward people 3.6m", 100, 0.0, ("--config", str(social))),
-        ):
+        for label, people, arrivals, extra in SIZES["growth"]:
+            extra = tuple(str(social) if e == "social.yaml" else e for e in extra)
             csv = Path(tmp) / f"crowd{people}.csv"
             if not csv.exists():
-                crowd.write_crowd(csv, people, 30.0, 120.0, noise=0.02, seed=1, arrivals=arrivals)
+                longest = float(SIZES["growth_s"][1])
+                crowd.write_crowd(csv, people, 30.0, longest, noise=0.02, seed=1, arrivals=arrivals)
             for backend in backends:
                 _size_row(label, csv, backend, pg, tmp, extra)
 
@@ -347,9 +372,11 @@ def bench_size(backends: list[str], pg: str | None) -> None:
 def _size_row(
     label: str, csv: Path, backend: str, pg: str | None, tmp: str, extra: tuple[str, ...]
 ) -> None:
-    """One row of section 3: a 40 s and a 120 s replay, growth per hour from the difference."""
+    """One row of section 3: a short and a long replay (40 s, 120 s), growth per hour from
+    the difference."""
     sizes = []
-    for seconds in (40, 120):
+    short, long = SIZES["growth_s"]
+    for seconds in (short, long):
         database = Database(backend, pg, tmp)
         try:
             toaster_run(csv, database.url, 30.0, ("--until", f"{seconds}s", *extra))
@@ -363,7 +390,7 @@ def _size_row(
             database.close()
     (b0, _, _), c0 = sizes[0]
     (b1, _, dead), c1 = sizes[1]
-    per_hour = 3600 / 80
+    per_hour = 3600 / (long - short)
     deltas = [(b - a) * per_hour for a, b in zip(c0, c1, strict=True)]
     print(
         f"{label:<22} {backend:<11} {(b1 - b0) * per_hour / 1e6:>8.1f} {sum(deltas):>12,.0f}"
@@ -375,7 +402,8 @@ def _size_row(
 # -- 4. PostgreSQL over a long run ----------------------------------------------------------------
 def bench_pg_long(pg: str, seconds: float) -> None:
     print(
-        f"\n4. PostgreSQL over {seconds:.0f} s of a 100-person crowd at 30 Hz with 2 cm noise "
+        f"\n4. PostgreSQL over {seconds:.0f} s of a {SIZES['long_people']}-person crowd at 30 Hz "
+        "with 2 cm noise "
         "(Runner as `toaster run`): facts table and dead rows as the run goes;\n   baseline in "
         "the same run: no maintenance between ticks (these servers run without autovacuum)"
     )
@@ -386,7 +414,9 @@ def bench_pg_long(pg: str, seconds: float) -> None:
 
     with tempfile.TemporaryDirectory() as tmp:
         csv = Path(tmp) / "crowd100.csv"
-        crowd.write_crowd(csv, 100, 30.0, seconds, noise=0.02, seed=2, arrivals=0.0)
+        crowd.write_crowd(
+            csv, SIZES["long_people"], 30.0, seconds, noise=0.02, seed=2, arrivals=0.0
+        )
         for label in ("every 60 s", "none"):
             _pg_long_run(pg, csv, label)
 
@@ -405,13 +435,14 @@ def _pg_long_run(pg: str, csv: Path, label: str) -> None:
             session.world, session.sources, session.producers, store=store, agent_id=session.self_id
         )
         wall = time.perf_counter()
-        next_report = session.start_ns + 60 * S
+        every = SIZES["long_report_s"] * S
+        next_report = session.start_ns + every
 
         def report(t_ns: int) -> None:
             nonlocal next_report
             if t_ns < next_report:
                 return
-            next_report += 60 * S
+            next_report += every
             schema.conn.execute("SELECT pg_stat_clear_snapshot()")
             row = schema.conn.execute(
                 "SELECT pg_total_relation_size(relid), n_dead_tup, n_tup_hot_upd, n_tup_upd, "
@@ -443,7 +474,8 @@ def _pg_long_run(pg: str, csv: Path, label: str) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--pg", default=os.environ.get("TOASTER_BENCH_PG", PG_DEFAULT))
-    parser.add_argument("--no-pg", action="store_true")
+    parser.add_argument("--no-pg", action="store_true", help="SQLite only")
+    parser.add_argument("--only-pg", action="store_true", help="PostgreSQL only (must answer)")
     parser.add_argument("--ticks", type=int, default=15)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--only", choices=("tick", "crowd", "size", "pg-long"))
@@ -453,15 +485,21 @@ def main() -> None:
         default=600.0,
         help="input seconds of the PostgreSQL long run (section 4)",
     )
+    parser.add_argument("--quick", action="store_true", help="small sizes (a smoke run)")
     args = parser.parse_args()
+    if args.quick:
+        SIZES.update(QUICK)
+        args.ticks, args.repeats, args.long = 3, 1, 4.0
     pg = None if args.no_pg else args.pg
     if pg:
         try:
             PgSchema(pg).drop()
         except Exception as exc:
+            if args.only_pg:
+                sys.exit(f"PostgreSQL not reachable at {pg} ({exc}); start it or pass --pg URL")
             print(f"PostgreSQL not reachable at {pg} ({exc.__class__.__name__}); skipping it")
             pg = None
-    backends = ["sqlite", *(["postgresql"] if pg else [])]
+    backends = [*([] if args.only_pg else ["sqlite"]), *(["postgresql"] if pg else [])]
     if args.only in (None, "tick"):
         bench_ticks(backends, pg, args.ticks, args.repeats)
     if args.only in (None, "crowd"):

@@ -12,7 +12,11 @@ For each backend, in one run:
 * as-of: all beliefs of one agent at time t in a memory of 1M rows, against a plain b-tree
   scan on (agent, start) over the same rows.
 
-Usage: ``python benchmarks/bench_store.py [--quick] [--backend sqlite|postgresql]``.
+The memory is written by the store itself (a change of every key every 1,000 ns), so filling
+1M rows takes a minute or two per backend. ``--quick``: 2,000-fact snapshots, 10,000 memory
+rows, a smoke run of seconds (tests/test_benchmarks.py).
+
+Usage: ``python benchmarks/bench_store.py [--quick] [--backend sqlite|postgresql] [--pg URL]``.
 Medians of repeated runs; compare ratios, not absolute times (these machines are noisy).
 """
 
@@ -39,7 +43,7 @@ AGENT = "R"
 
 
 @contextmanager
-def database(backend: str) -> Iterator[toaster.Database]:
+def database(backend: str, pg_url: str = PG_URL) -> Iterator[toaster.Database]:
     """A fresh database at head: a SQLite file in a temp dir or a private PostgreSQL schema."""
     if backend == "sqlite":
         with tempfile.TemporaryDirectory() as folder:
@@ -50,10 +54,11 @@ def database(backend: str) -> Iterator[toaster.Database]:
                 db.close()
         return
     schema = f"bench_{uuid.uuid4().hex[:10]}"
-    admin = make_engine(PG_URL)
+    admin = make_engine(pg_url)
     with admin.begin() as conn:
         conn.exec_driver_sql(f'CREATE SCHEMA "{schema}"')
-    db = toaster.connect(f"{PG_URL}?options=-csearch_path%3D{schema}")
+    sep = "&" if "?" in pg_url else "?"
+    db = toaster.connect(f"{pg_url}{sep}options=-csearch_path%3D{schema}")
     try:
         yield db
     finally:
@@ -170,10 +175,12 @@ def raw_limit(db: toaster.Database, rows_per_tick: int, ticks: int = 15) -> floa
 
 def raw_same_tables(db: toaster.Database, rows_per_tick: int, ticks: int = 15) -> float:
     """Bare-driver batched inserts into toaster's own ``facts`` and ``events`` tables (same
-    indexes), half each, one commit per tick: the ceiling for rows written by the store."""
+    indexes, same guard), half each, one commit per tick: the ceiling for rows written by the
+    store. Each tick takes the store's writer role and uses the store's own insert statements
+    (``Backend.begin_writes``, ``insert_intervals``, ``insert_events``), without its diff."""
     raw = db.engine.raw_connection()
     cur = raw.cursor()
-    sqlite = db.dialect_name == "sqlite"
+    backend = db.backend
     half = max(1, rows_per_tick // 2)
     times, key = [], 50_000_000
     for tick in range(ticks):
@@ -184,23 +191,12 @@ def raw_same_tables(db: toaster.Database, rows_per_tick: int, ticks: int = 15) -
         ]
         key += half
         start = time.perf_counter()
-        if sqlite:
+        if db.dialect_name == "sqlite":
             cur.execute("BEGIN")
-            cur.executemany(
-                "INSERT INTO facts (key_id, value_text, value_num, confidence, "
-                "observability, valid_from_ns, recorded_ns, source) "
-                "VALUES (?,?,?,?,?,?,?,?)",
-                facts,
-            )
-            cur.executemany(
-                "INSERT INTO events (key_id, agent_id, kind, stamp_ns, value_text, "
-                "value_num, confidence, observability, previous_text, source, "
-                "recorded_ns) VALUES (?,?,?,?,?,?,?,?,?,?,?)",
-                events,
-            )
-        else:
-            db.backend.insert_intervals(cur, facts)
-            db.backend.insert_events(cur, events)
+        backend.begin_writes(cur)
+        backend.insert_intervals(cur, facts)
+        backend.insert_events(cur, events)
+        backend.end_writes(cur)
         raw.commit()
         times.append(time.perf_counter() - start)
     raw.close()
@@ -278,57 +274,33 @@ def bench_point(db: toaster.Database, snaps: list[list[Fact]], n: int = 500) -> 
 
 
 def fill_memory(db: toaster.Database, agents: int, keys: int, intervals: int) -> int:
-    """Bulk-load agents × keys × intervals closed intervals (plus a flat copy for the baseline)."""
+    """agents × keys × intervals intervals written by the store (``sync_snapshot``: every key
+    of an agent changes value every 1,000 ns; the last interval stays open), plus a flat copy
+    of the same intervals for the baseline."""
     store = db.store()
+    flat = []
     for a in range(agents):
-        store.add_entity(f"H{a}", "human")
+        agent = f"H{a}"
+        store.add_entity(agent, "human", t_ns=0)
+        for i in range(intervals):
+            value = f"v{i % 2}"
+            store.sync_snapshot(
+                "bench", agent, i * 1000, [Fact(f"S{k}", "P", f"T{k}", value) for k in range(keys)]
+            )
+            end = (i + 1) * 1000 if i < intervals - 1 else None
+            flat += [(agent, a * keys + k, value, i * 1000, end) for k in range(keys)]
     raw = db.engine.raw_connection()
     cur = raw.cursor()
-    sqlite = db.dialect_name == "sqlite"
     cur.execute(
         "CREATE TABLE flat_memory (agent_id TEXT, key_id BIGINT, value_text TEXT, "
         "valid_from_ns BIGINT, valid_to_ns BIGINT)"
     )
-    key_id = 10_000_000
-    for a in range(agents):
-        key_rows = [(key_id + k, f"H{a}", f"S{k}", "P", f"T{k}") for k in range(keys)]
-        fact_rows, flat = [], []
-        for k in range(keys):
-            offset = (k * 7919) % 997
-            for i in range(intervals):
-                start = i * 1000 + offset
-                fact_rows.append((key_id + k, "v", 1.0, 1.0, 1.0, start, start + 1000, 0, "bench"))
-                flat.append((f"H{a}", key_id + k, "v", start, start + 1000))
-        key_id += keys
-        if sqlite:
-            cur.executemany(
-                "INSERT INTO fact_keys (id, agent_id, subject_id, property, target_id) "
-                "VALUES (?,?,?,?,?)",
-                key_rows,
-            )
-            cur.executemany(
-                "INSERT INTO facts (key_id, value_text, value_num, confidence, "
-                "observability, valid_from_ns, valid_to_ns, recorded_ns, source) "
-                "VALUES (?,?,?,?,?,?,?,?,?)",
-                fact_rows,
-            )
-            cur.executemany("INSERT INTO flat_memory VALUES (?,?,?,?,?)", flat)
-        else:
-            with cur.copy(
-                "COPY fact_keys (id, agent_id, subject_id, property, target_id) FROM STDIN"
-            ) as copy:
-                for row in key_rows:
-                    copy.write_row(row)
-            with cur.copy(
-                "COPY facts (key_id, value_text, value_num, confidence, observability, "
-                "valid_from_ns, valid_to_ns, recorded_ns, source) FROM STDIN"
-            ) as copy:
-                for row in fact_rows:
-                    copy.write_row(row)
-            with cur.copy("COPY flat_memory FROM STDIN") as copy:
-                for row in flat:
-                    copy.write_row(row)
-        raw.commit()
+    if db.dialect_name == "sqlite":
+        cur.executemany("INSERT INTO flat_memory VALUES (?,?,?,?,?)", flat)
+    else:
+        with cur.copy("COPY flat_memory FROM STDIN") as copy:
+            for row in flat:
+                copy.write_row(row)
     cur.execute("CREATE INDEX flat_memory_agent_from ON flat_memory (agent_id, valid_from_ns)")
     cur.execute("ANALYZE")
     raw.commit()
@@ -365,20 +337,20 @@ def bench_as_of(
     return median_ms(ours), median_ms(scan)
 
 
-def run_backend(backend: str, quick: bool) -> list[tuple[str, str, str, str]]:
+def run_backend(backend: str, quick: bool, pg_url: str = PG_URL) -> list[tuple[str, str, str, str]]:
     """All measurements for one backend, as table rows (measure, value, baseline, ratio)."""
-    n_facts, ticks = (10_000, 12) if quick else (10_000, 40)
+    n_facts, ticks = (2_000, 6) if quick else (10_000, 40)
     snaps = snapshots(n_facts, ticks, 0.05)
     out: list[tuple[str, str, str, str]] = []
-    with database(backend) as db:
+    with database(backend, pg_url) as db:
         sync = bench_sync(db, snaps)
         raw = raw_limit(db, int(sync["rows_per_tick"]))
         same = raw_same_tables(db, int(sync["rows_per_tick"]))
-        naive = naive_baseline(db, 100 if quick else 300)
-        point = bench_point(db, snaps)
+        naive = naive_baseline(db, 50 if quick else 300)
+        point = bench_point(db, snaps, 100 if quick else 500)
     out.append(
         (
-            "sync: changed facts/s (5% of 10k per tick)",
+            f"sync: changed facts/s (5% of {n_facts // 1000}k per tick)",
             f"{sync['changed_per_s']:,.0f}",
             f"naive {naive:,.0f}/s",
             f"{sync['changed_per_s'] / naive:.0f}×",
@@ -400,12 +372,13 @@ def run_backend(backend: str, quick: bool) -> list[tuple[str, str, str, str]]:
             f"{sync['rows_per_s'] / same:.0%} of it",
         )
     )
-    out.append(("sync: tick with 500 changes", f"{sync['tick_ms']:.2f} ms", "", ""))
+    changes = int(n_facts * 0.05)
+    out.append((f"sync: tick with {changes} changes", f"{sync['tick_ms']:.2f} ms", "", ""))
     out.append(("sync: tick with no change", f"{sync['quiet_ms']:.3f} ms", "target < 2 ms", ""))
     out.append(("fact_value (current, Python API)", f"{point:.3f} ms", "", ""))
-    shapes = [(10, 100, 1000), (10, 1000, 100)] if not quick else [(4, 100, 500)]
+    shapes = [(10, 100, 1000), (10, 1000, 100)] if not quick else [(2, 50, 100)]
     for agents, keys, intervals in shapes:  # agents × keys per agent × intervals per key
-        with database(backend) as db:
+        with database(backend, pg_url) as db:
             rows = fill_memory(db, agents, keys, intervals)
             ours, scan = bench_as_of(db, agents, intervals)
         out.append(
@@ -413,7 +386,7 @@ def run_backend(backend: str, quick: bool) -> list[tuple[str, str, str, str]]:
                 f"as-of: {keys} beliefs of 1 agent, {rows:,} rows",
                 f"{ours:.2f} ms",
                 f"b-tree scan {scan:.2f} ms",
-                f"{scan / ours:.0f}×",
+                f"{scan / ours:.1f}×",
             )
         )
     return out
@@ -423,10 +396,11 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller sizes (a smoke run)")
     parser.add_argument("--backend", choices=["sqlite", "postgresql"], action="append")
+    parser.add_argument("--pg", default=PG_URL, help="PostgreSQL URL")
     args = parser.parse_args(argv)
     backends = args.backend or ["sqlite", "postgresql"]
     for backend in backends:
-        rows = run_backend(backend, args.quick)
+        rows = run_backend(backend, args.quick, args.pg)
         print(f"\n{backend}")
         print(f"{'measure':46} {'toaster':>14} {'baseline':>22} {'ratio':>12}")
         for measure, value, baseline, ratio in rows:

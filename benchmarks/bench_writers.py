@@ -16,7 +16,8 @@ alone (no belief run to serialize). ``--pace live`` (default) paces each robot's
 none`` ticks back to back, as an offline ``toaster run``: every writer then saturates the
 machine and, shared, the one timeline of the holders' beliefs (one belief run at a time).
 Usage: python benchmarks/bench_writers.py [--writers 1,2,4,8] [--ticks 150] [--repeats 3]
-       [--holders humans|none] [--pace live|none] [--pg URL]
+       [--holders humans|none] [--pace live|none] [--pg URL] [--quick]
+(PostgreSQL only. ``--quick``: 2 writers, 10 ticks each, one run: a smoke run.)
 """
 
 from __future__ import annotations
@@ -48,7 +49,8 @@ def _schema(url: str) -> str:
     with engine.begin() as conn:
         conn.exec_driver_sql(f'CREATE SCHEMA "{name}"')
     engine.dispose()
-    schema_url = f"{url}?options=-csearch_path%3D{name}"
+    sep = "&" if "?" in url else "?"
+    schema_url = f"{url}{sep}options=-csearch_path%3D{name}"
     engine = make_engine(schema_url)
     migrate.upgrade(engine)
     engine.dispose()
@@ -132,7 +134,10 @@ def main() -> None:
         help="humans (the scenario's people hold beliefs) or none (no belief "
         "rule work: the store alone)",
     )
+    parser.add_argument("--quick", action="store_true", help="small sizes (a smoke run)")
     args = parser.parse_args()
+    if args.quick:
+        args.writers, args.ticks, args.repeats = "2", 10, 1
     counts = [int(n) for n in args.writers.split(",")]
     print(
         f"{'writers':>7} {'database':>8} {'p50 ms':>8} {'p99 ms':>8} {'wall s':>7} "

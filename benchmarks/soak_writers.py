@@ -8,8 +8,9 @@ ticks share instants and lag one another as processes on a busy machine do. Afte
 ``--minutes`` each writer stops at its next tick; the table gives each writer's ticks, failed
 ticks (one line per distinct error) and ticks that met a lock time-out (rolled back whole and
 written again), then what ``toaster db check`` says.
-Usage: python benchmarks/soak_writers.py --writers 8 --minutes 10 [--db URL]
-       (default: a fresh schema of the local PostgreSQL; ``--db sqlite`` a fresh file)
+Usage: python benchmarks/soak_writers.py --writers 8 --minutes 10 [--db URL] [--quick]
+       (default: a fresh schema of the local PostgreSQL; ``--db sqlite`` a fresh file;
+       ``--quick``: 2 writers for 3 s, nothing kept afterwards: a smoke run)
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import argparse
 import collections
 import json
 import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -102,20 +104,34 @@ def main() -> None:
     parser.add_argument("--writers", type=int, default=8)
     parser.add_argument("--minutes", type=float, default=10.0)
     parser.add_argument("--db", default="postgresql://postgres@127.0.0.1:5432/test")
+    parser.add_argument("--quick", action="store_true", help="2 writers for 3 s (a smoke run)")
     args = parser.parse_args()
+    if args.quick:
+        args.writers, args.minutes = 2, 0.05
     folder = Path(tempfile.mkdtemp(prefix="soak_writers_"))
     if args.db == "sqlite":
         url = f"sqlite:///{folder / 'soak.db'}"
     else:
         sys.path.insert(0, str(ROOT / "benchmarks"))
-        from bench_writers import _schema
+        from bench_writers import _drop, _schema
 
         url = _schema(args.db)
+    try:
+        soak(args.writers, args.minutes, url, folder)
+    finally:
+        if args.quick:  # a smoke run keeps nothing
+            shutil.rmtree(folder, ignore_errors=True)
+            if args.db != "sqlite":
+                _drop(args.db, [url])
+
+
+def soak(writers: int, minutes: float, url: str, folder: Path) -> None:
+    """Run the writers on ``url``, print their rows and what ``toaster db check`` says."""
     print(f"database: {url}", flush=True)
     procs = []
-    for i in range(args.writers):
+    for i in range(writers):
         robot = f"R{i}"
-        scene = long_scene(args.minutes, robot, folder)
+        scene = long_scene(minutes, robot, folder)
         out = folder / f"{robot}.json"
         procs.append(
             (
@@ -128,7 +144,7 @@ def main() -> None:
                         url,
                         robot,
                         str(scene),
-                        str(args.minutes * 60),
+                        str(minutes * 60),
                         str(out),
                     ],
                     cwd=ROOT,
