@@ -29,6 +29,7 @@ PG_URL = os.environ.get(
 REQUIRE_PG = os.environ.get("TOASTER_REQUIRE_POSTGRES") == "1"
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 BACKENDS = ["sqlite", pytest.param("postgresql", marks=pytest.mark.postgresql)]
+BACKEND_NAMES = ("sqlite", "postgresql")
 
 _pg_error: str | None = None
 _pg_checked = False
@@ -158,3 +159,20 @@ def count(db: toaster.Database, sql: str, **params: object) -> int:
     """A scalar from SQL (helper for assertions)."""
     with db.transaction() as conn:
         return conn.execute(sa.text(sql), params).scalar_one()
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """``@pytest.mark.backend("postgresql")`` (or ``"sqlite"``): a test of one backend's
+    feature runs on that backend's parameter only; the others are deselected, not skipped, so
+    a skip always means something is missing."""
+    keep: list[pytest.Item] = []
+    drop: list[pytest.Item] = []
+    for item in items:
+        marker = item.get_closest_marker("backend")
+        callspec = getattr(item, "callspec", None)
+        params = callspec.params.values() if callspec is not None else ()
+        names = {v for v in params if isinstance(v, str) and v in BACKEND_NAMES}
+        (drop if marker and names and marker.args[0] not in names else keep).append(item)
+    if drop:
+        config.hook.pytest_deselected(items=drop)
+        items[:] = keep

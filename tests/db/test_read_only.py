@@ -486,11 +486,10 @@ def test_statement_cached_by_a_write_is_authorized_again(db: toaster.Database) -
 
 # ---------------------------------------------------------------------------- PostgreSQL roles
 @pytest.mark.postgresql
+@pytest.mark.backend("postgresql")
 def test_statement_runs_as_the_reader_role(read_db: toaster.Database) -> None:
     """A superuser's statement runs as toaster_reader, which holds no attribute; the
     connection is the connecting role's again afterwards."""
-    if read_db.dialect_name != "postgresql":
-        pytest.skip("PostgreSQL roles")
     assert q.execute(read_db, "SELECT current_user::text, session_user::text").rows == [
         (READER_ROLE, "postgres")
     ]
@@ -507,22 +506,20 @@ def test_statement_runs_as_the_reader_role(read_db: toaster.Database) -> None:
 
 @pytest.mark.slow
 @pytest.mark.postgresql
+@pytest.mark.backend("postgresql")
 def test_views_made_after_the_first_read_are_readable(store: toaster.Store) -> None:
     """An agent's views, created after the reader role's grants, are granted on demand."""
     db = store.db
-    if db.dialect_name != "postgresql":
-        pytest.skip("PostgreSQL grants")
     q.execute(db, "SELECT 1")
     store.add_entity("CAROL", "human", t_ns=1)
     assert q.execute(db, 'SELECT count(*) FROM "fact_table_CAROL"').rows == [(0,)]
 
 
 @pytest.mark.postgresql
+@pytest.mark.backend("postgresql")
 def test_a_superuser_never_falls_back(read_url: str, monkeypatch: pytest.MonkeyPatch) -> None:
     """When the reader role cannot be used, a superuser's statement is refused rather than
     run with the superuser's privileges."""
-    if not read_url.startswith("postgresql"):
-        pytest.skip("PostgreSQL roles")
     monkeypatch.setattr(readonly_pg, "ensure_reader_role", lambda cur: "tampered")
     db = toaster.connect(read_url)  # a session of its own: it has no wrapper yet
     try:
@@ -534,9 +531,8 @@ def test_a_superuser_never_falls_back(read_url: str, monkeypatch: pytest.MonkeyP
 
 @pytest.fixture
 def plain_role_url(db: toaster.Database, db_url: str) -> Iterator[str]:
-    """``db_url`` as a fresh login role that cannot create roles and owns nothing."""
-    if db.dialect_name != "postgresql":
-        pytest.skip("PostgreSQL roles")
+    """``db_url`` as a fresh login role that cannot create roles and owns nothing (its tests
+    are marked ``backend("postgresql")``)."""
     role = f"toaster_plain_{uuid.uuid4().hex[:8]}"
     with db.transaction() as conn:
         run = conn.exec_driver_sql
@@ -567,6 +563,7 @@ def plain_role_url(db: toaster.Database, db_url: str) -> Iterator[str]:
 
 @pytest.mark.slow
 @pytest.mark.postgresql
+@pytest.mark.backend("postgresql")
 def test_a_role_that_cannot_create_roles_falls_back(
     plain_role_url: str, scratch: Path, db_url: str
 ) -> None:
@@ -682,12 +679,11 @@ def test_the_wrapper_cannot_be_called_by_a_statement(
 
 
 @pytest.mark.postgresql
+@pytest.mark.backend("postgresql")
 def test_toasters_own_functions_are_refused(read_db: toaster.Database) -> None:
     """Every function in toaster's schema (the triggers' functions of the migrations and
     the belief rules), as the catalog lists them, and the wrapper in pg_temp, however
     spelled, are refused by the statement check."""
-    if read_db.dialect_name != "postgresql":
-        pytest.skip("PostgreSQL functions")
     names = [
         name
         for (name,) in q.execute(
@@ -781,12 +777,11 @@ def test_byte_cap_and_timeout(read_db: toaster.Database) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.backend("sqlite")
 def test_sqlite_memory_is_bounded(
     read_db: toaster.Database, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """A sort of endless rows stops at SQLite's heap limit (lowered here to be quick)."""
-    if read_db.dialect_name != "sqlite":
-        pytest.skip("SQLite's heap limit")
     monkeypatch.setattr(readonly_sqlite, "SQLITE_HEAP_LIMIT", 96 * 2**20)
     with pytest.raises(ToasterError, match="memory"):
         q.execute(
@@ -815,11 +810,10 @@ def test_rows_stream_in_batches(read_db: toaster.Database) -> None:
         pytest.fail("a refused statement gave rows")
 
 
+@pytest.mark.backend("sqlite")
 def test_sqlite_printf_past_the_bound_is_refused(read_db: toaster.Database) -> None:
     """SQLite's printf() and format() return NULL when their result passes the length limit,
     which would pass for an answer: read-only SQL refuses it, naming --max-bytes."""
-    if read_db.dialect_name != "sqlite":
-        pytest.skip("SQLite's printf")
     for sql in (
         "SELECT printf('%.*c', 5000, 'x')",
         "SELECT format('%5000d', 1)",
@@ -836,12 +830,11 @@ def test_sqlite_printf_past_the_bound_is_refused(read_db: toaster.Database) -> N
 
 
 @pytest.mark.slow
+@pytest.mark.backend("sqlite")
 def test_a_long_function_call_stops_at_the_deadline(read_db: toaster.Database) -> None:
     """SQLite looks at its deadline only between steps of its virtual machine, never inside
     one function call: this instr() alone runs for minutes (its cost is the product of the
     two lengths). The statement's process is killed at the deadline."""
-    if read_db.dialect_name != "sqlite":
-        pytest.skip("SQLite's function calls (PostgreSQL's statement_timeout stops them)")
     haystack = "replace(hex(zeroblob(2097152)), '0', 'a')"  # 4 MiB of 'a'
     needle = "replace(hex(zeroblob(1048576)), '0', 'a') || 'b'"  # 2 MiB of 'a', then 'b'
     with pytest.raises(ToasterError, match="--timeout"):
@@ -852,14 +845,13 @@ def test_a_long_function_call_stops_at_the_deadline(read_db: toaster.Database) -
 
 
 @pytest.mark.slow
+@pytest.mark.backend("sqlite")
 def test_the_deadline_starts_when_the_worker_is_ready(
     read_url: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The deadline bounds the statement, not the start of its process (seconds on a loaded
     machine): a worker that takes 3 s to start runs a statement under a 2 s deadline. One
     that does not start in time, or ends as it starts, is a one-line error."""
-    if not read_url.startswith("sqlite"):
-        pytest.skip("SQLite's worker process")
     slow = "import time; time.sleep(3); " + readonly_sqlite._CHILD
     monkeypatch.setattr(readonly_sqlite, "_CHILD", slow)
     with closing(toaster.connect(read_url)) as db:  # a worker of its own
@@ -1006,7 +998,12 @@ REFUSALS = [
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("sqlite_sql", "pg_sql", "options", "bound"),
-    [pytest.param(*case[1:], id=case[0]) for case in REFUSALS],
+    [
+        pytest.param(
+            *case[1:], id=case[0], marks=[pytest.mark.backend("sqlite")] if case[2] is None else []
+        )
+        for case in REFUSALS
+    ],
 )
 def test_cli_refusal_names_the_bound(
     read_url: str, sqlite_sql: str, pg_sql: str | None, options: list[str], bound: str
@@ -1015,8 +1012,7 @@ def test_cli_refusal_names_the_bound(
     on stdout (no row is printed before a statement is known to pass). The reported case:
     printf() made a NULL past the length limit, printed as an empty answer with exit 0."""
     sql = sqlite_sql if read_url.startswith("sqlite") else pg_sql
-    if sql is None:
-        pytest.skip("SQLite only")
+    assert sql is not None  # a case without PostgreSQL SQL is marked backend("sqlite")
     result = CliRunner().invoke(cli, ["--db", read_url, "execute", "SQL", sql, *options])
     assert (result.exit_code, result.stdout) == (1, ""), result.output
     assert len(result.stderr.splitlines()) == 1, result.stderr

@@ -302,11 +302,10 @@ def test_bad_rows_get_one_line_and_write_nothing(db: toaster.Database) -> None:
 
 
 @pytest.mark.postgresql
+@pytest.mark.backend("postgresql")
 def test_the_reader_role_cannot_write_through_the_views(db: toaster.Database) -> None:
     """PostgreSQL: read-only SQL is refused, and the reader role itself holds no right to
     write the views (their triggers never run for it)."""
-    if db.dialect_name != "postgresql":
-        pytest.skip("PostgreSQL roles")
     _setup(db)
     insert = (
         "INSERT INTO \"fact_table_ROBOT\" (subject_id, predicate, start) VALUES ('MUG', 'IsOn', 1)"
