@@ -288,7 +288,7 @@ RELEASED_FROZEN = {
     "0016/ungroup.json": "3f38619715bb5f9b468e20ff9bcc93255a26f476ede03caac98d64b047e22a0a",
     "0017_agent_views.json": "995cb30a52dc1255763c94f1f41a58851767b1c7b9807dcf52585f192320d41b",
     "0018_units.json": "ec0755fb7c50ca50b2d2a8cc7c2507940051cbbe4ca4561c35fa2730bc80dfdd",
-    "0018/40_refresh.json": "0dff62f4662fca403c5efc6d00aea0e13b313845ac630d22a26ff055bbcadb0b",
+    "0018/40_refresh.json": "e95276160960c276727e18fad48dda8394da62081f10f9e8e18323f71d4b3448",
     "0019_units.json": "a6ed8555dac949ccd8c95f5c0b1c4efa47e5b66877c9ffd8f1b8bdb8770dac2f",
     "0019/10_focus.json": "c6ea450f2bc9fac01c14c30836edf0131362c5b3caae1f35baa3fb7dc4b3f752",
 }

@@ -27,38 +27,24 @@ newly(holder_id, entity_id, pconf) AS (
   SELECT b.actor_id, k.subject_id, 1.0 FROM belief_changed b JOIN fact_keys k ON k.id = b.key_id
   WHERE b.actor_id IS NOT NULL
 ),
--- Who perceives a thing arrive somewhere (12_moves) sees where it is now, so it is no longer
--- wherever the holder believed it was (its other places end), even when the holder perceived
--- it before too (a nested holder through an actor of the move).
-arrived(holder_id, entity_id, pconf) AS (
+-- A move is seen where it happens (12_moves): who perceives a thing arrive (after the tick)
+-- sees where it is now, and who perceives it leave (before the tick) saw where it was; either
+-- way it is no longer wherever else the holder believed it was (its other places end), even
+-- for a holder that perceived it before too, or only before through the actor of the move (A
+-- saw B see it leave).
+moved(holder_id, entity_id, pconf) AS (
   SELECT s.holder_id, k.subject_id, s.pconf
   FROM belief_changed b {{pinned_join}} fact_keys k ON k.id = b.key_id
-  {{pinned_join}} belief_seen s ON s.entity_id = k.subject_id AND s.phase = 'after'
-  WHERE b.move = 'after'
+  {{pinned_join}} belief_seen s ON s.entity_id = k.subject_id AND s.phase = b.move
+  WHERE b.move IS NOT NULL
   UNION
   SELECT s.holder_id, k.subject_id, s.pconf
   FROM belief_changed b {{pinned_join}} fact_keys k ON k.id = b.key_id
-  {{pinned_join}} belief_seen s ON s.entity_id = k.target_id AND s.phase = 'after'
-  WHERE b.move = 'after'
-),
--- Who perceived a thing leave (its subject or where it was, before the tick) saw where it was
--- just before, so it is no longer wherever the holder believed it was either: a nested holder
--- that perceives it before the tick only through the actor of the move (A saw B see it leave).
-departed(holder_id, entity_id, pconf) AS (
-  SELECT s.holder_id, k.subject_id, s.pconf
-  FROM belief_changed b {{pinned_join}} fact_keys k ON k.id = b.key_id
-  {{pinned_join}} belief_seen s ON s.entity_id = k.subject_id AND s.phase = 'before'
-  WHERE b.move = 'before'
-  UNION
-  SELECT s.holder_id, k.subject_id, s.pconf
-  FROM belief_changed b {{pinned_join}} fact_keys k ON k.id = b.key_id
-  {{pinned_join}} belief_seen s ON s.entity_id = k.target_id AND s.phase = 'before'
-  WHERE b.move = 'before'
+  {{pinned_join}} belief_seen s ON s.entity_id = k.target_id AND s.phase = b.move
+  WHERE b.move IS NOT NULL
 ),
 stale(holder_id, entity_id, pconf) AS (
-  SELECT holder_id, entity_id, pconf FROM newly
-  UNION SELECT holder_id, entity_id, pconf FROM arrived
-  UNION SELECT holder_id, entity_id, pconf FROM departed
+  SELECT holder_id, entity_id, pconf FROM newly UNION SELECT holder_id, entity_id, pconf FROM moved
 ),
 -- Containers whose closed fact ended at :t, with the holders who see them afterwards: opening
 -- a container shows its content (and that what was believed inside is no longer there).
