@@ -73,20 +73,15 @@ def default_cache(environ: Mapping[str, str] = os.environ) -> Path:
 def definitions(root: Path = MSG_ROOT) -> dict[str, dict[str, str]]:
     """Message and service texts by package and path in it (``{"toaster_msgs": {"msg/Fact.msg":
     text}}``): those shipped under ``root`` and the recordings' own ``toaster_recording``
-    types (Beliefs, Run, World)."""
-    from toaster.outputs.recording.beliefs import BELIEFS_MSG, BELIEFS_TYPE
-    from toaster.world.recorded import RUN_MSG, RUN_TYPE, WORLD_MSG, WORLD_TYPE
+    types (:data:`toaster.outputs.recording.OWN_MESSAGES`)."""
+    from toaster.outputs.recording import OWN_MESSAGES
 
     out: dict[str, dict[str, str]] = {}
     for path in sorted(root.glob("*/*/*.*")):
         if path.parent.name in ("msg", "srv") and path.suffix == f".{path.parent.name}":
             package = path.parents[1].name
             out.setdefault(package, {})[f"{path.parent.name}/{path.name}"] = path.read_text()
-    for type_name, text in (
-        (BELIEFS_TYPE, BELIEFS_MSG),
-        (RUN_TYPE, RUN_MSG),
-        (WORLD_TYPE, WORLD_MSG),
-    ):
+    for type_name, text in OWN_MESSAGES.items():
         package, kind, name = type_name.split("/")
         out.setdefault(package, {})[f"{kind}/{name}.{kind}"] = text
     return out

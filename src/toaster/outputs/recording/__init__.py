@@ -53,9 +53,9 @@ from toaster.outputs.markers import (  # noqa: F401  (re-exported marker constan
     TEXT,
 )
 from toaster.outputs.recording.beliefs import (
+    BELIEFS_MSG,
     BELIEFS_TYPE,
     BeliefTimeline,
-    beliefs_types,
     chain,
     holder_topic,
 )
@@ -72,12 +72,13 @@ from toaster.outputs.recording.input import (  # noqa: F401  (the input types, r
 from toaster.outputs.recording.msgs import EntityPose, FactTimeline, Messages, Scene, toaster_types
 from toaster.quoting import ros_name
 from toaster.world.recorded import (
+    RUN_MSG,
     RUN_TOPIC,
     RUN_TYPE,
+    WORLD_MSG,
     WORLD_TOPIC,
     WORLD_TYPE,
     RunInfo,
-    recorded_types,
 )
 
 if TYPE_CHECKING:
@@ -119,6 +120,22 @@ class RecordingResult(NamedTuple):
         return self.file
 
 
+#: The recording's own message definitions (package ``toaster_recording``) by type: what the
+#: :class:`Recorder` registers after toaster_msgs, and what ``toaster ros1 env`` generates for
+#: the ROS tools.
+OWN_MESSAGES = {BELIEFS_TYPE: BELIEFS_MSG, RUN_TYPE: RUN_MSG, WORLD_TYPE: WORLD_MSG}
+
+
+def own_types() -> dict[str, Any]:
+    """:data:`OWN_MESSAGES` as rosbags types."""
+    from rosbags.typesys import get_types_from_msg
+
+    types: dict[str, Any] = {}
+    for name, text in OWN_MESSAGES.items():
+        types |= get_types_from_msg(text, name)
+    return types
+
+
 class Recorder:
     """Writes frames, fact lists, beliefs and fact lines into a new bag ``path`` (use as a
     context manager).
@@ -141,7 +158,7 @@ class Recorder:
     ) -> None:
         fmt = bag_format(path, distro)
         types = toaster_types(toaster_spelling(fmt, toaster_names))
-        self.bag = BagWriter(path, fmt, types | beliefs_types() | recorded_types())
+        self.bag = BagWriter(path, fmt, types | own_types())
         self.path, self.distro, self.version = self.bag.path, fmt.distro, fmt.version
         self.types = self.bag.types
         self._messages = Messages(self.types)

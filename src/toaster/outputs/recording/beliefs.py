@@ -40,13 +40,6 @@ toaster_msgs/Fact[] facts
 """
 
 
-def beliefs_types() -> dict[str, Any]:
-    """The Beliefs message as rosbags types (register after toaster_msgs)."""
-    from rosbags.typesys import get_types_from_msg
-
-    return get_types_from_msg(BELIEFS_MSG, BELIEFS_TYPE)
-
-
 def chain(holder: str) -> list[str]:
     """A holder as its chain of agents: ``ANNE>SALLY`` → ``[ANNE, SALLY]``."""
     from toaster.rules.hook import SEPARATOR
