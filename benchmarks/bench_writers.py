@@ -104,6 +104,8 @@ def once(
             report = json.loads(out.read_text())
             latencies += report["latencies"][1:]
             failed += len(report["failures"])
+            for failure in report["failures"][:1]:
+                print(f"a writer's failed tick: {str(failure)[:300]}", file=sys.stderr)
     _drop(url, urls)
     latencies.sort()
     return (
@@ -139,6 +141,7 @@ def main() -> None:
     if args.quick:
         args.writers, args.ticks, args.repeats = "2", 10, 1
     counts = [int(n) for n in args.writers.split(",")]
+    failures = 0
     print(
         f"{'writers':>7} {'database':>8} {'p50 ms':>8} {'p99 ms':>8} {'wall s':>7} "
         f"{'failed':>6}   (medians of {args.repeats}; {args.ticks} ticks per writer; "
@@ -160,6 +163,7 @@ def main() -> None:
             ]
             p50, p99, wall = (statistics.median(r[k] for r in runs) for k in range(3))
             failed = sum(r[3] for r in runs)
+            failures += failed
             results[shared] = p50, p99
             print(
                 f"{n:7d} {'shared' if shared else 'own':>8} {p50:8.1f} {p99:8.1f} "
@@ -169,6 +173,8 @@ def main() -> None:
         ratio50 = results[True][0] / results[False][0]
         ratio99 = results[True][1] / results[False][1]
         print(f"{'':7} {'ratio':>8} {ratio50:7.2f}x {ratio99:7.2f}x   (shared / own)")
+    if failures:  # a figure over failed ticks measures something else: say so in the exit code
+        sys.exit(f"{failures} ticks failed: the first of each writer's is printed above")
 
 
 if __name__ == "__main__":

@@ -171,6 +171,8 @@ def soak(writers: int, minutes: float, url: str, folder: Path) -> None:
     )
     print(f"total: {total} ticks, {failed} failed; toaster db check: exit {check.returncode}")
     print((check.stdout + check.stderr).strip()[:4000])
+    if failed or check.returncode:
+        sys.exit(f"{failed} failed ticks, toaster db check exit {check.returncode}")
 
 
 if __name__ == "__main__":
