@@ -8,10 +8,14 @@ marks containers with their lid on. Held objects follow the hand (``World.commit
 Facts per tick: IsOn, IsIn (innermost container), IsNextTo (same support or floor), IsClosed,
 IsVisibleBy / CanSee (cone of ``view_aperture`` around the gaze of the head joint, or of the body
 at ``eye_height``, within ``view_range``; rays from the eyes to 5 points of the target are tested
-against every other box with a numpy slab test; confidence = visible share; nothing inside a
+against the other boxes with a numpy slab test; confidence = visible share; nothing inside a
 closed container is visible), IsReachableBy / CanReach (shoulder to nearest box point within
 ``arm_reach``). :func:`relative_position_from` answers "left / right / in front / behind / above /
 below" from an agent's viewpoint on request.
+
+Only candidate pairs are tested (``candidates.py``: an STRtree of the boxes' footprints queried
+with each relation's distance, rays against the occluders spanning their azimuth); the tests
+are those of the all-pairs computation, so are the facts.
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ import numpy as np
 
 from toaster.model import Fact
 from toaster.producers.batch import FactBatch
+from toaster.producers.candidates import BoxIndex, azimuth_pairs, footprint, margin, window_pairs
 from toaster.world.config import make_config, ns
 from toaster.world.geometry import gaze_axis, to_local
 from toaster.world.state import OBJECT, ROBOT, World
@@ -38,11 +43,13 @@ POINTS = np.array(
         [-0.35, -0.35, 0.35],
     ]
 )
+SUPPORT, CONTAINER = 1, 2  # role codes
+ROLES = {"support": SUPPORT, "container": CONTAINER}
 
 
 @dataclass
 class Boxes:
-    """The tick's boxes: world rows, centres, half sizes, yaw cos/sin, roles."""
+    """The tick's boxes: world rows, centres, half sizes, yaw cos/sin, roles, closed, holder."""
 
     rows: np.ndarray
     centre: np.ndarray
@@ -50,24 +57,22 @@ class Boxes:
     cos: np.ndarray
     sin: np.ndarray
     is_agent: np.ndarray
+    role: np.ndarray  # 0, SUPPORT or CONTAINER
+    closed: np.ndarray
+    holder: np.ndarray  # box of the agent holding it, -1
 
-    def subset(self, idx: np.ndarray) -> Boxes:
-        """The boxes ``idx``."""
-        return Boxes(
-            self.rows[idx],
-            self.centre[idx],
-            self.half[idx],
-            self.cos[idx],
-            self.sin[idx],
-            self.is_agent[idx],
-        )
+    def local(self, pts: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        """World points (P, 3) in the frames of boxes ``idx`` (P,): (P, 3)."""
+        d = pts - self.centre[idx]
+        c, s = self.cos[idx], self.sin[idx]
+        x = c * d[:, 0] + s * d[:, 1]
+        y = -s * d[:, 0] + c * d[:, 1]
+        return np.stack([x, y, d[:, 2]], axis=-1)
 
-    def to_local(self, pts: np.ndarray) -> np.ndarray:
-        """World points (..., 3) into every box frame: (..., n_boxes, 3)."""
-        d = pts[..., None, :] - self.centre
-        x = self.cos * d[..., 0] + self.sin * d[..., 1]
-        y = -self.sin * d[..., 0] + self.cos * d[..., 1]
-        return np.stack([x, y, d[..., 2]], axis=-1)
+    def index(self) -> BoxIndex:
+        """The boxes' footprints in a spatial index."""
+        lo, hi = footprint(self.centre, self.half, self.cos, self.sin)
+        return BoxIndex(lo, hi, margin(self.centre))
 
 
 def collect_boxes(world: World, live: np.ndarray, agent_size: Any) -> Boxes:
@@ -81,7 +86,26 @@ def collect_boxes(world: World, live: np.ndarray, agent_size: Any) -> Boxes:
     sz = size[rows]
     centre = world.pos[rows] + np.stack([0 * sz[:, 0], 0 * sz[:, 0], sz[:, 2] / 2], axis=1)
     yaw = world.rpy[rows, 2]
-    return Boxes(rows, centre, sz / 2, np.cos(yaw), np.sin(yaw), kind[rows] <= ROBOT)
+    box_of = np.full(n + 1, -1)
+    box_of[rows] = np.arange(rows.size)
+    role, closed = np.zeros(n + 1, np.int8), np.zeros(n + 1, bool)
+    index = world.index
+    role[[index.get(e, n) for e in world.roles]] = [ROLES.get(r, 0) for r in world.roles.values()]
+    closed[[index.get(e, n) for e in world.closed]] = [bool(c) for c in world.closed.values()]
+    hand = world.held_by[rows]
+    owner = np.where(hand >= 0, world.owner[np.maximum(hand, 0)], n)
+    holder = box_of[np.where(owner >= 0, owner, n)]
+    return Boxes(
+        rows,
+        centre,
+        sz / 2,
+        np.cos(yaw),
+        np.sin(yaw),
+        kind[rows] <= ROBOT,
+        role[rows],
+        closed[rows],
+        holder,
+    )
 
 
 def segment_hits(p0: np.ndarray, p1: np.ndarray, half: np.ndarray) -> np.ndarray:
@@ -114,19 +138,19 @@ def _slab(p0: np.ndarray, p1: np.ndarray, half: np.ndarray) -> tuple[np.ndarray,
     return np.minimum(t1, t2), np.maximum(t1, t2)
 
 
-def _ray_hits(eye: np.ndarray, pts: np.ndarray, boxes: Boxes, om: np.ndarray) -> np.ndarray:
-    """(R, M) hits of the segments eye → pts (R, 3) with boxes ``om``, in float32."""
+def _ray_hits(eye: np.ndarray, pts: np.ndarray, boxes: Boxes, o: np.ndarray) -> np.ndarray:
+    """(P,) hits of the segments eye → pts (P, 3) with boxes ``o`` (P,), in float32."""
     f4 = np.float32
-    c, s = boxes.cos[om].astype(f4), boxes.sin[om].astype(f4)
-    centre = boxes.centre[om].astype(f4)
-    half = boxes.half[om].astype(f4)
-    e = eye.astype(f4) - centre  # (M, 3)
+    c, s = boxes.cos[o].astype(f4), boxes.sin[o].astype(f4)
+    centre = boxes.centre[o].astype(f4)
+    half = boxes.half[o].astype(f4)
+    e = eye.astype(f4) - centre
     ex, ey = c * e[:, 0] + s * e[:, 1], -s * e[:, 0] + c * e[:, 1]
     p = pts.astype(f4)
-    dx = p[:, 0:1] - centre[:, 0]
-    dy = p[:, 1:2] - centre[:, 1]
+    dx = p[:, 0] - centre[:, 0]
+    dy = p[:, 1] - centre[:, 1]
     px, py = c * dx + s * dy, -s * dx + c * dy
-    pz = p[:, 2:3] - centre[:, 2]
+    pz = p[:, 2] - centre[:, 2]
     return _slabs([ex, ey, e[:, 2]], [px, py, pz], [half[:, 0], half[:, 1], half[:, 2]])
 
 
@@ -150,69 +174,68 @@ class SpatialFacts:
         live = world.live_mask(t_ns, ns(cfg, "presence_timeout"))
         boxes = collect_boxes(world, live, cfg["agent_size"])
         obj = np.flatnonzero(~boxes.is_agent)  # box indices of objects
-        container, support = self._relations(world, boxes, obj, out)
-        self._closed(world, boxes, obj, out)
+        index = boxes.index()
+        container, support = self._relations(world, boxes, obj, index, out)
+        self._closed(boxes, obj, out)
         self._next_to(world, boxes, obj, container, support, out)
-        hidden = self._hidden(world, boxes, container)
-        self._visibility(world, boxes, container, hidden, out)
-        self._reach(world, boxes, obj, out)
+        hidden = self._hidden(boxes, container)
+        self._visibility(world, boxes, container, hidden, out, index)
+        self._reach(world, boxes, obj, index, out)
         return out
 
     # -- object relations -------------------------------------------------------------------
     def _relations(
-        self, world: World, boxes: Boxes, obj: np.ndarray, out: FactBatch
+        self, world: World, boxes: Boxes, obj: np.ndarray, index: BoxIndex, out: FactBatch
     ) -> tuple[np.ndarray, np.ndarray]:
-        """IsIn (innermost container) and IsOn (highest support); per box, -1 for none."""
+        """IsIn (innermost container) and IsOn (highest support); per box, -1 for none.
+
+        Pairs (support or container, object) whose bounding boxes overlap, tested exactly.
+        """
         cfg, nb = self.config, len(boxes.rows)
-        ids = world.ids
-        role = np.array([world.roles.get(ids[r], "") for r in boxes.rows.tolist()], object)
-        held = world.held_by[boxes.rows] >= 0
+        role = np.zeros(nb, np.int8)
+        role[obj] = boxes.role[obj]
+        free = ~boxes.is_agent & (world.held_by[boxes.rows] < 0)
         container = np.full(nb, -1)
         support = np.full(nb, -1)
-        cont = obj[role[obj] == "container"]
-        sup = obj[(role[obj] == "support") | (role[obj] == "container")]
-        free = obj[~held[obj]]
-        if cont.size and free.size:
-            local = boxes.subset(cont).to_local(boxes.centre[free])  # (F, C, 3)
-            h = boxes.half[cont]
+        s, f = index.query_boxes(np.flatnonzero(role > 0))
+        keep = free[f] & (f != s)
+        s, f = s[keep], f[keep]
+        vol = boxes.half.prod(axis=1)
+        c, fi = s[role[s] == CONTAINER], f[role[s] == CONTAINER]
+        if c.size:
+            local, h = boxes.local(boxes.centre[fi], c), boxes.half[c]
             inside = (
-                (np.abs(local[..., 0]) <= h[:, 0])
-                & (np.abs(local[..., 1]) <= h[:, 1])
-                & (np.abs(local[..., 2]) <= h[:, 2])
-                & (free[:, None] != cont[None, :])
+                (np.abs(local[:, 0]) <= h[:, 0])
+                & (np.abs(local[:, 1]) <= h[:, 1])
+                & (np.abs(local[:, 2]) <= h[:, 2])
+                & (vol[fi] < vol[c])
             )
-            vol = h.prod(axis=1)
-            inside &= boxes.half[free].prod(axis=1)[:, None] < vol[None, :]
-            score = np.where(inside, vol[None, :], np.inf)
-            best = score.argmin(axis=1)
-            has = np.isfinite(score[np.arange(len(free)), best])
-            container[free[has]] = cont[best[has]]
-        if sup.size and free.size:
-            bottom = boxes.centre[free] - np.stack([0 * free, 0 * free, boxes.half[free, 2]], 1)
-            local = boxes.subset(sup).to_local(bottom)
-            h = boxes.half[sup]
-            gap = local[..., 2] - h[:, 2]
+            c, fi = c[inside], fi[inside]
+            first = _first_of(fi, np.lexsort((c, vol[c], fi)))  # smallest, then lowest box
+            container[fi[first]] = c[first]
+        if s.size:
+            bottom = boxes.centre[f] - np.stack([0 * f, 0 * f, boxes.half[f, 2]], 1)
+            local, h = boxes.local(bottom, s), boxes.half[s]
+            gap = local[:, 2] - h[:, 2]
             on = (
-                (np.abs(local[..., 0]) <= h[:, 0])
-                & (np.abs(local[..., 1]) <= h[:, 1])
+                (np.abs(local[:, 0]) <= h[:, 0])
+                & (np.abs(local[:, 1]) <= h[:, 1])
                 & (gap <= cfg["on_gap"])
                 & (gap >= -cfg["on_penetration"])
-                & (free[:, None] != sup[None, :])
-                & (container[free][:, None] < 0)
+                & (container[f] < 0)
             )
-            top = np.where(on, boxes.centre[sup, 2] + h[:, 2], -np.inf)
-            best = top.argmax(axis=1)
-            has = np.isfinite(top[np.arange(len(free)), best])
-            support[free[has]] = sup[best[has]]
+            s, f = s[on], f[on]
+            top = boxes.centre[s, 2] + boxes.half[s, 2]
+            first = _first_of(f, np.lexsort((s, -top, f)))  # highest, then lowest box
+            support[f[first]] = s[first]
         obs = cfg["observability_spatial"]
         for prop, rel in (("IsIn", container), ("IsOn", support)):
-            s = np.flatnonzero(rel >= 0)
-            out.add(prop, boxes.rows[s], boxes.rows[rel[s]], obs=obs, property_type="position")
+            b = np.flatnonzero(rel >= 0)
+            out.add(prop, boxes.rows[b], boxes.rows[rel[b]], obs=obs, property_type="position")
         return container, support
 
-    def _closed(self, world: World, boxes: Boxes, obj: np.ndarray, out: FactBatch) -> None:
-        ids = world.ids
-        rows = np.array([r for r in boxes.rows[obj].tolist() if world.closed.get(ids[r])], np.int64)
+    def _closed(self, boxes: Boxes, obj: np.ndarray, out: FactBatch) -> None:
+        rows = boxes.rows[obj[boxes.closed[obj]]]
         out.add(
             "IsClosed", rows, "", obs=self.config["observability_spatial"], property_type="state"
         )
@@ -226,7 +249,11 @@ class SpatialFacts:
         support: np.ndarray,
         out: FactBatch,
     ) -> None:
-        """IsNextTo both ways between objects sharing a support, a container or the floor."""
+        """IsNextTo both ways between objects sharing a support, a container or the floor.
+
+        Per place, objects sorted by x; a pair is tested when the second lies within the
+        next-to distance plus the place's largest footprint diameter in x from the first.
+        """
         cfg = self.config
         held = world.held_by[boxes.rows[obj]] >= 0
         bottom = boxes.centre[obj, 2] - boxes.half[obj, 2]
@@ -237,54 +264,40 @@ class SpatialFacts:
         )
         floor = (place == -1) & (np.abs(bottom) <= cfg["floor_height"])
         place = np.where((place == -1) & ~floor, -2, place)
-        keep = ~held & (place != -2)
+        keep = ~held & (place != -2) & np.isfinite(boxes.centre[obj, :2]).all(axis=1)
         cand, place = obj[keep], place[keep]
         if cand.size < 2:
             return
-        order = np.argsort(place, kind="stable")
-        cand, place = cand[order], place[order]
-        starts = np.flatnonzero(np.r_[True, place[1:] != place[:-1]])
-        ends = np.r_[starts[1:], len(place)]
-        subj, tgt, dist = [], [], []
         radius = boxes.half[:, :2].mean(axis=1)
-        for a, b in zip(starts.tolist(), ends.tolist(), strict=True):
-            if b - a < 2:
-                continue
-            g = cand[a:b]
-            g = g[np.argsort(boxes.centre[g, 0], kind="stable")]
-            x, y, r = boxes.centre[g, 0], boxes.centre[g, 1], radius[g]
-            hi = np.searchsorted(x, x + cfg["next_to_distance"] + 2 * r.max(), side="right")
-            first = np.arange(len(g))
-            counts = hi - first - 1
-            i = np.repeat(first, counts)
-            j = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts) + i + 1
-            gap = np.hypot(x[i] - x[j], y[i] - y[j]) - r[i] - r[j]
-            near = gap <= cfg["next_to_distance"]
-            i, j, gap = i[near], j[near], np.maximum(gap[near], 0.0)
-            subj.append(g[np.r_[i, j]])
-            tgt.append(g[np.r_[j, i]])
-            dist.append(np.r_[gap, gap])
-        if subj:
-            s, t = np.concatenate(subj), np.concatenate(tgt)
-            out.add(
-                "IsNextTo",
-                boxes.rows[s],
-                boxes.rows[t],
-                value_num=np.concatenate(dist),
-                obs=cfg["observability_spatial"],
-                property_type="position",
-            )
+        order = np.lexsort((np.arange(cand.size), boxes.centre[cand, 0], place))
+        g, place = cand[order], place[order]
+        x, y, r = boxes.centre[g, 0], boxes.centre[g, 1], radius[g]
+        starts = np.flatnonzero(np.r_[True, place[1:] != place[:-1]])
+        rmax = np.repeat(np.maximum.reduceat(r, starts), np.diff(np.r_[starts, len(g)]))
+        limit = x + cfg["next_to_distance"] + 2 * rmax
+        i, j = window_pairs(place, x, limit)
+        far = np.abs(y[i] - y[j]) > (limit[i] - x[i]) * (1 + 1e-9) + 1e-9  # gap > distance
+        i, j = i[~far], j[~far]
+        gap = np.hypot(x[i] - x[j], y[i] - y[j]) - r[i] - r[j]
+        near = gap <= cfg["next_to_distance"]
+        i, j, gap = i[near], j[near], np.maximum(gap[near], 0.0)
+        out.add(
+            "IsNextTo",
+            boxes.rows[g[np.r_[i, j]]],
+            boxes.rows[g[np.r_[j, i]]],
+            value_num=np.r_[gap, gap],
+            obs=cfg["observability_spatial"],
+            property_type="position",
+        )
 
     # -- perception --------------------------------------------------------------------------
-    def _hidden(self, world: World, boxes: Boxes, container: np.ndarray) -> np.ndarray:
+    def _hidden(self, boxes: Boxes, container: np.ndarray) -> np.ndarray:
         """Boxes inside a closed container (transitively)."""
-        ids = world.ids
-        closed = np.array([bool(world.closed.get(ids[r])) for r in boxes.rows.tolist()], bool)
         hidden = np.zeros(len(boxes.rows), bool)
         has = container >= 0
         for _ in range(4):
             c = container[has]
-            hidden[has] = closed[c] | hidden[c]
+            hidden[has] = boxes.closed[c] | hidden[c]
         return hidden
 
     def _eyes(self, world: World, agents: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -308,69 +321,92 @@ class SpatialFacts:
         return eye, gaze_axis(rpy)
 
     def visible_fraction(
-        self, world: World, boxes: Boxes, container: np.ndarray, hidden: np.ndarray
+        self,
+        world: World,
+        boxes: Boxes,
+        container: np.ndarray,
+        hidden: np.ndarray,
+        index: BoxIndex | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """(agent box indices, (A, B) share of target points seen by each agent)."""
+        """(agent box indices, (A, B) share of target points seen by each agent).
+
+        Boxes within the view range of an eye (index) give the rays; each ray is tested only
+        against the occluders whose footprint it may cross (:func:`azimuth_pairs`).
+        """
         cfg, nb, k = self.config, len(boxes.rows), len(POINTS)
         ag = np.flatnonzero(boxes.is_agent)
         frac = np.zeros((len(ag), nb))
         if not ag.size or nb < 2:
             return ag, frac
+        index = index or boxes.index()
         eye, gaze = self._eyes(world, boxes.rows[ag])
-        offs = POINTS * (2 * boxes.half)[:, None, :]  # (B, K, 3) in box frames
-        c, s = boxes.cos[:, None], boxes.sin[:, None]
-        pts = boxes.centre[:, None, :] + np.stack(
+        view = cfg["view_range"]
+        a, b = index.query(eye[:, :2] - view, eye[:, :2] + view)  # (agent, box) near enough
+        keep = b != ag[a]
+        a, b = a[keep], b[keep]
+        # rays: the target points in range and in the cone
+        t = ~hidden[b]
+        ta, tb = a[t], b[t]
+        offs = POINTS * (2 * boxes.half[tb])[:, None, :]  # (P, K, 3) in box frames
+        c, s = boxes.cos[tb, None], boxes.sin[tb, None]
+        pts = boxes.centre[tb, None, :] + np.stack(
             [
                 c * offs[..., 0] - s * offs[..., 1],
                 s * offs[..., 0] + c * offs[..., 1],
                 offs[..., 2],
             ],
             axis=-1,
-        )  # (B, K, 3)
-        cos_half = np.cos(cfg["view_aperture"] / 2)
-        radius = np.linalg.norm(boxes.half, axis=1)
-        holder = np.full(nb, -1)
-        held = world.held_by[boxes.rows]
-        if (held >= 0).any():
-            box_of = {int(r): i for i, r in enumerate(boxes.rows.tolist())}
-            for i in np.flatnonzero(held >= 0).tolist():
-                holder[i] = box_of.get(int(world.owner[held[i]]), -1)
-        for i, a in enumerate(ag.tolist()):
-            d = pts - eye[i]
-            dist = np.linalg.norm(d, axis=-1)
-            seen = (dist <= cfg["view_range"]) & (d @ gaze[i] >= cos_half * dist)
-            seen[a] = False
-            seen[hidden] = False
-            bi, ki = np.nonzero(seen)
-            if not bi.size:
-                continue
-            # occluders that may lie between the eye and the view cone
-            dc = boxes.centre - eye[i]
-            dcn = np.linalg.norm(dc, axis=1)
-            occ = (dcn - radius <= cfg["view_range"]) & (
-                (dc @ gaze[i] >= -radius) | (dcn <= radius)
-            )
-            occ[a] = False
-            om = np.flatnonzero(occ)
-            if om.size:
-                where = np.full(nb, -1)
-                where[om] = np.arange(om.size)
-                hit = _ray_hits(eye[i], pts[bi, ki], boxes, om)
-                r = np.arange(bi.size)
-                for excl in (bi, container[bi], holder[bi]):
-                    col = np.where(excl >= 0, where[np.maximum(excl, 0)], -1)
-                    ok = col >= 0
-                    hit[r[ok], col[ok]] = False
-                vis = ~hit.any(axis=1)
-                bi = bi[vis]
-            frac[i] = np.bincount(bi, minlength=nb) / k
-        return ag, frac
+        )  # (P, K, 3)
+        d = pts - eye[ta, None, :]
+        dist = np.linalg.norm(d, axis=-1)
+        cone = (d @ gaze[ta, :, None])[..., 0] >= np.cos(cfg["view_aperture"] / 2) * dist
+        pi, ki = np.nonzero((dist <= view) & cone)
+        ray_agent, ray_target, ray_end = ta[pi], tb[pi], pts[pi, ki]
+        # occluders: in range and not behind the eyes (as the all-pairs test culls them)
+        radius = np.linalg.norm(boxes.half[b], axis=1)
+        dc = boxes.centre[b] - eye[a]
+        dcn = np.linalg.norm(dc, axis=1)
+        ahead = (dc[:, None, :] @ gaze[a, :, None])[:, 0, 0] >= -radius
+        occ = (dcn - radius <= view) & (ahead | (dcn <= radius))
+        oa, ob, dc = a[occ], b[occ], dc[occ]
+        pad = index.pad
+        reach = np.hypot(boxes.half[ob, 0], boxes.half[ob, 1]) + pad  # footprint circle
+        dist2 = np.hypot(dc[:, 0], dc[:, 1])
+        half_angle = np.where(
+            dist2 > reach, np.arcsin(np.minimum(reach / np.maximum(dist2, pad), 1.0)), np.inf
+        )
+        re = ray_end - eye[ray_agent]
+        ri, oi = azimuth_pairs(
+            ray_agent,
+            np.arctan2(re[:, 1], re[:, 0]),
+            oa,
+            np.arctan2(dc[:, 1], dc[:, 0]),
+            half_angle,
+        )
+        o, tgt = ob[oi], ray_target[ri]
+        keep = (
+            (o != tgt)
+            & (o != container[tgt])
+            & (o != boxes.holder[tgt])
+            & (dist2[oi] - reach[oi] <= np.hypot(re[ri, 0], re[ri, 1]) + pad)
+        )
+        ri, o = ri[keep], o[keep]
+        hit = np.zeros(len(ray_agent), bool)
+        hit[ri[_ray_hits(eye[ray_agent[ri]], ray_end[ri], boxes, o)]] = True
+        seen = np.bincount(ray_agent[~hit] * nb + ray_target[~hit], minlength=frac.size)
+        return ag, seen.reshape(frac.shape) / k
 
     def _visibility(
-        self, world: World, boxes: Boxes, container: np.ndarray, hidden: np.ndarray, out: FactBatch
+        self,
+        world: World,
+        boxes: Boxes,
+        container: np.ndarray,
+        hidden: np.ndarray,
+        out: FactBatch,
+        index: BoxIndex | None = None,
     ) -> None:
         cfg = self.config
-        ag, frac = self.visible_fraction(world, boxes, container, hidden)
+        ag, frac = self.visible_fraction(world, boxes, container, hidden, index)
         ai, bi = np.nonzero(frac >= max(cfg["visible_min_fraction"], 1e-9))
         if not ai.size:
             return
@@ -381,29 +417,34 @@ class SpatialFacts:
         )
         out.add("CanSee", agent, target, value_num=f, conf=f, obs=obs, property_type="affordance")
 
-    def _reach(self, world: World, boxes: Boxes, obj: np.ndarray, out: FactBatch) -> None:
+    def _reach(
+        self, world: World, boxes: Boxes, obj: np.ndarray, index: BoxIndex, out: FactBatch
+    ) -> None:
+        """Shoulder to the nearest point of the box, for boxes within arm's reach (index)."""
         cfg = self.config
         ag = np.flatnonzero(boxes.is_agent)
         if not ag.size or not obj.size:
             return
         shoulder = world.pos[boxes.rows[ag]] + np.array([0.0, 0.0, cfg["shoulder_height"]])
-        local = boxes.subset(obj).to_local(shoulder)  # (A, O, 3)
-        h = boxes.half[obj]
-        gap = np.linalg.norm(np.maximum(np.abs(local) - h, 0.0), axis=-1)
-        ai, oi = np.nonzero(gap <= cfg["arm_reach"])
-        agent, target = boxes.rows[ag[ai]], boxes.rows[obj[oi]]
+        reach = cfg["arm_reach"]
+        a, o = index.query(shoulder[:, :2] - reach, shoulder[:, :2] + reach)
+        keep = ~boxes.is_agent[o]
+        a, o = a[keep], o[keep]
+        local = boxes.local(shoulder[a], o)
+        gap = np.linalg.norm(np.maximum(np.abs(local) - boxes.half[o], 0.0), axis=-1)
+        near = gap <= reach
+        order = np.lexsort((o[near], a[near]))
+        a, o, gap = a[near][order], o[near][order], gap[near][order]
+        agent, target = boxes.rows[ag[a]], boxes.rows[o]
         obs = cfg["observability_spatial"]
-        out.add(
-            "IsReachableBy",
-            target,
-            agent,
-            value_num=gap[ai, oi],
-            obs=obs,
-            property_type="affordance",
-        )
-        out.add(
-            "CanReach", agent, target, value_num=gap[ai, oi], obs=obs, property_type="affordance"
-        )
+        out.add("IsReachableBy", target, agent, value_num=gap, obs=obs, property_type="affordance")
+        out.add("CanReach", agent, target, value_num=gap, obs=obs, property_type="affordance")
+
+
+def _first_of(key: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """Indices of the first element of each run of equal keys in ``order``."""
+    k = key[order]
+    return order[np.r_[True, k[1:] != k[:-1]]] if k.size else order
 
 
 # -- relative position on request ---------------------------------------------------------------
