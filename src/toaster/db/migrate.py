@@ -4,7 +4,8 @@ Every migration runs in one transaction that first takes the migration lock (SQL
 lock, a PostgreSQL advisory lock on the schema): concurrent first openings migrate once, and
 a crash leaves the database as it was. A new SQLite file is built aside and moved into place
 at head (:func:`create_sqlite_file`), as a copy of a migrated template when it is made at
-head (:mod:`toaster.db.template`).
+head (:mod:`toaster.db.template`); a bare PostgreSQL schema gets the head's final-state script
+(:mod:`toaster.db.final_state`).
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from alembic.script import ScriptDirectory
 from alembic.util.exc import CommandError
 from sqlalchemy import Connection, Engine, inspect
 
-from toaster.db import template
+from toaster.db import final_state, template
 from toaster.db.engine import describe, ensure_wal, lock_timeout, make_engine
 from toaster.db.schema import metadata
 from toaster.errors import (
@@ -133,13 +134,32 @@ def _revision_errors(revision: str) -> Iterator[None]:
         raise InvalidInputError(msg) from None
 
 
-def upgrade(engine: Engine, revision: str = "head") -> None:
+def upgrade(engine: Engine, revision: str = "head", *, script: bool = True) -> None:
     """Migrate the database up to ``revision``, in one transaction under the migration lock
-    (a concurrent upgrade waits, then finds nothing left to do)."""
+    (a concurrent upgrade waits, then finds nothing left to do).
+
+    A bare PostgreSQL schema going to head runs the head's final-state script instead
+    (:mod:`toaster.db.final_state`; ``script=False``: the migrations always), and a schema
+    that the migrations took from bare to head leaves that script for the next ones.
+    """
     _check_revision(revision)
     with _migrating(engine) as conn, _revision_errors(revision):
-        command.upgrade(alembic_config(conn), revision)
-    _analyze(engine)
+        name = _final_state_key(conn, revision)
+        if not (name and script and final_state.apply(conn, name)):
+            command.upgrade(alembic_config(conn), revision)
+            if name:
+                final_state.save(conn, name)
+    with engine.begin() as conn:
+        _analyze(conn)
+
+
+def _final_state_key(conn: Connection, revision: str) -> str | None:
+    """The final-state script's key when ``conn`` is on a bare PostgreSQL schema and
+    ``revision`` is the head, else None."""
+    head = head_revision()
+    if conn.dialect.name != "postgresql" or revision not in ("head", head):
+        return None
+    return final_state.bare_key(conn, head)
 
 
 def downgrade(engine: Engine, revision: str) -> None:
@@ -170,16 +190,15 @@ def _migrating(engine: Engine) -> Iterator[Connection]:
     ensure_wal(engine)
 
 
-def _analyze(engine: Engine) -> None:
+def _analyze(conn: Connection) -> None:
     # Fresh statistics so that PostgreSQL plans sensibly on tables that started empty: toaster's
     # own tables only (a bare ANALYZE would also sample every other schema of a shared server,
     # and record another writer's uncommitted first tick as empty tables).
-    if engine.dialect.name == "postgresql":
-        with engine.begin() as conn:
-            present = set(conn.dialect.get_table_names(conn))
-            names = [t.name for t in metadata.sorted_tables if t.name in present]
-            if names:
-                conn.exec_driver_sql("ANALYZE " + ", ".join(f'"{n}"' for n in names))
+    if conn.dialect.name == "postgresql":
+        present = set(conn.dialect.get_table_names(conn))
+        names = [t.name for t in metadata.sorted_tables if t.name in present]
+        if names:
+            conn.exec_driver_sql("ANALYZE " + ", ".join(f'"{n}"' for n in names))
 
 
 def is_new_file(path: Path) -> bool:

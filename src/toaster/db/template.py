@@ -55,9 +55,14 @@ def _version() -> str:
         return "source"
 
 
+def template_key(head: str) -> str:
+    """What a template depends on: this toaster's version, ``head`` and the migrations' hash."""
+    return f"{_version()}-{head}-{migrations_hash()}"
+
+
 def template_name(head: str) -> str:
     """The file name of the template for ``head`` and this toaster's migrations."""
-    return f"sqlite-{_version()}-{head}-{migrations_hash()}.db"
+    return f"sqlite-{template_key(head)}.db"
 
 
 def is_whole(path: Path) -> bool:
