@@ -209,9 +209,9 @@ def open_database(
     Every error a user can cause (bad URL, unreachable server, a file that is not a toaster
     database, a lock held too long) is a :class:`~toaster.errors.ToasterError`.
     """
-    engine, _revision = open_engine(url, create=create, allow_memory=allow_memory)
+    engine, revision = open_engine(url, create=create, allow_memory=allow_memory)
     try:
-        if check:
+        if check and not (create and revision is None):  # else just made at head
             migrate.check_at_head(engine, url_hint=url or "")
     except BaseException:
         engine.dispose()

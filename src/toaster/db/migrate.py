@@ -74,17 +74,7 @@ def current_revision(engine: Engine) -> str | None:
 def toaster_revision(conn: Connection, where: str) -> str | None:
     """The revision of a toaster database, None for an empty one (no table, or only an empty
     ``alembic_version``); :class:`DatabaseOpenError` for another application's database."""
-    if (
-        conn.dialect.name == "postgresql"
-        and conn.exec_driver_sql("SELECT current_schema()").scalar() is None
-    ):
-        msg = (
-            f"PostgreSQL {where!r} selects no existing schema: create it or fix the URL's "
-            "options=-csearch_path=SCHEMA"
-        )
-        raise DatabaseOpenError(msg)
-    inspector = inspect(conn)
-    names = set(inspector.get_table_names()) | set(inspector.get_view_names())
+    names = _relation_names(conn, where)
     revision = (
         MigrationContext.configure(conn).get_current_revision() if VERSION_TABLE in names else None
     )
@@ -97,6 +87,30 @@ def toaster_revision(conn: Connection, where: str) -> str | None:
         )
         raise DatabaseOpenError(msg)
     return revision
+
+
+#: The tables and views of the current schema, and the schema (NULL: none selected).
+_PG_RELATIONS = (
+    "SELECT current_schema(), ARRAY(SELECT relname FROM pg_class WHERE relnamespace = "
+    "(SELECT oid FROM pg_namespace WHERE nspname = current_schema()) "
+    "AND relkind IN ('r', 'p', 'v', 'm', 'f'))"
+)
+
+
+def _relation_names(conn: Connection, where: str) -> set[str]:
+    """The names of the database's tables and views (PostgreSQL: of the current schema, in
+    one round trip; none selected is an error)."""
+    if conn.dialect.name != "postgresql":
+        inspector = inspect(conn)
+        return set(inspector.get_table_names()) | set(inspector.get_view_names())
+    schema, names = conn.exec_driver_sql(_PG_RELATIONS).one()
+    if schema is None:
+        msg = (
+            f"PostgreSQL {where!r} selects no existing schema: create it or fix the URL's "
+            "options=-csearch_path=SCHEMA"
+        )
+        raise DatabaseOpenError(msg)
+    return set(names)
 
 
 def is_empty(engine: Engine) -> bool:
@@ -149,8 +163,11 @@ def upgrade(engine: Engine, revision: str = "head", *, script: bool = True) -> N
             command.upgrade(alembic_config(conn), revision)
             if name:
                 final_state.save(conn, name)
-    with engine.begin() as conn:
-        _analyze(conn)
+        if name:  # a new schema: analyzed in the transaction that made it
+            _analyze(conn)
+    if not name and engine.dialect.name == "postgresql":
+        with engine.begin() as conn:  # an existing database: after the commit, unlocked
+            _analyze(conn)
 
 
 def _final_state_key(conn: Connection, revision: str) -> str | None:
