@@ -59,6 +59,13 @@ CASES = [
         r"path\s+humans\s+backend\s+changes",
     ),
     ("bench_writers.py", "postgresql", ["--quick", "--pg", PG_URL], r"writers\s+database\s+p50"),
+    ("bench_fresh.py", "sqlite", ["--quick", "--no-pg"], r"measure\s+backend\s+fresh ms"),
+    (
+        "bench_fresh.py",
+        "postgresql",
+        ["--quick", "--only-pg", "--pg", PG_URL],
+        r"measure\s+backend\s+fresh ms",
+    ),
     ("soak_writers.py", "sqlite", ["--quick", "--db", "sqlite"], r"total: \d+ ticks, 0 failed"),
     ("soak_writers.py", "postgresql", ["--quick", "--db", PG_URL], r"total: \d+ ticks, 0 failed"),
 ]
