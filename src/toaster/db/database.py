@@ -20,6 +20,7 @@ from toaster.db.engine import (
     make_engine,
     normalise_url,
     parse_url,
+    read_only_error,
     refused_value,
     sqlite_file,
 )
@@ -90,7 +91,8 @@ class Database:
         """One transaction (nested calls join the open one). ``write`` takes SQLite's write
         lock up front so that two writers never deadlock half-way. A value the database
         refuses (:func:`~toaster.db.engine.refused_value`) leaves the outermost transaction,
-        rolled back, as one :class:`~toaster.errors.InvalidInputError`."""
+        rolled back, as one :class:`~toaster.errors.InvalidInputError`; a write refused by a
+        read-only server (a hot standby) as one :class:`~toaster.errors.ReadOnlyError`."""
         conn = self.connection
         if conn.in_transaction():
             yield conn
@@ -100,7 +102,9 @@ class Database:
             with conn.begin():
                 yield conn
         except Exception as exc:  # raw cursors raise the drivers' own errors
-            error = refused_value(exc)
+            error = refused_value(exc) or read_only_error(
+                exc, describe(self.engine.url), None if conn.invalidated else dbapi(conn)
+            )
             if error is None:
                 raise
             raise error from exc

@@ -17,7 +17,13 @@ from sqlalchemy import URL, Connection, Engine, create_engine, event
 from sqlalchemy.engine import ExceptionContext, make_url
 from sqlalchemy.exc import ArgumentError
 
-from toaster.errors import DatabaseLockedError, DatabaseOpenError, InvalidInputError, ToasterError
+from toaster.errors import (
+    DatabaseLockedError,
+    DatabaseOpenError,
+    InvalidInputError,
+    ReadOnlyError,
+    ToasterError,
+)
 from toaster.model import check_text, shown
 
 if TYPE_CHECKING:
@@ -212,7 +218,9 @@ def make_engine(url: str | None = None, *, allow_memory: bool = False) -> Engine
     def _on_error(context: ExceptionContext) -> BaseException | None:
         if context.is_pre_ping:  # let the pool reconnect
             return None
-        return database_error(context.original_exception, where, timeout)
+        conn = context.connection
+        raw = None if conn is None or conn.invalidated else conn.connection.dbapi_connection
+        return database_error(context.original_exception, where, timeout, raw)
 
     return engine
 
@@ -266,10 +274,13 @@ def _sqlite_engine(url: URL, timeout: float) -> Engine:
     return engine
 
 
-def database_error(exc: BaseException, where: str, timeout_s: float) -> ToasterError | None:
+def database_error(
+    exc: BaseException, where: str, timeout_s: float, raw: object = None
+) -> ToasterError | None:
     """The one-line :class:`~toaster.errors.ToasterError` for a driver error ``exc`` (or a
-    SQLAlchemy error wrapping one) on database ``where``; None for errors that are not the
-    user's (bugs keep their traceback) or that the caller handles (write conflicts)."""
+    SQLAlchemy error wrapping one) on database ``where`` (``raw``: the driver's connection,
+    if known); None for errors that are not the user's (bugs keep their traceback) or that
+    the caller handles (write conflicts)."""
     orig = getattr(exc, "orig", None) or exc
     reason = (str(orig).strip().splitlines() or [type(orig).__name__])[0]
     name = getattr(orig, "sqlite_errorname", None)
@@ -286,12 +297,36 @@ def database_error(exc: BaseException, where: str, timeout_s: float) -> ToasterE
             f"cannot connect to PostgreSQL {where!r} ({reason}): check that the server runs "
             "and the URL's host, port, user and database"
         )
+    if sqlstate == "25006":  # read_only_sql_transaction: a hot standby, or a read-only session
+        return read_only_error(orig, where, raw)
     if sqlstate == "3F000":  # invalid_schema_name
         return DatabaseOpenError(
             f"PostgreSQL {where!r} has no schema to use ({reason}): create the schema or "
             "fix the URL's search_path"
         )
     return None
+
+
+def read_only_error(exc: BaseException, where: str, raw: object = None) -> ReadOnlyError | None:
+    """The one line of a statement refused because PostgreSQL ``where`` is read-only
+    (SQLSTATE 25006: a hot standby, told by ``raw``, the driver's connection, or by the
+    reason; or a read-only session), naming the fix; None for any other error."""
+    orig = getattr(exc, "orig", None) or exc
+    if getattr(orig, "sqlstate", None) != "25006":
+        return None
+    reason = (str(orig).strip().splitlines() or [type(orig).__name__])[0]
+    status = getattr(getattr(raw, "info", None), "parameter_status", None)
+    # in_hot_standby is reported by PostgreSQL 14+; "during recovery" by any standby.
+    if "during recovery" in reason or (status is not None and status("in_hot_standby") == "on"):
+        return ReadOnlyError(
+            f"PostgreSQL {where!r} is a hot standby (a read-only replica) and refused this "
+            f"({reason}): run it on the primary (docs/databases.md, Beyond one server)"
+        )
+    return ReadOnlyError(
+        f"PostgreSQL {where!r} is read-only and refused this ({reason}): run it on the "
+        "primary if this is a hot standby (docs/databases.md), else turn "
+        "default_transaction_read_only off"
+    )
 
 
 #: SQLSTATE of a unique key another writer inserted meanwhile: a conflict the store retries,
