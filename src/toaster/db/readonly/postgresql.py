@@ -100,12 +100,19 @@ SELECT pg_catalog.set_config('statement_timeout', %(timeout)s, true),
   (SELECT pg_catalog.pg_get_userbyid(p.proowner) FROM pg_catalog.pg_proc p
     WHERE p.oid = pg_catalog.to_regprocedure(%(run)s) AND p.prosecdef AND p.prosrc = %(body)s),
   (SELECT {_SAFE} AND pg_catalog.pg_has_role(r.oid, 'MEMBER') AND {_USAGE}
-    FROM pg_catalog.pg_roles r WHERE r.rolname = %(reader)s)
+    FROM pg_catalog.pg_roles r WHERE r.rolname = %(reader)s),
+  pg_catalog.pg_is_in_recovery()
 """
 #: The cursor over the wrapper's result, and how many rows each FETCH takes.
 _CURSOR = "toaster_rows"
 _BATCH = 256
 _RELATION_DENIED = re.compile(r"permission denied for (table|view|materialized view|relation)")
+#: A hot standby can create nothing, not even the session's wrapper (a temporary function).
+_STANDBY = (
+    "read-only SQL cannot run on a hot standby (its guard needs a temporary function, which a "
+    "standby cannot create): run it on the primary, or on the standby with a SQL client "
+    "such as psql (the standby refuses every write itself)"
+)
 #: Connections where READER_ROLE cannot be used, and why (they run as their own role).
 _NO_READER: weakref.WeakKeyDictionary[psycopg.Connection, str] = weakref.WeakKeyDictionary()
 
@@ -125,6 +132,7 @@ class _State(NamedTuple):
     superuser: bool
     owner: str | None
     reader_ready: bool | None
+    standby: bool
 
 
 @contextmanager
@@ -141,6 +149,8 @@ def read_postgresql(db: Database, sql: str, params: Any, bounds: Limits) -> Iter
     while True:
         with _pg_transaction(db, raw, bounds) as (cur, state):
             role = _role(raw, state)
+            if role is None and state.standby:
+                raise ToasterError(_STANDBY)
             if role is not None:
                 try:
                     rows = _pg_start(db, cur, raw, text, state, role, bounds)
