@@ -2,14 +2,17 @@
 
 Each writer is one robot running ``toaster run`` on the spatial Sally-Anne scenario at 30 Hz
 (the library path of the command, tests/db/writers.py ``run:`` role: load, register, tick)
-for ``--ticks`` ticks, all started at once: several robots in one world (each is the scene's
+for ``--ticks`` ticks, all started at once and ticking together once all are registered
+(each waits for a go file): several robots in one world (each is the scene's
 robot body under its own id), the same people and things registered by all of them, every
 robot's ticks running the belief rules. "shared" puts
 every writer on one database (one schema); "own" is the baseline measured in the same run:
 the same number of processes, each on its own schema, so that what the machine's CPUs cost is
 told apart from what sharing the database costs. The table gives, per case, the median over
 ``--repeats`` runs of the tick latency's p50 and p99 (all writers' ticks together, the first
-tick of each left out), the wall time, and the failed ticks (there must be none).
+tick of each left out), the wall time, the failed ticks (there must be none), and the belief
+runs a second: every database's runs (its ``belief_runs`` id sequence, registrations'
+runs left out) over the span of ticking, the first tick's start to the last tick's end.
 ``--holders none``: the scenario's people hold no beliefs, so the ticks measure the store
 alone (no belief run to serialize). ``--pace live`` (default) paces each robot's ticks at
 30 Hz of wall time, as live robots tick (``toaster serve``, ``run --realtime``); ``--pace
@@ -24,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -66,10 +70,38 @@ def _drop(url: str, urls: list[str]) -> None:
     engine.dispose()
 
 
+def _belief_runs(urls: list[str]) -> int:
+    """How many belief runs the databases ran (each inserts one ``belief_runs`` row, which is
+    not kept: its id sequence counts them)."""
+    total = 0
+    for schema_url in urls:
+        engine = make_engine(schema_url)
+        with engine.connect() as conn:
+            total += conn.execute(
+                sa.text(
+                    "SELECT CASE WHEN is_called THEN last_value ELSE 0 END FROM belief_runs_id_seq"
+                )
+            ).scalar_one()
+        engine.dispose()
+    return total
+
+
+def _start_together(outs: list[Path], procs: list[subprocess.Popen[bytes]]) -> None:
+    """Wait until every writer is registered and waits for the go file (``OUT.ready``), so
+    that their ticks overlap and the span of ticking is theirs, not their start-ups'."""
+    waiting = list(zip(outs, procs, strict=True))
+    while waiting:  # a writer that died is not waited for (its report says why)
+        waiting = [
+            (o, p) for o, p in waiting if not Path(f"{o}.ready").exists() and p.poll() is None
+        ]
+        time.sleep(0.01)
+
+
 def once(
     url: str, writers: int, shared: bool, ticks: int, holders: str = "humans", pace: str = ""
-) -> tuple[float, float, float, int]:
-    """(p50 ms, p99 ms, wall s, failed ticks) of one run."""
+) -> tuple[float, float, float, int, float]:
+    """(p50 ms, p99 ms, wall s, failed ticks, belief runs/s) of one run (runs/s: every
+    database's runs over the span of the writers' ticks, first start to last end)."""
     urls = [_schema(url)] if shared else [_schema(url) for _ in range(writers)]
     with tempfile.TemporaryDirectory() as tmp:
         procs = []
@@ -81,7 +113,8 @@ def once(
                 (
                     out,
                     subprocess.Popen(
-                        [
+                        env={**os.environ, "TOASTER_WRITERS_GO": str(Path(tmp) / "go")},
+                        args=[
                             sys.executable,
                             "-m",
                             "tests.db.writers",
@@ -95,17 +128,24 @@ def once(
                     ),
                 )
             )
+        _start_together([out for out, _ in procs], [proc for _, proc in procs])
+        runs_before = _belief_runs(urls)  # the registrations' runs are not the ticks'
+        (Path(tmp) / "go").touch()
         for _, proc in procs:
             proc.wait()
         wall = time.perf_counter() - start
         latencies: list[float] = []
         failed = 0
+        spans: list[list[float]] = []
         for out, _ in procs:
             report = json.loads(out.read_text())
             latencies += report["latencies"][1:]
+            spans.append(report["span"])
             failed += len(report["failures"])
             for failure in report["failures"][:1]:
                 print(f"a writer's failed tick: {str(failure)[:300]}", file=sys.stderr)
+    span = max(end for _, end in spans) - min(start for start, _ in spans)
+    runs = _belief_runs(urls) - runs_before
     _drop(url, urls)
     latencies.sort()
     return (
@@ -113,6 +153,7 @@ def once(
         latencies[min(len(latencies) - 1, int(len(latencies) * 0.99))] * 1e3,
         wall,
         failed,
+        runs / span,
     )
 
 
@@ -144,8 +185,9 @@ def main() -> None:
     failures = 0
     print(
         f"{'writers':>7} {'database':>8} {'p50 ms':>8} {'p99 ms':>8} {'wall s':>7} "
-        f"{'failed':>6}   (medians of {args.repeats}; {args.ticks} ticks per writer; "
-        f"holders: {args.holders}; pace: {args.pace})"
+        f"{'failed':>6} {'runs/s':>7}   (medians of {args.repeats}; {args.ticks} ticks per "
+        f"writer; holders: {args.holders}; pace: {args.pace}; runs/s: belief runs of all "
+        "the run's databases a second of ticking)"
     )
     for n in counts:
         results = {}
@@ -162,12 +204,13 @@ def main() -> None:
                 for _ in range(args.repeats)
             ]
             p50, p99, wall = (statistics.median(r[k] for r in runs) for k in range(3))
+            rate = statistics.median(r[4] for r in runs)
             failed = sum(r[3] for r in runs)
             failures += failed
             results[shared] = p50, p99
             print(
                 f"{n:7d} {'shared' if shared else 'own':>8} {p50:8.1f} {p99:8.1f} "
-                f"{wall:7.1f} {failed:6d}",
+                f"{wall:7.1f} {failed:6d} {rate:7.1f}",
                 flush=True,
             )
         ratio50 = results[True][0] / results[False][0]

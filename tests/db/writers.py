@@ -18,6 +18,7 @@ The JSON out: ticks, failures (one line each), tick latencies (s), last snapshot
 from __future__ import annotations
 
 import json
+import os
 import random
 import re
 import sys
@@ -59,6 +60,21 @@ def snapshot(source: str, state: dict[str, str]) -> list[Fact]:
     if source == "rooms":
         facts += [Fact(box, "IsInRoom", room) for box, room in CONTAINERS.items()]
     return facts
+
+
+#: A file path: a ``run:`` writer, once registered, writes ``OUT.ready`` and waits for this
+#: file before its first tick, so that a benchmark starts every robot's ticks together.
+GO_VAR = "TOASTER_WRITERS_GO"
+
+
+def _wait_for_go(out: str) -> None:
+    go = os.environ.get(GO_VAR)
+    if not go:
+        return
+    Path(f"{out}.ready").touch()
+    deadline = time.monotonic() + TIMEOUT_S
+    while not Path(go).exists() and time.monotonic() < deadline:
+        time.sleep(0.01)
 
 
 def _progress(path: str | None, ticks: int) -> None:
@@ -152,6 +168,7 @@ def run(
     ticks: int,
     holders: str | None = None,
     pace: str = "",
+    out: str = "",
 ) -> dict[str, Any]:
     """``toaster run PATH --rate RATE`` as robot ``robot`` (the library path of the command:
     load, register, tick) for at most ``ticks`` ticks, timing each tick. The scenario's self
@@ -186,6 +203,8 @@ def run(
         except Exception as exc:
             failures.append(f"register: {type(exc).__name__}: {exc}"[:300])
         step = round(1e9 / rate)
+        _wait_for_go(out)
+        started = time.time()  # the ticks' span, comparable across processes
         wall0 = time.perf_counter()
         for i, t in enumerate(range(session.start_ns, session.end_ns + 1, step)[:ticks]):
             if pace == "live":
@@ -202,6 +221,7 @@ def run(
         "failures": failures,
         "latencies": latencies,
         "last": [],
+        "span": [started, time.time()],
     }
 
 
@@ -211,7 +231,7 @@ def main(argv: list[str]) -> None:
         result = read(url, int(ticks), int(seed))
     elif role.startswith("run:"):  # run:ROBOT:PATH:RATE:TICKS[:HOLDERS[:live]]
         _, robot, path, rate, run_ticks, *holders = role.split(":")
-        result = run(url, robot, path, float(rate), int(run_ticks), *holders)
+        result = run(url, robot, path, float(rate), int(run_ticks), *holders, out=out)
     else:
         result = write(url, role, int(ticks), int(seed), *progress)
     with open(out, "w", encoding="utf-8") as handle:
