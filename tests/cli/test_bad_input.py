@@ -467,3 +467,11 @@ def test_unknown_revision(sqlite_fails: Fails) -> None:
 
 def test_relative_revision_past_the_head(sqlite_fails: Fails) -> None:
     sqlite_fails("db", "upgrade", "+1", message="+1")
+
+
+@pytest.mark.parametrize("kind", ["facts", "events"])
+def test_export_into_a_missing_folder_is_one_line(fails: Fails, tmp_path: Path, kind: str) -> None:
+    """An output path whose folder does not exist: one line naming it and the fix."""
+    missing = tmp_path / "no such folder" / "out.csv"
+    fails("export", kind, str(missing), message="create its folder or give another path")
+    assert not missing.parent.exists()

@@ -117,6 +117,8 @@ def one_line(ctx: click.Context, exc: Exception) -> click.ClickException | None:
         return None
     if isinstance(exc, ToasterError):
         return click.ClickException(str(exc))
+    if isinstance(exc, OSError) and exc.filename is not None:
+        return click.ClickException(_file_error(exc))
     from toaster.db.engine import database_error, describe, lock_timeout, parse_url
 
     try:
@@ -125,3 +127,18 @@ def one_line(ctx: click.Context, exc: Exception) -> click.ClickException | None:
     except ToasterError:
         return None
     return None if error is None else click.ClickException(str(error))
+
+
+#: What to do about a file the command could not open, by the system's reason.
+_FILE_FIXES = {
+    FileNotFoundError: "create its folder or give another path",
+    PermissionError: "give a path this user may use",
+    IsADirectoryError: "name a file, not a folder",
+    NotADirectoryError: "a part of the path is a file, not a folder",
+}
+
+
+def _file_error(exc: OSError) -> str:
+    """``'PATH': reason: fix`` for a file a command could not read or write."""
+    fix = next((f for kind, f in _FILE_FIXES.items() if isinstance(exc, kind)), "check the path")
+    return f"{str(exc.filename)!r}: {exc.strerror or exc}: {fix}"
