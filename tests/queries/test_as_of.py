@@ -168,7 +168,10 @@ def test_as_of_filters_equal_brute_force(db: toaster.Database) -> None:
             {"source": ["world", "beliefs"], "target": "HALL"},
             lambda r: r.source in ("world", "beliefs") and r.target_id == "HALL",
         ),
+        ({"value": "red"}, lambda r: r.value_text == "red"),
+        ({"value": ["yes", "blue"], "source": "NULL"}, lambda r: r.value_text in ("yes", "blue")),
         ({"source": []}, lambda r: False),
+        ({"value": []}, lambda r: False),
         ({"source": "NULL"}, lambda r: True),
     ]
     for t in range(0, 420, 7):

@@ -215,11 +215,15 @@ def beliefs_at(db: Database, agent: str, t_ns: int, **filters: Any) -> list[Fact
     A holder key that followed the self agent's key at ``t_ns`` (``belief_follow``) takes the
     self's interval then, clipped to the period, confidence x the period's ``pconf``."""
     source = check_filter("source", filters.pop("source", None))
+    value = check_filter("value", filters.pop("value", None))
     where, params = _where({"agent": check_id(agent, "agent id"), **filters}, prefix="k.")
-    # source is the interval's: 'beliefs' for a followed one, which passes the filter or not
-    # as a whole
+    # value and source are the interval's (f); a followed one's source is 'beliefs', which
+    # passes the filter or not as a whole
+    value_where, value_params = _where({"value": value}, prefix="f.")
     own_source, source_params = _where({"source": source}, prefix="f.")
-    params.update(source_params, t=check_ns(t_ns))
+    params.update(value_params | source_params, t=check_ns(t_ns))
+    if value_where != "1 = 1":
+        where = f"{where} AND {value_where}"
     sql = _as_of_sql(db.backend.name, where, own_source, _passes("beliefs", source))
     return [FactRow._make(row[:-1]) for row in hotpath.fetch(db, sql, params, prepare=True)]
 
