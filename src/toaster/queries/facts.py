@@ -90,13 +90,9 @@ def _where(filters: dict[str, Any], prefix: str = "") -> tuple[str, dict[str, An
 
 
 def _rows(db: Database, sql: str, params: dict[str, Any], *, raw: bool = False) -> list[Any]:
-    # The driver's cursor directly: these reads are the API's hot path (as-of, point reads).
-    with db.transaction():
-        cur = db.cursor()
-        cur.execute(db.backend.named(sql), params)
-        if raw:
-            return [tuple(row) for row in cur.fetchall()]
-        return list(map(FactRow._make, cur.fetchall()))
+    # The driver's cursor directly: these reads are the API's hot path (point reads).
+    rows = hotpath.fetch(db, db.backend.named(sql), params)
+    return [tuple(row) for row in rows] if raw else list(map(FactRow._make, rows))
 
 
 def _select(

@@ -17,7 +17,7 @@ from __future__ import annotations
 from contextlib import suppress
 from typing import TYPE_CHECKING, Any, cast
 
-from toaster.db.engine import dbapi
+from toaster.db.engine import dbapi, refused_value
 
 if TYPE_CHECKING:
     import psycopg
@@ -27,7 +27,19 @@ if TYPE_CHECKING:
 
 
 def fetch(db: Database, sql: str, params: dict[str, Any], *, prepare: bool = False) -> list[Any]:
-    """The rows of one read statement ``sql`` (the driver's parameter style)."""
+    """The rows of one read statement ``sql`` (the driver's parameter style). A value the
+    database refuses is one :class:`~toaster.errors.InvalidInputError`, as in
+    :meth:`~toaster.db.database.Database.transaction`."""
+    try:
+        return _fetch(db, sql, params, prepare)
+    except Exception as exc:  # raw cursors raise the drivers' own errors
+        error = refused_value(exc)
+        if error is None:
+            raise
+        raise error from exc
+
+
+def _fetch(db: Database, sql: str, params: dict[str, Any], prepare: bool) -> list[Any]:
     conn = db.connection
     if conn.in_transaction():
         return _run(db, db.cursor(), sql, params, prepare)
