@@ -180,3 +180,36 @@ def test_as_of_filters_equal_brute_force(db: toaster.Database) -> None:
             for filters, keep in cases:
                 got = q.beliefs_at(db, agent, t, **filters)
                 assert got == [r for r in everything if keep(r)], (agent, t, filters)
+
+
+@pytest.mark.backend("sqlite")
+def test_sqlite_merges_the_halves_in_key_order(db: toaster.Database) -> None:
+    """Revision 0022's index gives the agent's keys in the result's order: no sort."""
+    from toaster.queries import facts
+
+    sql = facts._as_of_sql("sqlite", "k.agent_id = :agent_id", "1 = 1", True)
+    with db.transaction() as conn:
+        plan = [r[-1] for r in conn.exec_driver_sql(f"EXPLAIN QUERY PLAN {sql}", ("R", 5))]
+    assert "MERGE (UNION ALL)" in plan and not any("TEMP B-TREE" in p for p in plan), plan
+    assert sum("ix_fact_keys_agent_order" in p for p in plan) == 2, plan
+
+
+def test_as_of_joins_the_callers_transaction_and_leaves_none(db: toaster.Database) -> None:
+    """Inside a transaction it reads that transaction's writes; outside it leaves the shared
+    connection as it found it (no transaction, PostgreSQL's autocommit off)."""
+    st = db.store()
+    st.add_entity("R", "robot", is_self=True, t_ns=0)
+    st.sync_snapshot("world", "R", 10, [Fact("MUG", "IsOn", "TABLE")])
+    with db.transaction(write=True):
+        st.sync_snapshot("world", "R", 20, [Fact("MUG", "IsOn", "SHELF")])
+        assert [r.target_id for r in q.beliefs_at(db, "R", 25)] == ["SHELF"]
+        assert db.connection.in_transaction()
+    assert [r.target_id for r in q.beliefs_at(db, "R", 15)] == ["TABLE"]
+    assert not db.connection.in_transaction()
+    if db.dialect_name == "postgresql":
+        from toaster.db.engine import dbapi
+
+        assert dbapi(db.connection).autocommit is False
+    st.sync_snapshot("world", "R", 30, [])  # the store's own transactions go on as before
+    assert q.beliefs_at(db, "R", 35) == []
+    assert [r.target_id for r in q.beliefs_at(db, "R", 29)] == ["SHELF"]
