@@ -158,6 +158,9 @@ fact_keys = Table(
     Index("ix_fact_keys_subject", "subject_id", "agent_id"),
     Index("ix_fact_keys_target", "target_id", "agent_id"),
     Index("ix_fact_keys_property", "agent_id", "property"),
+    # As-of (revision 0022): an agent's keys in the order beliefs_at returns them, so that
+    # SQLite merges its two halves without sorting.
+    Index("ix_fact_keys_agent_order", "agent_id", "subject_id", "property", "target_id", "id"),
 )
 
 facts = Table(

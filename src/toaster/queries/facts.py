@@ -6,11 +6,14 @@ tuples. Ids are always bound parameters; only column names from a fixed list rea
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, NamedTuple
 
+from toaster.db.dialects import backend_for
 from toaster.errors import InvalidInputError
 from toaster.model import FactRow, check_id, check_text, shown
+from toaster.queries import hotpath
 from toaster.rules import sqltext
 from toaster.timeutil import check_count, check_ns, check_optional_ns
 
@@ -87,13 +90,9 @@ def _where(filters: dict[str, Any], prefix: str = "") -> tuple[str, dict[str, An
 
 
 def _rows(db: Database, sql: str, params: dict[str, Any], *, raw: bool = False) -> list[Any]:
-    # The driver's cursor directly: these reads are the API's hot path (as-of, point reads).
-    with db.transaction():
-        cur = db.cursor()
-        cur.execute(db.backend.named(sql), params)
-        if raw:
-            return [tuple(row) for row in cur.fetchall()]
-        return [FactRow(*row) for row in cur.fetchall()]
+    # The driver's cursor directly: these reads are the API's hot path (point reads).
+    rows = hotpath.fetch(db, db.backend.named(sql), params)
+    return [tuple(row) for row in rows] if raw else list(map(FactRow._make, rows))
 
 
 def _select(
@@ -211,32 +210,57 @@ def beliefs_at(db: Database, agent: str, t_ns: int, **filters: Any) -> list[Fact
 
     A holder key that followed the self agent's key at ``t_ns`` (``belief_follow``) takes the
     self's interval then, clipped to the period, confidence x the period's ``pconf``."""
-    backend = db.backend
-    # source is the interval's ('beliefs' for a followed one): it filters the union's rows
-    held_where, held_params = _where({"source": filters.pop("source", None)})
+    source = check_filter("source", filters.pop("source", None))
+    value = check_filter("value", filters.pop("value", None))
     where, params = _where({"agent": check_id(agent, "agent id"), **filters}, prefix="k.")
-    params.update(held_params, t=check_ns(t_ns))
+    # value and source are the interval's (f); a followed one's source is 'beliefs', which
+    # passes the filter or not as a whole
+    value_where, value_params = _where({"value": value}, prefix="f.")
+    own_source, source_params = _where({"source": source}, prefix="f.")
+    params.update(value_params | source_params, t=check_ns(t_ns))
+    if value_where != "1 = 1":
+        where = f"{where} AND {value_where}"
+    sql = _as_of_sql(db.backend.name, where, own_source, _passes("beliefs", source))
+    return [FactRow._make(row[:-1]) for row in hotpath.fetch(db, sql, params, prepare=True)]
+
+
+def _passes(value: str, allowed: object) -> bool:
+    """Whether ``value`` passes the filter ``allowed`` (checked by :func:`check_filter`)."""
+    if allowed is None or allowed == "NULL":
+        return True
+    if isinstance(allowed, list | tuple | set | frozenset):
+        return value in allowed
+    return value == allowed
+
+
+@functools.lru_cache(maxsize=128)
+def _as_of_sql(backend_name: str, where: str, own_source: str, followed: bool) -> str:
+    """The as-of statement for one shape of filters, in the driver's parameter style (built
+    once: the same text each call, which the driver keeps prepared).
+
+    A compound ordered by the key's columns: each half walks the agent's keys in
+    ``ix_fact_keys_agent_order``, so SQLite merges them without a sort (revision 0022)."""
+    backend = backend_for(backend_name)
     samples = backend.sample_join.format(fact="f.id")
-    own = (
+    sql = (
         f"SELECT {_KEY_ONLY}, f.value_text, {_numbers_at()}, f.valid_from_ns, "
         "f.valid_to_ns, f.recorded_ns, f.source, k.id AS key_id FROM fact_keys k "
         f"{backend.as_of_join.format(key='k.id')} {samples} WHERE {where} "
         "AND (f.valid_to_ns IS NULL OR f.valid_to_ns > :t)"
     )
-    followed = (
-        f"SELECT {_KEY_ONLY}, f.value_text, {_followed_numbers(backend.name)}, "
-        f"{sqltext.expand('{{followed_from}}, {{followed_to}}', backend.name)}, f.recorded_ns, "
-        "'beliefs', k.id FROM fact_keys k JOIN belief_follow w ON w.hkey = k.id "
-        "AND w.from_ns <= :t AND (w.to_ns IS NULL OR w.to_ns > :t) "
-        f"{backend.as_of_join.format(key='w.self_key')} {samples} WHERE {where} "
-        "AND (f.valid_to_ns IS NULL OR f.valid_to_ns > :t) AND "
-        f"{sqltext.expand('{{followed_facts}}', backend.name)}"
-    )
-    sql = (
-        f"SELECT {FACT_COLUMNS} FROM ({own} UNION ALL {followed}) AS held "
-        f"WHERE {held_where} ORDER BY subject_id, property, target_id, key_id"
-    )
-    return _rows(db, sql, params)
+    if own_source != "1 = 1":
+        sql += f" AND {own_source}"
+    if followed:
+        sql += (
+            f" UNION ALL SELECT {_KEY_ONLY}, f.value_text, {_followed_numbers(backend_name)}, "
+            f"{sqltext.expand('{{followed_from}}, {{followed_to}}', backend_name)}, "
+            "f.recorded_ns, 'beliefs', k.id FROM fact_keys k JOIN belief_follow w "
+            "ON w.hkey = k.id AND w.from_ns <= :t AND (w.to_ns IS NULL OR w.to_ns > :t) "
+            f"{backend.as_of_join.format(key='w.self_key')} {samples} WHERE {where} "
+            "AND (f.valid_to_ns IS NULL OR f.valid_to_ns > :t) AND "
+            f"{sqltext.expand('{{followed_facts}}', backend_name)}"
+        )
+    return backend.named(f"{sql} ORDER BY subject_id, property, target_id, key_id")
 
 
 class SignalPoint(NamedTuple):
