@@ -169,3 +169,25 @@ def test_a_fact_another_writer_ended_ends_without_a_second_event(fresh_urls: Any
         assert (result.ended, result.unchanged) == (0, 1)
         kinds = [(e.kind, e.stamp_ns) for e in toaster.queries.events(db, "ROBOT", subject="CUP")]
         assert kinds == [("appeared", 1 * S), ("ended", 3 * S)]
+
+
+@pytest.mark.backend("postgresql")
+def test_a_tick_waiting_for_the_rules_clock_fails_in_one_line(
+    db_url: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The header of a snapshot's transaction locks the rules' clock: a session holding it
+    longer than the lock timeout makes the tick fail in one line, rolled back."""
+    from toaster.errors import DatabaseLockedError
+
+    monkeypatch.setenv("TOASTER_LOCK_TIMEOUT", "0.5")
+    holder = make_engine(db_url)
+    with toaster.connect(db_url) as db, holder.connect() as other:
+        store = setup(db)
+        store.sync_many("ROBOT", S, tick(0))
+        other.begin()
+        other.exec_driver_sql("SELECT * FROM store_state FOR UPDATE")
+        with pytest.raises(DatabaseLockedError, match=r"locked by another session"):
+            store.sync_many("ROBOT", 2 * S, tick(1))
+        other.rollback()
+        assert [r.appeared for r in store.sync_many("ROBOT", 2 * S, tick(1))] == [1, 0]
+    holder.dispose()

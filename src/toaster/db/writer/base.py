@@ -19,7 +19,12 @@ from toaster.db.tolerance import Tolerance
 from toaster.db.writer.changes import Actors, Rule
 from toaster.db.writer.diff import SourceState, key_of
 from toaster.db.writer.retry import ATTEMPTS, StaleCache, is_conflict, one_line
-from toaster.errors import ConcurrentWriteError, InvalidInputError, UnknownAgentError
+from toaster.errors import (
+    ConcurrentWriteError,
+    InvalidInputError,
+    ToasterError,
+    UnknownAgentError,
+)
 from toaster.model import Fact, check_id, listed
 from toaster.timeutil import now_ns
 
@@ -74,6 +79,12 @@ class WriterBase:
                 self._check_epoch((epoch, agents))
                 yield conn
                 self.backend.end_writes(cur)
+        except Exception as exc:
+            self.forget()
+            locked = _lock_timed_out(self.db, exc)
+            if locked is not None:
+                raise locked from exc
+            raise
         except BaseException:
             self.forget()
             raise
@@ -389,6 +400,17 @@ class WriterBase:
         """A stored setting, or ``default``."""
         with self.db.transaction() as conn:
             return catalog.get_setting(conn, scope, key, default)
+
+
+def _lock_timed_out(db: Handle, exc: Exception) -> ToasterError | None:
+    """The one-line error of a lock wait a raw cursor's statement gave up (PostgreSQL's
+    lock_timeout: the rules' clock, locked by the header, or a row another writer holds);
+    SQLAlchemy's statements get it from the engine's error handler."""
+    if getattr(exc, "sqlstate", None) != "55P03":
+        return None
+    from toaster.db.engine import database_error, describe, lock_timeout
+
+    return database_error(exc, describe(db.connection.engine.url), lock_timeout())
 
 
 def _by_key(actors: Mapping[Key, str]) -> Callable[[Fact], str | None]:
