@@ -191,3 +191,17 @@ def test_a_tick_waiting_for_the_rules_clock_fails_in_one_line(
         other.rollback()
         assert [r.appeared for r in store.sync_many("ROBOT", 2 * S, tick(1))] == [1, 0]
     holder.dispose()
+
+
+def test_ticks_inside_and_after_a_callers_database_transaction(db: toaster.Database) -> None:
+    """A write inside ``db.transaction()`` joins it (the store begins nothing of its own), and
+    the writes after it are transactions as before: a failing one leaves nothing."""
+    store = setup(db)
+    with db.transaction():
+        store.sync_many("ROBOT", S, tick(0))
+    store.sync_many("ROBOT", 2 * S, tick(1))
+    with pytest.raises(toaster.errors.InvalidInputError), store.transaction():
+        store.sync_many("ROBOT", 3 * S, tick(2))
+        store.add_entity("", "object")  # refused: the tick above is rolled back with it
+    assert store.sync_many("ROBOT", 3 * S, tick(2))[0].appeared == 1
+    assert {e.stamp_ns for e in toaster.queries.events(db, "ROBOT")} == {S, 2 * S, 3 * S}

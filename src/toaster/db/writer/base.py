@@ -72,10 +72,13 @@ class WriterBase:
         self._in_tx = True
         self.transactions += 1
         cur = None
+        begin = not self.db.connection.in_transaction()  # else inside a db.transaction()
         try:
             with self.db.transaction(write=True) as conn:
                 cur = self.db.cursor()
-                epoch, agents, self._clock = self.backend.begin_writes(cur, clock=clock, begin=True)
+                epoch, agents, self._clock = self.backend.begin_writes(
+                    cur, clock=clock, begin=begin
+                )
                 self._check_epoch((epoch, agents))
                 yield conn
                 self.backend.end_writes(cur)
