@@ -8,9 +8,10 @@ costs time per element (figures: docs/store.md).
 
 from __future__ import annotations
 
+import functools
 import re
 from collections.abc import Iterator
-from contextlib import AbstractContextManager, closing, contextmanager
+from contextlib import AbstractContextManager, closing, contextmanager, nullcontext
 from typing import TYPE_CHECKING, Any
 
 from toaster.db.dialects.base import Clock, Cursor, Key, Later
@@ -34,6 +35,16 @@ def _autocommit(raw: DBAPIConnection) -> Iterator[Cursor]:
 
 _NAMED = re.compile(r"(?<![:\w]):(\w+)")
 _IDLE = 0  # psycopg.pq.TransactionStatus.IDLE: no transaction open
+
+
+@functools.cache
+def _pipelines() -> bool:
+    """psycopg's pipeline mode works (its libpq is 14 or later)."""
+    import psycopg
+
+    return bool(psycopg.Pipeline.is_supported())
+
+
 _KEY_COLS = "subject_id, subject_owner_id, property, sub_property, target_id, target_owner_id"
 _KEY_ARRAYS = "%b::text[], %b::text[], %b::text[], %b::text[], %b::text[], %b::text[]"
 
@@ -64,6 +75,8 @@ class PostgreSQLBackend:
         return _NAMED.sub(r"%(\1)s", sql)
 
     def batch(self, cur: Cursor) -> AbstractContextManager[None]:
+        if not _pipelines():  # a libpq older than 14: one round trip per statement
+            return nullcontext()
         pipeline: AbstractContextManager[None] = cur.connection.pipeline()  # type: ignore[attr-defined]
         return pipeline
 
@@ -194,7 +207,7 @@ class PostgreSQLBackend:
             )
         )
         raw: Any = cur.connection  # type: ignore[attr-defined]
-        if begin and not raw.autocommit and raw.info.transaction_status == _IDLE:
+        if begin and _pipelines() and not raw.autocommit and raw.info.transaction_status == _IDLE:
             # psycopg would send its own BEGIN and wait for it: sent with the header instead,
             # the connection in autocommit mode (no BEGIN of psycopg's) until after_writes
             raw.autocommit = True
