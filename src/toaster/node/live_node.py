@@ -24,15 +24,15 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 from toaster.db import catalog
 from toaster.db.maintenance import Maintainer
-from toaster.errors import InvalidInputError, ToasterError, UnknownEntityError
+from toaster.errors import ToasterError
 from toaster.model import Fact, shown
-from toaster.node import control
+from toaster.node import control, requests
 from toaster.node.faults import GAP_SOURCE, RECONNECT_KINDS, Faults
 from toaster.node.stamps import TickClock
 from toaster.node.stats import LiveStats
-from toaster.producers.areas import AreaManager, multiple_relative_position, relative_position
+from toaster.producers.areas import AreaManager
 from toaster.producers.batch import FactBatch
-from toaster.producers.monitor import AgentMonitor, pointing
+from toaster.producers.monitor import AgentMonitor
 from toaster.producers.registry import builtin_producers
 from toaster.producers.runner import (
     DEFAULT_SELF,
@@ -41,11 +41,10 @@ from toaster.producers.runner import (
     Source,
     register_row,
 )
-from toaster.producers.spatial import relative_position_from
 from toaster.timeutil import now_ns
 from toaster.world.config import make_config
 from toaster.world.drops import Drops
-from toaster.world.live import LiveSource, check_entity
+from toaster.world.live import LiveSource
 from toaster.world.state import World
 
 if TYPE_CHECKING:
@@ -214,70 +213,7 @@ class LiveNode:
         self._hands = dict(state.in_hand)
 
     def _command(self, command: control.Command, t_ns: int) -> None:
-        args, world = command.args, self.world
-        if not isinstance(args, dict):
-            msg = f"arguments {shown(args)} must be a JSON object"
-            raise InvalidInputError(msg)
-        entity_id: Any = args.get("id")
-        if command.kind == "set_entity_pose":
-            row = world.index.get(entity_id) if isinstance(entity_id, str) else None
-            if args.get("known_only") and not self._present(entity_id):
-                msg = (
-                    f"unknown entity {shown(entity_id)}: add it first (add_entity) or "
-                    "publish its pose"
-                )
-                raise UnknownEntityError(msg)
-            kind = world.kind_text[row] if row is not None else args.get("kind", "object")
-            owner = (
-                world.ids[world.owner[row]]
-                if row is not None and world.owner[row] >= 0
-                else args.get("owner_id", "")
-            )
-            pose = {
-                "position": args.get("position"),
-                "rpy": args.get("rpy"),
-                "yaw": args.get("yaw", 0.0),
-                "kind": kind,
-                "owner_id": owner,
-                "joint": args.get("joint", ""),
-            }
-            if not self.simu.push(entity_id, t_ns=t_ns, topic="set_entity_pose", **pose):
-                raise InvalidInputError(self.simu.last_error)
-            self._simulated[str(entity_id)] = pose
-        elif command.kind == "add_entity":
-            kind, owner = args.get("kind", "object"), args.get("owner_id", "")
-            name = args.get("name", "")
-            check_entity(entity_id, kind, owner, name if kind == "joint" else "")
-            world.add_entity(
-                str(entity_id),
-                str(kind),
-                owner_id=str(owner),
-                name=str(name) if isinstance(name, str) else "",
-            )
-        elif command.kind == "remove_entity":
-            if not (self._present(entity_id) or entity_id in self._registered):
-                msg = f"unknown entity {shown(entity_id)}: nothing to remove"
-                raise UnknownEntityError(msg)
-            eid = str(entity_id)
-            row = world.row(eid)
-            gone = [eid, *(world.ids[r] for r in range(world.n) if world.owner[r] == row)]
-            world.remove_entity(eid)
-            for removed in gone:  # its joints go with it
-                self._simulated.pop(removed, None)
-                if self.store is not None and removed in self._registered:
-                    self.store.remove_entity(removed)
-                self._registered.discard(removed)
-
-    def _present(self, entity_id: object) -> bool:
-        """Whether the world knows the entity now (not removed, not only read back)."""
-        row = self.world.index.get(entity_id) if isinstance(entity_id, str) else None
-        return row is not None and bool(self.world.active[row])
-
-    def _require(self, *ids: object) -> None:
-        for entity_id in ids:
-            if not self._present(entity_id):
-                msg = f"unknown entity {shown(entity_id)}: it is not in the world now"
-                raise UnknownEntityError(msg)
+        requests.command(self, command, t_ns)
 
     def answer_queries(self) -> int:
         """Answer pending on-request queries from the world as it is now (looked for only
@@ -296,54 +232,7 @@ class LiveNode:
 
     def query(self, kind: str, args: Mapping[str, Any]) -> Any:
         """One on-request query (the original's services) against the current world."""
-        world = self.world
-        if not isinstance(args, Mapping):
-            msg = f"arguments {shown(args)} must be a JSON object"
-            raise InvalidInputError(msg)
-        names = {
-            "pointing": ("agent",),
-            "get_relative_position": ("subject", "target"),
-            "get_multiple_relative_position": ("agent", "object", "target"),
-            "relative_position_from": ("viewer", "object"),
-        }
-        named = [args.get(key) for key in names.get(kind, ())]
-        if kind == "relative_position_from" and args.get("reference") is not None:
-            named.append(args["reference"])
-        self._require(*named)
-        if kind == "pointing":
-            at = args.get("t_ns")
-            config = dict(self.config)  # the request's thresholds, when given
-            if args.get("joint_distance"):
-                config["pointing_joint_distance"] = float(args["joint_distance"])
-            if args.get("angle"):
-                config["pointing_angle"] = float(args["angle"])
-            found = pointing(
-                world,
-                str(args["agent"]),
-                str(args.get("joint", "rightHand")),
-                t_ns=int(at) if at is not None else None,
-                config=config,
-            )
-            return [[entity_id, conf] for entity_id, conf in found]
-        if kind == "get_relative_position":
-            label, angle = relative_position(world, str(args["subject"]), str(args["target"]))
-            return {"direction": label, "angle": angle}
-        if kind == "get_multiple_relative_position":
-            label, angle = multiple_relative_position(
-                world, str(args["agent"]), str(args["object"]), str(args["target"])
-            )
-            return {"direction": label, "angle": angle}
-        if kind == "relative_position_from":
-            words, xyz = relative_position_from(
-                world,
-                str(args["viewer"]),
-                str(args["object"]),
-                args.get("reference"),
-                config=self.config,
-            )
-            return {"words": words, "forward_left_up": list(xyz)}
-        msg = f"unknown query {kind!r}"
-        raise ValueError(msg)
+        return requests.query(self, kind, args)
 
     # -- ticks ----------------------------------------------------------------------------------
     def warn(self, line: str) -> None:
