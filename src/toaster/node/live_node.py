@@ -31,7 +31,7 @@ from toaster.node.faults import GAP_SOURCE, RECONNECT_KINDS, Faults
 from toaster.node.stamps import TickClock
 from toaster.node.stats import LiveStats
 from toaster.producers.areas import AreaManager
-from toaster.producers.batch import FactBatch
+from toaster.producers.batch import TickFacts
 from toaster.producers.monitor import AgentMonitor
 from toaster.producers.registry import builtin_producers
 from toaster.producers.runner import (
@@ -253,10 +253,11 @@ class LiveNode:
                 register_row(store, world, r, self.holders, t_ns)
         self._registered.update(world.ids[r] for r in new)
 
-    def tick(self, t_ns: int | None = None) -> dict[str, list[Fact]]:
+    def tick(self, t_ns: int | None = None) -> TickFacts:
         """One tick at ``t_ns`` (default: the perception time, :mod:`toaster.node.stamps`);
-        returns the facts per producer, none when the tick was not stored. It never raises: a
-        failed tick is rolled back and handled as :mod:`toaster.node.faults` says."""
+        returns the facts per producer (Fact tuples built when read), none when the tick was
+        not stored. It never raises: a failed tick is rolled back and handled as
+        :mod:`toaster.node.faults` says."""
         now = self.clock.now(self.sources, self.world) if t_ns is None else t_ns
         t = max(now, self._last_t + 1)  # time only moves on
         self._last_t = t
@@ -265,9 +266,9 @@ class LiveNode:
         except Exception as exc:  # contained: see toaster.node.faults
             if self.faults.tick_failed(exc, t) in RECONNECT_KINDS:
                 self._reconnect()
-            return {}
+            return TickFacts({})
 
-    def _tick(self, t: int) -> dict[str, list[Fact]]:
+    def _tick(self, t: int) -> TickFacts:
         self.apply_control(t)
         for entity_id, pose in self._simulated.items():
             self.simu.push(entity_id, t_ns=t, **pose)
@@ -292,7 +293,7 @@ class LiveNode:
             self.faults.part_worked(f"producer {name}")
         if self.faults.pending:
             self._record_gaps()
-        facts = {name: (f.facts() if isinstance(f, FactBatch) else f) for name, f in out.items()}
+        facts = TickFacts(out)
         for output in self.outputs:
             name = f"output {type(output).__name__}"
             try:
