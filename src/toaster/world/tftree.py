@@ -123,6 +123,8 @@ class TfTree:
 
     def _reset(self, keep: list[tuple[str, str, Vec | np.ndarray, Any, int]]) -> None:
         """Intern anew, keeping the edges ``keep`` (child, parent, t, q, stamp) (lock held)."""
+        self._last: tuple[list, list, np.ndarray, np.ndarray, frozenset[str]] | None = None
+        self._plans: dict[int, tuple[int, np.ndarray, list[str]]] = {}
         self._index: dict[str, int] = {}
         self._names: list[str] = []
         cap = max(16, 2 * len(keep))
@@ -191,6 +193,16 @@ class TfTree:
         rows: list[int] = []
         slots: list[int] = []
         with self._lock:
+            last = self._last
+            if (
+                last is not None
+                and last[0] == edges.children
+                and last[1] == edges.parents
+                and bool(t_ok.all() and q_ok.all())
+            ):  # a stream: the frames of the previous message, in its order
+                r, s, names = last[2], last[3], last[4]
+                self._t[s], self._q[s], self._stamp[s] = t[r], unit[r], _ints(stamps, r)
+                return set(names), []
             for i in range(n):
                 raw_child, raw_parent = edges.children[i], edges.parents[i]
                 try:
@@ -223,13 +235,16 @@ class TfTree:
                 rows.append(i)
                 slots.append(c)
                 changed.add(child)
+            r, s = np.asarray(rows, np.int64), np.asarray(slots, np.int64)
+            if len(set(slots)) < len(slots):  # a child twice: its last transform wins
+                _, at = np.unique(s[::-1], return_index=True)
+                keep = np.sort(len(s) - 1 - at)
+                r, s = r[keep], s[keep]
             if rows:
-                r, s = np.asarray(rows), np.asarray(slots)
-                if len(set(slots)) < len(slots):  # a child twice: its last transform wins
-                    _, last = np.unique(s[::-1], return_index=True)
-                    keep = np.sort(len(s) - 1 - last)
-                    r, s = r[keep], s[keep]
                 self._t[s], self._q[s], self._stamp[s] = t[r], unit[r], _ints(stamps, r)
+            self._last = None
+            if not bad:
+                self._last = (list(edges.children), list(edges.parents), r, s, frozenset(changed))
             if len(self._names) > 4 * len(self._children) + 64:
                 self._reset(self._edges())
         return changed, bad
@@ -290,7 +305,7 @@ class TfTree:
         wanted that do not reach it."""
         with self._lock:
             index, fixed = self._index, self._index[self.fixed]
-            idx = np.fromiter((index.get(f, -1) for f in frames), np.int64, len(frames))
+            idx = self._plan(frames)
             parent, has = self._parent.copy(), self._has.copy()
             t_all, q_all, stamp_all = self._t.copy(), self._q.copy(), self._stamp.copy()
             if changed is not None:
@@ -343,6 +358,17 @@ class TfTree:
         stamps: list[int | None] = [s or None for s in newest.tolist()]
         chosen = pick[found]
         return Poses([labels[i] for i in chosen.tolist()], t, q, stamps), chosen, lost
+
+    def _plan(self, frames: list[str]) -> np.ndarray:
+        """The name index of each frame (-1: unknown), kept while no name is added (a frame
+        map asked every tick; lock held)."""
+        plan = self._plans.get(len(frames))
+        if plan is None or plan[0] != len(self._names) or plan[2] != frames:
+            idx = np.fromiter((self._index.get(f, -1) for f in frames), np.int64, len(frames))
+            if len(self._plans) > 8:
+                self._plans.clear()
+            plan = self._plans[len(frames)] = (len(self._names), idx, list(frames))
+        return plan[1]
 
     def frames(self) -> list[str]:
         """Every child frame known."""
