@@ -278,3 +278,22 @@ def test_monitor_commands_start_from_the_default_and_respect_a_clear(db):
     state = control.monitor_remove(db, "bob")
     assert state.agents == []
     assert state.excluded == []
+
+
+@pytest.mark.slow
+def test_fact_lists_go_out_before_the_write_and_the_rest_after(db):
+    """An output's publish_facts sees the tick's facts before they are stored (the ROS fact
+    lists do not wait for the database); publish sees them stored, in the same mapping."""
+    seen: list[tuple[str, set, set]] = []
+
+    class Probe:
+        def publish_facts(self, t_ns, facts, world):
+            seen.append(("facts", props(facts, "pdg"), stored(db, "isPresent")))
+
+        def publish(self, t_ns, facts, world):
+            seen.append(("stored", props(facts, "pdg"), stored(db, "isPresent")))
+
+    node, clock = LiveNode(db, outputs=[Probe()]), Clock()
+    walk(node, clock, 1)
+    bob = ("bob", "isPresent", "")
+    assert seen == [("facts", {bob}, set()), ("stored", {bob}, {("bob", "")})]

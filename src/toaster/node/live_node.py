@@ -70,7 +70,10 @@ MAX_STAMP_LAG_S = 1.0
 
 
 class Output(Protocol):
-    """Something that publishes each tick's facts (ROS topics, a test's list, ...)."""
+    """Something that publishes each tick's facts (ROS topics, a test's list, ...), once the
+    tick is stored. It may also have ``publish_facts(t_ns, facts, world)``, called as soon as
+    the producers computed the tick, before it is stored: the ROS bridge sends its fact lists
+    then, so that they do not wait for the database (docs/live.md, "Latency")."""
 
     def publish(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None: ...
 
@@ -287,24 +290,38 @@ class LiveNode:
         self.wake.clear()
         if self.store is not None:
             self._register_new(t)
-        out = self.runner.tick(t, on_error=self._producer_failed)  # raises: rolled back
-        self.faults.tick_stored(t)
+        facts = TickFacts({})
+
+        def computed(out: Mapping[str, Any]) -> None:  # before the write: the fact lists go
+            nonlocal facts
+            facts = TickFacts(out)
+            self._publish(t, facts, "publish_facts")
+
+        out = self.runner.tick(t, on_error=self._producer_failed, computed=computed)
+        self.faults.tick_stored(t)  # (raised above: rolled back)
         for name in out:
             self.faults.part_worked(f"producer {name}")
         if self.faults.pending:
             self._record_gaps()
-        facts = TickFacts(out)
+        self._publish(t, facts, "publish")
+        self.stats.ticks += 1
+        self.answer_queries()
+        return facts
+
+    def _publish(self, t: int, facts: TickFacts, method: str) -> None:
+        """Every output's ``method`` (those that have it); an output failing does not stop
+        the node."""
         for output in self.outputs:
+            publish = getattr(output, method, None)
+            if publish is None:
+                continue
             name = f"output {type(output).__name__}"
             try:
-                output.publish(t, facts, self.world)
+                publish(t, facts, self.world)
             except Exception as exc:  # an output failing must not stop the node
                 self.faults.part_failed(name, exc, "the others go on")
             else:
                 self.faults.part_worked(name)
-        self.stats.ticks += 1
-        self.answer_queries()
-        return facts
 
     def _producer_failed(self, name: str, exc: Exception) -> None:
         self.faults.part_failed(f"producer {name}", exc)

@@ -35,6 +35,7 @@ class TickOutput:
         self.bridge = bridge
         self.ticks = 0
         self.writer = wire.FactListWriter()
+        self._sent = -1  # the tick whose fact lists went out (publish_facts)
         self._frames: tuple[World | None, int, wire.Pieces, np.ndarray] = (
             None,
             -1,
@@ -47,14 +48,21 @@ class TickOutput:
 
         self.bridge.status_pub.publish(String(data=line))
 
+    def publish_facts(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None:
+        """The fact lists, as soon as the producers computed them (before the write)."""
+        for producer, pub in self.bridge.fact_pubs.items():
+            if pub.get_num_connections():  # written as arrays (wire.py), genpy's bytes
+                pub.publish(wire.fact_list_message(self.writer, facts, producer, t_ns))
+        self._sent = t_ns
+
     def publish(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None:
+        """The rest of a stored tick (and its fact lists if they have not gone out)."""
         b = self.bridge
         for line in b.warnings.drain():
             b.node.warn(line)
         reg = b.registry
-        for producer, pub in b.fact_pubs.items():
-            if pub.get_num_connections():  # written as arrays (wire.py), genpy's bytes
-                pub.publish(wire.fact_list_message(self.writer, facts, producer, t_ns))
+        if self._sent != t_ns:
+            self.publish_facts(t_ns, facts, world)
         b.areas_out.answer(t_ns, world)  # print_area's lists, asked from service threads
         self.ticks += 1
         if (self.ticks - 1) % VIEW_EVERY:  # fact lists every tick; views at 1/VIEW_EVERY
