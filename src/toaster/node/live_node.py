@@ -28,6 +28,7 @@ from toaster.errors import ToasterError
 from toaster.model import Fact, shown
 from toaster.node import control, requests
 from toaster.node.faults import GAP_SOURCE, RECONNECT_KINDS, Faults
+from toaster.node.pacing import IDLE_WAIT, TickBudget
 from toaster.node.stamps import TickClock
 from toaster.node.stats import LiveStats
 from toaster.producers.areas import AreaManager
@@ -59,12 +60,6 @@ status_log = logging.getLogger("toaster.node.status")
 #: fast with 2 MB as with the engine's 64 MB, which a day of input would fill (docs/live.md)
 LIVE_PAGE_CACHE_KIB = 2000
 
-#: ticks follow input no sooner than this share of a period after the previous tick...
-FOLLOW_GAP = 0.8
-#: ... and without input the next tick comes this many periods after the previous one (not
-#: one: a timer at the sensor's own rate beats against it, and half the poses then waited
-#: for the gap after a tick that had nothing new; docs/live.md)
-IDLE_WAIT = 1.5
 #: a tick is at its newest pose's stamp if at most this old (s), else on the wall clock (stamps.py)
 MAX_STAMP_LAG_S = 1.0
 
@@ -123,6 +118,7 @@ class LiveNode:
         self._version = -1
         self._last_t = 0
         self.wake = threading.Event()  # set by sources when a pose arrives
+        self._woken_at = 0.0  # when it was set (monotonic s)
         self._queries_waiting = False
         self._registered: set[str] = set()
         self._hands: dict[str, tuple[str, str]] = {}
@@ -365,9 +361,10 @@ class LiveNode:
     ) -> LiveStats:
         """Tick until ``stop`` is set (or ``ticks`` / ``seconds`` ran out).
 
-        Ticks follow the input: a tick starts as soon as a source received a pose, but not
-        sooner than ``FOLLOW_GAP`` of a period after the previous one (``rate_hz`` caps the
-        rate), and without input ``IDLE_WAIT`` periods after it. A tick that takes longer than
+        Ticks follow the input: a tick starts as soon as a source received a pose, within a
+        budget of ticks (:mod:`toaster.node.pacing`: at most 1.25 × ``rate_hz`` a second on
+        average, two in a row at once), and without input ``IDLE_WAIT`` periods after the
+        previous one. A tick that takes longer than
         the period counts as an overrun; the next one may start at once (no burst of catch-up
         ticks). After a tick that failed on a database fault the next attempt waits for the
         backoff (:mod:`toaster.node.faults`), or for ``stop``.
@@ -408,6 +405,7 @@ class LiveNode:
     ) -> None:
         begin = last_status = time.monotonic()
         self.stats.started = self.stats.window_start = begin
+        budget = TickBudget(period, begin)
         count = 0
         while not stop.is_set():
             if ticks is not None and count >= ticks:
@@ -415,6 +413,9 @@ class LiveNode:
             if seconds is not None and time.monotonic() - begin >= seconds:
                 break
             start = time.monotonic()
+            budget.take(start)
+            if self.wake.is_set():  # input waited for this tick since it came
+                self.stats.record_wait((start - self._woken_at) * 1e3)
             self.tick()
             count += 1
             now = time.monotonic()
@@ -426,17 +427,22 @@ class LiveNode:
                 continue
             if not self.faults.failing:
                 self._record(time.monotonic() - start, period)
-            self._pace(start, period, stop)
+            self._pace(start, period, stop, budget)
 
     def status(self, *, window: bool = False) -> str:
-        """One line: uptime, ticks, overruns, drops per topic and field, warnings, and the
-        window since the previous windowed line (``window=True`` starts a new one) or the
-        last one taken."""
+        """One line: uptime, ticks, overruns, drops per topic and field, warnings, how long
+        input waited for its tick (p50, p99 of the last 1,000 ticks it woke), and the window
+        since the previous windowed line (``window=True`` starts a new one) or the last one
+        taken."""
         s = self.stats
         line = (
             f"status: up {time.monotonic() - s.started:.0f} s, {s.ticks} ticks, "
             f"{s.overruns} overruns, drops {self.drops.summary()}, {s.warnings} warnings"
         )
+        if s.wait_ms:
+            waits = sorted(s.wait_ms)
+            p50, p99 = (waits[min(len(waits) - 1, int(p * len(waits)))] for p in (0.5, 0.99))
+            line += f", input waits p50 {p50:.1f} ms, p99 {p99:.1f} ms"
         last = s.take_window() if window else s.last_window
         return f"{line}; {last}" if last else line
 
@@ -455,20 +461,24 @@ class LiveNode:
 
     def _woken(self) -> None:
         if not self.wake.is_set():  # cheaper than setting it for every pose of a message
+            self._woken_at = time.monotonic()
             self.wake.set()
 
-    def _pace(self, start: float, period: float, stop: threading.Event) -> None:
-        """Wait for the next tick: input after the gap, else ``IDLE_WAIT`` periods after
-        ``start``."""
-        gap_end, deadline = start + FOLLOW_GAP * period, start + IDLE_WAIT * period
-        now = time.monotonic()
-        if now < gap_end:
-            stop.wait(gap_end - now)
+    def _pace(self, start: float, period: float, stop: threading.Event, budget: TickBudget) -> None:
+        """Wait for the next tick: input, once the budget has a tick for it; else
+        ``IDLE_WAIT`` periods after ``start``."""
+        deadline = start + IDLE_WAIT * period
         while not stop.is_set():
             now = time.monotonic()
-            if self.wake.is_set() or now >= deadline:
+            if now >= deadline:
                 return
-            self.wake.wait(deadline - now)
+            if not self.wake.is_set():
+                self.wake.wait(deadline - now)
+                continue
+            ready = budget.ready_at(now)
+            if ready <= now:
+                return
+            stop.wait(min(ready, deadline) - now)
 
     def _record(self, took: float, period: float) -> None:
         ms = took * 1e3
