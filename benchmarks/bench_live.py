@@ -219,7 +219,7 @@ def api_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dic
             stats = node.stats
     finally:
         database.close()
-    waits = stats.wait_ms or [math.nan]
+    waits = getattr(stats, "wait_ms", None) or [math.nan]  # (older code: not measured)
     return {
         "wait": [pct(waits, 50), pct(waits, 99)],
         "db": latencies(toggles, watcher.seen),
