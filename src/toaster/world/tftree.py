@@ -278,7 +278,7 @@ class TfTree:
 
     def lookup_many(self, frames: list[str]) -> list[tuple[Vec, Quat, int | None] | None]:
         """:meth:`lookup` of many frames, composed together (one rotation batch per level)."""
-        poses, found, _ = self._compose([strip_frame(f) for f in frames], None, list(frames))
+        poses, found, _ = self._compose([strip_frame(f) for f in frames], None, None)
         out: list[tuple[Vec, Quat, int | None] | None] = [None] * len(frames)
         for k, i in enumerate(found.tolist()):
             x, y, z = poses.pos[k].tolist()
@@ -294,15 +294,15 @@ class TfTree:
         do not reach the fixed frame; all composed from the tree as it is when called (a
         message arriving meanwhile is not half seen)."""
         frames = list(targets)
-        poses, _, lost = self._compose(frames, changed, [targets[f] for f in frames])
+        poses, _, lost = self._compose(frames, changed, targets)
         return poses, lost
 
     def _compose(
-        self, frames: list[str], changed: Iterable[str] | None, labels: list[Any]
+        self, frames: list[str], changed: Iterable[str] | None, labels: Mapping[str, Any] | None
     ) -> tuple[Poses, np.ndarray, list[str]]:
         """Poses of ``frames`` (those whose chain holds a changed frame, when given) that reach
-        the fixed frame, labelled; the positions in ``frames`` of those found; the frames
-        wanted that do not reach it."""
+        the fixed frame, labelled by ``labels`` (None: the frames themselves); the positions in
+        ``frames`` of those found; the frames wanted that do not reach it."""
         with self._lock:
             index, fixed = self._index, self._index[self.fixed]
             idx = self._plan(frames)
@@ -315,7 +315,9 @@ class TfTree:
         known = idx >= 0
         if changed is not None:  # the chain: the frame and its parents (up to MAX_DEPTH)
             cur = np.where(known, idx, 0)
-            wanted = np.where(known, hit[cur], [f in changed for f in frames])
+            wanted = known & hit[cur]
+            for i in np.flatnonzero(~known).tolist():  # unknown frames: their chain is them
+                wanted[i] = frames[i] in changed
             for _ in range(self.MAX_DEPTH):
                 step = known & has[cur]
                 if not step.any():
@@ -325,7 +327,6 @@ class TfTree:
             pick = np.flatnonzero(wanted)
         else:
             pick = np.arange(len(frames))
-        names = [frames[i] for i in pick.tolist()]
         start = idx[pick]
         # walk up to the fixed frame: level k holds each chain's k-th edge (-1 past its end)
         cur = start.copy()
@@ -338,8 +339,8 @@ class TfTree:
                 break
             levels.append(np.where(alive, cur, -1))
             cur = np.where(alive, parent[np.maximum(cur, 0)], cur)
-        reach = (cur == fixed) | np.array([f == self.fixed for f in names], bool)
-        lost = [f for f, ok in zip(names, reach.tolist(), strict=True) if not ok]
+        reach = cur == fixed
+        lost = [frames[i] for i in pick[~reach].tolist()]
         found = np.flatnonzero(reach)
         rows = [lv[found] for lv in levels]
         depth = max((int((r >= 0).any()) and k + 1 for k, r in enumerate(rows)), default=0)
@@ -357,7 +358,10 @@ class TfTree:
         newest[newest == low] = 0  # no edge (the fixed frame itself)
         stamps: list[int | None] = [s or None for s in newest.tolist()]
         chosen = pick[found]
-        return Poses([labels[i] for i in chosen.tolist()], t, q, stamps), chosen, lost
+        named = [frames[i] for i in chosen.tolist()]
+        if labels is not None:
+            named = [labels[f] for f in named]
+        return Poses(named, t, q, stamps), chosen, lost
 
     def _plan(self, frames: list[str]) -> np.ndarray:
         """The name index of each frame (-1: unknown), kept while no name is added (a frame
