@@ -297,3 +297,42 @@ def test_fact_lists_go_out_before_the_write_and_the_rest_after(db):
     walk(node, clock, 1)
     bob = ("bob", "isPresent", "")
     assert seen == [("facts", {bob}, set()), ("stored", {bob}, {("bob", "")})]
+
+
+@pytest.mark.slow
+@pytest.mark.backend("postgresql")
+def test_a_running_node_reads_its_control_plane_when_notified(db, other, monkeypatch):
+    """On PostgreSQL the control version is read after a NOTIFY (and at least every second),
+    not every tick: a change from another connection is applied all the same."""
+    from toaster.node import control_watch
+
+    monkeypatch.setattr(control_watch, "MAX_AGE_S", 3600.0)
+    node = LiveNode(db)
+    seen: list = []
+    stop = threading.Event()
+
+    class Probe:
+        def publish(self, t_ns, facts, world):
+            seen.append(props(facts, "area_manager"))
+            if node._watch is not None:
+                watches.append(node._watch)
+
+    watches: list = []
+    node.outputs.append(Probe())
+    node.api.push("bob", (1.0, 0.0, 0.0))
+    thread = threading.Thread(target=node.run, kwargs={"stop": stop})
+    thread.start()
+    try:
+        deadline = time.monotonic() + ANSWER_TIMEOUT_S
+        while len(seen) < 20 and time.monotonic() < deadline:
+            node.api.push("bob", (1.0, 0.0, 0.0))
+            time.sleep(0.02)
+        other.store().put_area("kitchen", ROOM)
+        while ("bob", "IsInRoom", "kitchen") not in seen[-1] and time.monotonic() < deadline:
+            node.api.push("bob", (1.0, 0.0, 0.0))
+            time.sleep(0.02)
+    finally:
+        stop.set()
+        thread.join()
+    assert ("bob", "IsInRoom", "kitchen") in seen[-1]
+    assert watches and watches[-1].reads < len(seen) / 2

@@ -27,6 +27,7 @@ from toaster.db.maintenance import Maintainer
 from toaster.errors import ToasterError
 from toaster.model import Fact, shown
 from toaster.node import control, requests
+from toaster.node.control_watch import ControlWatch
 from toaster.node.faults import GAP_SOURCE, RECONNECT_KINDS, Faults
 from toaster.node.pacing import IDLE_WAIT, TickBudget
 from toaster.node.stamps import TickClock
@@ -120,6 +121,7 @@ class LiveNode:
         self.wake = threading.Event()  # set by sources when a pose arrives
         self._woken_at = 0.0  # when it was set (monotonic s)
         self._queries_waiting = False
+        self._watch: ControlWatch | None = None  # while run() runs on PostgreSQL
         self._registered: set[str] = set()
         self._hands: dict[str, tuple[str, str]] = {}
         self._default_monitored = self.config["monitored_agents"]
@@ -158,9 +160,9 @@ class LiveNode:
     def apply_control(self, t_ns: int | None = None) -> bool:
         """Apply the control plane if it changed since the last look; True if it did.
         Commands take effect at ``t_ns`` (default: now)."""
-        if self.db is None:
+        if self.db is None or (self._watch is not None and not self._watch.due()):
             return False
-        with self.db.transaction() as conn:  # a read, every tick
+        with self.db.transaction() as conn:  # a read, every tick (PostgreSQL: on a NOTIFY)
             if catalog.control_version(conn) == self._version:
                 return False
         with self.db.transaction(write=True) as conn:  # commands are answered in it
@@ -388,11 +390,15 @@ class LiveNode:
         maintainer = None
         if self.db is not None and maintain_every_s is not None:
             maintainer = Maintainer(self.db, maintain_every_s).start()
+        self._watch = ControlWatch.of(self.db)
         try:
             self._loop(period, stop, ticks, seconds, status_every_s)
         finally:
             if maintainer is not None:
                 maintainer.stop()
+            if self._watch is not None:
+                self._watch.stop()
+                self._watch = None
         return self.stats
 
     def _loop(
