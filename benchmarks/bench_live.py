@@ -6,7 +6,9 @@ The path users run: a real roscore, `toaster serve --ros1 --tf-map FRAMES` (30 H
 client under Debian's Python (`live_client.py`) that publishes /tf for H humans (2 joints each)
 and 50 objects at 30 Hz, moving each human into and out of a zone once a second. Baseline in
 the same run: the same scene pushed in-process into a `LiveNode` (no ROS transport), database
-latency only. Quoted: medians over repeats of p50 / p99 in ms, ticks and overruns.
+latency only. Quoted: medians over repeats of p50 / p99 in ms, ticks and overruns, and how long
+input waited for its tick (p50 / p99 of the node's waits: from the first pose that woke its loop
+to the start of the tick that applies it; `toaster serve` reports them in its status lines).
 
 Run: .venv/bin/python benchmarks/bench_live.py [--no-pg | --only-pg] [--seconds 20] [--repeats 3]
      [--humans 10,100] [--quick]
@@ -17,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import re
 import signal
@@ -121,6 +124,8 @@ def ros_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dic
                         "--ros1",
                         "--tf-map",
                         str(frames),
+                        "--status-every",
+                        "2",
                     ],
                     env=env,
                     stderr=err,
@@ -159,7 +164,9 @@ def ros_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dic
         summary,
     )
     ticks, overruns, median = found.groups() if found else ("nan", "nan", "nan")
+    waits = re.findall(r"input waits p50 ([\d.]+) ms, p99 ([\d.]+) ms", summary)
     return {
+        "wait": [float(w) for w in waits[-1]] if waits else [math.nan, math.nan],
         "db": latencies(out["toggles"], watcher.seen),
         "ros": latencies(out["toggles"], out["seen"]),
         "toggles": len(out["toggles"]),
@@ -212,7 +219,9 @@ def api_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dic
             stats = node.stats
     finally:
         database.close()
+    waits = getattr(stats, "wait_ms", None) or [math.nan]  # (older code: not measured)
     return {
+        "wait": [pct(waits, 50), pct(waits, 99)],
         "db": latencies(toggles, watcher.seen),
         "ros": [],
         "toggles": len(toggles),
@@ -243,6 +252,7 @@ def main() -> None:
     print(
         f"{'path':<20} {'humans':>6} {'backend':<11} {'changes':>8} {'db p50':>7} "
         f"{'db p99':>7} {'ros p50':>8} {'ros p99':>8} {'tick ms':>8} {'overruns':>9}"
+        f" {'wait p50':>9} {'wait p99':>9}"
     )
     with tempfile.TemporaryDirectory() as tmp:
         for humans in (int(h) for h in args.humans.split(",")):
@@ -265,7 +275,9 @@ def main() -> None:
                         f"{med('db', 50):>7.1f} {med('db', 99):>7.1f} {med('ros', 50):>8.1f} "
                         f"{med('ros', 99):>8.1f} "
                         f"{statistics.median(r['tick_ms'] for r in runs):>8.1f} "
-                        f"{statistics.median(r['overruns'] for r in runs):>9.0f}",
+                        f"{statistics.median(r['overruns'] for r in runs):>9.0f}"
+                        f" {statistics.median(r['wait'][0] for r in runs):>9.1f}"
+                        f" {statistics.median(r['wait'][1] for r in runs):>9.1f}",
                         flush=True,
                     )
 

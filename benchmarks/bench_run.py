@@ -1,7 +1,8 @@
 """Ticks and replays with the database, the way users run them (``Runner`` / ``toaster run``).
 
 Run: .venv/bin/python benchmarks/bench_run.py [--pg URL] [--no-pg | --only-pg]
-     [--only tick|crowd|size|pg-long] [--repeats N] [--long SECONDS] [--quick]
+     [--only tick|crowd|size|pg-long] [--repeats N] [--long SECONDS] [--humans 100,500]
+     [--quick]
 
 ``--quick`` (a smoke run of every section, figures meaningless): a 200-entity scene with 5
 humans holding beliefs, 3 ticks, one run; one 40-person crowd for 10 s; growth from 2 s and 4 s
@@ -14,6 +15,12 @@ replays of 20 people; 4 s of PostgreSQL long run reported every 2 s.
    by :class:`~toaster.producers.Runner`. Same-run baselines: the tick without a database
    (the geometry alone) and *before*: the settings of the previous release (no range for
    IsMovingToward, no debounce, every number written exactly).
+   Then **the live node's tick on crowds** (``--humans``, default 100 and 500): bench_live's
+   scene (each human with a head and a right hand and its own zone, stepping in and out of it
+   once a second; 50 objects) pushed into a :class:`~toaster.node.LiveNode` as one /tf
+   message a tick (``LiveSource.push_many`` where the code has it, else a push per pose) and
+   ticked at 30 Hz of input time: median ms to buffer a message and of a tick, without
+   database and with each backend (target: the tick without database well under 33 ms).
 2. **Crowd replay**: ``toaster run`` (a subprocess, its own figures) on synthetic crowds of
    :mod:`crowd`: 400 people crossing the scene over 200 s like the ETH/UCY recordings (about
    27 in it at once), at 2.5 Hz and at 30 Hz, and 400 people all present at once (stress, no
@@ -76,6 +83,7 @@ SIZES: dict[str, Any] = {
     "long_people": 100,
     "long_report_s": 60,
     "holders": ("none", "humans"),  # who holds beliefs in section 1's scenes
+    "live_humans": (100, 500),  # section 1b's crowds (--humans)
 }
 QUICK: dict[str, Any] = {
     "scenes": [(200, 5, "200 ent / 100 areas / 5 humans", {"sqlite": 20, "postgresql": 33})],
@@ -85,6 +93,7 @@ QUICK: dict[str, Any] = {
     "long_people": 20,
     "long_report_s": 2,
     "holders": ("humans",),
+    "live_humans": (10,),
 }
 #: the previous release's behaviour, for the same-run "before" column
 BEFORE = {"toward_range": 1e9, "min_duration": {"IsMoving": 0.0, "IsFacing": 0.0}}
@@ -276,6 +285,88 @@ def bench_ticks(backends: list[str], pg: str | None, ticks: int, repeats: int) -
                     f" {'≤' + str(targets[backend]):>7}",
                     flush=True,
                 )
+
+
+def live_crowd(humans: int, url: str | None, ticks: int) -> tuple[float, float]:
+    """(median ms to buffer one message's poses, median ms of a tick) of a live node on
+    bench_live's scene, after 15 warm-up ticks."""
+    from live_scene import human_pose, joint_offsets, object_pose, zone
+    from toaster.node import LiveNode
+
+    db = toaster.connect(url) if url else None
+    if db is not None:
+        store = db.store()
+        for i in range(humans):
+            store.put_area(f"zone_h{i}", zone(i))
+    node = LiveNode(db)
+    if db is None:
+        for i in range(humans):
+            node.areas.set_area(f"zone_h{i}", zone(i))
+    targets = []
+    for i in range(humans):
+        targets.append((f"h{i}", "human", "", ""))
+        targets += [(f"h{i}/{j}", "joint", f"h{i}", j) for j in joint_offsets()]
+    targets += [(f"o{j}", "object", "", "") for j in range(50)]
+    quats = np.tile([0.0, 0.0, 0.0, 1.0], (len(targets), 1))
+    source, base = node.api, time.time_ns() - 600 * S
+    push_ms, tick_ms = [], []
+    for k in range(ticks + 15):
+        elapsed, t = k / 30, base + k * S // 30
+        pos = []
+        for i in range(humans):
+            _, x, y = human_pose(i, humans, elapsed)
+            pos.append((x, y, 0.0))
+            pos += [(x + dx, y + dy, dz) for dx, dy, dz in joint_offsets().values()]
+        pos += [object_pose(j) for j in range(50)]
+        xyz = np.asarray(pos, float)
+        start = time.perf_counter()
+        if hasattr(source, "push_many"):
+            source.push_many(targets, xyz, quats, [t] * len(targets))
+        else:  # the code before push_many: a pose at a time
+            for (eid, kind, owner, joint), p in zip(targets, pos, strict=True):
+                source.push(
+                    eid,
+                    p,
+                    quat=(0.0, 0.0, 0.0, 1.0),
+                    t_ns=t,
+                    kind=kind,
+                    owner_id=owner,
+                    joint=joint,
+                )
+        pushed = time.perf_counter()
+        node.tick(t)
+        done = time.perf_counter()
+        if k >= 15:
+            push_ms.append((pushed - start) * 1e3)
+            tick_ms.append((done - pushed) * 1e3)
+    if db is not None:
+        db.close()
+    return statistics.median(push_ms), statistics.median(tick_ms)
+
+
+def bench_live_crowds(backends: list[str], pg: str | None, ticks: int, repeats: int) -> None:
+    print(
+        f"\n1b. The live node's tick on crowds (bench_live's scene; median ms of {ticks} ticks,"
+        f" median of {repeats} runs; target: the tick without database well under 33 ms)"
+    )
+    print(f"{'humans':>6} {'entities':>9} {'backend':<11} {'push ms':>8} {'tick ms':>8}")
+    for humans in SIZES["live_humans"]:
+        for backend in ["none", *backends]:
+            runs = []
+            for _ in range(repeats):
+                with tempfile.TemporaryDirectory() as tmp:
+                    database = Database(backend, pg, tmp) if backend != "none" else None
+                    try:
+                        runs.append(live_crowd(humans, database.url if database else None, ticks))
+                    finally:
+                        if database is not None:
+                            database.close()
+            print(
+                f"{humans:>6} {3 * humans + 50:>9} {backend:<11}"
+                f" {statistics.median(r[0] for r in runs):>8.2f}"
+                f" {statistics.median(r[1] for r in runs):>8.2f}",
+                flush=True,
+            )
 
 
 # -- 2. crowd replay ------------------------------------------------------------------------------
@@ -485,11 +576,14 @@ def main() -> None:
         default=600.0,
         help="input seconds of the PostgreSQL long run (section 4)",
     )
+    parser.add_argument("--humans", help="crowds of section 1b, comma-separated (default 100,500)")
     parser.add_argument("--quick", action="store_true", help="small sizes (a smoke run)")
     args = parser.parse_args()
     if args.quick:
         SIZES.update(QUICK)
         args.ticks, args.repeats, args.long = 3, 1, 4.0
+    if args.humans:
+        SIZES["live_humans"] = tuple(int(h) for h in args.humans.split(","))
     pg = None if args.no_pg else args.pg
     if pg:
         try:
@@ -501,7 +595,9 @@ def main() -> None:
             pg = None
     backends = [*([] if args.only_pg else ["sqlite"]), *(["postgresql"] if pg else [])]
     if args.only in (None, "tick"):
-        bench_ticks(backends, pg, args.ticks, args.repeats)
+        if not args.humans:  # --humans asks for the live crowds only
+            bench_ticks(backends, pg, args.ticks, args.repeats)
+        bench_live_crowds(backends, pg, max(args.ticks, 30) if not args.quick else 3, args.repeats)
     if args.only in (None, "crowd"):
         bench_crowd(backends, pg, args.repeats)
     if args.only in (None, "size"):

@@ -255,7 +255,7 @@ def test_the_newest_pose_per_entity_wins_and_the_buffer_stays_bounded(db):
     t = clock.next()
     for k in range(1000):
         node.api.push("bob", (k / 1000, 0, 0), t_ns=t - 1000 + k)
-    assert sum(len(q) for q in node.api._pending.values()) <= node.api.max_pending
+    assert node.api.pending() <= node.api.max_pending
     node.tick(t)
     assert node.world.pos[node.world.row("bob"), 0] == pytest.approx(0.999)
 
@@ -278,3 +278,61 @@ def test_monitor_commands_start_from_the_default_and_respect_a_clear(db):
     state = control.monitor_remove(db, "bob")
     assert state.agents == []
     assert state.excluded == []
+
+
+@pytest.mark.slow
+def test_fact_lists_go_out_before_the_write_and_the_rest_after(db):
+    """An output's publish_facts sees the tick's facts before they are stored (the ROS fact
+    lists do not wait for the database); publish sees them stored, in the same mapping."""
+    seen: list[tuple[str, set, set]] = []
+
+    class Probe:
+        def publish_facts(self, t_ns, facts, world):
+            seen.append(("facts", props(facts, "pdg"), stored(db, "isPresent")))
+
+        def publish(self, t_ns, facts, world):
+            seen.append(("stored", props(facts, "pdg"), stored(db, "isPresent")))
+
+    node, clock = LiveNode(db, outputs=[Probe()]), Clock()
+    walk(node, clock, 1)
+    bob = ("bob", "isPresent", "")
+    assert seen == [("facts", {bob}, set()), ("stored", {bob}, {("bob", "")})]
+
+
+@pytest.mark.slow
+@pytest.mark.backend("postgresql")
+def test_a_running_node_reads_its_control_plane_when_notified(db, other, monkeypatch):
+    """On PostgreSQL the control version is read after a NOTIFY (and at least every second),
+    not every tick: a change from another connection is applied all the same."""
+    from toaster.node import control_watch
+
+    monkeypatch.setattr(control_watch, "MAX_AGE_S", 3600.0)
+    node = LiveNode(db)
+    seen: list = []
+    stop = threading.Event()
+
+    class Probe:
+        def publish(self, t_ns, facts, world):
+            seen.append(props(facts, "area_manager"))
+            if node._watch is not None:
+                watches.append(node._watch)
+
+    watches: list = []
+    node.outputs.append(Probe())
+    node.api.push("bob", (1.0, 0.0, 0.0))
+    thread = threading.Thread(target=node.run, kwargs={"stop": stop})
+    thread.start()
+    try:
+        deadline = time.monotonic() + ANSWER_TIMEOUT_S
+        while len(seen) < 20 and time.monotonic() < deadline:
+            node.api.push("bob", (1.0, 0.0, 0.0))
+            time.sleep(0.02)
+        other.store().put_area("kitchen", ROOM)
+        while ("bob", "IsInRoom", "kitchen") not in seen[-1] and time.monotonic() < deadline:
+            node.api.push("bob", (1.0, 0.0, 0.0))
+            time.sleep(0.02)
+    finally:
+        stop.set()
+        thread.join()
+    assert ("bob", "IsInRoom", "kitchen") in seen[-1]
+    assert watches and watches[-1].reads < len(seen) / 2

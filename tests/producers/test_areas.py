@@ -1,12 +1,16 @@
 import math
 
+import numpy as np
 import pytest
 
 from toaster.errors import InvalidInputError
 from toaster.producers import AreaManager, area_from_original, normalize_area
 from toaster.producers.areas import direction_label, multiple_relative_position, relative_position
+from toaster.world import World
 
 SQUARE = [[0, 0], [4, 0], [4, 4], [0, 4]]
+
+S = 1_000_000_000
 
 
 def facts_of(manager, scene, prop=None):
@@ -289,3 +293,42 @@ def test_multiple_relative_position_sign_fixed(scene):
     label, angle = multiple_relative_position(scene.world, "bob", "box", "cup")
     assert angle == pytest.approx(math.pi / 2)
     assert label == "right"
+
+
+def test_runs_of_plain_areas_give_the_facts_of_one_group_per_area():
+    """Consecutive areas without owner or density are one group (their ids as target labels):
+    the facts, their order and their keys are those of the loop per area it replaced."""
+    from toaster.producers.batch import FactBatch
+
+    rng = np.random.default_rng(11)
+    world = World()
+    for i in range(60):
+        world.add_entity(f"e{i}", ("human", "object", "robot")[i % 3])
+    areas = {}
+    for k in range(40):
+        kind = rng.integers(0, 6)
+        spec: dict = {"area_type": ["interaction", "room", "support"][k // 8 % 3]}
+        if kind < 3:
+            spec |= {"shape": "circle", "center": rng.uniform(0, 10, 2).tolist(), "radius": 1.5}
+        else:
+            x, y = rng.uniform(0, 10, 2)
+            spec["points"] = [[x, y], [x + 2, y], [x + 2, y + 2], [x, y + 2]]
+        if kind == 1:
+            spec["facts"] = ["density"]
+        if kind == 4:
+            spec |= {"owner": "e3", "facts": ["interaction"]}
+        spec["enter_hysteresis"] = float(rng.choice([0.0, 0.2]))
+        areas[f"a{k}"] = spec
+    merged, loop = AreaManager(areas), AreaManager(areas)
+    loop._runs = [(i, i + 1, None) for i in range(len(loop._slots))]
+    assert len(merged._runs) < len(loop._runs)
+    pos = np.column_stack([rng.uniform(0, 12, (60, 2)), np.zeros(60)])
+    for tick in range(20):
+        pos[:, :2] += rng.normal(0, 0.3, (60, 2))
+        t = (tick + 1) * S // 10
+        world.observe("test", np.arange(60), np.full(60, t), pos, rng.uniform(-3, 3, (60, 3)))
+        world.commit()
+        a, b = merged.compute_batch(world, t), loop.compute_batch(world, t)
+        assert a.facts() == b.facts()
+        assert all(np.array_equal(x, y) for x, y in zip(a.keys(), b.keys(), strict=True))
+        assert isinstance(a, FactBatch) and len(a.groups) <= len(b.groups)

@@ -65,3 +65,29 @@ def test_batch_diff_matches_tuple_diff():
         "IsMovingToward",
         "Distance",
     } <= seen
+
+
+def test_a_group_of_labelled_targets_is_one_constant_group_per_label():
+    """Many areas' memberships in one group (targets as codes into labels) give the keys,
+    value codes and facts of one group per area, in the same order."""
+    from toaster.producers.batch import FactBatch
+
+    rng = np.random.default_rng(5)
+    world = World()
+    for i in range(30):
+        world.add_entity(f"e{i}", "human" if i % 3 else "object")
+    labels = np.array([f"zone{k}" for k in range(6)], dtype=object)
+    codes = np.sort(rng.integers(0, 6, 40))
+    rows = rng.integers(0, 30, 40)
+    merged, split = FactBatch(world), FactBatch(world)
+    merged.add("IsInArea", rows, (codes, labels), obs=0.8, property_type="position")
+    for k in range(6):
+        here = codes == k
+        split.add("IsInArea", rows[here], str(labels[k]), obs=0.8, property_type="position")
+    for batch in (merged, split):  # a row target of the same property beside them
+        batch.add("IsInArea", rows[:3], rows[3:6], obs=0.8, property_type="position")
+    assert merged.facts() == split.facts()
+    keys, values = merged.keys()
+    want_keys, want_values = split.keys()
+    assert keys.tolist() == want_keys.tolist() and values.tolist() == want_values.tolist()
+    assert merged.facts_at(np.array([39, 2, 41])) == split.facts_at(np.array([39, 2, 41]))

@@ -24,15 +24,17 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 from toaster.db import catalog
 from toaster.db.maintenance import Maintainer
-from toaster.errors import InvalidInputError, ToasterError, UnknownEntityError
+from toaster.errors import ToasterError
 from toaster.model import Fact, shown
-from toaster.node import control
+from toaster.node import control, requests
+from toaster.node.control_watch import ControlWatch
 from toaster.node.faults import GAP_SOURCE, RECONNECT_KINDS, Faults
+from toaster.node.pacing import IDLE_WAIT, TickBudget
 from toaster.node.stamps import TickClock
 from toaster.node.stats import LiveStats
-from toaster.producers.areas import AreaManager, multiple_relative_position, relative_position
-from toaster.producers.batch import FactBatch
-from toaster.producers.monitor import AgentMonitor, pointing
+from toaster.producers.areas import AreaManager
+from toaster.producers.batch import TickFacts
+from toaster.producers.monitor import AgentMonitor
 from toaster.producers.registry import builtin_producers
 from toaster.producers.runner import (
     DEFAULT_SELF,
@@ -41,11 +43,10 @@ from toaster.producers.runner import (
     Source,
     register_row,
 )
-from toaster.producers.spatial import relative_position_from
 from toaster.timeutil import now_ns
 from toaster.world.config import make_config
 from toaster.world.drops import Drops
-from toaster.world.live import LiveSource, check_entity
+from toaster.world.live import LiveSource
 from toaster.world.state import World
 
 if TYPE_CHECKING:
@@ -60,18 +61,15 @@ status_log = logging.getLogger("toaster.node.status")
 #: fast with 2 MB as with the engine's 64 MB, which a day of input would fill (docs/live.md)
 LIVE_PAGE_CACHE_KIB = 2000
 
-#: ticks follow input no sooner than this share of a period after the previous tick...
-FOLLOW_GAP = 0.8
-#: ... and without input the next tick comes this many periods after the previous one (not
-#: one: a timer at the sensor's own rate beats against it, and half the poses then waited
-#: for the gap after a tick that had nothing new; docs/live.md)
-IDLE_WAIT = 1.5
 #: a tick is at its newest pose's stamp if at most this old (s), else on the wall clock (stamps.py)
 MAX_STAMP_LAG_S = 1.0
 
 
 class Output(Protocol):
-    """Something that publishes each tick's facts (ROS topics, a test's list, ...)."""
+    """Something that publishes each tick's facts (ROS topics, a test's list, ...), once the
+    tick is stored. It may also have ``publish_facts(t_ns, facts, world)``, called as soon as
+    the producers computed the tick, before it is stored: the ROS bridge sends its fact lists
+    then, so that they do not wait for the database (docs/live.md, "Latency")."""
 
     def publish(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None: ...
 
@@ -121,7 +119,9 @@ class LiveNode:
         self._version = -1
         self._last_t = 0
         self.wake = threading.Event()  # set by sources when a pose arrives
+        self._woken_at = 0.0  # when it was set (monotonic s)
         self._queries_waiting = False
+        self._watch: ControlWatch | None = None  # while run() runs on PostgreSQL
         self._registered: set[str] = set()
         self._hands: dict[str, tuple[str, str]] = {}
         self._default_monitored = self.config["monitored_agents"]
@@ -160,9 +160,9 @@ class LiveNode:
     def apply_control(self, t_ns: int | None = None) -> bool:
         """Apply the control plane if it changed since the last look; True if it did.
         Commands take effect at ``t_ns`` (default: now)."""
-        if self.db is None:
+        if self.db is None or (self._watch is not None and not self._watch.due()):
             return False
-        with self.db.transaction() as conn:  # a read, every tick
+        with self.db.transaction() as conn:  # a read, every tick (PostgreSQL: on a NOTIFY)
             if catalog.control_version(conn) == self._version:
                 return False
         with self.db.transaction(write=True) as conn:  # commands are answered in it
@@ -214,70 +214,7 @@ class LiveNode:
         self._hands = dict(state.in_hand)
 
     def _command(self, command: control.Command, t_ns: int) -> None:
-        args, world = command.args, self.world
-        if not isinstance(args, dict):
-            msg = f"arguments {shown(args)} must be a JSON object"
-            raise InvalidInputError(msg)
-        entity_id: Any = args.get("id")
-        if command.kind == "set_entity_pose":
-            row = world.index.get(entity_id) if isinstance(entity_id, str) else None
-            if args.get("known_only") and not self._present(entity_id):
-                msg = (
-                    f"unknown entity {shown(entity_id)}: add it first (add_entity) or "
-                    "publish its pose"
-                )
-                raise UnknownEntityError(msg)
-            kind = world.kind_text[row] if row is not None else args.get("kind", "object")
-            owner = (
-                world.ids[world.owner[row]]
-                if row is not None and world.owner[row] >= 0
-                else args.get("owner_id", "")
-            )
-            pose = {
-                "position": args.get("position"),
-                "rpy": args.get("rpy"),
-                "yaw": args.get("yaw", 0.0),
-                "kind": kind,
-                "owner_id": owner,
-                "joint": args.get("joint", ""),
-            }
-            if not self.simu.push(entity_id, t_ns=t_ns, topic="set_entity_pose", **pose):
-                raise InvalidInputError(self.simu.last_error)
-            self._simulated[str(entity_id)] = pose
-        elif command.kind == "add_entity":
-            kind, owner = args.get("kind", "object"), args.get("owner_id", "")
-            name = args.get("name", "")
-            check_entity(entity_id, kind, owner, name if kind == "joint" else "")
-            world.add_entity(
-                str(entity_id),
-                str(kind),
-                owner_id=str(owner),
-                name=str(name) if isinstance(name, str) else "",
-            )
-        elif command.kind == "remove_entity":
-            if not (self._present(entity_id) or entity_id in self._registered):
-                msg = f"unknown entity {shown(entity_id)}: nothing to remove"
-                raise UnknownEntityError(msg)
-            eid = str(entity_id)
-            row = world.row(eid)
-            gone = [eid, *(world.ids[r] for r in range(world.n) if world.owner[r] == row)]
-            world.remove_entity(eid)
-            for removed in gone:  # its joints go with it
-                self._simulated.pop(removed, None)
-                if self.store is not None and removed in self._registered:
-                    self.store.remove_entity(removed)
-                self._registered.discard(removed)
-
-    def _present(self, entity_id: object) -> bool:
-        """Whether the world knows the entity now (not removed, not only read back)."""
-        row = self.world.index.get(entity_id) if isinstance(entity_id, str) else None
-        return row is not None and bool(self.world.active[row])
-
-    def _require(self, *ids: object) -> None:
-        for entity_id in ids:
-            if not self._present(entity_id):
-                msg = f"unknown entity {shown(entity_id)}: it is not in the world now"
-                raise UnknownEntityError(msg)
+        requests.command(self, command, t_ns)
 
     def answer_queries(self) -> int:
         """Answer pending on-request queries from the world as it is now (looked for only
@@ -296,54 +233,7 @@ class LiveNode:
 
     def query(self, kind: str, args: Mapping[str, Any]) -> Any:
         """One on-request query (the original's services) against the current world."""
-        world = self.world
-        if not isinstance(args, Mapping):
-            msg = f"arguments {shown(args)} must be a JSON object"
-            raise InvalidInputError(msg)
-        names = {
-            "pointing": ("agent",),
-            "get_relative_position": ("subject", "target"),
-            "get_multiple_relative_position": ("agent", "object", "target"),
-            "relative_position_from": ("viewer", "object"),
-        }
-        named = [args.get(key) for key in names.get(kind, ())]
-        if kind == "relative_position_from" and args.get("reference") is not None:
-            named.append(args["reference"])
-        self._require(*named)
-        if kind == "pointing":
-            at = args.get("t_ns")
-            config = dict(self.config)  # the request's thresholds, when given
-            if args.get("joint_distance"):
-                config["pointing_joint_distance"] = float(args["joint_distance"])
-            if args.get("angle"):
-                config["pointing_angle"] = float(args["angle"])
-            found = pointing(
-                world,
-                str(args["agent"]),
-                str(args.get("joint", "rightHand")),
-                t_ns=int(at) if at is not None else None,
-                config=config,
-            )
-            return [[entity_id, conf] for entity_id, conf in found]
-        if kind == "get_relative_position":
-            label, angle = relative_position(world, str(args["subject"]), str(args["target"]))
-            return {"direction": label, "angle": angle}
-        if kind == "get_multiple_relative_position":
-            label, angle = multiple_relative_position(
-                world, str(args["agent"]), str(args["object"]), str(args["target"])
-            )
-            return {"direction": label, "angle": angle}
-        if kind == "relative_position_from":
-            words, xyz = relative_position_from(
-                world,
-                str(args["viewer"]),
-                str(args["object"]),
-                args.get("reference"),
-                config=self.config,
-            )
-            return {"words": words, "forward_left_up": list(xyz)}
-        msg = f"unknown query {kind!r}"
-        raise ValueError(msg)
+        return requests.query(self, kind, args)
 
     # -- ticks ----------------------------------------------------------------------------------
     def warn(self, line: str) -> None:
@@ -364,10 +254,11 @@ class LiveNode:
                 register_row(store, world, r, self.holders, t_ns)
         self._registered.update(world.ids[r] for r in new)
 
-    def tick(self, t_ns: int | None = None) -> dict[str, list[Fact]]:
+    def tick(self, t_ns: int | None = None) -> TickFacts:
         """One tick at ``t_ns`` (default: the perception time, :mod:`toaster.node.stamps`);
-        returns the facts per producer, none when the tick was not stored. It never raises: a
-        failed tick is rolled back and handled as :mod:`toaster.node.faults` says."""
+        returns the facts per producer (Fact tuples built when read), none when the tick was
+        not stored. It never raises: a failed tick is rolled back and handled as
+        :mod:`toaster.node.faults` says."""
         now = self.clock.now(self.sources, self.world) if t_ns is None else t_ns
         t = max(now, self._last_t + 1)  # time only moves on
         self._last_t = t
@@ -376,9 +267,9 @@ class LiveNode:
         except Exception as exc:  # contained: see toaster.node.faults
             if self.faults.tick_failed(exc, t) in RECONNECT_KINDS:
                 self._reconnect()
-            return {}
+            return TickFacts({})
 
-    def _tick(self, t: int) -> dict[str, list[Fact]]:
+    def _tick(self, t: int) -> TickFacts:
         self.apply_control(t)
         for entity_id, pose in self._simulated.items():
             self.simu.push(entity_id, t_ns=t, **pose)
@@ -397,24 +288,38 @@ class LiveNode:
         self.wake.clear()
         if self.store is not None:
             self._register_new(t)
-        out = self.runner.tick(t, on_error=self._producer_failed)  # raises: rolled back
-        self.faults.tick_stored(t)
+        facts = TickFacts({})
+
+        def computed(out: Mapping[str, Any]) -> None:  # before the write: the fact lists go
+            nonlocal facts
+            facts = TickFacts(out)
+            self._publish(t, facts, "publish_facts")
+
+        out = self.runner.tick(t, on_error=self._producer_failed, computed=computed)
+        self.faults.tick_stored(t)  # (raised above: rolled back)
         for name in out:
             self.faults.part_worked(f"producer {name}")
         if self.faults.pending:
             self._record_gaps()
-        facts = {name: (f.facts() if isinstance(f, FactBatch) else f) for name, f in out.items()}
+        self._publish(t, facts, "publish")
+        self.stats.ticks += 1
+        self.answer_queries()
+        return facts
+
+    def _publish(self, t: int, facts: TickFacts, method: str) -> None:
+        """Every output's ``method`` (those that have it); an output failing does not stop
+        the node."""
         for output in self.outputs:
+            publish = getattr(output, method, None)
+            if publish is None:
+                continue
             name = f"output {type(output).__name__}"
             try:
-                output.publish(t, facts, self.world)
+                publish(t, facts, self.world)
             except Exception as exc:  # an output failing must not stop the node
                 self.faults.part_failed(name, exc, "the others go on")
             else:
                 self.faults.part_worked(name)
-        self.stats.ticks += 1
-        self.answer_queries()
-        return facts
 
     def _producer_failed(self, name: str, exc: Exception) -> None:
         self.faults.part_failed(f"producer {name}", exc)
@@ -458,9 +363,10 @@ class LiveNode:
     ) -> LiveStats:
         """Tick until ``stop`` is set (or ``ticks`` / ``seconds`` ran out).
 
-        Ticks follow the input: a tick starts as soon as a source received a pose, but not
-        sooner than ``FOLLOW_GAP`` of a period after the previous one (``rate_hz`` caps the
-        rate), and without input ``IDLE_WAIT`` periods after it. A tick that takes longer than
+        Ticks follow the input: a tick starts as soon as a source received a pose, within a
+        budget of ticks (:mod:`toaster.node.pacing`: at most 1.25 × ``rate_hz`` a second on
+        average, two in a row at once), and without input ``IDLE_WAIT`` periods after the
+        previous one. A tick that takes longer than
         the period counts as an overrun; the next one may start at once (no burst of catch-up
         ticks). After a tick that failed on a database fault the next attempt waits for the
         backoff (:mod:`toaster.node.faults`), or for ``stop``.
@@ -484,11 +390,15 @@ class LiveNode:
         maintainer = None
         if self.db is not None and maintain_every_s is not None:
             maintainer = Maintainer(self.db, maintain_every_s).start()
+        self._watch = ControlWatch.of(self.db)
         try:
             self._loop(period, stop, ticks, seconds, status_every_s)
         finally:
             if maintainer is not None:
                 maintainer.stop()
+            if self._watch is not None:
+                self._watch.stop()
+                self._watch = None
         return self.stats
 
     def _loop(
@@ -501,6 +411,7 @@ class LiveNode:
     ) -> None:
         begin = last_status = time.monotonic()
         self.stats.started = self.stats.window_start = begin
+        budget = TickBudget(period, begin)
         count = 0
         while not stop.is_set():
             if ticks is not None and count >= ticks:
@@ -508,6 +419,9 @@ class LiveNode:
             if seconds is not None and time.monotonic() - begin >= seconds:
                 break
             start = time.monotonic()
+            budget.take(start)
+            if self.wake.is_set():  # input waited for this tick since it came
+                self.stats.record_wait((start - self._woken_at) * 1e3)
             self.tick()
             count += 1
             now = time.monotonic()
@@ -519,17 +433,22 @@ class LiveNode:
                 continue
             if not self.faults.failing:
                 self._record(time.monotonic() - start, period)
-            self._pace(start, period, stop)
+            self._pace(start, period, stop, budget)
 
     def status(self, *, window: bool = False) -> str:
-        """One line: uptime, ticks, overruns, drops per topic and field, warnings, and the
-        window since the previous windowed line (``window=True`` starts a new one) or the
-        last one taken."""
+        """One line: uptime, ticks, overruns, drops per topic and field, warnings, how long
+        input waited for its tick (p50, p99 of the last 1,000 ticks it woke), and the window
+        since the previous windowed line (``window=True`` starts a new one) or the last one
+        taken."""
         s = self.stats
         line = (
             f"status: up {time.monotonic() - s.started:.0f} s, {s.ticks} ticks, "
             f"{s.overruns} overruns, drops {self.drops.summary()}, {s.warnings} warnings"
         )
+        if s.wait_ms:
+            waits = sorted(s.wait_ms)
+            p50, p99 = (waits[min(len(waits) - 1, int(p * len(waits)))] for p in (0.5, 0.99))
+            line += f", input waits p50 {p50:.1f} ms, p99 {p99:.1f} ms"
         last = s.take_window() if window else s.last_window
         return f"{line}; {last}" if last else line
 
@@ -548,20 +467,24 @@ class LiveNode:
 
     def _woken(self) -> None:
         if not self.wake.is_set():  # cheaper than setting it for every pose of a message
+            self._woken_at = time.monotonic()
             self.wake.set()
 
-    def _pace(self, start: float, period: float, stop: threading.Event) -> None:
-        """Wait for the next tick: input after the gap, else ``IDLE_WAIT`` periods after
-        ``start``."""
-        gap_end, deadline = start + FOLLOW_GAP * period, start + IDLE_WAIT * period
-        now = time.monotonic()
-        if now < gap_end:
-            stop.wait(gap_end - now)
+    def _pace(self, start: float, period: float, stop: threading.Event, budget: TickBudget) -> None:
+        """Wait for the next tick: input, once the budget has a tick for it; else
+        ``IDLE_WAIT`` periods after ``start``."""
+        deadline = start + IDLE_WAIT * period
         while not stop.is_set():
             now = time.monotonic()
-            if self.wake.is_set() or now >= deadline:
+            if now >= deadline:
                 return
-            self.wake.wait(deadline - now)
+            if not self.wake.is_set():
+                self.wake.wait(deadline - now)
+                continue
+            ready = budget.ready_at(now)
+            if ready <= now:
+                return
+            stop.wait(min(ready, deadline) - now)
 
     def _record(self, took: float, period: float) -> None:
         ms = took * 1e3

@@ -19,6 +19,9 @@ class LiveStats:
     warnings: int = 0
     commands: int = 0
     tick_ms: list[float] = field(default_factory=list)  # the last 1,000 tick durations
+    #: the last 1,000 waits of input for its tick: from the first pose that woke the loop to
+    #: the start of the tick that applies it (the gap after the previous tick, or its end)
+    wait_ms: list[float] = field(default_factory=list)
     started: float = field(default_factory=time.monotonic)
     window_ms: list[float] = field(default_factory=list)  # the newest ticks since take_window
     window_ticks: int = 0  # every tick since take_window, and the longest
@@ -40,6 +43,11 @@ class LiveStats:
         if overran:
             self.overruns += 1
             self.window_overruns += 1
+
+    def record_wait(self, ms: float) -> None:
+        """How long the input that woke the loop waited for its tick."""
+        self.wait_ms.append(ms)
+        del self.wait_ms[:-1000]
 
     def take_window(self, now: float | None = None) -> str:
         """``"window N s: K ticks, p50 X ms, p99 Y ms, max Z ms, O overruns"`` since the

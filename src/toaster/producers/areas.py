@@ -115,6 +115,7 @@ class AreaManager:
         self._keys = np.zeros(0, np.int64)
         self._slots: list[_Compiled] = []
         self._static: _StaticAreas | None = None
+        self._runs: list[tuple[int, int, np.ndarray | None]] = []
         # IsFacing debounce per area: (compiled area, world, reported state by row)
         self._facing: dict[str, tuple[_Compiled, weakref.ref[World], Debouncer]] = {}
         for area_id, spec in (areas or {}).items():
@@ -137,6 +138,7 @@ class AreaManager:
         ]
         self._keys = np.sort(np.concatenate(parts)) if parts else np.zeros(0, np.int64)
         self._static = _StaticAreas(self._slots)
+        self._runs = _runs(self._slots)
 
     def set_area(self, area_id: str, spec: Mapping[str, Any]) -> dict[str, Any]:
         """Add or replace an area (membership state starts empty)."""
@@ -212,11 +214,25 @@ class AreaManager:
         bounds = np.searchsorted(keys, np.arange(len(self._slots) + 1, dtype=np.int64) * _K)
         rows_all = keys % _K
         kind_count = None
-        for slot, area in enumerate(self._slots):
-            owner = owner_rows.get(slot, -1)
+        obs = self.config["observability_area"]
+        for start, end, labels in self._runs:
+            if labels is not None:  # areas with memberships only: one group for the run
+                counts = bounds[start + 1 : end + 1] - bounds[start:end]
+                area = self._slots[start]
+                out.add(
+                    area.prop,
+                    rows_all[bounds[start] : bounds[end]],
+                    (np.repeat(np.arange(end - start), counts), labels),
+                    obs=obs,
+                    property_type="position",
+                    sub_property=area.sub,
+                )
+                continue
+            area = self._slots[start]
+            owner = owner_rows.get(start, -1)
             if area.spec["owner"] and owner < 0:
                 continue
-            rows = rows_all[bounds[slot] : bounds[slot + 1]]
+            rows = rows_all[bounds[start] : bounds[start + 1]]
             if "density" in area.spec["facts"] and owner < 0 and kind_count is None:
                 kind_count = np.bincount(kind[live], minlength=4)
             self._facts(world, area, owner, rows, live, kind_count, out)
@@ -291,6 +307,33 @@ class AreaManager:
                 sub_property="ratio",
                 subj_owner=owner_id,
             )
+
+
+def _runs(slots: list[_Compiled]) -> list[tuple[int, int, np.ndarray | None]]:
+    """The slots as runs (start, end, labels): consecutive areas without owner that give
+    their memberships only (no density), of one property and sub-property, are one run whose
+    facts are one group (their ids as target labels, in slot order: the facts and their
+    order of one group per area); any other area is a run of its own (labels None)."""
+    runs: list[tuple[int, int, np.ndarray | None]] = []
+    start = 0
+    while start < len(slots):
+        area = slots[start]
+        if area.spec["owner"] or "density" in area.spec["facts"]:
+            runs.append((start, start + 1, None))
+            start += 1
+            continue
+        end = start + 1
+        while end < len(slots):
+            other = slots[end]
+            if other.spec["owner"] or "density" in other.spec["facts"]:
+                break
+            if (other.prop, other.sub) != (area.prop, area.sub):
+                break
+            end += 1
+        labels = np.array([a.area_id for a in slots[start:end]], dtype=object)
+        runs.append((start, end, labels))
+        start = end
+    return runs
 
 
 def _in_sorted(values: np.ndarray, sorted_keys: np.ndarray) -> np.ndarray:

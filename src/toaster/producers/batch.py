@@ -2,9 +2,10 @@
 
 A :class:`FactBatch` is a list of groups. A group shares its property, sub-property, property
 type and observability; subjects and targets are either one text constant or an array of world
-rows; value_text, value_num and confidence are a constant or an array. Subject owners are always
-derived from the subject rows (the owner's id, or "" for a row without owner) or given with a
-constant subject; target owners are a constant or an array of rows (-1 = "").
+rows (targets also text labels: codes into an array of texts, as many areas' memberships in
+one group); value_text, value_num and confidence are a constant or an array. Subject owners
+are always derived from the subject rows (the owner's id, or "" for a row without owner) or
+given with a constant subject; target owners are a constant or an array of rows (-1 = "").
 
 Diffing works on integer keys (group signature × subject row × target row) and interned
 value_text codes, so a tick where nothing changed creates no Python object per fact; only
@@ -16,6 +17,7 @@ of the subject and target rows, and a fact key is never produced both by a const
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from functools import partial
 from itertools import repeat
 from typing import Any, NamedTuple
@@ -52,7 +54,7 @@ class Group(NamedTuple):
 
     prop: str
     subj: np.ndarray | str
-    tgt: np.ndarray | str
+    tgt: np.ndarray | str | tuple[np.ndarray, np.ndarray]  # rows, a constant, (codes, labels)
     value_text: str | tuple[np.ndarray, np.ndarray]  # constant or (codes, labels)
     value_num: np.ndarray | float | None
     conf: np.ndarray | float
@@ -82,7 +84,7 @@ class FactBatch:
         self,
         prop: str,
         subj: np.ndarray | str,
-        tgt: np.ndarray | str = "",
+        tgt: np.ndarray | str | tuple[np.ndarray, np.ndarray] = "",
         *,
         value_text: str | tuple[np.ndarray, np.ndarray] = "true",
         value_num: np.ndarray | float | None = None,
@@ -101,6 +103,8 @@ class FactBatch:
             size = len(subj)
         elif isinstance(tgt, np.ndarray):
             size = len(tgt)
+        elif isinstance(tgt, tuple):
+            size = len(tgt[0])
         else:
             size = 1
         if size == 0:
@@ -188,7 +192,12 @@ class FactBatch:
             subj_owner: Any = world.owner_id_array()[rows].tolist()
         else:
             subj, subj_owner = repeat(g.subj, m), repeat(g.subj_owner, m)
-        tgt = ids[pick(g.tgt)].tolist() if isinstance(g.tgt, np.ndarray) else repeat(g.tgt, m)
+        if isinstance(g.tgt, np.ndarray):
+            tgt: Any = ids[pick(g.tgt)].tolist()
+        elif isinstance(g.tgt, tuple):
+            tgt = g.tgt[1][pick(g.tgt[0])].tolist()
+        else:
+            tgt = repeat(g.tgt, m)
         if isinstance(g.value_text, tuple):
             codes, labels = g.value_text
             vt: Any = labels[pick(codes)].tolist()
@@ -236,19 +245,30 @@ class FactBatch:
         subj_parts: list[np.ndarray] = []
         tgt_parts: list[np.ndarray] = []
         labelled: list[tuple[int, tuple[np.ndarray, np.ndarray]]] = []
+        named: list[tuple[int, np.ndarray]] = []  # groups of labelled targets: base per fact
         neg = _neg1(int(sizes.max()))
         for i, g in enumerate(groups):
             subj_row = isinstance(g.subj, np.ndarray)
-            tgt_row = isinstance(g.tgt, np.ndarray)
-            base[i] = _sig_id(
-                (
-                    g.prop,
-                    g.sub_property,
-                    None if subj_row else (g.subj, g.subj_owner),
-                    None if tgt_row else g.tgt,
-                    None if isinstance(g.tgt_owner, np.ndarray) else g.tgt_owner,
+
+            def sig(target: str | None, g: Group = g, subj_row: bool = subj_row) -> int:
+                return _sig_id(
+                    (
+                        g.prop,
+                        g.sub_property,
+                        None if subj_row else (g.subj, g.subj_owner),
+                        target,
+                        None if isinstance(g.tgt_owner, np.ndarray) else g.tgt_owner,
+                    )
                 )
-            )
+
+            tgt = g.tgt
+            if isinstance(tgt, tuple):  # the keys of one constant-target group per label
+                codes, labels = tgt
+                table = np.array([sig(x) for x in labels.tolist()], np.int64)
+                named.append((i, table[codes]))
+                base[i] = 0
+            else:
+                base[i] = sig(None if isinstance(tgt, np.ndarray) else tgt)
             subj_parts.append(g.subj if isinstance(g.subj, np.ndarray) else neg[: g.size])
             tgt_parts.append(g.tgt if isinstance(g.tgt, np.ndarray) else neg[: g.size])
             if isinstance(g.value_text, tuple):
@@ -259,6 +279,10 @@ class FactBatch:
         keys = np.repeat(base * (_B * _B), sizes)
         keys += (np.concatenate(subj_parts) + 1) * _B
         keys += np.concatenate(tgt_parts) + 1
+        if named:
+            ends = np.cumsum(sizes)
+            for i, bases in named:
+                keys[ends[i] - sizes[i] : ends[i]] += bases * (_B * _B)
         codes = np.repeat(code, sizes)
         if labelled:
             ends = np.cumsum(sizes)
@@ -273,6 +297,33 @@ def _neg1(m: int) -> np.ndarray:
     if len(_NEG) < m:
         _NEG = np.full(max(m, 2 * len(_NEG)), -1, np.int64)
     return _NEG
+
+
+class TickFacts(Mapping[str, list[Fact]]):
+    """A tick's facts per producer, as Fact tuples built on first access: the outputs of a
+    tick read few of them (a crowd's agent_monitor holds thousands), and those that can use
+    the arrays take them (:meth:`raw`)."""
+
+    __slots__ = ("_out",)
+
+    def __init__(self, out: Mapping[str, list[Fact] | FactBatch]) -> None:
+        self._out = dict(out)
+
+    def __getitem__(self, name: str) -> list[Fact]:
+        return as_facts(self._out[name])
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._out)
+
+    def __len__(self) -> int:
+        return len(self._out)
+
+    def raw(self, name: str) -> list[Fact] | FactBatch | None:
+        """A producer's snapshot as it came (a batch or a list), or None."""
+        return self._out.get(name)
+
+    def __repr__(self) -> str:
+        return f"TickFacts({ {name: len(f) for name, f in self._out.items()} })"
 
 
 def as_facts(facts: Any) -> list[Fact]:

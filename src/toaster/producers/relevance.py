@@ -12,6 +12,8 @@ inside the range are exactly those of the dense computation. Small sets (fewer t
 
 from __future__ import annotations
 
+from itertools import chain
+
 import numpy as np
 from scipy.spatial import cKDTree  # type: ignore[import-untyped]
 
@@ -60,7 +62,7 @@ class PlanarIndex:
         total = int(counts.sum())
         if total == 0:
             return _EMPTY, _EMPTY
-        bi = np.fromiter((j for row in hits for j in row), np.int64, total)
+        bi = np.fromiter(chain.from_iterable(hits), np.int64, total)
         return np.repeat(np.arange(m, dtype=np.int64), counts), bi
 
 

@@ -77,7 +77,11 @@ class Runner:
             source.setup(world)
 
     def tick(
-        self, t_ns: int, *, on_error: Callable[[str, Exception], None] | None = None
+        self,
+        t_ns: int,
+        *,
+        on_error: Callable[[str, Exception], None] | None = None,
+        computed: Callable[[dict[str, list[Fact] | FactBatch]], None] | None = None,
     ) -> dict[str, list[Fact] | FactBatch]:
         """Advance every source to ``t_ns``, compute every producer, write the snapshots.
 
@@ -86,6 +90,8 @@ class Runner:
         a held object is are written as made by the agent holding it (:class:`HandActors`).
         With ``on_error``, a producer that raises is left out of the tick (its stored facts
         stay as they were) and ``on_error(name, exc)`` is told; without, the error propagates.
+        ``computed(out)`` is called once every producer is computed, before the write (a live
+        node publishes the fact lists then).
         """
         clock = time.perf_counter
         start = clock()
@@ -114,6 +120,8 @@ class Runner:
             self.stats.appeared += changes.appeared
             self.stats.changed += changes.changed
             self.stats.ended += changes.ended
+        if computed is not None:
+            computed(out)
         if self.store is not None:
             start = clock()
             self._write(t_ns, out)

@@ -19,15 +19,15 @@ from typing import Any
 
 from toaster.db import catalog
 from toaster.errors import InvalidInputError, one_line
-from toaster.model import Fact
 from toaster.outputs import markers
 from toaster.producers.registry import NAMES as PRODUCERS
 from toaster.producers.seen import SeenFacts
-from toaster.ros1 import messages
+from toaster.ros1 import messages, wire
 from toaster.ros1.available import import_rospy
 from toaster.ros1.dbcalls import AREA_KEY, AREA_SCOPE
 from toaster.ros1.published import TABLES_TOPIC, AreaOut, TablesOut
 from toaster.ros1.services import DbPool, Handlers
+from toaster.ros1.tickout import PDG_LISTS, TickOutput
 from toaster.ros1.watchers import Watchers
 from toaster.world.drops import Drops
 from toaster.world.live import LiveSource
@@ -36,31 +36,21 @@ from toaster.world.rosmsg import (
     FrameTarget,
     PoseUpdate,
     TfTree,
-    fact_fields,
     frame_target,
     hri_target,
     list_updates,
     pose_stamped_update,
     read_frame_map,
-    tf_updates,
     tracked_ids,
 )
 from toaster.world.state import World
 
-#: /tf, markers, area and entity lists go out every VIEW_EVERY ticks (10 Hz at 30 Hz): they
-#: are for eyes and RViz, and at 30 Hz they doubled a tick and the node read its own /tf back
-VIEW_EVERY = 3
 #: the node's status line (std_msgs/String, latched) and the service that answers it now
 STATUS_TOPIC, STATUS_SERVICE = "/toaster/status", "/toaster/get_status"
 SIMU_LISTS = {
     "toaster_simu_human": ("/toaster_simu/humanList", "HumanListStamped"),
     "toaster_simu_robot": ("/toaster_simu/robotList", "RobotListStamped"),
     "toaster_simu_object": ("/toaster_simu/objectList", "ObjectListStamped"),
-}
-PDG_LISTS = {
-    "human": ("/pdg/humanList", "HumanListStamped", "humanList"),
-    "robot": ("/pdg/robotList", "RobotListStamped", "robotList"),
-    "object": ("/pdg/objectList", "ObjectListStamped", "objectList"),
 }
 
 
@@ -153,12 +143,16 @@ class Bridge:
         self._area_numbers: tuple[frozenset[str], dict[str, int]] = (frozenset(), {})
         self._tf_lock = threading.Lock()
         self._tf_changed: set[str] = set()
+        self._tf_readers: dict[tuple[str, str], wire.TfReader] = {}
         self._flush = _TfFlush(self)
+        self._hri_key: tuple[int, int] = (-1, 0)
+        self._tracked_version = 0  # moves with every tracked list received
+        self._hri_cache: dict[str, FrameTarget] = {}
         self._subscribe(toaster_simu, pdg_lists)
         self._advertise()
         if services:
             self._serve()
-        self.output = _Output(self)
+        self.output = TickOutput(self)
         node.outputs.append(self.output)
 
     # -- inputs --------------------------------------------------------------------------------
@@ -198,14 +192,14 @@ class Bridge:
 
     def _subscribe(self, toaster_simu: bool, pdg_lists: bool) -> None:
         from geometry_msgs.msg import PoseStamped  # type: ignore[import-not-found]
-        from tf2_msgs.msg import TFMessage  # type: ignore[import-not-found]
 
         reg = self.registry
         self.node.sources.append(self._flush)  # before the tf and ros4hri sources it feeds
         for name in ("tf", "pose_topics", "ros4hri"):
             self.source(name)
-        self._sub("/tf", TFMessage, self._on_tf)
-        self._sub("/tf_static", TFMessage, self._on_tf)
+        # /tf as bytes: our own /tf is dropped unread, the others read as arrays (wire.py)
+        self._sub("/tf", self.rospy.AnyMsg, self._on_tf, "/tf")
+        self._sub("/tf_static", self.rospy.AnyMsg, self._on_tf, "/tf_static")
         for topic, target in self.topics.items():
             self._sub(topic, PoseStamped, self._on_pose, topic, target)
         if toaster_simu:
@@ -223,13 +217,22 @@ class Bridge:
         header = getattr(msg, "_connection_header", None) or {}
         return header.get("callerid") == self._caller
 
-    def _on_tf(self, msg: Any) -> None:
+    def _on_tf(self, msg: Any, topic: str) -> None:
         """Only store the transforms here (rospy's receive thread): the poses of the frames
         they moved are computed once per tick on the tick's thread (:class:`_TfFlush`), so the
-        two threads do not fight over the interpreter for every message."""
+        two threads do not fight over the interpreter for every message. The message comes as
+        bytes (``rospy.AnyMsg``), read as arrays by a reader per publisher (each keeps its
+        layout); the node's own /tf is dropped before it is read."""
         if self._own(msg):
             return
-        changed, bad = self.tree.update(msg)
+        header = getattr(msg, "_connection_header", None) or {}
+        key = (topic, str(header.get("callerid", "")))
+        reader = self._tf_readers.get(key)
+        if reader is None:
+            if len(self._tf_readers) >= 64:  # publishers come and go: forget the layouts
+                self._tf_readers.clear()
+            reader = self._tf_readers[key] = wire.TfReader()
+        changed, bad = self.tree.update_edges(reader.read(msg._buff))
         for line in bad:
             self.drops.drop("/tf", "transform", line)
         with self._tf_lock:
@@ -239,19 +242,21 @@ class Bridge:
             wake()
 
     def flush_tf(self) -> None:
-        """Push the poses of the mapped (and ROS4HRI) frames moved since the last tick."""
+        """Push the poses of the mapped (and ROS4HRI) frames moved since the last tick, as
+        arrays (:meth:`TfTree.poses`, :meth:`LiveSource.push_many`)."""
         with self._tf_lock:
             changed, self._tf_changed = self._tf_changed, set()
         if not changed:
             return
-        updates, lost = tf_updates(self.tree, self.frames, changed)
-        for update in updates:
-            self.push("tf", update, "/tf")
+        poses, lost = self.tree.poses(self.frames, changed)
+        self.source("tf").push_many(poses.targets, poses.pos, poses.quat, poses.stamps, topic="/tf")
         if self.ros4hri:
-            hri = {f: t for f in self.tree.frames() if (t := self._hri(f)) is not None}
-            found, _ = tf_updates(self.tree, hri, changed)
-            for update in found:
-                self.push("ros4hri", update, "/tf")
+            hri = self._hri_frames()
+            if hri:
+                found, _ = self.tree.poses(hri, changed)
+                self.source("ros4hri").push_many(
+                    found.targets, found.pos, found.quat, found.stamps, topic="/tf"
+                )
         for frame in lost:
             self.warnings.add(
                 f"lost:{frame}",
@@ -259,6 +264,16 @@ class Bridge:
                 f"({self.frames[frame].entity_id}) does not reach "
                 f"{self.tree.fixed!r}: its pose is not known",
             )
+
+    def _hri_frames(self) -> dict[str, FrameTarget]:
+        """The ROS4HRI frames of the tree (worked out again when frames or tracked lists
+        change, not every tick)."""
+        key = (self.tree.generation, self._tracked_version)
+        if key != self._hri_key:
+            frames = self.tree.frames()
+            self._hri_cache = {f: t for f in frames if (t := self._hri(f)) is not None}
+            self._hri_key = key
+        return self._hri_cache
 
     def _hri(self, frame: str) -> FrameTarget | None:
         target = hri_target(frame)
@@ -271,6 +286,7 @@ class Bridge:
 
     def _on_tracked(self, msg: Any, which: str) -> None:
         self.tracked[which] = ids = tracked_ids(msg)
+        self._tracked_version += 1
         if self.seen is not None:
             self.seen.report(f"ros4hri_{which}", ids, self.node.self_id)
 
@@ -442,95 +458,6 @@ class _TfFlush:
 
     def advance(self, world: World, t_ns: int) -> None:
         self.bridge.flush_tf()
-
-
-class _Output:
-    """Publishes one tick: fact lists, TF, markers, areas and entity lists; and the node's
-    status lines."""
-
-    def __init__(self, bridge: Bridge) -> None:
-        self.bridge = bridge
-        self.ticks = 0
-
-    def status(self, line: str) -> None:
-        from std_msgs.msg import String  # type: ignore[import-not-found]
-
-        self.bridge.status_pub.publish(String(data=line))
-
-    def publish(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None:
-        b = self.bridge
-        for line in b.warnings.drain():
-            b.node.warn(line)
-        reg = b.registry
-        fact_cls, fact_list = reg.msg("Fact"), reg.msg("FactList")
-        for producer, pub in b.fact_pubs.items():
-            if pub.get_num_connections():
-                pub.publish(
-                    fact_list(
-                        factList=[fact_cls(**fact_fields(f, t_ns)) for f in facts.get(producer, [])]
-                    )
-                )
-        b.areas_out.answer(t_ns, world)  # print_area's lists, asked from service threads
-        self.ticks += 1
-        if (self.ticks - 1) % VIEW_EVERY:  # fact lists every tick; views at 1/VIEW_EVERY
-            return
-        b.tables_out.publish()
-        if b.tf_pub is not None:
-            b.tf_pub.publish(self._tf(t_ns, world))
-        inside: dict[str, list[str]] = {}
-        for fact in facts.get("area_manager", []):
-            if fact.property in ("IsInArea", "IsInRoom", "IsAt"):
-                inside.setdefault(fact.target_id, []).append(fact.subject_id)
-        areas = b.node.areas.areas
-        b.areas_out.publish(t_ns, world)
-        self._markers(t_ns, facts, world, areas, set(inside))
-        if any(p.get_num_connections() for p in b.list_pubs.values()):
-            lists = markers.entity_list_fields(world, t_ns)
-            header = {"frame_id": "/map", "stamp": t_ns}
-            for kind, (_, type_name, field) in PDG_LISTS.items():
-                b.list_pubs[kind].publish(
-                    messages.to_msg(reg.msg(type_name), {"header": header, field: lists[kind]}, reg)
-                )
-
-    def _tf(self, t_ns: int, world: World) -> Any:
-        from geometry_msgs.msg import TransformStamped  # type: ignore[import-not-found]
-        from tf2_msgs.msg import TFMessage  # type: ignore[import-not-found]
-
-        stamp = self.bridge.rospy.Time(t_ns // 1_000_000_000, t_ns % 1_000_000_000)
-        out = []
-        for child, (x, y, z), (qx, qy, qz, qw), _ in markers.transforms(world):
-            tr = TransformStamped()
-            tr.header.frame_id, tr.header.stamp, tr.child_frame_id = "map", stamp, child
-            t, r = tr.transform.translation, tr.transform.rotation
-            t.x, t.y, t.z, r.x, r.y, r.z, r.w = x, y, z, qx, qy, qz, qw
-            out.append(tr)
-        return TFMessage(transforms=out)
-
-    def _markers(
-        self,
-        t_ns: int,
-        facts: Mapping[str, list[Fact]],
-        world: World,
-        areas: Mapping[str, Any],
-        occupied: set[str],
-    ) -> None:
-        from visualization_msgs.msg import MarkerArray  # type: ignore[import-not-found]
-
-        pubs = self.bridge.marker_pubs
-        wanted = {t for t, p in pubs.items() if p.get_num_connections()}
-        if not wanted:
-            return
-        arrays: dict[str, list[dict[str, Any]]] = {}
-        if wanted & set(markers.TOPICS.values()):
-            arrays |= markers.entity_markers(world, t_ns)
-        if markers.AREAS_TOPIC in wanted:
-            arrays[markers.AREAS_TOPIC] = markers.area_markers(world, areas, occupied, t_ns)
-        if markers.MOTION_TOPIC in wanted:
-            arrays[markers.MOTION_TOPIC] = markers.motion_markers(
-                world, facts.get("agent_monitor", []), t_ns
-            )
-        for topic in wanted:
-            pubs[topic].publish(messages.to_msg(MarkerArray, {"markers": arrays[topic]}))
 
 
 def start_bridge(

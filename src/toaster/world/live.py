@@ -10,13 +10,16 @@ entity by more than ``rewind_ns`` (a restarted sensor) forgets that entity's his
 its new poses are taken instead of being ignored as older. Stamps more than ``max_skew_ns`` away
 from the tick's clock (simulated time, a looping bag, an unsynchronised machine) are shifted by
 one offset per source so that the newest lands on the tick: relative times, hence speeds, stay
-exact; each new offset is one warning line.
+exact; each new offset is one warning line. The poses wait as columns
+(:mod:`toaster.world.pending`), and :meth:`LiveSource.push_many` buffers a batch (a crowd's /tf
+message) checked as arrays, so neither buffering nor a tick loops over entities.
 """
 
 from __future__ import annotations
 
 import math
 import threading
+import weakref
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -30,20 +33,19 @@ from toaster.model import (
     check_unit_interval,
     shown,
 )
-from toaster.timeutil import NS_PER_S, check_ns, now_ns
+from toaster.timeutil import MAX_NS, NS_PER_S, check_ns, now_ns
 from toaster.world.drops import Drops, Refused, refuse_if
 from toaster.world.geometry import check_quat, quats_to_rpy
 from toaster.world.geometry import quaternion_to_rpy as quaternion_to_rpy  # its old home
 from toaster.world.history import NO_TIME
+from toaster.world.pending import Pending, Sig
 from toaster.world.state import KIND_CODES, World
 
 #: Entities a live world holds at most: a publisher inventing new ids cannot make the world
 #: (and the database's entities) grow without end; poses of further new ids are refused.
 MAX_LIVE_ENTITIES = 100_000
-#: (entity id, kind, owner id, joint name, t_ns, position, orientation, confidence); the
-#: orientation is roll, pitch, yaw, or a unit quaternion (x, y, z, w) turned into angles for
-#: all poses of a tick at once (:meth:`LiveSource.advance`)
-_Pose = tuple[str, str, str, str, int, tuple[float, float, float], tuple[float, ...], float]
+#: a quaternion's components are refused beyond this (as :func:`_numbers` checks them)
+MAX_QUAT = 1e150
 
 
 def _numbers(values: object, field: str, what: str, bound: float, most: int = 4) -> list[float]:
@@ -101,7 +103,7 @@ def _checked(
         raise Refused(msg, "position")
     x, y, z = [*xyz, 0.0][:3]
     if quat is not None:
-        q = _numbers(quat, "orientation", "quaternion", 1e150)
+        q = _numbers(quat, "orientation", "quaternion", MAX_QUAT)
         try:
             angles = list(check_quat(q))
         except (TypeError, ValueError) as exc:
@@ -148,7 +150,10 @@ class LiveSource:
         self.drops = drops if drops is not None else Drops()
         self.warnings: list[str] = []  # one line per problem met while applying (drained)
         self._lock = threading.Lock()
-        self._pending: dict[str, list[_Pose]] = {}
+        self._pending = Pending(self.max_pending)
+        # the world row of each interned entity (-1: not looked up yet), for one world
+        self._rows = np.zeros(0, np.int64)
+        self._world: weakref.ref[World] | None = None
         #: called after each accepted pose (a live node sets it to wake its loop)
         self.on_push: Callable[[], None] | None = None
 
@@ -187,25 +192,86 @@ class LiveSource:
         except Refused as exc:
             return self._refuse(exc.field, f"pose of {shown(entity_id)} refused: {exc}", topic)
         entity_id, x, y, z, angles, stamp, conf = pose
-        item: _Pose = (
-            entity_id,
-            kind,
-            owner_id,
-            joint,
-            stamp,
-            (x, y, z),
-            tuple(angles),
-            conf,
-        )
+        sig = _sig(entity_id, kind, owner_id, joint)
         with self._lock:
-            queue = self._pending.setdefault(entity_id, [])
-            queue.append(item)
-            if len(queue) > self.max_pending:
-                queue.sort(key=lambda p: p[4])
-                del queue[: len(queue) - self.max_pending]
+            self._pending.add_one(sig, stamp, (x, y, z), tuple(angles), quat is not None, conf)
         if self.on_push is not None:
             self.on_push()
         return True
+
+    def push_many(
+        self,
+        targets: Sequence[Sig],
+        positions: np.ndarray,
+        quats: np.ndarray,
+        stamps: Sequence[int | None],
+        *,
+        topic: str | None = None,
+    ) -> int:
+        """Buffer many poses at once, as :meth:`push` would one by one, in order: ``targets``
+        (entity id, kind, owner id, joint name) per pose, world positions (n, 3), quaternions
+        (n, 4) (x, y, z, w), integer stamps (None: now), confidence 1. Checked as arrays (a
+        signature once); a pose refused goes through :meth:`push` for its reason and count.
+        Returns how many were buffered."""
+        n = len(targets)
+        pos = np.asarray(positions, dtype=float).reshape(n, 3)
+        q = np.asarray(quats, dtype=float).reshape(n, 4)
+        ok = (np.abs(pos) <= MAX_COORD).all(axis=1) & (np.abs(q) <= MAX_QUAT).all(axis=1)
+        x, y, z, w = q.T
+        norm = np.sqrt(x * x + y * y + z * z + w * w)  # check_quat's sum, in its order
+        ok &= norm != 0.0
+        now = now_ns()
+        plain = all(type(s) is int or s is None for s in stamps)
+        t = np.fromiter(
+            ((now if s is None else s if 0 <= s <= MAX_NS else -1) for s in stamps)
+            if plain
+            else (),
+            np.int64,
+            n if plain else 0,
+        )
+        if plain:
+            ok &= t >= 0
+        else:
+            ok[:] = False
+        codes = np.full(n, -1, np.int64)
+        with self._lock:
+            known = self._pending.sig_code
+            for i, target in enumerate(targets):
+                code = known.get(target)
+                if code is None and ok[i]:
+                    try:
+                        check_entity(*target)
+                    except Refused:
+                        ok[i] = False
+                        continue
+                    code = self._pending.code(_sig(*target))
+                if code is not None:
+                    codes[i] = code
+            good = np.flatnonzero(ok)
+            if good.size:
+                self._pending.add_many(codes[good], t[good], pos[good], q[good] / norm[good, None])
+        for i in np.flatnonzero(~ok).tolist():  # each refused for its reason
+            entity_id, kind, owner_id, joint = targets[i]
+            self.push(
+                entity_id,
+                positions[i],
+                quat=quats[i],
+                t_ns=stamps[i],
+                kind=kind,
+                owner_id=owner_id,
+                joint=joint,
+                topic=topic,
+            )
+        if good.size and self.on_push is not None:
+            self.on_push()
+        return int(good.size)
+
+    def pending(self) -> int:
+        """How many poses are buffered, not yet applied (at most ``max_pending`` an
+        entity)."""
+        with self._lock:
+            self._pending.compact()
+            return self._pending.count
 
     def setup(self, world: World) -> None:
         """Nothing to register up front; entities are added when first pushed."""
@@ -215,60 +281,39 @@ class LiveSource:
         stamps far from it are shifted (a live node's perception time, docs/time.md)."""
         with self._lock:
             self._align(wall_ns)
-            off = self.offset_ns
-            due = (p[4] + off for q in self._pending.values() for p in q if p[4] + off <= wall_ns)
-            return max(due, default=None)
+            newest = self._pending.newest(wall_ns - self.offset_ns)
+            return None if newest is None else newest + self.offset_ns
 
     def advance(self, world: World, t_ns: int) -> None:
         """Apply, per entity, the newest buffered pose stamped at or before ``t_ns``."""
         with self._lock:
+            pending = self._pending
+            if not pending.count:
+                return
+            if pending.forget_unused(world.n) or self._world is None or self._world() is not world:
+                self._rows = np.zeros(0, np.int64)
+                self._world = weakref.ref(world)
             self._align(t_ns)
-            ready: list[_Pose] = []
-            for eid in list(self._pending):
-                queue = self._pending[eid]
-                due = [p for p in queue if p[4] + self.offset_ns <= t_ns]
-                if not due:
-                    continue
-                ready.append(max(due, key=lambda p: p[4]))
-                later = [p for p in queue if p[4] + self.offset_ns > t_ns]
-                if later:
-                    self._pending[eid] = later
-                else:
-                    del self._pending[eid]
-        if not ready:
+            ready = pending.take_due(t_ns - self.offset_ns)
+            if not len(ready.sig):
+                return
+            # agents before their joints; a joint whose agent is unknown waits for it
+            first = np.argsort(pending.sig_joint(ready.sig), kind="stable")
+            ready = ready.take(first)
+            sigs = [pending.sigs[c] for c in ready.sig.tolist()]
+            rows = self._world_rows(world, ready.eid)
+            eids = ready.eid
+        new = np.flatnonzero(rows < 0)
+        for i in new.tolist():
+            rows[i] = self._add(world, sigs[i])
+        if new.size:
+            found = rows[new] >= 0
+            self._rows[eids[new[found]]] = rows[new[found]]
+        applied = np.flatnonzero(rows >= 0)
+        if not applied.size:
             return
-        # agents before their joints; a joint whose agent is unknown waits for it
-        ready.sort(key=lambda p: p[1] == "joint")
-        applied: list[_Pose] = []
-        for pose in ready:
-            eid, kind, owner, joint = pose[:4]
-            if eid not in world.index:
-                if len(world.ids) >= self.max_entities:
-                    self._refuse(
-                        "id",
-                        f"pose of {shown(eid)} refused: the world holds "
-                        f"{self.max_entities} entities already, removed ones "
-                        "included (MAX_LIVE_ENTITIES)",
-                        None,
-                    )
-                    continue
-                if kind == "joint" and owner not in world.index:
-                    self.warnings.append(
-                        f"joint {eid!r} ignored: its agent {owner!r} is not known yet"
-                    )
-                    continue
-                try:
-                    world.add_entity(
-                        eid, kind, owner_id=owner if kind == "joint" else "", name=joint or eid
-                    )
-                except ToasterError as exc:
-                    self.warnings.append(f"pose of {eid!r} ignored: {exc}")
-                    continue
-            applied.append(pose)
-        if not applied:
-            return
-        rows = world.rows_of([p[0] for p in applied])
-        stamps = np.array([p[4] for p in applied], np.int64) + self.offset_ns
+        ready, rows = ready.take(applied), rows[applied]
+        stamps = ready.stamp + self.offset_ns
         known = world.t_ns[rows]
         rewound = (known != NO_TIME) & (known > stamps + self.rewind_ns)
         if rewound.any():
@@ -279,24 +324,49 @@ class LiveSource:
                 )
             world.history.clear_rows(back)
             world.t_ns[back] = NO_TIME
-        rpy = np.zeros((len(applied), 3))
-        turned = [i for i, p in enumerate(applied) if len(p[6]) == 4]
-        rpy[turned] = quats_to_rpy([applied[i][6] for i in turned])
-        angles = [i for i, p in enumerate(applied) if len(p[6]) == 3]
-        if angles:
-            rpy[angles] = [applied[i][6] for i in angles]
-        world.observe(
-            self.name,
-            rows,
-            stamps,
-            np.array([p[5] for p in applied]),
-            rpy,
-            np.array([p[7] for p in applied]),
-        )
+        rpy = ready.orient[:, :3].copy()
+        if ready.quat.any():
+            rpy[ready.quat] = quats_to_rpy(ready.orient[ready.quat])
+        world.observe(self.name, rows, stamps, ready.pos, rpy, ready.conf)
+
+    def _world_rows(self, world: World, eids: np.ndarray) -> np.ndarray:
+        """The world rows of entity codes, -1 for those not looked up yet (lock held)."""
+        known = len(self._pending.eids)
+        if len(self._rows) < known:
+            grow = max(known, 2 * len(self._rows), 16) - len(self._rows)
+            self._rows = np.concatenate([self._rows, np.full(grow, -1, np.int64)])
+        return self._rows[eids].copy()
+
+    def _add(self, world: World, sig: Sig) -> int:
+        """The row of an entity the cache does not know: the world's, or a new one; -1 (with
+        the reason) when it cannot be added now."""
+        eid, kind, owner, joint = sig
+        row = world.index.get(eid)
+        if row is not None:
+            return row
+        if len(world.ids) >= self.max_entities:
+            self._refuse(
+                "id",
+                f"pose of {shown(eid)} refused: the world holds "
+                f"{self.max_entities} entities already, removed ones "
+                "included (MAX_LIVE_ENTITIES)",
+                None,
+            )
+            return -1
+        if kind == "joint" and owner not in world.index:
+            self.warnings.append(f"joint {eid!r} ignored: its agent {owner!r} is not known yet")
+            return -1
+        try:
+            return world.add_entity(
+                eid, kind, owner_id=owner if kind == "joint" else "", name=joint or eid
+            )
+        except ToasterError as exc:
+            self.warnings.append(f"pose of {eid!r} ignored: {exc}")
+            return -1
 
     def _align(self, t_ns: int) -> None:
         """Shift stamps far from the tick's clock (lock held)."""
-        newest = max((p[4] for queue in self._pending.values() for p in queue), default=None)
+        newest = self._pending.newest()
         if newest is None or abs(newest + self.offset_ns - t_ns) <= self.max_skew_ns:
             return
         self.offset_ns = t_ns - newest
@@ -314,3 +384,10 @@ class LiveSource:
         with self._lock:
             out, self.warnings = self.warnings, []
         return out
+
+
+def _sig(entity_id: str, kind: str, owner_id: object, joint: object) -> Sig:
+    """A pose's (entity id, kind, owner id, joint name) as applied: the owner counts for
+    joints only; the joint name is also a new entity's name."""
+    owner = str(owner_id) if kind == "joint" else ""
+    return (entity_id, kind, owner, joint if isinstance(joint, str) else str(joint or ""))

@@ -13,29 +13,21 @@ from __future__ import annotations
 import json
 import math
 import re
-import threading
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any, NamedTuple
-
-import numpy as np
 
 from toaster.errors import InvalidInputError
 from toaster.model import check_agent_id, check_id, shown
 from toaster.world.factmsg import fact_fields as fact_fields  # the bridge's, recordings'
 from toaster.world.factmsg import fact_from_msg as fact_from_msg
-from toaster.world.geometry import (
-    IDENTITY,
-    Quat,
-    Vec,
-    check_quat,
-    compose_poses,
-    quat_mul,
-    rotate,
-)
+from toaster.world.geometry import IDENTITY, Quat, Vec, check_quat, quat_mul, rotate
 from toaster.world.geometry import rpy_to_quat as rpy_to_quat  # its old home
+from toaster.world.tftree import FIXED_FRAME as FIXED_FRAME
+from toaster.world.tftree import TfTree as TfTree
+from toaster.world.tftree import stamp_ns as stamp_ns
+from toaster.world.tftree import strip_frame as strip_frame
 
-FIXED_FRAME = "map"
 ENTITY_KINDS = ("human", "robot", "object", "joint")
 
 
@@ -71,17 +63,6 @@ def field(msg: Any, name: str, default: Any = None) -> Any:
     return getattr(msg, snake, default)
 
 
-def stamp_ns(stamp: Any) -> int:
-    """ns since the epoch of a ROS 1 (secs/nsecs) or ROS 2 (sec/nanosec) stamp, or an int."""
-    if stamp is None:
-        return 0
-    if isinstance(stamp, int):
-        return stamp
-    if hasattr(stamp, "secs"):
-        return int(stamp.secs) * 1_000_000_000 + int(stamp.nsecs)
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
-
-
 def vec(p: Any) -> Vec:
     """(x, y, z) of a Point / Vector3; ValueError when not finite."""
     out = (float(p.x), float(p.y), float(p.z))
@@ -97,11 +78,6 @@ def quat(q: Any) -> Quat:
     if out == (0.0, 0.0, 0.0, 0.0):
         return IDENTITY
     return check_quat(out)
-
-
-def strip_frame(frame: str) -> str:
-    """A frame id without its leading slash (tf2 drops it too)."""
-    return frame.lstrip("/")
 
 
 # -- frame map ----------------------------------------------------------------------------------
@@ -188,143 +164,30 @@ def tracked_ids(msg: Any) -> set[str]:
     return {str(i) for i in msg.ids}
 
 
-# -- transform tree -----------------------------------------------------------------------------
-class TfTree:
-    """The newest transform per child frame; poses composed up to the fixed frame.
-
-    Thread-safe (``/tf`` and ``/tf_static`` arrive on different threads).
-    """
-
-    MAX_DEPTH = 64
-    #: frames kept at most: a publisher inventing new frame names cannot make it grow further
-    MAX_FRAMES = 10_000
-
-    def __init__(self, fixed_frame: str = FIXED_FRAME) -> None:
-        self.fixed = strip_frame(fixed_frame)
-        self._edges: dict[str, tuple[str, Vec, Quat, int]] = {}
-        self._lock = threading.Lock()
-
-    def update(self, msg: Any) -> tuple[set[str], list[str]]:
-        """Store the transforms of a TFMessage; return (children set, one line per bad one)."""
-        changed: set[str] = set()
-        bad: list[str] = []
-        with self._lock:
-            for tr in msg.transforms:
-                child = strip_frame(tr.child_frame_id)
-                parent = strip_frame(tr.header.frame_id)
-                try:
-                    check_id(child, "child frame")
-                    check_id(parent, "parent frame")
-                    t, q = vec(tr.transform.translation), quat(tr.transform.rotation)
-                except ValueError as exc:  # InvalidInputError is one
-                    bad.append(f"transform {shown(parent)} -> {shown(child)} ignored: {exc}")
-                    continue
-                if child == parent:
-                    bad.append(
-                        f"transform {shown(parent)} -> {shown(child)} ignored: not a tree edge"
-                    )
-                    continue
-                if child not in self._edges and len(self._edges) >= self.MAX_FRAMES:
-                    bad.append(
-                        f"transform {shown(parent)} -> {shown(child)} ignored: "
-                        f"{self.MAX_FRAMES} frames are known already"
-                    )
-                    continue
-                self._edges[child] = (parent, t, q, stamp_ns(tr.header.stamp))
-                changed.add(child)
-        return changed, bad
-
-    def chain(self, frame: str) -> list[str]:
-        """Frames from ``frame`` up to its root (``frame`` first)."""
-        out, current = [frame], frame
-        with self._lock:
-            while current in self._edges and len(out) <= self.MAX_DEPTH:
-                current = self._edges[current][0]
-                out.append(current)
-        return out
-
-    def lookup(self, frame: str) -> tuple[Vec, Quat, int | None] | None:
-        """Pose of ``frame`` in the fixed frame and its newest stamp (None when all stamps
-        are 0, as static transforms); None when no chain of transforms reaches the fixed
-        frame."""
-        return self.lookup_many([frame])[0]
-
-    def lookup_many(self, frames: list[str]) -> list[tuple[Vec, Quat, int | None] | None]:
-        """:meth:`lookup` of many frames, composed together (one rotation batch per level)."""
-        chains: list[list[tuple[str, Vec, Quat, int]] | None] = []
-        with self._lock:
-            for frame in frames:
-                current = strip_frame(frame)
-                edges: list[tuple[str, Vec, Quat, int]] = []
-                while current != self.fixed and len(edges) < self.MAX_DEPTH:
-                    edge = self._edges.get(current)
-                    if edge is None:
-                        break
-                    edges.append(edge)
-                    current = edge[0]
-                chains.append(edges if current == self.fixed else None)
-        found = [c for c in chains if c is not None]
-        depth = max((len(c) for c in found), default=0)
-        # level k holds each chain's k-th transform from the frame up, identity past its end
-        lt = np.zeros((depth, len(found), 3))
-        lq = np.tile(np.asarray(IDENTITY), (depth, len(found), 1))
-        for i, chain in enumerate(found):
-            for k, (_, et, eq, _) in enumerate(chain):
-                lt[k, i], lq[k, i] = et, eq
-        t, q = np.zeros((len(found), 3)), np.tile(np.asarray(IDENTITY), (len(found), 1))
-        for k in range(depth):
-            t, q = compose_poses(lt[k], lq[k], t, q)
-        out: list[tuple[Vec, Quat, int | None] | None] = []
-        i = 0
-        for edges_up in chains:
-            if edges_up is None:
-                out.append(None)
-                continue
-            x, y, z = t[i].tolist()
-            qx, qy, qz, qw = q[i].tolist()
-            newest = max((e[3] for e in edges_up), default=0)
-            out.append(((x, y, z), (qx, qy, qz, qw), newest or None))
-            i += 1
-        return out
-
-    def frames(self) -> list[str]:
-        """Every child frame known."""
-        with self._lock:
-            return list(self._edges)
-
-    def frozen(self) -> TfTree:
-        """A copy that later messages do not change: poses composed from it all come from
-        the same messages."""
-        copy = TfTree()
-        copy.fixed = self.fixed
-        with self._lock:
-            copy._edges = dict(self._edges)
-        return copy
-
-
+# -- transform tree (toaster.world.tftree) ------------------------------------------------------
 def tf_updates(
     tree: TfTree, targets: Mapping[str, FrameTarget], changed: Iterable[str]
 ) -> tuple[list[PoseUpdate], list[str]]:
     """Poses of the mapped frames whose chain contains a changed frame, and the mapped frames
     that do not reach the fixed frame, all composed from the tree as it was when called (a
     message arriving meanwhile on rospy's thread is not half seen: one human's body from it
-    and its head from the one before, for one tick)."""
-    tree = tree.frozen()
-    changed = set(changed)
-    updates: list[PoseUpdate] = []
-    lost: list[str] = []
-    wanted = [frame for frame in targets if changed.intersection(tree.chain(frame))]
-    for frame, found in zip(wanted, tree.lookup_many(wanted), strict=True):
-        target = targets[frame]
-        if found is None:
-            lost.append(frame)
-            continue
-        position, q, t_ns = found
-        updates.append(
-            PoseUpdate(
-                target.entity_id, target.kind, position, q, t_ns, target.owner_id, target.joint
-            )
+    and its head from the one before, for one tick). :meth:`TfTree.poses` gives them as
+    arrays."""
+    poses, lost = tree.poses(targets, changed)
+    updates = [
+        PoseUpdate(
+            target.entity_id,
+            target.kind,
+            (x, y, z),
+            (qx, qy, qz, qw),
+            t_ns,
+            target.owner_id,
+            target.joint,
         )
+        for target, (x, y, z), (qx, qy, qz, qw), t_ns in zip(
+            poses.targets, poses.pos.tolist(), poses.quat.tolist(), poses.stamps, strict=True
+        )
+    ]
     return updates, lost
 
 

@@ -179,6 +179,12 @@ class World:
         self.t_ns[rows] = NO_TIME
         self.history.clear_rows(rows[rows < self.history.t.shape[0]])
 
+    @property
+    def version(self) -> int:
+        """Moves whenever an entity is added or comes back (what depends on ids, kinds and
+        owners is cached against it)."""
+        return self._version
+
     def _ids_cached(self) -> tuple[int, np.ndarray, np.ndarray]:
         if self._id_cache[0] != self._version:
             ids = np.asarray(self.ids, dtype=object).reshape(-1)
