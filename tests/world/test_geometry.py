@@ -117,32 +117,3 @@ def test_tf_chains_are_composed_in_one_batch_as_one_by_one() -> None:
     assert position == pytest.approx(t) and stamp == 5
     assert Rotation.from_quat(quat).approx_equal(q, atol=1e-9)
     assert tree.lookup("a")[0] == pytest.approx(moves[0])
-
-
-def test_numpy_rotations_give_scipy_s_bits():
-    """from_euler and the product of rotations run as numpy (scipy's cost ~2.5 µs a row);
-    on the installed scipy they are on and give its bits, on random rows and the edges."""
-    assert g._fast(), "the numpy forms differ from this scipy's: every tick uses scipy's"
-    rng = np.random.default_rng(8)
-    n = 20_000
-    prpy, rpy = rng.uniform(-7, 7, (n, 3)), rng.uniform(-7, 7, (n, 3))
-    rpy[:50] = rng.choice([0.0, -0.0, np.pi, -np.pi, np.pi / 2, -np.pi / 2], (50, 3))
-    ppos, pos = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
-
-    def scipy_rot(angles: np.ndarray) -> Rotation:
-        return Rotation.from_euler("ZYX", angles[:, ::-1])
-
-    parent = scipy_rot(prpy)
-    want = ppos + parent.apply(pos), g.rpy_of(parent * scipy_rot(rpy))
-    got = g.from_frames(ppos, prpy, pos, rpy)
-    assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
-    inverse = parent.inv()
-    want = inverse.apply(pos - ppos), g.rpy_of(inverse * scipy_rot(rpy))
-    got = g.to_frames(ppos, prpy, pos, rpy)
-    assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
-    assert np.array_equal(g.rotation_matrices(rpy), scipy_rot(rpy).as_matrix())
-    qa, qb = rng.normal(size=(n, 4)), rng.normal(size=(n, 4))
-    t, q = g.compose_poses(ppos, qa, pos, qb)
-    pq = Rotation.from_quat(qa)
-    assert np.array_equal(q, (pq * Rotation.from_quat(qb)).as_quat(canonical=True))
-    assert np.array_equal(t, ppos + pq.apply(pos))
