@@ -8,10 +8,9 @@ slower (docs/store.md).
 from __future__ import annotations
 
 from collections.abc import Iterator
-from contextlib import AbstractContextManager, nullcontext
 from typing import TYPE_CHECKING, Any
 
-from toaster.db.dialects.base import Clock, Cursor, Key, Later
+from toaster.db.dialects.base import Cursor, Key
 
 if TYPE_CHECKING:
     from sqlalchemy import Connection
@@ -61,10 +60,7 @@ class SQLiteBackend:
     def named(self, sql: str) -> str:
         return sql  # sqlite3 takes :name as it is
 
-    def batch(self, cur: Cursor) -> AbstractContextManager[None]:
-        return nullcontext()  # in-process: no round trip to save
-
-    def lookup_keys(self, cur: Cursor, agent_id: str, keys: list[Key]) -> Later[dict[Key, int]]:
+    def lookup_keys(self, cur: Cursor, agent_id: str, keys: list[Key]) -> dict[Key, int]:
         found: dict[Key, int] = {}
         for chunk in _chunks(keys, _MAX_VARS // 6):
             values = ",".join(["(?,?,?,?,?,?)"] * len(chunk))
@@ -82,11 +78,11 @@ class SQLiteBackend:
             )
             for row in cur.fetchall():
                 found[tuple(row[1:])] = row[0]
-        return lambda: found
+        return found
 
     def insert_keys(
         self, cur: Cursor, agent_id: str, rows: list[tuple[Key, str]]
-    ) -> Later[dict[Key, int]]:
+    ) -> dict[Key, int]:
         created: dict[Key, int] = {}
         for chunk in _chunks(rows, _MAX_VARS // 8):
             values = ",".join(["(?,?,?,?,?,?,?,?)"] * len(chunk))
@@ -102,9 +98,9 @@ class SQLiteBackend:
             )
             for row in cur.fetchall():
                 created[tuple(row[1:])] = row[0]
-        return lambda: created
+        return created
 
-    def open_rows(self, cur: Cursor, key_ids: list[int]) -> Later[dict[int, tuple[Any, ...]]]:
+    def open_rows(self, cur: Cursor, key_ids: list[int]) -> dict[int, tuple[Any, ...]]:
         found: dict[int, tuple[Any, ...]] = {}
         for chunk in _chunks(key_ids, _MAX_VARS):
             marks = ",".join("?" * len(chunk))
@@ -116,9 +112,9 @@ class SQLiteBackend:
             )
             for row in cur.fetchall():
                 found[row[0]] = tuple(row[1:])
-        return lambda: found
+        return found
 
-    def last_ends(self, cur: Cursor, key_ids: list[int]) -> Later[dict[int, int]]:
+    def last_ends(self, cur: Cursor, key_ids: list[int]) -> dict[int, int]:
         found: dict[int, int] = {}
         for chunk in _chunks(key_ids, _MAX_VARS):
             values = ",".join(["(?)"] * len(chunk))
@@ -128,9 +124,9 @@ class SQLiteBackend:
                 chunk,
             )
             found.update((row[0], row[1]) for row in cur.fetchall() if row[1] is not None)
-        return lambda: found
+        return found
 
-    def close_intervals(self, cur: Cursor, t_ns: int, key_ids: list[int]) -> Later[set[int]]:
+    def close_intervals(self, cur: Cursor, t_ns: int, key_ids: list[int]) -> set[int]:
         closed: set[int] = set()
         for chunk in _chunks(key_ids, _MAX_VARS):
             marks = ",".join("?" * len(chunk))
@@ -141,9 +137,9 @@ class SQLiteBackend:
                 [t_ns, *chunk, t_ns],
             )
             closed.update(row[0] for row in cur.fetchall())
-        return lambda: closed
+        return closed
 
-    def refresh_intervals(self, cur: Cursor, t_ns: int, rows: list[tuple[Any, ...]]) -> Later[int]:
+    def refresh_intervals(self, cur: Cursor, t_ns: int, rows: list[tuple[Any, ...]]) -> int:
         for chunk in _chunks([row[3] for row in rows], _MAX_VARS):
             marks = ",".join("?" * len(chunk))
             cur.execute(
@@ -163,7 +159,7 @@ class SQLiteBackend:
                 [value for row in chunk for value in row],
             )
             updated += cur.rowcount
-        return lambda: updated
+        return updated
 
     def insert_intervals(self, cur: Cursor, rows: list[tuple[Any, ...]]) -> None:
         _insert_rows(
@@ -180,11 +176,6 @@ class SQLiteBackend:
             "value_num, confidence, observability, previous_text, source, "
             "recorded_ns)",
             rows,
-        )
-
-    def retype_keys(self, cur: Cursor, rows: list[tuple[int, str]]) -> None:
-        cur.executemany(
-            "UPDATE fact_keys SET property_type = ? WHERE id = ?", [(p, k) for k, p in rows]
         )
 
     def insert_entities(self, cur: Cursor, rows: list[tuple[str, str, int]]) -> None:
@@ -216,23 +207,17 @@ class SQLiteBackend:
         cur.execute(f"PRAGMA cache_size=-{int(kib)}")
         cur.close()
 
-    def begin_writes(
-        self, cur: Cursor, *, clock: bool = False, begin: bool = False
-    ) -> tuple[int, int, Clock | None]:
+    def begin_writes(self, cur: Cursor) -> tuple[int, int]:
         # One writer at a time in SQLite: a row in rule_writer, deleted before the commit,
-        # is seen only by this transaction (whose write lock also holds the clock).
+        # is seen only by this transaction.
         cur.execute("INSERT OR IGNORE INTO rule_writer (id, holder) VALUES (1, 'store')")
-        epoch, agents, beliefs_ns, beliefs_self = cur.execute(
-            "SELECT cache_epoch, agents_version, beliefs_ns, beliefs_self FROM store_state "
-            "WHERE id = 1"
+        epoch, agents = cur.execute(
+            "SELECT cache_epoch, agents_version FROM store_state WHERE id = 1"
         ).fetchone()
-        return int(epoch), int(agents), (beliefs_ns, beliefs_self) if clock else None
+        return int(epoch), int(agents)
 
     def end_writes(self, cur: Cursor) -> None:
         cur.execute("DELETE FROM rule_writer")
-
-    def after_writes(self, cur: Cursor) -> None:
-        """Nothing to undo: SQLAlchemy began the transaction (BEGIN IMMEDIATE)."""
 
     def set_read_only(self, cur: Cursor) -> None:
         cur.execute("PRAGMA query_only = ON")
