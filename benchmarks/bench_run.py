@@ -19,10 +19,13 @@ replays of 20 people; 4 s of PostgreSQL long run reported every 2 s.
    27 in it at once), at 2.5 Hz and at 30 Hz, and 400 people all present at once (stress, no
    target); SQLite and PostgreSQL; the × real time it prints, against ``--no-db``.
 3. **Size**: 100 people all present at once, at 30 Hz with 2 cm of tracker noise, and the
-   recordings-like crowd with the same noise, replayed for 40 s and 120 s; growth per hour
-   from the difference (bytes, rows; PostgreSQL: dead tuples at the end); then where the first
-   crowd's bytes go: each table and index apart, bytes per row, and on PostgreSQL the share of
-   ``facts`` updates that were HOT. ("before" baselines: ``before`` column of section 1.)
+   recordings-like crowd with the same noise, replayed by ``toaster run`` for 40 s and 120 s
+   with its defaults (ticks on the samples; ``--rate 30``, used before 2026-11-28, ticked just
+   before a third of them, whose times the CSV rounds to 0.1 ms, and wrote half the samples);
+   growth per hour from the difference (bytes, rows; PostgreSQL: dead tuples at the end); then
+   where the first crowd's bytes go: each table and index apart, bytes per row, and on
+   PostgreSQL the share of ``facts`` updates that were HOT. ("before" baselines: ``before``
+   column of section 1.)
 4. **PostgreSQL over a long run** (``--long`` input seconds, default 600): the ``facts`` table's
    size, dead rows, share of HOT updates and vacuum runs every minute of input, ticked as
    ``toaster run`` ticks a recording (on its sample times), with maintenance (a VACUUM of the
@@ -325,16 +328,16 @@ _SPEED = re.compile(r"in ([\d.]+) s \(([\d.]+)× real time\)")
 
 
 def toaster_run(
-    csv: Path, url: str | None, rate: float, extra: tuple[str, ...] = ()
+    csv: Path, url: str | None, rate: float | None, extra: tuple[str, ...] = ()
 ) -> tuple[float, str]:
-    """``toaster run`` as a user types it: (wall seconds of the run loop, its output)."""
+    """``toaster run`` as a user types it: (wall seconds of the run loop, its output); no
+    ``rate``: on the recording's own sample times, as without ``--rate``."""
     cmd = [
         TOASTER,
         *(["--db", url] if url else []),
         "run",
         str(csv),
-        "--rate",
-        str(rate),
+        *(["--rate", str(rate)] if rate is not None else []),
         *(["--no-db"] if url is None else []),
         *extra,
     ]
@@ -393,7 +396,8 @@ COUNTED = ("fact_samples", "facts", "events", "fact_keys")
 
 def bench_size(backends: list[str], pg: str | None) -> None:
     print(
-        "\n3. Growth per hour: crowds at 30 Hz with 2 cm tracker noise (`toaster run`, defaults;"
+        "\n3. Growth per hour: crowds at 30 Hz with 2 cm tracker noise (`toaster run`, defaults:"
+        " ticks on the samples;"
         f" slope between a {SIZES['growth_s'][0]} s and a {SIZES['growth_s'][1]} s replay;"
         " target ≤ 100 MB/h for 100 people);\n"
         "   last rows: the same with IsMovingToward toward people asked for (opt-in)"
@@ -447,7 +451,7 @@ def _size_row(
     for seconds in (short, long):
         database = Database(backend, pg, tmp)
         try:
-            toaster_run(csv, database.url, 30.0, ("--until", f"{seconds}s", *extra))
+            toaster_run(csv, database.url, None, ("--until", f"{seconds}s", *extra))
             with toaster.connect(database.url) as db, db.transaction() as conn:
                 counts = {
                     t: conn.exec_driver_sql(f"SELECT COUNT(*) FROM {t}").scalar_one()
