@@ -493,9 +493,9 @@ def _print_details(details: list[tuple[str, str, Growth]]) -> None:
                 continue
             rows = growth.rows_of(table)
             kind = "" if name == table else "  "
+            per_row = f"{grew / rows:.0f}" if rows > 0 else "-"  # no rows added: dead versions
             print(
-                f"{kind + name:<30} {backend:<11} {grew / 1e6:>8.1f} {rows:>12,.0f}"
-                f" {grew / rows if rows else float('nan'):>10.0f}",
+                f"{kind + name:<30} {backend:<11} {grew / 1e6:>8.1f} {rows:>12,.0f} {per_row:>10}",
                 flush=True,
             )
         if backend == "postgresql":
