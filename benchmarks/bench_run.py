@@ -25,14 +25,19 @@ replays of 20 people; 4 s of PostgreSQL long run reported every 2 s.
    :mod:`crowd`: 400 people crossing the scene over 200 s like the ETH/UCY recordings (about
    27 in it at once), at 2.5 Hz and at 30 Hz, and 400 people all present at once (stress, no
    target); SQLite and PostgreSQL; the × real time it prints, against ``--no-db``.
-4. **PostgreSQL over a long run** (``--long`` input seconds, default 600): the ``facts`` table's
-   size, dead rows, share of HOT updates and autovacuum runs every minute of input, with the
-   runner's maintenance (a VACUUM of the hot tables every 60 s of wall time, the default) and,
-   same run, without it.
 3. **Size**: 100 people all present at once, at 30 Hz with 2 cm of tracker noise, and the
-   recordings-like crowd with the same noise, replayed for 40 s and 120 s; growth per hour
-   from the difference (bytes, rows; PostgreSQL: dead tuples at the end).
-   ("before" baselines: ``before`` column of section 1.)
+   recordings-like crowd with the same noise, replayed by ``toaster run`` for 40 s and 120 s
+   with its defaults (ticks on the samples; ``--rate 30``, used before 2026-11-28, ticked just
+   before a third of them, whose times the CSV rounds to 0.1 ms, and wrote half the samples);
+   growth per hour from the difference (bytes, rows; PostgreSQL: dead tuples at the end); then
+   where the first crowd's bytes go: each table and index apart, bytes per row, and on
+   PostgreSQL the share of ``facts`` updates that were HOT. ("before" baselines: ``before``
+   column of section 1.)
+4. **PostgreSQL over a long run** (``--long`` input seconds, default 600): the ``facts`` table's
+   size, dead rows, share of HOT updates and vacuum runs every minute of input, ticked as
+   ``toaster run`` ticks a recording (on its sample times), with maintenance (a VACUUM of the
+   hot tables every minute of input, as a node running at real time does) and, same run,
+   without it; then the growth per hour between the first and the last line.
 """
 
 from __future__ import annotations
@@ -135,6 +140,33 @@ class PgSchema:
         ).fetchall()
         return {str(name): int(size) for name, size in rows}
 
+    def relations(self) -> dict[str, tuple[str, int]]:
+        """Each table's heap and each index apart: name -> (its table, bytes)."""
+        rows = self.conn.execute(
+            "SELECT relname, relname, pg_table_size(relid) FROM pg_stat_user_tables "
+            "WHERE schemaname = %s UNION ALL SELECT indexrelname, relname, "
+            "pg_relation_size(indexrelid) FROM pg_stat_user_indexes WHERE schemaname = %s",
+            (self.name, self.name),
+        ).fetchall()
+        return {str(name): (str(table), int(size)) for name, table, size in rows}
+
+    def counters(self, table: str, inserted: int) -> tuple[int, int, int]:
+        """(updates, HOT updates, dead rows) of ``table``, once the writers' statistics
+        arrived (a backend sends them when it ends: wait until ``fact_samples``, which is only
+        inserted into, counts its ``inserted`` rows, for at most 10 s)."""
+        deadline = time.monotonic() + 10
+        while True:
+            self.conn.execute("SELECT pg_stat_clear_snapshot()")
+            row = self.conn.execute(
+                "SELECT (SELECT n_tup_ins FROM pg_stat_user_tables WHERE schemaname = %s AND "
+                "relname = 'fact_samples'), n_tup_upd, n_tup_hot_upd, n_dead_tup FROM "
+                "pg_stat_user_tables WHERE schemaname = %s AND relname = %s",
+                (self.name, self.name, table),
+            ).fetchone()
+            if row[0] >= inserted or time.monotonic() > deadline:
+                return int(row[1]), int(row[2]), int(row[3])
+            time.sleep(0.1)
+
     def drop(self) -> None:
         self.conn.execute(f"DROP SCHEMA IF EXISTS {self.name} CASCADE")
         self.conn.close()
@@ -165,6 +197,19 @@ class Database:
                 "LEFT JOIN sqlite_master m ON m.name = d.name GROUP BY 1"
             ).fetchall()
         return {str(name): int(size) for name, size in rows}
+
+    def relations(self) -> dict[str, tuple[str, int]]:
+        """Each table and index apart: name -> (its table, bytes); SQLite from ``dbstat``."""
+        if self.schema:
+            return self.schema.relations()
+        import sqlite3
+
+        with sqlite3.connect(f"file:{self.path}?mode=ro", uri=True) as conn:
+            rows = conn.execute(
+                "SELECT d.name, COALESCE(m.tbl_name, d.name), SUM(d.pgsize) FROM dbstat d "
+                "LEFT JOIN sqlite_master m ON m.name = d.name GROUP BY 1"
+            ).fetchall()
+        return {str(name): (str(table), int(size)) for name, table, size in rows}
 
     def close(self) -> None:
         if self.schema:
@@ -374,16 +419,16 @@ _SPEED = re.compile(r"in ([\d.]+) s \(([\d.]+)× real time\)")
 
 
 def toaster_run(
-    csv: Path, url: str | None, rate: float, extra: tuple[str, ...] = ()
+    csv: Path, url: str | None, rate: float | None, extra: tuple[str, ...] = ()
 ) -> tuple[float, str]:
-    """``toaster run`` as a user types it: (wall seconds of the run loop, its output)."""
+    """``toaster run`` as a user types it: (wall seconds of the run loop, its output); no
+    ``rate``: on the recording's own sample times, as without ``--rate``."""
     cmd = [
         TOASTER,
         *(["--db", url] if url else []),
         "run",
         str(csv),
-        "--rate",
-        str(rate),
+        *(["--rate", str(rate)] if rate is not None else []),
         *(["--no-db"] if url is None else []),
         *extra,
     ]
@@ -436,9 +481,14 @@ def bench_crowd(backends: list[str], pg: str | None, repeats: int) -> None:
 
 
 # -- 3. size per hour -----------------------------------------------------------------------------
+#: the tables whose rows section 3 counts (samples, intervals, events, keys)
+COUNTED = ("fact_samples", "facts", "events", "fact_keys")
+
+
 def bench_size(backends: list[str], pg: str | None) -> None:
     print(
-        "\n3. Growth per hour: crowds at 30 Hz with 2 cm tracker noise (`toaster run`, defaults;"
+        "\n3. Growth per hour: crowds at 30 Hz with 2 cm tracker noise (`toaster run`, defaults:"
+        " ticks on the samples;"
         f" slope between a {SIZES['growth_s'][0]} s and a {SIZES['growth_s'][1]} s replay;"
         " target ≤ 100 MB/h for 100 people);\n"
         "   last rows: the same with IsMovingToward toward people asked for (opt-in)"
@@ -447,6 +497,7 @@ def bench_size(backends: list[str], pg: str | None) -> None:
         f"{'crowd':<22} {'backend':<11} {'MB/h':>8} {'rows/h':>12} {'dead rows at end':>17}"
         f" {'samples/h':>10} {'intervals/h':>12} {'events/h':>10}"
     )
+    details: list[tuple[str, str, Growth]] = []
     with tempfile.TemporaryDirectory() as tmp:
         social = Path(tmp) / "social.yaml"
         social.write_text("toward_range_humans: 3.6\n")
@@ -457,37 +508,95 @@ def bench_size(backends: list[str], pg: str | None) -> None:
                 longest = float(SIZES["growth_s"][1])
                 crowd.write_crowd(csv, people, 30.0, longest, noise=0.02, seed=1, arrivals=arrivals)
             for backend in backends:
-                _size_row(label, csv, backend, pg, tmp, extra)
+                growth = _size_row(label, csv, backend, pg, tmp, extra)
+                if not details or details[0][0] == label:
+                    details.append((label, backend, growth))
+    _print_details(details)
+
+
+class Growth:
+    """What grew between the short and the long replay of one row of section 3."""
+
+    def __init__(self, per_hour: float) -> None:
+        self.per_hour = per_hour
+        self.relations: list[dict[str, tuple[str, int]]] = []
+        self.rows: list[dict[str, int]] = []
+        self.facts_updates = (0, 0, 0)  # PostgreSQL: updates, HOT updates, dead rows at end
+
+    def bytes_of(self, name: str) -> float:
+        before = self.relations[0].get(name, ("", 0))[1]
+        return (self.relations[1][name][1] - before) * self.per_hour
+
+    def rows_of(self, table: str) -> float:
+        return (self.rows[1].get(table, 0) - self.rows[0].get(table, 0)) * self.per_hour
 
 
 def _size_row(
     label: str, csv: Path, backend: str, pg: str | None, tmp: str, extra: tuple[str, ...]
-) -> None:
+) -> Growth:
     """One row of section 3: a short and a long replay (40 s, 120 s), growth per hour from
     the difference."""
     sizes = []
     short, long = SIZES["growth_s"]
+    growth = Growth(3600 / (long - short))
     for seconds in (short, long):
         database = Database(backend, pg, tmp)
         try:
-            toaster_run(csv, database.url, 30.0, ("--until", f"{seconds}s", *extra))
+            toaster_run(csv, database.url, None, ("--until", f"{seconds}s", *extra))
             with toaster.connect(database.url) as db, db.transaction() as conn:
-                counts = [
-                    conn.exec_driver_sql(f"SELECT COUNT(*) FROM {t}").scalar_one()
-                    for t in ("fact_samples", "facts", "events")
-                ]
+                counts = {
+                    t: conn.exec_driver_sql(f"SELECT COUNT(*) FROM {t}").scalar_one()
+                    for t in COUNTED
+                }
+            if database.schema and seconds == long:
+                growth.facts_updates = database.schema.counters("facts", counts["fact_samples"])
             sizes.append((database.size(), counts))
+            growth.relations.append(database.relations())
+            growth.rows.append(counts)
         finally:
             database.close()
-    (b0, _, _), c0 = sizes[0]
-    (b1, _, dead), c1 = sizes[1]
-    per_hour = 3600 / (long - short)
-    deltas = [(b - a) * per_hour for a, b in zip(c0, c1, strict=True)]
+    (b0, _, _), _ = sizes[0]
+    (b1, _, dead), _ = sizes[1]
+    deltas = [growth.rows_of(t) for t in COUNTED[:3]]
     print(
-        f"{label:<22} {backend:<11} {(b1 - b0) * per_hour / 1e6:>8.1f} {sum(deltas):>12,.0f}"
+        f"{label:<22} {backend:<11} {(b1 - b0) * growth.per_hour / 1e6:>8.1f} {sum(deltas):>12,.0f}"
         f" {dead:>17,} {deltas[0]:>10,.0f} {deltas[1]:>12,.0f} {deltas[2]:>10,.0f}",
         flush=True,
     )
+    return growth
+
+
+def _print_details(details: list[tuple[str, str, Growth]]) -> None:
+    """Where the bytes of section 3's first crowd go: each table (heap) and index apart."""
+    if not details:
+        return
+    print(
+        f"\n   where the bytes of {details[0][0]!r} go, per hour (bytes/row: per row of its"
+        " table; PostgreSQL: heap = the table without its indexes)"
+    )
+    print(f"{'relation':<30} {'backend':<11} {'MB/h':>8} {'rows/h':>12} {'bytes/row':>10}")
+    for _, backend, growth in details:
+        names = sorted(growth.relations[1], key=lambda n: -growth.bytes_of(n))
+        for name in names:
+            table = growth.relations[1][name][0]
+            grew = growth.bytes_of(name)
+            if abs(grew) < 50_000:  # under 0.05 MB/h: the catalogue, settings
+                continue
+            rows = growth.rows_of(table)
+            kind = "" if name == table else "  "
+            per_row = f"{grew / rows:.0f}" if rows > 0 else "-"  # no rows added: dead versions
+            print(
+                f"{kind + name:<30} {backend:<11} {grew / 1e6:>8.1f} {rows:>12,.0f} {per_row:>10}",
+                flush=True,
+            )
+        if backend == "postgresql":
+            upd, hot, dead = growth.facts_updates
+            print(
+                f"   facts: {upd:,} updates (refreshes, closes) in the long replay, "
+                f"{hot / upd if upd else 0:.0%} HOT (in place, no index entry), {dead:,} dead "
+                "rows at its end",
+                flush=True,
+            )
 
 
 # -- 4. PostgreSQL over a long run ----------------------------------------------------------------
@@ -495,8 +604,9 @@ def bench_pg_long(pg: str, seconds: float) -> None:
     print(
         f"\n4. PostgreSQL over {seconds:.0f} s of a {SIZES['long_people']}-person crowd at 30 Hz "
         "with 2 cm noise "
-        "(Runner as `toaster run`): facts table and dead rows as the run goes;\n   baseline in "
-        "the same run: no maintenance between ticks (these servers run without autovacuum)"
+        "(Runner as `toaster run`): facts table and dead rows as the run goes (each line before"
+        " that minute's maintenance);\n   baseline in the same run: no maintenance between ticks"
+        " (these servers run without autovacuum)"
     )
     print(
         f"{'maintenance':<14} {'input s':>8} {'wall s':>7} {'facts MB':>9} {'all MB':>8}"
@@ -508,12 +618,20 @@ def bench_pg_long(pg: str, seconds: float) -> None:
         crowd.write_crowd(
             csv, SIZES["long_people"], 30.0, seconds, noise=0.02, seed=2, arrivals=0.0
         )
-        for label in ("every 60 s", "none"):
+        for label in (f"every {SIZES['long_report_s']} s", "none"):
             _pg_long_run(pg, csv, label)
 
 
 def _pg_long_run(pg: str, csv: Path, label: str) -> None:
-    """One replay of section 4, a report line every minute of input."""
+    """One replay of section 4, a report line every minute of input, then the growth per
+    hour between the first and the last line.
+
+    Ticks and registers as ``toaster run`` does (on the recording's own sample times, the
+    entities registered once the source has set the world up). Maintenance comes every minute
+    of *input*, right after the line (which shows the dead rows a minute leaves): what a node
+    running at real time does (``toaster serve``, ``toaster run --realtime``); a replay faster
+    than real time maintains less often by wall time."""
+    from toaster.app.runs import tick_times
     from toaster.producers import load_session
 
     schema = PgSchema(pg)
@@ -521,13 +639,14 @@ def _pg_long_run(pg: str, csv: Path, label: str) -> None:
         db = toaster.connect(schema.url)
         store = db.store()
         session = load_session(csv)
-        session.register(store)
         runner = Runner(
             session.world, session.sources, session.producers, store=store, agent_id=session.self_id
         )
+        session.register(store)
         wall = time.perf_counter()
         every = SIZES["long_report_s"] * S
         next_report = session.start_ns + every
+        lines: list[tuple[int, int, int, int]] = []  # (t, all bytes, facts bytes, samples)
 
         def report(t_ns: int) -> None:
             nonlocal next_report
@@ -537,27 +656,36 @@ def _pg_long_run(pg: str, csv: Path, label: str) -> None:
             schema.conn.execute("SELECT pg_stat_clear_snapshot()")
             row = schema.conn.execute(
                 "SELECT pg_total_relation_size(relid), n_dead_tup, n_tup_hot_upd, n_tup_upd, "
-                "vacuum_count + autovacuum_count FROM pg_stat_user_tables WHERE schemaname = %s "
+                "vacuum_count + autovacuum_count, (SELECT COUNT(*) FROM "
+                f"{schema.name}.fact_samples) FROM pg_stat_user_tables WHERE schemaname = %s "
                 "AND relname = 'facts'",
                 (schema.name,),
             ).fetchone()
             total = schema.size()[0]
             hot = row[2] / row[3] if row[3] else 0.0
+            lines.append((t_ns, total, row[0], row[5]))
             print(
                 f"{label:<14} {(t_ns - session.start_ns) / S:>8.0f}"
                 f" {time.perf_counter() - wall:>7.1f} {row[0] / 1e6:>9.1f}"
                 f" {total / 1e6:>8.1f} {row[1]:>11,} {hot:>20.0%} {row[4]:>8}",
                 flush=True,
             )
+            if label != "none":
+                db.maintain()
 
-        runner.run(
-            session.start_ns,
-            session.end_ns,
-            session.rate_hz,
-            on_tick=report,
-            maintain_every_s=60.0 if label == "every 60 s" else None,
-        )
+        times = tick_times(session, session.end_ns)
+        runner.run_at(times.tolist(), on_tick=report, maintain_every_s=None)
         db.close()
+        if len(lines) > 1:
+            (t0, all0, facts0, n0), (t1, all1, facts1, n1) = lines[0], lines[-1]
+            hour = 3600 * S / (t1 - t0)
+            print(
+                f"{label:<14} growth from {(t0 - session.start_ns) / S:.0f} s to "
+                f"{(t1 - session.start_ns) / S:.0f} s of input: {(all1 - all0) * hour / 1e6:.1f}"
+                f" MB/h in all, facts {(facts1 - facts0) * hour / 1e6:.1f} MB/h, "
+                f"{(n1 - n0) * hour:,.0f} samples/h",
+                flush=True,
+            )
     finally:
         schema.drop()
 
