@@ -131,15 +131,6 @@ class PgSchema:
         ).fetchone()
         return int(row[0]), int(row[1]), int(row[2])
 
-    def tables(self) -> dict[str, int]:
-        """Bytes of each table with its indexes (and TOAST)."""
-        rows = self.conn.execute(
-            "SELECT relname, pg_total_relation_size(relid) FROM pg_stat_user_tables "
-            "WHERE schemaname = %s",
-            (self.name,),
-        ).fetchall()
-        return {str(name): int(size) for name, size in rows}
-
     def relations(self) -> dict[str, tuple[str, int]]:
         """Each table's heap and each index apart: name -> (its table, bytes)."""
         rows = self.conn.execute(
@@ -186,17 +177,11 @@ class Database:
         return sum(p.stat().st_size for p in self.path.parent.glob(self.path.name + "*")), 0, 0
 
     def tables(self) -> dict[str, int]:
-        """Bytes of each table with its indexes (SQLite: its pages, from ``dbstat``)."""
-        if self.schema:
-            return self.schema.tables()
-        import sqlite3
-
-        with sqlite3.connect(f"file:{self.path}?mode=ro", uri=True) as conn:
-            rows = conn.execute(
-                "SELECT COALESCE(m.tbl_name, d.name), SUM(d.pgsize) FROM dbstat d "
-                "LEFT JOIN sqlite_master m ON m.name = d.name GROUP BY 1"
-            ).fetchall()
-        return {str(name): int(size) for name, size in rows}
+        """Bytes of each table with its indexes (and TOAST): :meth:`relations` summed."""
+        sizes: dict[str, int] = {}
+        for table, size in self.relations().values():
+            sizes[table] = sizes.get(table, 0) + size
+        return sizes
 
     def relations(self) -> dict[str, tuple[str, int]]:
         """Each table and index apart: name -> (its table, bytes); SQLite from ``dbstat``."""
