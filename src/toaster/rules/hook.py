@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import functools
 import re
+import weakref
 from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import Connection, text
@@ -35,7 +36,7 @@ if TYPE_CHECKING:
 
 SOURCE = "beliefs"
 SEPARATOR = HOLDER_SEPARATOR
-_RUN = text("INSERT INTO belief_runs (self_id, t_ns, recorded_ns) VALUES (:s, :t, :r)")
+_RUN = "INSERT INTO belief_runs (self_id, t_ns, recorded_ns) VALUES (:s, :t, :r)"
 # Periods to copy into own rows before a write that bypasses the rule (see BeliefRule.detach).
 _HOLDER_OPEN = (
     "SELECT w.id FROM fact_keys k JOIN belief_follow w ON w.hkey = k.id "
@@ -59,13 +60,14 @@ VACUUM_SCRATCH_EVERY = 64
 
 
 @functools.cache
-def _scratch(backend: str) -> str:
-    """PostgreSQL: the session's temporary scratch tables (00_temp, one round trip), kept
-    across commits. Emptying them at commit truncates every table and index, a cost taken
-    while the run holds the rules' clock (the lock that serializes the runs of several robots;
-    docs/beliefs.md): a store's run empties them itself (99_clear) and the store vacuums
-    their dead rows after every :data:`VACUUM_SCRATCH_EVERY` runs, outside the transaction."""
-    return ";\n".join(split(sqltext.render("00_temp", backend).replace(_EMPTIED_AT_COMMIT, "")))
+def _scratch(backend: str) -> list[str]:
+    """PostgreSQL: the session's temporary scratch tables (00_temp), kept across commits.
+    Emptying them at commit truncates every table and index, a cost taken while the run holds
+    the rules' clock (the lock that serializes the runs of several robots; docs/beliefs.md): a
+    store's run empties them itself (99_clear) and the store vacuums their dead rows after
+    every :data:`VACUUM_SCRATCH_EVERY` runs, outside the transaction. Made once per session
+    (:meth:`BeliefRule._prepare`)."""
+    return split(sqltext.render("00_temp", backend).replace(_EMPTIED_AT_COMMIT, ""))
 
 
 @functools.cache
@@ -77,20 +79,41 @@ class BeliefRule:
     """A store rule: after a self agent's write, the database propagates it to every other
     agent's beliefs."""
 
+    #: It only sends statements and reads none of their results: the store may send them in
+    #: the batch of the writes they follow (:mod:`toaster.db.writer.steps`).
+    pipelined = True
+
     def __init__(self, store: Store) -> None:
         self.store = store
         self._runs = 0  # since the scratch tables were last vacuumed
+        # The DBAPI connection whose session has the scratch tables, once the transaction
+        # that made them committed (a rolled back one takes them away); until then, it and
+        # that transaction's number (Store.transactions).
+        self._scratch: weakref.ref[Any] | None = None
+        self._making: tuple[weakref.ref[Any], int] | None = None
 
     def committed(self) -> None:
         """Vacuum the session's scratch tables every :data:`VACUUM_SCRATCH_EVERY` runs."""
+        if self._making is not None and self._making[1] == self.store.transactions:
+            self._scratch = self._making[0]
+        self._making = None
         if self._runs >= VACUUM_SCRATCH_EVERY and self.store.db.vacuum_scratch():
             self._runs = 0
 
     def _prepare(self, conn: Connection) -> None:
-        """The scratch tables exist (SQLite: in the schema; PostgreSQL: per session)."""
+        """The scratch tables exist (SQLite: in the schema; PostgreSQL: per session, made by
+        its first run), and the transaction has their settings."""
         scratch = _scratch(conn.dialect.name)
-        if scratch:
-            self.store.db.cursor().execute(scratch)
+        if not scratch:
+            return
+        cur = self.store.db.cursor()
+        raw = cur.connection  # type: ignore[attr-defined]
+        made = self._scratch is not None and self._scratch() is raw
+        for statement in scratch:  # its settings (SET LOCAL) hold for one transaction
+            if not made or not statement.startswith("CREATE "):
+                cur.execute(statement)
+        if not made:
+            self._making = weakref.ref(raw), self.store.transactions
 
     def _insert_changed(self, conn: Connection, changes: ChangeSet) -> None:
         """The tick's self keys; refreshed ones with the values they held before the tick;
@@ -116,8 +139,8 @@ class BeliefRule:
         if conn.dialect.name == "postgresql":
             cur.execute(
                 "INSERT INTO belief_changed (key_id, refreshed, prev_num, prev_conf, prev_obs, "
-                "actor_id) SELECT * FROM unnest(%s::bigint[], %s::boolean[], %s::float8[], "
-                "%s::float8[], %s::float8[], %s::text[])",
+                "actor_id) SELECT * FROM unnest(%b::bigint[], %b::boolean[], %b::float8[], "
+                "%b::float8[], %b::float8[], %b::text[])",
                 [list(column) for column in zip(*rows.values(), strict=True)],
             )
         else:
@@ -158,7 +181,10 @@ class BeliefRule:
             return  # not a self agent's change, or nobody else holds beliefs
         self._prepare(conn)
         self._insert_changed(conn, changes)
-        conn.execute(_RUN, {"s": changes.agent_id, "t": changes.t_ns, "r": now_ns()})
+        self.store.db.cursor().execute(
+            self.store.backend.named(_RUN),
+            {"s": changes.agent_id, "t": changes.t_ns, "r": now_ns()},
+        )
         self._runs += 1
 
 

@@ -6,8 +6,9 @@ The backend modules import this one, not the package (whose ``backend_for`` impo
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any, Protocol
+from collections.abc import Callable, Sequence
+from contextlib import AbstractContextManager
+from typing import TYPE_CHECKING, Any, Protocol, TypeAlias, TypeVar
 
 if TYPE_CHECKING:
     from sqlalchemy import Connection
@@ -16,6 +17,13 @@ if TYPE_CHECKING:
 #: Natural key of a fact without the agent: subject, subject owner, property, sub-property,
 #: target, target owner.
 Key = tuple[str, str, str, str, str, str]
+
+_T = TypeVar("_T")
+#: A statement's result, read when called: inside :meth:`Backend.batch` the statement is only
+#: queued, so call it after the batch (PostgreSQL: calling it inside waits for the server).
+Later: TypeAlias = Callable[[], _T]
+#: The rules' clock as a write transaction found it: ``(beliefs_ns, beliefs_self)``.
+Clock = tuple[int | None, str | None]
 
 
 #: Tables only toaster's store and rules write (the guard triggers of migration 0006 refuse
@@ -82,29 +90,35 @@ class Backend(Protocol):
     def named(self, sql: str) -> str:
         """``sql`` with ``:name`` placeholders rewritten to the driver's named style."""
 
-    def lookup_keys(self, cur: Cursor, agent_id: str, keys: list[Key]) -> dict[Key, int]:
+    def batch(self, cur: Cursor) -> AbstractContextManager[None]:
+        """Statements run inside are sent together and answered at the end (PostgreSQL's
+        pipeline mode: one round trip; SQLite runs them as they come); a batch inside another
+        is answered at its own end. Only raw cursor statements, whose results are read after
+        the batch (:data:`Later`); an error of any of them is raised when the batch ends."""
+
+    def lookup_keys(self, cur: Cursor, agent_id: str, keys: list[Key]) -> Later[dict[Key, int]]:
         """Ids of the given keys of ``agent_id`` that exist."""
 
     def insert_keys(
         self, cur: Cursor, agent_id: str, rows: list[tuple[Key, str]]
-    ) -> dict[Key, int]:
-        """Insert ``(key, property_type)`` rows (skipping existing ones); return their ids."""
+    ) -> Later[dict[Key, int]]:
+        """Insert ``(key, property_type)`` rows (skipping existing ones); their ids."""
 
-    def open_rows(self, cur: Cursor, key_ids: list[int]) -> dict[int, tuple[Any, ...]]:
+    def open_rows(self, cur: Cursor, key_ids: list[int]) -> Later[dict[int, tuple[Any, ...]]]:
         """Open intervals of these keys: key_id -> (value_text, value_num, confidence,
         observability, source, valid_from_ns)."""
 
-    def last_ends(self, cur: Cursor, key_ids: list[int]) -> dict[int, int]:
+    def last_ends(self, cur: Cursor, key_ids: list[int]) -> Later[dict[int, int]]:
         """key_id -> the end of its last interval, for the keys whose last one is closed."""
 
-    def close_intervals(self, cur: Cursor, t_ns: int, key_ids: list[int]) -> set[int]:
+    def close_intervals(self, cur: Cursor, t_ns: int, key_ids: list[int]) -> Later[set[int]]:
         """Close the open interval of each key at ``t_ns`` (one that started after ``t_ns``
-        stays open: a later write opened it); return the keys closed."""
+        stays open: a later write opened it); the keys closed."""
 
-    def refresh_intervals(self, cur: Cursor, t_ns: int, rows: list[tuple[Any, ...]]) -> int:
+    def refresh_intervals(self, cur: Cursor, t_ns: int, rows: list[tuple[Any, ...]]) -> Later[int]:
         """``(value_num, confidence, observability, key_id)``: refresh open intervals in
         place, keeping the numbers they held as a ``fact_samples`` row until ``t_ns`` (a second
-        refresh at the same time keeps the first sample); return how many were refreshed."""
+        refresh at the same time keeps the first sample); how many were refreshed."""
 
     def insert_intervals(self, cur: Cursor, rows: list[tuple[Any, ...]]) -> None:
         """``(key_id, value_text, value_num, confidence, observability, valid_from_ns,
@@ -113,6 +127,9 @@ class Backend(Protocol):
     def insert_events(self, cur: Cursor, rows: list[tuple[Any, ...]]) -> None:
         """``(key_id, agent_id, kind, stamp_ns, value_text, value_num, confidence,
         observability, previous_text, source, recorded_ns)``: append events."""
+
+    def retype_keys(self, cur: Cursor, rows: list[tuple[int, str]]) -> None:
+        """``(key_id, property_type)``: a key's facts changed their type."""
 
     def insert_entities(self, cur: Cursor, rows: list[tuple[str, str, int]]) -> None:
         """``(id, owner_id, created_ns)``: register entities (kind '') unless they exist."""
@@ -133,13 +150,22 @@ class Backend(Protocol):
     def set_read_only(self, cur: Cursor) -> None:
         """Make the current transaction read-only, enforced by the database."""
 
-    def begin_writes(self, cur: Cursor) -> tuple[int, int]:
+    def begin_writes(
+        self, cur: Cursor, *, clock: bool = False, begin: bool = False
+    ) -> tuple[int, int, Clock | None]:
         """Open a store write: take the rules' writer role (the guard triggers of the
         internal tables let this transaction through) and return ``store_state``'s
-        ``(cache_epoch, agents_version)``."""
+        ``(cache_epoch, agents_version, clock)``; with ``clock``, the rules' clock too,
+        locked until the transaction ends as the belief runs lock it (else None).
+        ``begin``: nothing was sent in the transaction yet, it may begin with this statement
+        (call :meth:`after_writes` once it ended)."""
 
     def end_writes(self, cur: Cursor) -> None:
         """Give the writer role back before the commit (see :data:`GUARD_MESSAGE`)."""
+
+    def after_writes(self, cur: Cursor) -> None:
+        """Once a transaction begun by ``begin_writes(begin=True)`` ended (committed or
+        rolled back): the connection as it was before."""
 
     def clear_read_only(self, cur: Cursor) -> None:
         """Undo :meth:`set_read_only` for a pooled connection."""

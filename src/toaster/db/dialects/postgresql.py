@@ -1,18 +1,20 @@
 """PostgreSQL (psycopg 3): each bulk operation is one statement over ``unnest`` arrays.
 
 Each round trip costs a fixed latency, so a tick issues a handful of statements whatever its
-size. Arrays travel in binary (``%b``): psycopg's text-array quoting costs time per element
-(figures: docs/store.md).
+size, and sends them in batches (:meth:`PostgreSQLBackend.batch`: psycopg's pipeline mode),
+each answered in one round trip. Arrays travel in binary (``%b``): psycopg's text-array quoting
+costs time per element (figures: docs/store.md).
 """
 
 from __future__ import annotations
 
+import functools
 import re
 from collections.abc import Iterator
-from contextlib import closing, contextmanager
+from contextlib import AbstractContextManager, closing, contextmanager, nullcontext
 from typing import TYPE_CHECKING, Any
 
-from toaster.db.dialects.base import Cursor, Key
+from toaster.db.dialects.base import Clock, Cursor, Key, Later
 
 if TYPE_CHECKING:
     from sqlalchemy import Connection
@@ -32,6 +34,17 @@ def _autocommit(raw: DBAPIConnection) -> Iterator[Cursor]:
 
 
 _NAMED = re.compile(r"(?<![:\w]):(\w+)")
+_IDLE = 0  # psycopg.pq.TransactionStatus.IDLE: no transaction open
+
+
+@functools.cache
+def _pipelines() -> bool:
+    """psycopg's pipeline mode works (its libpq is 14 or later)."""
+    import psycopg
+
+    return bool(psycopg.Pipeline.is_supported())
+
+
 _KEY_COLS = "subject_id, subject_owner_id, property, sub_property, target_id, target_owner_id"
 _KEY_ARRAYS = "%b::text[], %b::text[], %b::text[], %b::text[], %b::text[], %b::text[]"
 
@@ -56,11 +69,18 @@ class PostgreSQLBackend:
         "ORDER BY s2.until_ns LIMIT 1) s ON true"
     )
     least, greatest = "LEAST", "GREATEST"
+    _begun: Any = None  # the connection begin_writes put in autocommit mode (after_writes)
 
     def named(self, sql: str) -> str:
         return _NAMED.sub(r"%(\1)s", sql)
 
-    def lookup_keys(self, cur: Cursor, agent_id: str, keys: list[Key]) -> dict[Key, int]:
+    def batch(self, cur: Cursor) -> AbstractContextManager[None]:
+        if not _pipelines():  # a libpq older than 14: one round trip per statement
+            return nullcontext()
+        pipeline: AbstractContextManager[None] = cur.connection.pipeline()  # type: ignore[attr-defined]
+        return pipeline
+
+    def lookup_keys(self, cur: Cursor, agent_id: str, keys: list[Key]) -> Later[dict[Key, int]]:
         cur.execute(
             f"SELECT k.id, k.subject_id, k.subject_owner_id, k.property, k.sub_property, "
             f"k.target_id, k.target_owner_id FROM unnest({_KEY_ARRAYS}) "
@@ -69,11 +89,11 @@ class PostgreSQLBackend:
             "AND k.sub_property = u.sp AND k.target_id = u.t AND k.target_owner_id = u.tow",
             [*_columns(keys, 6), agent_id],
         )
-        return {tuple(row[1:]): row[0] for row in cur.fetchall()}
+        return lambda: {tuple(row[1:]): row[0] for row in cur.fetchall()}
 
     def insert_keys(
         self, cur: Cursor, agent_id: str, rows: list[tuple[Key, str]]
-    ) -> dict[Key, int]:
+    ) -> Later[dict[Key, int]]:
         keys = [key for key, _ in rows]
         cur.execute(
             f"INSERT INTO fact_keys (agent_id, {_KEY_COLS}, property_type) "
@@ -81,33 +101,33 @@ class PostgreSQLBackend:
             f"ON CONFLICT DO NOTHING RETURNING id, {_KEY_COLS}",
             [agent_id, *_columns(keys, 6), [ptype for _, ptype in rows]],
         )
-        return {tuple(row[1:]): row[0] for row in cur.fetchall()}
+        return lambda: {tuple(row[1:]): row[0] for row in cur.fetchall()}
 
-    def open_rows(self, cur: Cursor, key_ids: list[int]) -> dict[int, tuple[Any, ...]]:
+    def open_rows(self, cur: Cursor, key_ids: list[int]) -> Later[dict[int, tuple[Any, ...]]]:
         cur.execute(
             "SELECT key_id, value_text, value_num, confidence, observability, source, "
             "valid_from_ns FROM facts WHERE key_id = ANY(%b::bigint[]) AND valid_to_ns IS NULL",
             [key_ids],
         )
-        return {row[0]: tuple(row[1:]) for row in cur.fetchall()}
+        return lambda: {row[0]: tuple(row[1:]) for row in cur.fetchall()}
 
-    def last_ends(self, cur: Cursor, key_ids: list[int]) -> dict[int, int]:
+    def last_ends(self, cur: Cursor, key_ids: list[int]) -> Later[dict[int, int]]:
         cur.execute(
             "SELECT k, (SELECT f.valid_to_ns FROM facts f WHERE f.key_id = k "
             "ORDER BY f.valid_from_ns DESC LIMIT 1) FROM unnest(%b::bigint[]) AS k",
             [key_ids],
         )
-        return {row[0]: row[1] for row in cur.fetchall() if row[1] is not None}
+        return lambda: {row[0]: row[1] for row in cur.fetchall() if row[1] is not None}
 
-    def close_intervals(self, cur: Cursor, t_ns: int, key_ids: list[int]) -> set[int]:
+    def close_intervals(self, cur: Cursor, t_ns: int, key_ids: list[int]) -> Later[set[int]]:
         cur.execute(
             "UPDATE facts SET valid_to_ns = %s WHERE key_id = ANY(%b::bigint[]) "
             "AND valid_to_ns IS NULL AND valid_from_ns <= %s RETURNING key_id",
             [t_ns, key_ids, t_ns],
         )
-        return {row[0] for row in cur.fetchall()}
+        return lambda: {row[0] for row in cur.fetchall()}
 
-    def refresh_intervals(self, cur: Cursor, t_ns: int, rows: list[tuple[Any, ...]]) -> int:
+    def refresh_intervals(self, cur: Cursor, t_ns: int, rows: list[tuple[Any, ...]]) -> Later[int]:
         # The CTEs and the UPDATE see the same snapshot: the samples get the values before.
         cur.execute(
             "WITH u AS (SELECT * FROM unnest(%b::float8[], %b::float8[], %b::float8[], "
@@ -120,7 +140,7 @@ class PostgreSQLBackend:
             "FROM u WHERE f.key_id = u.k AND f.valid_to_ns IS NULL",
             [*_columns(rows, 4), t_ns],
         )
-        return cur.rowcount
+        return lambda: cur.rowcount
 
     def insert_intervals(self, cur: Cursor, rows: list[tuple[Any, ...]]) -> None:
         cur.execute(
@@ -137,6 +157,13 @@ class PostgreSQLBackend:
             "unnest(%b::bigint[], %b::text[], %b::text[], %b::bigint[], %b::text[], %b::float8[], "
             "%b::float8[], %b::float8[], %b::text[], %b::text[], %b::bigint[])",
             _columns(rows, 11),
+        )
+
+    def retype_keys(self, cur: Cursor, rows: list[tuple[int, str]]) -> None:
+        cur.execute(
+            "UPDATE fact_keys k SET property_type = u.p FROM unnest(%b::bigint[], %b::text[]) "
+            "AS u(k, p) WHERE k.id = u.k",
+            _columns(rows, 2),
         )
 
     def insert_entities(self, cur: Cursor, rows: list[tuple[str, str, int]]) -> None:
@@ -166,17 +193,41 @@ class PostgreSQLBackend:
             if names:  # the session's temporary tables: the scratch tables (00_temp)
                 cur.execute("VACUUM " + ", ".join(f'pg_temp."{name}"' for name in names))
 
-    def begin_writes(self, cur: Cursor) -> tuple[int, int]:
+    def begin_writes(
+        self, cur: Cursor, *, clock: bool = False, begin: bool = False
+    ) -> tuple[int, int, Clock | None]:
         # A transaction-local setting: other sessions never see it; one round trip in all.
-        cur.execute(
-            "SELECT cache_epoch, agents_version, "
-            "set_config('toaster.writer', 'rules', true) FROM store_state WHERE id = 1"
+        # The clock's row is locked as an UPDATE locks it, without writing a new version.
+        header = (
+            "SELECT cache_epoch, agents_version, set_config('toaster.writer', 'rules', true), "
+            + (
+                "beliefs_ns, beliefs_self FROM store_state WHERE id = 1 FOR NO KEY UPDATE"
+                if clock
+                else "NULL, NULL FROM store_state WHERE id = 1"
+            )
         )
-        epoch, agents, _ = cur.fetchone()
-        return int(epoch), int(agents)
+        raw: Any = cur.connection  # type: ignore[attr-defined]
+        if begin and _pipelines() and not raw.autocommit and raw.info.transaction_status == _IDLE:
+            # psycopg would send its own BEGIN and wait for it: sent with the header instead,
+            # the connection in autocommit mode (no BEGIN of psycopg's) until after_writes
+            raw.autocommit = True
+            self._begun = raw
+            with raw.pipeline():
+                raw.execute("BEGIN")
+                cur.execute(header)
+        else:
+            cur.execute(header)
+        epoch, agents, _, beliefs_ns, beliefs_self = cur.fetchone()
+        return int(epoch), int(agents), (beliefs_ns, beliefs_self) if clock else None
 
     def end_writes(self, cur: Cursor) -> None:
         """Nothing to do: the setting ends with the transaction."""
+
+    def after_writes(self, cur: Cursor) -> None:
+        raw: Any = cur.connection  # type: ignore[attr-defined]
+        if self._begun is raw and raw.info.transaction_status == _IDLE:
+            raw.autocommit = False  # (a broken connection is left to be replaced)
+        self._begun = None
 
     def set_read_only(self, cur: Cursor) -> None:
         cur.execute("SET TRANSACTION READ ONLY")

@@ -8,9 +8,10 @@ slower (docs/store.md).
 from __future__ import annotations
 
 from collections.abc import Iterator
+from contextlib import AbstractContextManager, nullcontext
 from typing import TYPE_CHECKING, Any
 
-from toaster.db.dialects.base import Cursor, Key
+from toaster.db.dialects.base import Clock, Cursor, Key, Later
 
 if TYPE_CHECKING:
     from sqlalchemy import Connection
@@ -60,7 +61,10 @@ class SQLiteBackend:
     def named(self, sql: str) -> str:
         return sql  # sqlite3 takes :name as it is
 
-    def lookup_keys(self, cur: Cursor, agent_id: str, keys: list[Key]) -> dict[Key, int]:
+    def batch(self, cur: Cursor) -> AbstractContextManager[None]:
+        return nullcontext()  # in-process: no round trip to save
+
+    def lookup_keys(self, cur: Cursor, agent_id: str, keys: list[Key]) -> Later[dict[Key, int]]:
         found: dict[Key, int] = {}
         for chunk in _chunks(keys, _MAX_VARS // 6):
             values = ",".join(["(?,?,?,?,?,?)"] * len(chunk))
@@ -78,11 +82,11 @@ class SQLiteBackend:
             )
             for row in cur.fetchall():
                 found[tuple(row[1:])] = row[0]
-        return found
+        return lambda: found
 
     def insert_keys(
         self, cur: Cursor, agent_id: str, rows: list[tuple[Key, str]]
-    ) -> dict[Key, int]:
+    ) -> Later[dict[Key, int]]:
         created: dict[Key, int] = {}
         for chunk in _chunks(rows, _MAX_VARS // 8):
             values = ",".join(["(?,?,?,?,?,?,?,?)"] * len(chunk))
@@ -98,9 +102,9 @@ class SQLiteBackend:
             )
             for row in cur.fetchall():
                 created[tuple(row[1:])] = row[0]
-        return created
+        return lambda: created
 
-    def open_rows(self, cur: Cursor, key_ids: list[int]) -> dict[int, tuple[Any, ...]]:
+    def open_rows(self, cur: Cursor, key_ids: list[int]) -> Later[dict[int, tuple[Any, ...]]]:
         found: dict[int, tuple[Any, ...]] = {}
         for chunk in _chunks(key_ids, _MAX_VARS):
             marks = ",".join("?" * len(chunk))
@@ -112,9 +116,9 @@ class SQLiteBackend:
             )
             for row in cur.fetchall():
                 found[row[0]] = tuple(row[1:])
-        return found
+        return lambda: found
 
-    def last_ends(self, cur: Cursor, key_ids: list[int]) -> dict[int, int]:
+    def last_ends(self, cur: Cursor, key_ids: list[int]) -> Later[dict[int, int]]:
         found: dict[int, int] = {}
         for chunk in _chunks(key_ids, _MAX_VARS):
             values = ",".join(["(?)"] * len(chunk))
@@ -124,9 +128,9 @@ class SQLiteBackend:
                 chunk,
             )
             found.update((row[0], row[1]) for row in cur.fetchall() if row[1] is not None)
-        return found
+        return lambda: found
 
-    def close_intervals(self, cur: Cursor, t_ns: int, key_ids: list[int]) -> set[int]:
+    def close_intervals(self, cur: Cursor, t_ns: int, key_ids: list[int]) -> Later[set[int]]:
         closed: set[int] = set()
         for chunk in _chunks(key_ids, _MAX_VARS):
             marks = ",".join("?" * len(chunk))
@@ -137,9 +141,9 @@ class SQLiteBackend:
                 [t_ns, *chunk, t_ns],
             )
             closed.update(row[0] for row in cur.fetchall())
-        return closed
+        return lambda: closed
 
-    def refresh_intervals(self, cur: Cursor, t_ns: int, rows: list[tuple[Any, ...]]) -> int:
+    def refresh_intervals(self, cur: Cursor, t_ns: int, rows: list[tuple[Any, ...]]) -> Later[int]:
         for chunk in _chunks([row[3] for row in rows], _MAX_VARS):
             marks = ",".join("?" * len(chunk))
             cur.execute(
@@ -159,7 +163,7 @@ class SQLiteBackend:
                 [value for row in chunk for value in row],
             )
             updated += cur.rowcount
-        return updated
+        return lambda: updated
 
     def insert_intervals(self, cur: Cursor, rows: list[tuple[Any, ...]]) -> None:
         _insert_rows(
@@ -176,6 +180,11 @@ class SQLiteBackend:
             "value_num, confidence, observability, previous_text, source, "
             "recorded_ns)",
             rows,
+        )
+
+    def retype_keys(self, cur: Cursor, rows: list[tuple[int, str]]) -> None:
+        cur.executemany(
+            "UPDATE fact_keys SET property_type = ? WHERE id = ?", [(p, k) for k, p in rows]
         )
 
     def insert_entities(self, cur: Cursor, rows: list[tuple[str, str, int]]) -> None:
@@ -207,17 +216,23 @@ class SQLiteBackend:
         cur.execute(f"PRAGMA cache_size=-{int(kib)}")
         cur.close()
 
-    def begin_writes(self, cur: Cursor) -> tuple[int, int]:
+    def begin_writes(
+        self, cur: Cursor, *, clock: bool = False, begin: bool = False
+    ) -> tuple[int, int, Clock | None]:
         # One writer at a time in SQLite: a row in rule_writer, deleted before the commit,
-        # is seen only by this transaction.
+        # is seen only by this transaction (whose write lock also holds the clock).
         cur.execute("INSERT OR IGNORE INTO rule_writer (id, holder) VALUES (1, 'store')")
-        epoch, agents = cur.execute(
-            "SELECT cache_epoch, agents_version FROM store_state WHERE id = 1"
+        epoch, agents, beliefs_ns, beliefs_self = cur.execute(
+            "SELECT cache_epoch, agents_version, beliefs_ns, beliefs_self FROM store_state "
+            "WHERE id = 1"
         ).fetchone()
-        return int(epoch), int(agents)
+        return int(epoch), int(agents), (beliefs_ns, beliefs_self) if clock else None
 
     def end_writes(self, cur: Cursor) -> None:
         cur.execute("DELETE FROM rule_writer")
+
+    def after_writes(self, cur: Cursor) -> None:
+        """Nothing to undo: SQLAlchemy began the transaction (BEGIN IMMEDIATE)."""
 
     def set_read_only(self, cur: Cursor) -> None:
         cur.execute("PRAGMA query_only = ON")

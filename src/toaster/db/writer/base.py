@@ -14,11 +14,17 @@ from sqlalchemy import Connection, text
 
 from toaster.db import catalog, tolerance
 from toaster.db.dialects import Key
+from toaster.db.dialects.base import Clock
 from toaster.db.tolerance import Tolerance
-from toaster.db.writer.changes import Actors, ChangeSet, Rule
+from toaster.db.writer.changes import Actors, Rule
 from toaster.db.writer.diff import SourceState, key_of
 from toaster.db.writer.retry import ATTEMPTS, StaleCache, is_conflict, one_line
-from toaster.errors import ConcurrentWriteError, InvalidInputError, UnknownAgentError
+from toaster.errors import (
+    ConcurrentWriteError,
+    InvalidInputError,
+    ToasterError,
+    UnknownAgentError,
+)
 from toaster.model import Fact, check_id, listed
 from toaster.timeutil import now_ns
 
@@ -43,34 +49,52 @@ class WriterBase:
         self._agents_version: int | None = None
         self._rules: list[Rule] = []
         self._tolerances: dict[str, Tolerance] | None = None
-        self._pending: list[ChangeSet] | None = None  # changes whose rules wait (sync_many)
+        self._in_tick = False  # sync_many: several sources written at one stamp
         self._tick_ns: int | None = None  # sync_many: the stamp of its sources, once known
         self._tick_sources: tuple[str, ...] = ()  # sync_many: its sources
         self._actor: str | None = None  # who makes the changes being written (acting())
         self._actor_of: Callable[[Fact], str | None] | None = None  # per fact (acting())
         self._in_tx = False
+        #: Write transactions begun (a rule's ``committed()`` tells which one committed).
+        self.transactions = 0
+        self._clock: Clock | None = None  # the rules' clock as this transaction began
         # (agent, source) -> where its last snapshot moved to the clock was written (_writes)
         self._moved_to: dict[tuple[str, str], int] = {}
 
     # ------------------------------------------------------------------ transactions, caches
     @contextmanager
-    def transaction(self) -> Iterator[Connection]:
-        """One write transaction; store calls made inside it join it (all or nothing)."""
+    def transaction(self, *, clock: bool = False) -> Iterator[Connection]:
+        """One write transaction; store calls made inside it join it (all or nothing).
+        ``clock``: read (and lock) the rules' clock with the cache epoch, for a snapshot."""
         if self._in_tx:
             yield self.db.connection
             return
         self._in_tx = True
+        self.transactions += 1
+        cur = None
+        begin = not self.db.connection.in_transaction()  # else inside a db.transaction()
         try:
             with self.db.transaction(write=True) as conn:
                 cur = self.db.cursor()
-                self._check_epoch(self.backend.begin_writes(cur))
+                epoch, agents, self._clock = self.backend.begin_writes(
+                    cur, clock=clock, begin=begin
+                )
+                self._check_epoch((epoch, agents))
                 yield conn
                 self.backend.end_writes(cur)
+        except Exception as exc:
+            self.forget()
+            locked = _lock_timed_out(self.db, exc)
+            if locked is not None:
+                raise locked from exc
+            raise
         except BaseException:
             self.forget()
             raise
         finally:
-            self._in_tx = False
+            self._in_tx, self._clock = False, None
+            if cur is not None:
+                self.backend.after_writes(cur)
         for rule in self._rules:
             committed = getattr(rule, "committed", None)
             if committed is not None:
@@ -162,13 +186,13 @@ class WriterBase:
     def agents(self) -> dict[str, bool]:
         """Known agents and nested belief holders (``A>B``): id -> is_self."""
         if self._agents is None:
-            with self.db.transaction() as conn:
-                rows = conn.execute(
-                    text(
-                        "SELECT h.id, COALESCE(a.is_self, false) FROM holders h "
-                        "LEFT JOIN agents a ON a.id = h.agent_id"
-                    )
-                ).all()
+            with self.db.transaction():  # a raw cursor: it may be asked inside a batch
+                cur = self.db.cursor()
+                cur.execute(
+                    "SELECT h.id, COALESCE(a.is_self, false) FROM holders h "
+                    "LEFT JOIN agents a ON a.id = h.agent_id"
+                )
+                rows = cur.fetchall()
             self._agents = {row[0]: bool(row[1]) for row in rows}
         return self._agents
 
@@ -293,7 +317,7 @@ class WriterBase:
         written again from the start when it conflicts with a concurrent writer."""
         return self._retrying(write)
 
-    def _retrying(self, write: Callable[[Connection], _T]) -> _T:
+    def _retrying(self, write: Callable[[Connection], _T], *, clock: bool = False) -> _T:
         """``write(conn)`` in one transaction. Outermost, a conflict with a concurrent writer
         (a stale cache, a deadlock, a serialization failure, a unique key taken meanwhile)
         rolls it back and runs it again with fresh caches, a few times; inside a caller's
@@ -308,7 +332,7 @@ class WriterBase:
                 return write(self.db.connection)
         for attempt in range(1, ATTEMPTS + 1):
             try:
-                with self.transaction() as conn:
+                with self.transaction(clock=clock) as conn:
                     return write(conn)
             except Exception as exc:
                 if not is_conflict(exc):
@@ -379,6 +403,17 @@ class WriterBase:
         """A stored setting, or ``default``."""
         with self.db.transaction() as conn:
             return catalog.get_setting(conn, scope, key, default)
+
+
+def _lock_timed_out(db: Handle, exc: Exception) -> ToasterError | None:
+    """The one-line error of a lock wait a raw cursor's statement gave up (PostgreSQL's
+    lock_timeout: the rules' clock, locked by the header, or a row another writer holds);
+    SQLAlchemy's statements get it from the engine's error handler."""
+    if getattr(exc, "sqlstate", None) != "55P03":
+        return None
+    from toaster.db.engine import database_error, describe, lock_timeout
+
+    return database_error(exc, describe(db.connection.engine.url), lock_timeout())
 
 
 def _by_key(actors: Mapping[Key, str]) -> Callable[[Fact], str | None]:

@@ -38,3 +38,11 @@ def is_integrity_error(exc: Exception) -> bool:
         return True
     name = type(exc).__name__
     return name in {"IntegrityError", "UniqueViolation"}
+
+
+def on_facts(exc: BaseException) -> bool:
+    """True for an integrity error that PostgreSQL reports on ``facts`` (an open interval
+    another writer made meanwhile, or a key removed meanwhile)."""
+    if not isinstance(exc, Exception) or not is_integrity_error(exc):
+        return False
+    return getattr(getattr(exc, "diag", None), "table_name", None) == "facts"

@@ -22,14 +22,15 @@ world state re-asserts itself as in the original's EMPTY. Belief rules registere
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
 
 from sqlalchemy import Connection, text
 
 from toaster.db import catalog, tolerance
 from toaster.db.dialects import Key
 from toaster.db.tolerance import Tolerance
-from toaster.db.writer.base import WriterBase
-from toaster.db.writer.changes import Actors, ChangeSet, Rule, SyncResult, Writes, merged
+from toaster.db.writer.changes import Actors, Rule, SyncResult, Writes, merged
+from toaster.db.writer.changes import ChangeSet as ChangeSet  # where callers found it
 from toaster.db.writer.diff import (
     BatchState,
     FactArrays,
@@ -38,7 +39,7 @@ from toaster.db.writer.diff import (
     key_of,
     within,
 )
-from toaster.db.writer.retry import StaleCache, is_integrity_error
+from toaster.db.writer.steps import FactSteps, Reads, Sent
 from toaster.errors import TimeOrderError
 from toaster.model import Fact, check_fact, check_id, fact_key
 from toaster.timeutil import check_ns, format_ns, now_ns
@@ -55,7 +56,39 @@ LIVE_CLOCK_SKEW_NS = 1_000_000_000
 RuleFactory = Callable[["Store"], Rule]
 
 
-class Store(WriterBase):
+@dataclass(eq=False)
+class Plan:
+    """One source's snapshot in a write: its differences, then its rows."""
+
+    source: str
+    state: SourceState
+    t_ns: int
+    size: int  # facts in the snapshot
+    touched: list[tuple[Key, Fact]] = field(default_factory=list)  # stated, changed
+    gone: list[tuple[Key, Fact]] = field(default_factory=list)  # held, missing now
+    trust_cache: bool = False  # numbers alone moved: refresh without reading back (batches)
+    after: list[Callable[[], None]] = field(default_factory=list)  # once written
+    writes: Writes | None = None
+    resolve: list[tuple[Key, Fact]] = field(default_factory=list)  # compared with the stored
+    reads: Reads | None = None
+
+
+def _stages(plans: list[Plan]) -> list[list[Plan]]:
+    """Plans whose reads may go before the writes of the ones before them: a plan reading a
+    key an earlier one writes (two sources stating one fact) starts a stage of its own."""
+    stages: list[list[Plan]] = [[]]
+    written: set[Key] = set()
+    for plan in plans:
+        if stages[-1] and not written.isdisjoint(key for key, _ in plan.resolve):
+            stages.append([])
+            written = set()
+        stages[-1].append(plan)
+        written.update(key for key, _ in plan.touched)
+        written.update(key for key, _ in plan.gone)
+    return stages
+
+
+class Store(FactSteps):
     """Writes facts, entities and everything else into a :class:`~toaster.db.Database`
     (typed as the :class:`~toaster.db.handle.Handle` it uses)."""
 
@@ -86,21 +119,14 @@ class Store(WriterBase):
                 return self.sync_snapshot(source, agent_id, t_ns, facts)
         check_id(source, "source")
         check_ns(t_ns)
-        batch: FactArrays | None = None
-        given: list[Fact] = []
-        if isinstance(facts, list):  # the common case first: a protocol check is slower
-            given = facts
-        elif isinstance(facts, FactArrays):
-            batch = facts
-        else:
-            given = list(facts)
+        given = _given(facts)
+        exact = self._in_tx  # inside a caller's transaction: answers checked as they come
 
         def write(conn: Connection) -> SyncResult:
-            if batch is not None:
-                return self._sync_batch(conn, source, agent_id, t_ns, batch)
-            return self._sync(conn, source, agent_id, t_ns, given)
+            plan = self._plan(conn, source, agent_id, t_ns, given)
+            return self._write_plans(conn, agent_id, [plan], exact=exact)[0]
 
-        return self._retrying(write)
+        return self._retrying(write, clock=self._may_clock(agent_id))
 
     def _state(self, conn: Connection, source: str, agent_id: str) -> SourceState:
         state = self._sources.get((source, agent_id))
@@ -150,231 +176,173 @@ class Store(WriterBase):
                 self._tolerances = tolerance.read(conn)
         return self._tolerances
 
-    def _sync(
+    def _plan(
+        self,
+        conn: Connection,
+        source: str,
+        agent_id: str,
+        t_ns: int,
+        given: list[Fact] | FactArrays,
+    ) -> Plan:
+        if isinstance(given, list):
+            return self._plan_list(conn, source, agent_id, t_ns, given)
+        return self._plan_batch(conn, source, agent_id, t_ns, given)
+
+    def _plan_list(
         self, conn: Connection, source: str, agent_id: str, t_ns: int, given: list[Fact]
-    ) -> SyncResult:
+    ) -> Plan:
         state = self._begin(conn, source, agent_id, t_ns)
         state.arrays = None
         old = state.facts
+        plan = Plan(source, state, t_ns, len(old))
         if given == state.last_list:  # the same facts in the same order: nothing to do
-            state.last_t = t_ns
-            return SyncResult(0, 0, 0, 0, len(old))
+            return plan
         try:
             new = dict(zip(map(_KEY, given), given, strict=True))
         except (TypeError, IndexError):  # not facts, or a key field that is no text: say which
             for fact in given:
                 check_fact(fact)
             raise
+        plan.size = len(new)
         if new == old:
-            state.last_list, state.last_t = given, t_ns
-            return SyncResult(0, 0, 0, 0, len(new))
+            state.last_list = given
+            return plan
         held_get = old.get
         table = self.tolerances(conn)
-        touched = [
+        plan.touched = [
             (key, check_fact(fact))
             for key, fact in new.items()
             if (held := held_get(key)) != fact and not within(table, fact, held)
         ]
-        gone = [key for key in old if key not in new]
-        result = self._write_diff(
-            conn,
-            state,
-            agent_id,
-            source,
-            t_ns,
-            touched,
-            [(key, old[key]) for key in gone],
-            len(new),
-        )
-        state.last_list = given
-        return result
+        plan.gone = [(key, fact) for key, fact in old.items() if key not in new]
+        plan.after.append(lambda: setattr(state, "last_list", given))
+        return plan
 
-    def _write_diff(
-        self,
-        conn: Connection,
-        state: SourceState,
-        agent_id: str,
-        source: str,
-        t_ns: int,
-        touched: list[tuple[Key, Fact]],
-        gone: list[tuple[Key, Fact]],
-        size: int,
-        *,
-        trust_cache: bool = False,
-    ) -> SyncResult:
-        """Write a snapshot's differences (stated facts, ended facts); remember them.
+    def _plan_batch(
+        self, conn: Connection, source: str, agent_id: str, t_ns: int, batch: FactArrays
+    ) -> Plan:
+        """A fact batch, diffed as arrays (:mod:`.diff`)."""
+        state = self._begin(conn, source, agent_id, t_ns)
+        arrays = state.arrays
+        if arrays is None or arrays.world is not batch.world:
+            plan = self._plan_list(conn, source, agent_id, t_ns, batch.facts())
 
-        Stated facts are compared with the open interval, whoever wrote it; with
-        ``trust_cache`` (producers' batches), a fact whose numbers alone moved refreshes what
-        this source wrote without reading it back first."""
-        if not touched and not gone:
-            state.last_t = t_ns
-            return SyncResult(0, 0, 0, 0, size)
-        key_ids = self._key_ids
-        old = state.facts
+            def rebuilt() -> None:
+                state.last_list = None
+                state.arrays = BatchState.of(batch, state.facts)
+
+            plan.after.append(rebuilt)
+            return plan
+        new = Snapshot.of(batch, self.tolerances(conn))
+        touched, keep, old_pos, gone = arrays.diff(new)
+        facts = [check_fact(f) for f in batch.facts_at(new.order[touched])]
+        keys = list(map(_KEY, facts))
+        plan = Plan(source, state, t_ns, len(new.keys), trust_cache=True)
+        plan.touched = list(zip(keys, facts, strict=True))
+        plan.gone = list(zip(arrays.tkey[gone].tolist(), arrays.fact[gone].tolist(), strict=True))
+
+        def updated() -> None:
+            state.last_list = None
+            state.arrays = arrays.updated(new, touched, keep, old_pos, keys, facts)
+
+        plan.after.append(updated)
+        return plan
+
+    def _rows(self, conn: Connection, agent_id: str, plan: Plan) -> None:
+        """The plan's rows: ends; with ``trust_cache``, a fact whose numbers alone moved
+        refreshes what this source wrote without reading it back (a refresh that finds no
+        open interval means another writer ended it: retry); the rest is compared with the
+        open interval, whoever wrote it (``plan.resolve``)."""
+        key_ids, old = self._key_ids, plan.state.facts
         # Events in order: ended, changed, appeared.
-        writes = self._writes(conn, agent_id, source, t_ns, snapshot=True)
-        for key, fact in gone:
+        writes = plan.writes = self._writes(conn, agent_id, plan.source, plan.t_ns, snapshot=True)
+        for key, fact in plan.gone:
             writes.end(key_ids[(agent_id, key)], fact)
-        if touched and trust_cache and self.agents().get(agent_id):
-            # Only numbers moved: refresh what this source wrote without reading it back (a
-            # refresh that finds no open interval means another writer ended it: retry).
-            resolve = []
-            for key, fact in touched:
+        if plan.trust_cache and plan.touched and self.agents().get(agent_id):
+            for key, fact in plan.touched:
                 held = old.get(key)
                 if held is not None and held[3] == fact[3] and held[7] == fact[7]:
                     writes.refreshed.append((key_ids[(agent_id, key)], fact, held))
                 else:
-                    resolve.append((key, fact))
-            touched_db = resolve
+                    plan.resolve.append((key, fact))
         else:
-            touched_db = touched
-        if touched_db:
-            self._resolve(conn, agent_id, touched_db, writes)
-        self._apply(conn, writes)
-        for key, fact in touched:
-            old[key] = fact
-        for key, _ in gone:
-            del old[key]
-        state.last_t = t_ns
+            plan.resolve = plan.touched
+
+    def _write_plans(
+        self, conn: Connection, agent_id: str, plans: list[Plan], *, exact: bool
+    ) -> list[SyncResult]:
+        """Write the plans' differences (of one agent at one time) and run the rules once
+        over them: one batch of reads and one of writes (:mod:`.steps`)."""
+        active = [plan for plan in plans if plan.touched or plan.gone]
+        if active:
+            for plan in active:
+                self._rows(conn, agent_id, plan)
+            if any(plan.resolve for plan in active) and not self.agents().get(agent_id):
+                self._detach(conn, agent_id, keep=True)
+            self._write_stages(conn, agent_id, _stages(active), exact=exact or self._exact)
+        return [self._done(plan) for plan in plans]
+
+    def _write_stages(
+        self, conn: Connection, agent_id: str, stages: list[list[Plan]], *, exact: bool
+    ) -> None:
+        pipelined = self._rules_pipelined()
+        sent: list[Sent] = []
+        for n, stage in enumerate(stages):
+            resolving = [plan for plan in stage if plan.resolve]
+            if resolving:
+                with self._batch():
+                    for plan in resolving:
+                        plan.reads = self._send_reads(agent_id, plan.resolve)
+                for plan in resolving:
+                    assert plan.reads is not None
+                    self._take_reads(agent_id, plan.reads, plan.writes)
+            with self._batch():
+                for plan in stage:
+                    assert plan.writes is not None
+                    sent.append(self._send_writes(plan.writes, exact=exact))
+                if pipelined and n == len(stages) - 1:
+                    self._tick_rules(conn, sent)
+        for one in sent:
+            self._check(one)
+        if not pipelined:
+            self._tick_rules(conn, sent)
+        self._exact = False
+
+    def _tick_rules(self, conn: Connection, sent: list[Sent]) -> None:
+        """The rules, once over the changes of all the sources written."""
+        for changes in merged([changes for one in sent for changes in one.changes]):
+            self._run_rules(conn, changes)
+
+    @staticmethod
+    def _done(plan: Plan) -> SyncResult:
+        """Remember what the plan wrote; count it."""
+        state, writes = plan.state, plan.writes
+        if writes is not None:
+            old = state.facts
+            for key, fact in plan.touched:
+                old[key] = fact
+            for key, _ in plan.gone:
+                del old[key]
+        state.last_t = plan.t_ns
+        for step in plan.after:
+            step()
+        if writes is None:
+            return SyncResult(0, 0, 0, 0, plan.size)
         return SyncResult(
             len(writes.appeared),
             len(writes.changed),
             len(writes.refreshed),
             len(writes.ended),
-            size - len(touched),
+            plan.size - len(plan.touched),
         )
 
-    def _sync_batch(
-        self, conn: Connection, source: str, agent_id: str, t_ns: int, batch: FactArrays
-    ) -> SyncResult:
-        """:meth:`sync_snapshot` of a fact batch, diffed as arrays (:mod:`.diff`)."""
-        state = self._begin(conn, source, agent_id, t_ns)
-        arrays = state.arrays
-        if arrays is None or arrays.world is not batch.world:
-            result = self._sync(conn, source, agent_id, t_ns, batch.facts())
-            state.last_list = None
-            state.arrays = BatchState.of(batch, state.facts)
-            return result
-        new = Snapshot.of(batch, self.tolerances(conn))
-        touched, keep, old_pos, gone = arrays.diff(new)
-        facts = [check_fact(f) for f in batch.facts_at(new.order[touched])]
-        keys = list(map(_KEY, facts))
-        gone_items = list(zip(arrays.tkey[gone].tolist(), arrays.fact[gone].tolist(), strict=True))
-        result = self._write_diff(
-            conn,
-            state,
-            agent_id,
-            source,
-            t_ns,
-            list(zip(keys, facts, strict=True)),
-            gone_items,
-            len(new.keys),
-            trust_cache=True,
-        )
-        state.last_list = None
-        state.arrays = arrays.updated(new, touched, keep, old_pos, keys, facts)
-        return result
-
-    def _key_id_map(
-        self, conn: Connection, agent_id: str, facts: list[tuple[Key, Fact]]
-    ) -> set[Key]:
-        """Fill the key-id cache for ``facts``; return the keys that were just created."""
-        missing = [(key, fact) for key, fact in facts if (agent_id, key) not in self._key_ids]
-        if not missing:
-            return set()
-        # Keys this process never saw are usually new: insert first, look up the rest.
-        cur = self.db.cursor()
-        self._ensure_entities([fact for _, fact in missing])
-        created = self.backend.insert_keys(
-            cur, agent_id, [(key, fact.property_type) for key, fact in missing]
-        )
-        found: dict[Key, int] = {}
-        if len(created) != len(missing):
-            found = self.backend.lookup_keys(
-                cur, agent_id, [key for key, _ in missing if key not in created]
-            )
-        for key, key_id in (*found.items(), *created.items()):
-            self._key_ids[(agent_id, key)] = key_id
-        return set(created)
-
-    def _resolve(
-        self, conn: Connection, agent_id: str, items: list[tuple[Key, Fact]], writes: Writes
-    ) -> None:
-        """Compare stated facts with what is stored now (the open interval, whoever wrote it):
-        a missing interval appears, another symbolic value changes, the rest refreshes."""
-        if not self.agents().get(agent_id):
-            self._detach(conn, agent_id, keep=True)
-        created = self._key_id_map(conn, agent_id, items)
-        known = [self._key_ids[(agent_id, key)] for key, _ in items if key not in created]
-        cur = self.db.cursor()
-        open_rows = self.backend.open_rows(cur, known) if known else {}
-        reopened = [k for k in known if k not in open_rows]
-        ends = self.backend.last_ends(cur, reopened) if reopened else {}
-        t_ns = writes.t_ns
-        for key, fact in items:
-            key_id = self._key_ids[(agent_id, key)]
-            row = open_rows.get(key_id)
-            last = row[5] if row is not None else ends.get(key_id)
-            if last is not None and last > t_ns:
-                msg = (
-                    f"{fact.subject_id} {fact.property} {fact.target_id}".rstrip()
-                    + f" for {agent_id!r} at {format_ns(t_ns)} is older than its last "
-                    f"change ({format_ns(last)}): write each fact in time order"
-                )
-                raise TimeOrderError(msg)
-            if row is None:
-                writes.appear(key_id, fact)
-            else:
-                held = Fact(
-                    fact.subject_id,
-                    fact.property,
-                    fact.target_id,
-                    row[0],
-                    row[1],
-                    row[2],
-                    row[3],
-                    fact.property_type,
-                    fact.sub_property,
-                    fact.subject_owner_id,
-                    fact.target_owner_id,
-                )
-                writes.update(key_id, fact, held)
-
-    def _apply(self, conn: Connection, writes: Writes) -> None:
-        cur = self.db.cursor()
-        backend = self.backend
-        if writes.refreshed:  # first: a stale cache is found before anything is written
-            rows = [(f.value_num, f.confidence, f.observability, k) for k, f, _ in writes.refreshed]
-            if backend.refresh_intervals(cur, writes.t_ns, rows) != len(rows):
-                raise StaleCache
-        if writes.closing:
-            # A fact this source held may have been ended by another writer: no event then.
-            closed = backend.close_intervals(cur, writes.t_ns, writes.closing)
-            writes.ended = [(k, f) for k, f in writes.ended if k in closed]
-        writes.events[:0] = [writes.event(k, f, "ended", None) for k, f in writes.ended]
-        try:
-            if writes.opening:
-                backend.insert_intervals(cur, writes.opening)
-        except Exception as exc:
-            if is_integrity_error(exc):
-                raise StaleCache from exc
-            raise
-        if writes.events:
-            backend.insert_events(cur, writes.events)
-        if writes.retyped:
-            conn.execute(
-                text("UPDATE fact_keys SET property_type = :p WHERE id = :k"),
-                [{"p": p, "k": k} for k, p in writes.retyped],
-            )
-        if self._rules and not writes.empty:
-            changes = writes.change_set()
-            for actor in set(changes.actors.values()):
-                self._check_actor(actor)
-            if self._pending is not None:  # sync_many: the rules run once, at its end
-                self._pending.append(changes)
-            else:
-                self._run_rules(conn, changes)
+    def _may_clock(self, agent_id: str) -> bool:
+        """Whether a snapshot of ``agent_id`` may follow the rules' clock, as far as the
+        store remembers (its transaction then reads the clock with the cache epoch)."""
+        agents = self._agents
+        if not self._rules:
+            return False
+        return agents is None or (agent_id in agents and not all(agents.values()))
 
     def _clocked(self, agent_id: str) -> bool:
         """Snapshots of ``agent_id`` follow the rules' clock (see :meth:`_writes`): rules run,
@@ -404,32 +372,31 @@ class Store(WriterBase):
         after). On PostgreSQL reading the clock locks it: such writes run one at a time
         (their belief runs would anyway)."""
         given = t_ns
-        if snapshot and self._pending is not None and self._tick_ns is not None:
+        if snapshot and self._in_tick and self._tick_ns is not None:
             t_ns = self._tick_ns  # a later source of the tick: the first one's stamp
         elif snapshot and self._clocked(agent_id):
-            last, last_self = conn.execute(
-                text(
-                    "UPDATE store_state SET beliefs_ns = beliefs_ns WHERE id = 1 "
-                    "RETURNING beliefs_ns, beliefs_self"
-                )
-            ).one()
+            clock, self._clock = self._clock, None  # read (and locked) as the write began
+            if clock is None:
+                clock = conn.execute(
+                    text(
+                        "UPDATE store_state SET beliefs_ns = beliefs_ns WHERE id = 1 "
+                        "RETURNING beliefs_ns, beliefs_self"
+                    )
+                ).one()
+            last, last_self = clock
             moved = max(
                 self._moved_to.get((agent_id, s), t_ns) for s in (*self._tick_sources, source)
             )
             behind = last is not None and (t_ns < last or (t_ns == last and last_self != agent_id))
-            if behind and last <= t_ns + LIVE_CLOCK_SKEW_NS:
+            if behind and last is not None and last <= t_ns + LIVE_CLOCK_SKEW_NS:
                 t_ns = max(last + 1, moved)
             elif t_ns < moved:
                 t_ns = moved if last is None else max(moved, last + 1)
-        if snapshot and self._pending is not None:
+        if snapshot and self._in_tick:
             self._tick_ns = t_ns
         if snapshot and t_ns != given:
             self._moved_to[(agent_id, source)] = t_ns
         return Writes(agent_id, source, t_ns, self._actor, self._actor_of)
-
-    def _run_rules(self, conn: Connection, changes: ChangeSet) -> None:
-        for rule in self._rules:
-            rule(conn, changes)
 
     def sync_many(
         self,
@@ -444,23 +411,21 @@ class Store(WriterBase):
         transaction, the rules running once over all their changes (a producer tick).
         ``actor`` and ``actors`` (per fact) name who made the changes, as for
         :meth:`sync_snapshot`."""
-        given = list(snapshots)
+        check_ns(t_ns)
+        given = [(check_id(source, "source"), _given(facts)) for source, facts in snapshots]
+        exact = self._in_tx  # inside a caller's transaction: answers checked as they come
 
         def write(conn: Connection) -> list[SyncResult]:
-            self._pending, self._tick_ns = [], None
+            self._in_tick, self._tick_ns = True, None
             self._tick_sources = tuple(source for source, _ in given)
             try:
-                results = [
-                    self.sync_snapshot(source, agent_id, t_ns, facts) for source, facts in given
-                ]
-                for changes in merged(self._pending):
-                    self._run_rules(conn, changes)
+                plans = [self._plan(conn, source, agent_id, t_ns, facts) for source, facts in given]
+                return self._write_plans(conn, agent_id, plans, exact=exact)
             finally:
-                self._pending, self._tick_ns, self._tick_sources = None, None, ()
-            return results
+                self._in_tick, self._tick_ns, self._tick_sources = False, None, ()
 
         with self.acting(actor, actors):
-            return self._retrying(write)
+            return self._retrying(write, clock=self._may_clock(agent_id))
 
     # ------------------------------------------------------------------ single writes
     def assert_fact(
@@ -544,10 +509,10 @@ class Store(WriterBase):
         """Record a user event (the original's set_info EVENT) for an agent."""
         fact = check_fact(fact)
         t_ns = now_ns() if t_ns is None else check_ns(t_ns)
-        with self.transaction() as conn:
+        with self.transaction():
             self.check_agent(agent_id)
             key = fact_key(fact)
-            self._key_id_map(conn, agent_id, [(key, fact)])
+            self._key_id_map(agent_id, [(key, fact)])
             self.backend.insert_events(
                 self.db.cursor(),
                 [
@@ -575,3 +540,12 @@ class Store(WriterBase):
             self._detach(conn, agent_id, keep=False)
             catalog.empty_facts(conn, agent_id)
             self.bump_epoch(conn)
+
+
+def _given(facts: Iterable[Fact] | FactArrays) -> list[Fact] | FactArrays:
+    """A snapshot as a list of facts, or a producer's batch as it is."""
+    if isinstance(facts, list):  # the common case first: a protocol check is slower
+        return facts
+    if isinstance(facts, FactArrays):
+        return facts
+    return list(facts)
