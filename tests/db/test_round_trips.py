@@ -205,3 +205,33 @@ def test_ticks_inside_and_after_a_callers_database_transaction(db: toaster.Datab
         store.add_entity("", "object")  # refused: the tick above is rolled back with it
     assert store.sync_many("ROBOT", 3 * S, tick(2))[0].appeared == 1
     assert {e.stamp_ns for e in toaster.queries.events(db, "ROBOT")} == {S, 2 * S, 3 * S}
+
+
+@pytest.mark.backend("postgresql")
+def test_ticks_store_again_when_the_server_comes_back(db_url: str) -> None:
+    """A tick that cannot reach the server (or connect to it) fails and leaves the store as
+    it was: the ticks after the server came back are transactions of their own, stored with
+    their events."""
+    from tests.node.test_faults import Proxy
+
+    proxy = Proxy()
+    via_proxy = db_url.replace("127.0.0.1:5432", f"127.0.0.1:{proxy.port}")
+    assert via_proxy != db_url
+    try:
+        with toaster.connect(via_proxy) as db:
+            store = setup(db)
+            store.sync_many("ROBOT", S, tick(0))
+            proxy.down()
+            for i in (1, 2):  # the first finds its connection reset, the second cannot connect
+                with pytest.raises((sa.exc.OperationalError, toaster.errors.DatabaseOpenError)):
+                    store.sync_many("ROBOT", (1 + i) * S, tick(i))
+                db.reset_connection()  # as a live node does after a lost connection
+            proxy.up()
+            assert store.sync_many("ROBOT", 4 * S, tick(3))[0].appeared == 1
+            store.add_entity("CAT", "animal", t_ns=4 * S)
+        with toaster.connect(db_url) as db:
+            stamps = {e.stamp_ns for e in toaster.queries.events(db, "ROBOT")}
+            assert stamps == {S, 4 * S}
+            assert [e.id for e in toaster.queries.entities(db, "CAT")] == ["CAT"]
+    finally:
+        proxy.down()

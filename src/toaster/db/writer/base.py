@@ -69,10 +69,12 @@ class WriterBase:
         if self._in_tx:
             yield self.db.connection
             return
+        # Before the flag: reaching the connection reconnects, which fails while the server
+        # is down, and a flag left set would make every later call join a dead transaction.
+        begin = not self.db.connection.in_transaction()  # else inside a db.transaction()
         self._in_tx = True
         self.transactions += 1
         cur = None
-        begin = not self.db.connection.in_transaction()  # else inside a db.transaction()
         try:
             with self.db.transaction(write=True) as conn:
                 cur = self.db.cursor()
