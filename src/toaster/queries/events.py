@@ -27,7 +27,8 @@ def events(
     newest_first: bool = False,
     **filters: Any,
 ) -> list[EventRow]:
-    """Events in ``[since, until]`` (both inclusive), oldest first unless ``newest_first``.
+    """Events in ``[since, until]`` (both inclusive), oldest first unless ``newest_first``
+    (one event of several agents, a shared belief's, comes once per agent, by agent id).
 
     Filters: agent, subject, property, target, sub_property, source, value (lists match any).
     """
@@ -51,7 +52,8 @@ def events(
         params["until"] = until
     order = "DESC" if newest_first else "ASC"
     sql = (
-        f"SELECT {EVENT_COLUMNS} FROM event_log WHERE {where} ORDER BY stamp_ns {order}, id {order}"
+        f"SELECT {EVENT_COLUMNS} FROM event_log WHERE {where} "
+        f"ORDER BY stamp_ns {order}, id {order}, agent_id {order}"
     )
     if limit is not None:
         sql += " LIMIT :limit"

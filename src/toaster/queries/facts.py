@@ -160,7 +160,7 @@ def memory(
         since=since,
         until=until,
         limit=limit,
-        order="valid_from_ns, fact_id",
+        order="valid_from_ns, fact_id, agent_id",
     )
 
 
@@ -173,7 +173,8 @@ def history(
     limit: int | None = None,
     **filters: Any,
 ) -> list[FactRow]:
-    """Every interval, current and past, oldest first (the timeline of the matching facts)."""
+    """Every interval, current and past, oldest first (the timeline of the matching facts;
+    an interval several agents share comes once per agent, by agent id)."""
     return _select(
         db,
         "fact_history",
@@ -181,7 +182,7 @@ def history(
         since=since,
         until=until,
         limit=limit,
-        order="valid_from_ns, fact_id",
+        order="valid_from_ns, fact_id, agent_id",
     )
 
 
@@ -295,7 +296,7 @@ def signal(
         since=since,
         until=until,
         limit=None,
-        order="valid_from_ns, fact_id",
+        order="valid_from_ns, fact_id, agent_id",
         extra=", fact_id",
     )
     if not rows:
