@@ -109,3 +109,26 @@ def test_quick_run_prints_its_table(
         if script not in ("bench_writers.py", "soak_writers.py"):
             assert backend in done.stdout, done.stdout[-3000:]
             assert f" {other} " not in done.stdout, done.stdout[-3000:]
+
+
+SCRIPTS = sorted(p.name for p in BENCHMARKS.glob("*.py") if p.name.startswith(("bench_", "soak_")))
+
+
+def test_every_benchmark_has_a_quick_run_here() -> None:
+    quick = {case[0] for case in CASES} | {"bench_soak.py"}  # soak: tests/ros1/test_bench_soak.py
+    assert set(SCRIPTS) <= quick, set(SCRIPTS) - quick
+
+
+@pytest.mark.parametrize("script", SCRIPTS)
+def test_help_describes_the_options_and_runs_nothing(script: str) -> None:
+    done = subprocess.run(
+        [sys.executable, str(BENCHMARKS / script), "--help"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=BENCHMARKS,
+        env=os.environ | {"PYTHONPATH": str(BENCHMARKS.parent / "src")},
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.startswith("usage: "), done.stdout[:500]
+    assert "--quick" in done.stdout
