@@ -356,3 +356,26 @@ def test_an_unknown_revision_is_one_line_and_changes_nothing(tmp_path: Path) -> 
         assert result.exception is None or isinstance(result.exception, SystemExit)
         assert "unknown revision 'zzzz'" in result.output
     assert (tmp_path / "r.db").read_bytes() == before
+
+
+@pytest.mark.postgresql
+def test_postgresql_connections_notice_a_lost_peer_and_urls_set_their_own(
+    pg_schema_url: str,
+) -> None:
+    """A server host that vanishes without a word (cable, power, Wi-Fi) is noticed in seconds
+    (TCP keepalives, a time-out for unacknowledged data) instead of the kernel's hours; a
+    URL's own libpq settings win."""
+    from tests.conftest import require_postgres
+
+    require_postgres()
+    for url, idle in ((pg_schema_url, "10"), (pg_schema_url + "&keepalives_idle=60", "60")):
+        engine = make_engine(url)
+        try:
+            with engine.connect() as conn:
+                params = conn.connection.dbapi_connection.info.get_parameters()
+        finally:
+            engine.dispose()
+        assert params["keepalives"] == "1"
+        assert params["keepalives_idle"] == idle
+        assert (params["keepalives_interval"], params["keepalives_count"]) == ("5", "3")
+        assert params["tcp_user_timeout"] == "30000"
