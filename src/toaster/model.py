@@ -114,6 +114,25 @@ class FactRow(NamedTuple):
         )
 
 
+class NumberedInterval(NamedTuple):
+    """One interval and the numbers it had before each stored refresh: ``(until_ns, value_num,
+    confidence, observability)``, oldest first, each held from the previous one's ``until_ns``
+    (the first from the interval's start) until its own; after the last, the interval's own
+    numbers hold."""
+
+    row: FactRow
+    numbers: tuple[tuple[int, float | None, float, float], ...]
+
+    def at(self, t_ns: int) -> FactRow:
+        """The interval with the numbers it had at ``t_ns`` (within its tolerance)."""
+        for until_ns, value, confidence, observability in self.numbers:
+            if t_ns < until_ns:
+                return self.row._replace(
+                    value_num=value, confidence=confidence, observability=observability
+                )
+        return self.row
+
+
 class EventRow(NamedTuple):
     """One change of an agent's beliefs (or a user-recorded event)."""
 

@@ -333,6 +333,51 @@ def test_fact_lists_hold_the_current_facts(db_url: str, tmp_path: Path) -> None:
     assert colours[1] > colours[0] == colours[2]
 
 
+@pytest.mark.slow
+def test_fact_lists_carry_the_number_each_fact_had_then(db_url: str, tmp_path: Path) -> None:
+    """A number that moves within one interval (a refresh: no new interval, no event) is
+    recorded as it was at each frame, in the self agent's fact list and in every holder's
+    beliefs: what toaster.queries.beliefs_at answers for that time."""
+    db = toaster.connect(db_url)
+    try:
+        store = db.store()
+        store.add_entity("pr2", "robot", is_self=True, t_ns=T0)
+        store.add_entity("alice", "human", t_ns=T0)
+        numbers = ((1.0, 0.5), (1.5, 0.6), (1.5, 0.6), (3.0, 0.8), (2.0, 0.9))  # one interval
+        for k, (metres, confidence) in enumerate(numbers):
+            near = Fact("alice", "Distance", "pr2", value_num=metres, confidence=confidence)
+            store.sync_snapshot("agent_monitor", "pr2", T0 + k * S, [near])
+        frames = [(T0 + k * S // 2, [("pr2", "robot", 0, 0, 0, 0)], None) for k in range(10)]
+        result = record(tmp_path / "numbers", frames, db=db)
+        messages = _read(result.mcap)
+        lists = [("pr2", _on(messages, "/agent_monitor/factList"), "factList")] + [
+            (m.holder, _on(messages, topic), "facts")
+            for topic in {t for t, *_ in messages if t.startswith("/toaster/beliefs/")}
+            for _, m in _on(messages, topic)[:1]
+        ]
+        seen = []
+        for holder, stamped, name in lists:
+            recorded = [
+                (t - T0, [(f.property, field(f, "doubleValue"), f.confidence) for f in facts])
+                for t, facts in ((t, field(m, name)) for t, m in stamped)
+                if any(f.property == "Distance" for f in facts)
+            ]
+            if not recorded:  # a holder that does not perceive the distance (alice)
+                continue
+            expected = []
+            for t, _ in recorded:
+                rows = toaster.queries.beliefs_at(db, holder, T0 + t, property="Distance")
+                expected.append((t, [(r.property, r.value_num, r.confidence) for r in rows]))
+            assert recorded == expected, holder
+            assert [n for _, facts in recorded for *_, n in facts] == pytest.approx(
+                [0.5, 0.6, 0.8, 0.9]
+            ), holder  # a list at each change of the numbers, none when they stayed
+            seen.append((holder, name))
+        assert sorted(seen) == [("pr2", "factList"), ("pr2", "facts")]  # list and beliefs
+    finally:
+        db.close()
+
+
 def test_ros2_field_names_decode_with_rosidl_rules(tmp_path: Path) -> None:
     """By default (toaster_names="ros2") recordings hold valid ROS 2 interfaces (snake_case
     fields) that mcap_ros2 (rosidl's parser, as Foxglove's) decodes."""

@@ -5,6 +5,7 @@
 >>> q.fact_value(db, "PR2_ROBOT", "MUG", "IsOn", "TABLE", at=t)  # doctest: +SKIP
 """
 
+from toaster.model import NumberedInterval
 from toaster.queries.catalog import agents, descendants, entities, ontology, properties
 from toaster.queries.events import events
 from toaster.queries.facts import (
@@ -14,6 +15,7 @@ from toaster.queries.facts import (
     fact_value,
     history,
     memory,
+    numbered_history,
     signal,
 )
 from toaster.queries.frames import to_dataframe
@@ -21,6 +23,7 @@ from toaster.queries.sql import SQLResult, are_in_table, execute, execute_stream
 from toaster.queries.watch import watch
 
 __all__ = [
+    "NumberedInterval",
     "SQLResult",
     "SignalPoint",
     "agents",
@@ -35,6 +38,7 @@ __all__ = [
     "fact_value",
     "history",
     "memory",
+    "numbered_history",
     "ontology",
     "properties",
     "signal",

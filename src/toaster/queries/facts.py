@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 from toaster.db.dialects import backend_for
 from toaster.errors import InvalidInputError
-from toaster.model import FactRow, check_id, check_text, shown
+from toaster.model import FactRow, NumberedInterval, check_id, check_text, shown
 from toaster.queries import hotpath
 from toaster.rules import sqltext
 from toaster.timeutil import check_count, check_ns, check_optional_ns
@@ -278,17 +278,16 @@ class SignalPoint(NamedTuple):
     confidence: float | None
 
 
-def signal(
+def numbered_history(
     db: Database,
     agent: str | Sequence[str] | None = None,
     *,
     since: int | None = None,
     until: int | None = None,
     **filters: Any,
-) -> list[SignalPoint]:
-    """The numbers of the matching facts over time, as step points: each interval's start,
-    each stored refresh (``fact_samples``) and its end (``value_num`` None). Sorted by key,
-    then time. The value at any time is the last point at or before it, within tolerance."""
+) -> list[NumberedInterval]:
+    """:func:`history` with each interval's stored refreshes (``fact_samples``): what a
+    reader needs for the number of a fact at any time of the window, not only its last."""
     rows = _select(
         db,
         "fact_history",
@@ -301,7 +300,7 @@ def signal(
     )
     if not rows:
         return []
-    samples: dict[int, list[tuple[int, float | None, float]]] = {}
+    samples: dict[int, list[tuple[int, float | None, float, float]]] = {}
     ids = sorted({row[-1] for row in rows})
     with db.transaction():
         cur = db.cursor()
@@ -310,23 +309,44 @@ def signal(
             names = {f"f{i}": fact_id for i, fact_id in enumerate(chunk)}
             cur.execute(
                 db.backend.named(
-                    "SELECT fact_id, until_ns, value_num, confidence FROM fact_samples WHERE "
+                    "SELECT fact_id, until_ns, value_num, confidence, observability "
+                    "FROM fact_samples WHERE "
                     f"fact_id IN ({', '.join(':' + n for n in names)}) ORDER BY fact_id, until_ns"
                 ),
                 names,
             )
-            for fact_id, until_ns, value, conf in cur.fetchall():
-                samples.setdefault(fact_id, []).append((until_ns, value, conf))
-    points: list[SignalPoint] = []
+            for fact_id, until_ns, value, conf, observability in cur.fetchall():
+                samples.setdefault(fact_id, []).append((until_ns, value, conf, observability))
+    out = []
     for *fields, fact_id in rows:
         row = FactRow(*fields)
+        numbers = tuple(
+            sample
+            for sample in samples.get(fact_id, ())
+            # a followed period's clipped start, or a sample past the interval's end
+            if sample[0] > row.valid_from_ns
+            and (row.valid_to_ns is None or sample[0] <= row.valid_to_ns)
+        )
+        out.append(NumberedInterval(row, numbers))
+    return out
+
+
+def signal(
+    db: Database,
+    agent: str | Sequence[str] | None = None,
+    *,
+    since: int | None = None,
+    until: int | None = None,
+    **filters: Any,
+) -> list[SignalPoint]:
+    """The numbers of the matching facts over time, as step points: each interval's start,
+    each stored refresh (``fact_samples``) and its end (``value_num`` None). Sorted by key,
+    then time. The value at any time is the last point at or before it, within tolerance."""
+    points: list[SignalPoint] = []
+    for row, numbers in numbered_history(db, agent, since=since, until=until, **filters):
         head = (row.agent_id, row.subject_id, row.property, row.sub_property, row.target_id)
         start = row.valid_from_ns
-        for until_ns, value, conf in samples.get(fact_id, ()):
-            if until_ns <= start:  # before a followed period's clipped start
-                continue
-            if row.valid_to_ns is not None and until_ns > row.valid_to_ns:
-                break
+        for until_ns, value, conf, _ in numbers:
             points.append(SignalPoint(*head, start, value, conf))
             start = until_ns
         points.append(SignalPoint(*head, start, row.value_num, row.confidence))

@@ -17,7 +17,7 @@ from collections.abc import Iterable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from toaster.errors import InvalidInputError
-from toaster.model import FactRow
+from toaster.model import FactRow, NumberedInterval
 from toaster.outputs.recording.msgs import FactTimeline
 from toaster.quoting import ros_name
 
@@ -57,7 +57,9 @@ class BeliefTimeline:
     """The holders of a window (each agent, self included, and every nested holder with facts),
     whether each is the self agent, and their intervals as snapshots over time."""
 
-    def __init__(self, holders: dict[str, bool], rows: Iterable[FactRow]) -> None:
+    def __init__(
+        self, holders: dict[str, bool], rows: Iterable[FactRow | NumberedInterval]
+    ) -> None:
         self.is_self = holders
         self.timeline = FactTimeline(rows, key="agent_id", groups=sorted(holders))
 
@@ -71,7 +73,7 @@ class BeliefTimeline:
 
         agents = {a.id: a.is_self for a in queries.agents(db)}
         wanted = [agent] if isinstance(agent, str) else (None if agent is None else list(agent))
-        rows = queries.history(db, wanted, since=since, until=until)
+        rows = queries.numbered_history(db, wanted, since=since, until=until)
         for name in wanted or ():
             if name not in agents and not queries.history(db, name, limit=1):
                 msg = (
@@ -79,7 +81,7 @@ class BeliefTimeline:
                     "nested holder with beliefs (ANNE>SALLY)"
                 )
                 raise InvalidInputError(msg)
-        names = wanted if wanted is not None else [*agents, *(r.agent_id for r in rows)]
+        names = wanted if wanted is not None else [*agents, *(r.row.agent_id for r in rows)]
         return cls({name: agents.get(name, False) for name in names}, rows)
 
     def boundaries(self) -> list[int]:

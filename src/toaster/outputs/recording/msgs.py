@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from toaster.model import Fact, FactRow
+from toaster.model import Fact, FactRow, NumberedInterval
 from toaster.outputs import markers
 from toaster.producers.registry import NAMES as PRODUCERS
 from toaster.world.rosmsg import strip_frame
@@ -220,14 +220,19 @@ class Scene:
 # -- facts --------------------------------------------------------------------------------------
 class FactTimeline:
     """Intervals grouped by a field (``source``: the self agent's producers; ``agent_id``: the
-    holders), as the complete sets each group held over time."""
+    holders), as the complete sets each group held over time, each fact with the number it
+    had then (an interval's stored refreshes, :func:`toaster.queries.numbered_history`)."""
 
     def __init__(
-        self, rows: Iterable[FactRow], key: str = "source", groups: Iterable[str] = ()
+        self,
+        rows: Iterable[FactRow | NumberedInterval],
+        key: str = "source",
+        groups: Iterable[str] = (),
     ) -> None:
-        self.by_source: dict[str, list[FactRow]] = {group: [] for group in groups}
-        for row in rows:
-            self.by_source.setdefault(getattr(row, key), []).append(row)
+        self.by_source: dict[str, list[NumberedInterval]] = {group: [] for group in groups}
+        for item in rows:
+            interval = item if isinstance(item, NumberedInterval) else NumberedInterval(item, ())
+            self.by_source.setdefault(getattr(interval.row, key), []).append(interval)
 
     @classmethod
     def from_db(cls, db: Database, since: int | None, until: int | None) -> FactTimeline:
@@ -238,49 +243,57 @@ class FactTimeline:
         if not selves:
             return cls([])
         return cls(
-            queries.history(db, selves[0].id, since=since, until=until, source=list(PRODUCERS))
+            queries.numbered_history(
+                db, selves[0].id, since=since, until=until, source=list(PRODUCERS)
+            )
         )
 
     def boundaries(self) -> list[int]:
-        """Every time a fact started or ended."""
+        """Every time a fact started or ended, or its number changed."""
         return sorted(
             {
                 t
-                for rows in self.by_source.values()
-                for r in rows
-                for t in (r.valid_from_ns, r.valid_to_ns)
+                for intervals in self.by_source.values()
+                for row, numbers in intervals
+                for t in (
+                    row.valid_from_ns,
+                    row.valid_to_ns,
+                    *(number[0] for number in numbers),
+                )
                 if t is not None
             }
         )
 
     def snapshots(self, times: Sequence[int]) -> Iterator[tuple[int, str, list[FactRow]]]:
-        """(t, group, facts held at t) at the first time and whenever a group's facts
-        changed (valid_from ≤ t < valid_to), in time order (groups in name order at one time)."""
+        """(t, group, facts held at t) at the first time and whenever a group's facts or their
+        numbers changed (valid_from ≤ t < valid_to), in time order (groups in name order at one
+        time)."""
         streams = [_changes(source, rows, times) for source, rows in sorted(self.by_source.items())]
         yield from heapq.merge(*streams, key=lambda item: item[0])
 
 
 def _changes(
-    source: str, rows: list[FactRow], times: Sequence[int]
+    source: str, intervals: list[NumberedInterval], times: Sequence[int]
 ) -> Iterator[tuple[int, str, list[FactRow]]]:
-    starts = sorted(range(len(rows)), key=lambda k: rows[k].valid_from_ns)
+    starts = sorted(range(len(intervals)), key=lambda k: intervals[k].row.valid_from_ns)
     ends: list[tuple[int, int]] = []
     active: set[int] = set()
-    last: frozenset[int] | None = None
+    last: tuple[tuple[int, FactRow], ...] | None = None
     i = 0
     for t in times:
-        while i < len(starts) and rows[starts[i]].valid_from_ns <= t:
+        while i < len(starts) and intervals[starts[i]].row.valid_from_ns <= t:
             k = starts[i]
             active.add(k)
-            end = rows[k].valid_to_ns
+            end = intervals[k].row.valid_to_ns
             if end is not None:
                 heapq.heappush(ends, (end, k))
             i += 1
         while ends and ends[0][0] <= t:
             active.discard(heapq.heappop(ends)[1])
-        if last != (now := frozenset(active)):
+        now = tuple((k, intervals[k].at(t)) for k in sorted(active))
+        if last != now:
             last = now
             held = sorted(
-                (rows[k] for k in now), key=lambda r: (r.subject_id, r.property, r.target_id)
+                (row for _, row in now), key=lambda r: (r.subject_id, r.property, r.target_id)
             )
             yield t, source, held
