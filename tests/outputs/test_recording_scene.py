@@ -148,11 +148,20 @@ def test_sally_anne_scene_and_beliefs(db_url: str, tmp_path: Path) -> None:
         if f.subject_id == "MARBLE" and f.property == "IsIn"
     )
     assert fact.time_start == S and fact.time == _at_stamp(beliefs["SALLY"], 10 * S)
-    # the channels change only when the beliefs do: no two equal messages in a row
+    # the channels change only when the beliefs or their numbers do: no two equal messages in
+    # a row
     for msgs in beliefs.values():
         sets = [
             sorted(
-                (f.subject_id, f.property, f.target_id, f.string_value, f.time_start)
+                (
+                    f.subject_id,
+                    f.property,
+                    f.target_id,
+                    f.string_value,
+                    f.time_start,
+                    f.double_value,
+                    f.confidence,
+                )
                 for f in m.facts
             )
             for _, m in msgs
