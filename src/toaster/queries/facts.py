@@ -286,7 +286,7 @@ def signal(
     **filters: Any,
 ) -> list[SignalPoint]:
     """The numbers of the matching facts over time, as step points: each interval's start,
-    each stored refresh (``fact_samples``) and its end (``value_num`` None). Sorted by key,
+    each stored refresh (``Backend.samples``) and its end (``value_num`` None). Sorted by key,
     then time. The value at any time is the last point at or before it, within tolerance."""
     rows = _select(
         db,
@@ -309,8 +309,9 @@ def signal(
             names = {f"f{i}": fact_id for i, fact_id in enumerate(chunk)}
             cur.execute(
                 db.backend.named(
-                    "SELECT fact_id, until_ns, value_num, confidence FROM fact_samples WHERE "
-                    f"fact_id IN ({', '.join(':' + n for n in names)}) ORDER BY fact_id, until_ns"
+                    f"SELECT fact_id, until_ns, value_num, confidence FROM {db.backend.samples} "
+                    f"s WHERE fact_id IN ({', '.join(':' + n for n in names)}) "
+                    "ORDER BY fact_id, until_ns"
                 ),
                 names,
             )
