@@ -2,7 +2,7 @@
 
 Run: .venv/bin/python benchmarks/bench_run.py [--pg URL] [--no-pg | --only-pg]
      [--only tick|crowd|size|pg-long] [--repeats N] [--long SECONDS] [--humans 100,500]
-     [--quick]
+     [--growth-rows N] [--quick]
 
 ``--quick`` (a smoke run of every section, figures meaningless): a 200-entity scene with 5
 humans holding beliefs, 3 ticks, one run; one 40-person crowd for 10 s; growth from 2 s and 4 s
@@ -27,7 +27,8 @@ replays of 20 people; 4 s of PostgreSQL long run reported every 2 s.
    target); SQLite and PostgreSQL; the × real time it prints, against ``--no-db``.
 3. **Size**: 100 people all present at once, at 30 Hz with 2 cm of tracker noise, and the
    recordings-like crowd with the same noise, replayed by ``toaster run`` for 40 s and 120 s
-   with its defaults (ticks on the samples; ``--rate 30``, used before 2026-11-28, ticked just
+   with its defaults, each then maintained (``toaster db maintain``; ``--growth-rows N``: the
+   first N crowds only) (ticks on the samples; ``--rate 30``, used before 2026-11-28, ticked just
    before a third of them, whose times the CSV rounds to 0.1 ms, and wrote half the samples);
    growth per hour from the difference (bytes, rows; PostgreSQL: dead tuples at the end); then
    where the first crowd's bytes go: each table and index apart, bytes per row, and on
