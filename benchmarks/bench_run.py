@@ -2,7 +2,7 @@
 
 Run: .venv/bin/python benchmarks/bench_run.py [--pg URL] [--no-pg | --only-pg]
      [--only tick|crowd|size|pg-long] [--repeats N] [--long SECONDS] [--humans 100,500]
-     [--quick]
+     [--growth-rows N] [--quick]
 
 ``--quick`` (a smoke run of every section, figures meaningless): a 200-entity scene with 5
 humans holding beliefs, 3 ticks, one run; one 40-person crowd for 10 s; growth from 2 s and 4 s
@@ -27,7 +27,8 @@ replays of 20 people; 4 s of PostgreSQL long run reported every 2 s.
    target); SQLite and PostgreSQL; the × real time it prints, against ``--no-db``.
 3. **Size**: 100 people all present at once, at 30 Hz with 2 cm of tracker noise, and the
    recordings-like crowd with the same noise, replayed by ``toaster run`` for 40 s and 120 s
-   with its defaults (ticks on the samples; ``--rate 30``, used before 2026-11-28, ticked just
+   with its defaults, each then maintained (``toaster db maintain``; ``--growth-rows N``: the
+   first N crowds only) (ticks on the samples; ``--rate 30``, used before 2026-11-28, ticked just
    before a third of them, whose times the CSV rounds to 0.1 ms, and wrote half the samples);
    growth per hour from the difference (bytes, rows; PostgreSQL: dead tuples at the end); then
    where the first crowd's bytes go: each table and index apart, bytes per row, and on
@@ -470,7 +471,27 @@ def bench_crowd(backends: list[str], pg: str | None, repeats: int) -> None:
 COUNTED = ("fact_samples", "facts", "events", "fact_keys")
 
 
-def bench_size(backends: list[str], pg: str | None) -> None:
+#: PostgreSQL's older samples, packed by maintenance (revision 0025): counted in samples
+BLOCKS = "fact_sample_blocks"
+
+
+def _counts(url: str) -> dict[str, int]:
+    """Rows of each :data:`COUNTED` table; the samples packed in :data:`BLOCKS` apart."""
+    with toaster.connect(url) as db, db.transaction() as conn:
+        counts = {
+            t: conn.exec_driver_sql(f"SELECT COUNT(*) FROM {t}").scalar_one() for t in COUNTED
+        }
+        if (
+            conn.dialect.name == "postgresql"
+            and conn.exec_driver_sql(f"SELECT to_regclass('{BLOCKS}')").scalar_one()
+        ):
+            counts[BLOCKS] = conn.exec_driver_sql(
+                f"SELECT COALESCE(SUM(cardinality(untils_ns)), 0) FROM {BLOCKS}"
+            ).scalar_one()
+    return counts
+
+
+def bench_size(backends: list[str], pg: str | None, rows: int | None = None) -> None:
     print(
         "\n3. Growth per hour: crowds at 30 Hz with 2 cm tracker noise (`toaster run`, defaults:"
         " ticks on the samples;"
@@ -486,7 +507,7 @@ def bench_size(backends: list[str], pg: str | None) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         social = Path(tmp) / "social.yaml"
         social.write_text("toward_range_humans: 3.6\n")
-        for label, people, arrivals, extra in SIZES["growth"]:
+        for label, people, arrivals, extra in SIZES["growth"][:rows]:
             extra = tuple(str(social) if e == "social.yaml" else e for e in extra)
             csv = Path(tmp) / f"crowd{people}.csv"
             if not csv.exists():
@@ -528,11 +549,11 @@ def _size_row(
         database = Database(backend, pg, tmp)
         try:
             toaster_run(csv, database.url, None, ("--until", f"{seconds}s", *extra))
-            with toaster.connect(database.url) as db, db.transaction() as conn:
-                counts = {
-                    t: conn.exec_driver_sql(f"SELECT COUNT(*) FROM {t}").scalar_one()
-                    for t in COUNTED
-                }
+            # as a node maintains every minute: both replays end maintained, whatever their
+            # wall time (toaster run maintains every 60 s of it, so a short replay never did)
+            maintain = [TOASTER, "--db", database.url, "db", "maintain"]
+            subprocess.run(maintain, capture_output=True, check=True)
+            counts = _counts(database.url)
             if database.schema and seconds == long:
                 growth.facts_updates = database.schema.counters("facts", counts["fact_samples"])
             sizes.append((database.size(), counts))
@@ -543,6 +564,7 @@ def _size_row(
     (b0, _, _), _ = sizes[0]
     (b1, _, dead), _ = sizes[1]
     deltas = [growth.rows_of(t) for t in COUNTED[:3]]
+    deltas[0] += growth.rows_of(BLOCKS)
     print(
         f"{label:<22} {backend:<11} {(b1 - b0) * growth.per_hour / 1e6:>8.1f} {sum(deltas):>12,.0f}"
         f" {dead:>17,} {deltas[0]:>10,.0f} {deltas[1]:>12,.0f} {deltas[2]:>10,.0f}",
@@ -690,6 +712,9 @@ def main() -> None:
         help="input seconds of the PostgreSQL long run (section 4)",
     )
     parser.add_argument("--humans", help="crowds of section 1b, comma-separated (default 100,500)")
+    parser.add_argument(
+        "--growth-rows", type=int, help="section 3: only its first N crowds (1: 100 at once)"
+    )
     parser.add_argument("--quick", action="store_true", help="small sizes (a smoke run)")
     args = parser.parse_args()
     if args.quick:
@@ -714,7 +739,7 @@ def main() -> None:
     if args.only in (None, "crowd"):
         bench_crowd(backends, pg, args.repeats)
     if args.only in (None, "size"):
-        bench_size(backends, pg)
+        bench_size(backends, pg, args.growth_rows)
     if args.only in (None, "pg-long") and pg:
         bench_pg_long(pg, args.long)
 

@@ -13,6 +13,7 @@ import sqlalchemy as sa
 import toaster
 from toaster.beliefs import api, scenario
 from toaster.db.dialects import GUARD_MESSAGE, GUARDED_TABLES
+from toaster.db.dialects.postgresql import BLOCK
 from toaster.db.engine import make_engine
 
 pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
@@ -23,6 +24,7 @@ FIRST_COLUMN = {
     "facts": "key_id",
     "events": "key_id",
     "fact_samples": "fact_id",
+    "fact_sample_blocks": "fact_id",
     "belief_follow": "hkey",
     "belief_chain": "holder_id",
     "belief_groups": "holder_id",
@@ -32,20 +34,22 @@ FIRST_COLUMN = {
 @pytest.fixture
 def story(db: toaster.Database) -> toaster.Database:
     """Sally-Anne (holders, followed periods, nested holders) plus a refreshed number
-    (a sample row) and two people in a lab, who perceive alike (a group of holders): every
-    guarded table has rows."""
+    (sample rows, on PostgreSQL a block of them once maintained) and two people in a lab, who
+    perceive alike (a group of holders): every guarded table has rows (SQLite's blocks
+    excepted: it never packs)."""
     scenario.replay(db, SALLY_ANNE)
     st = db.store()
     for person in ("XAVI", "YUKI"):
         st.add_entity(person, "human", t_ns=0)
     lab = [toaster.Fact(x, "IsInRoom", "LAB") for x in ("XAVI", "YUKI", "CUP")]
-    for t, metres in ((10, 1.0), (11, 2.0)):
+    for t, metres in enumerate([1.0, 2.0] * (BLOCK // 2 + 2), start=10):
         st.sync_snapshot(
             "ranger",
             "ROBOT",
             t * 1_000_000_000,
             [toaster.Fact("SALLY", "Distance", "BOX", value_num=metres), *lab],
         )
+    db.maintain()
     return db
 
 
@@ -75,7 +79,10 @@ def raw_write(url: str, sql: str) -> str:
 
 
 def test_guarded_tables_have_rows(story: toaster.Database) -> None:
-    assert all(counts(story.url).values()), counts(story.url)
+    found = counts(story.url)
+    if story.backend.name == "sqlite":
+        assert found.pop("fact_sample_blocks") == 0
+    assert all(found.values()), found
 
 
 @pytest.mark.parametrize("table", GUARDED_TABLES)
@@ -84,9 +91,13 @@ def test_direct_write_is_refused_in_one_line(
     story: toaster.Database, table: str, action: str
 ) -> None:
     before = counts(story.url)
+    if before[table] == 0 and action != "insert":
+        pytest.skip(f"{table} is empty on {story.backend.name}: no row to update or delete")
     column = FIRST_COLUMN[table]
     sql = {
-        "insert": f"INSERT INTO {table} SELECT * FROM {table}",
+        "insert": f"INSERT INTO {table} SELECT * FROM {table}"
+        if before[table]
+        else f"INSERT INTO {table} VALUES (1, 1, '{{1}}', '{{1}}', '{{1}}', '{{1}}')",
         "update": f"UPDATE {table} SET {column} = {column}",
         "delete": f"DELETE FROM {table}",
     }[action]

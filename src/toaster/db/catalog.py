@@ -287,7 +287,7 @@ def open_facts_matching(
 def empty_facts(conn: Connection, agent_id: str | None) -> None:
     """Delete facts, memory and events of one agent or of all (keys included)."""
     if agent_id is None:
-        for table in (s.events, s.fact_samples, s.facts, s.fact_keys):
+        for table in (s.events, s.fact_samples, s.fact_sample_blocks, s.facts, s.fact_keys):
             conn.execute(delete(table))
         # No belief run happened yet: the rules' clock starts again (a replay from 0).
         conn.execute(update(s.store_state).values(beliefs_ns=None, beliefs_self=None))
@@ -295,11 +295,10 @@ def empty_facts(conn: Connection, agent_id: str | None) -> None:
         return
     keys = select(s.fact_keys.c.id).where(s.fact_keys.c.agent_id == agent_id)
     conn.execute(delete(s.events).where(s.events.c.agent_id == agent_id))
-    conn.execute(
-        delete(s.fact_samples).where(
-            s.fact_samples.c.fact_id.in_(select(s.facts.c.id).where(s.facts.c.key_id.in_(keys)))
-        )
-    )
+    facts = select(s.facts.c.id).where(s.facts.c.key_id.in_(keys))
+    # rows first: a packing that moved some meanwhile committed its blocks before these go
+    for table in (s.fact_samples, s.fact_sample_blocks):
+        conn.execute(delete(table).where(table.c.fact_id.in_(facts)))
     conn.execute(delete(s.facts).where(s.facts.c.key_id.in_(keys)))
     conn.execute(delete(s.fact_keys).where(s.fact_keys.c.agent_id == agent_id))
 

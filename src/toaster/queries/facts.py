@@ -286,7 +286,7 @@ def numbered_history(
     until: int | None = None,
     **filters: Any,
 ) -> list[NumberedInterval]:
-    """:func:`history` with each interval's stored refreshes (``fact_samples``): what a
+    """:func:`history` with each interval's stored refreshes (``Backend.samples``): what a
     reader needs for the number of a fact at any time of the window, not only its last."""
     rows = _select(
         db,
@@ -310,7 +310,7 @@ def numbered_history(
             cur.execute(
                 db.backend.named(
                     "SELECT fact_id, until_ns, value_num, confidence, observability "
-                    "FROM fact_samples WHERE "
+                    f"FROM {db.backend.samples} s WHERE "
                     f"fact_id IN ({', '.join(':' + n for n in names)}) ORDER BY fact_id, until_ns"
                 ),
                 names,
@@ -340,7 +340,7 @@ def signal(
     **filters: Any,
 ) -> list[SignalPoint]:
     """The numbers of the matching facts over time, as step points: each interval's start,
-    each stored refresh (``fact_samples``) and its end (``value_num`` None). Sorted by key,
+    each stored refresh (``Backend.samples``) and its end (``value_num`` None). Sorted by key,
     then time. The value at any time is the last point at or before it, within tolerance."""
     points: list[SignalPoint] = []
     for row, numbers in numbered_history(db, agent, since=since, until=until, **filters):

@@ -33,6 +33,7 @@ GUARDED_TABLES = (
     "facts",
     "events",
     "fact_samples",
+    "fact_sample_blocks",
     "belief_follow",
     "belief_chain",
     "belief_groups",
@@ -83,6 +84,9 @@ class Backend(Protocol):
     #: FROM-clause fragment joining ``s``, the first sample of the interval ``{fact}`` after
     #: ``:t`` (its numbers then), or NULLs when there is none (the interval's own hold).
     sample_join: str
+    #: FROM-able relation of every sample ``(fact_id, until_ns, value_num, confidence,
+    #: observability)``, rows and PostgreSQL's packed blocks alike.
+    samples: str
     #: The two-argument scalar minimum and maximum (``MIN``/``MAX`` or ``LEAST``/``GREATEST``).
     least: str
     greatest: str

@@ -45,6 +45,40 @@ def _pipelines() -> bool:
     return bool(psycopg.Pipeline.is_supported())
 
 
+#: Samples a row of ``fact_sample_blocks`` holds: the most whose row (40 bytes and four arrays
+#: of 24 + 8 × BLOCK) stays under PostgreSQL's 2,032-byte TOAST threshold, four to a page.
+BLOCK = 59
+#: An open interval's samples but its newest, oldest first, in whole blocks (the newest stays a
+#: row: a second refresh at its instant meets ``ON CONFLICT``); ``fact_samples`` keeps under
+#: BLOCK + 1 rows of an interval, and a closed one's last rows.
+_PACK = f"""WITH open AS (SELECT f.id FROM facts f WHERE f.valid_to_ns IS NULL),
+numbered AS (SELECT s.fact_id, s.until_ns, row_number() OVER (PARTITION BY s.fact_id
+  ORDER BY s.until_ns) AS n, count(*) OVER (PARTITION BY s.fact_id) AS rows
+  FROM fact_samples s WHERE s.fact_id IN (SELECT id FROM open)),
+moved AS (DELETE FROM fact_samples s USING numbered x WHERE s.fact_id = x.fact_id
+  AND s.until_ns = x.until_ns AND x.n <= (x.rows - 1) / {BLOCK} * {BLOCK}
+  RETURNING s.*, (x.n - 1) / {BLOCK} AS block)
+INSERT INTO fact_sample_blocks (fact_id, until_ns, untils_ns, value_nums, confidences,
+  observabilities) SELECT fact_id, max(until_ns), array_agg(until_ns ORDER BY until_ns),
+  array_agg(value_num ORDER BY until_ns), array_agg(confidence ORDER BY until_ns),
+  array_agg(observability ORDER BY until_ns) FROM moved GROUP BY fact_id, block"""
+
+
+def pack_samples(raw: DBAPIConnection) -> int:
+    """Move open intervals' older samples into blocks (one transaction on the idle
+    connection ``raw``, as the store's writer); the number of blocks written."""
+    with closing(raw.cursor()) as cur:
+        try:
+            cur.execute("SELECT set_config('toaster.writer', 'rules', true)")
+            cur.execute(_PACK)
+            blocks = cur.rowcount
+        except BaseException:
+            raw.rollback()
+            raise
+        raw.commit()
+    return int(blocks)
+
+
 _KEY_COLS = "subject_id, subject_owner_id, property, sub_property, target_id, target_owner_id"
 _KEY_ARRAYS = "%b::text[], %b::text[], %b::text[], %b::text[], %b::text[], %b::text[]"
 
@@ -63,10 +97,23 @@ class PostgreSQLBackend:
         "CROSS JOIN LATERAL (SELECT * FROM facts f2 WHERE f2.key_id = {key} "
         "AND f2.valid_from_ns <= :t ORDER BY f2.valid_from_ns DESC, f2.id DESC LIMIT 1) f"
     )
+    # the first sample after :t among the rows and in the first block ending after it (its
+    # element after :t: width_bucket counts the block's times at or before :t)
     sample_join = (
-        "LEFT JOIN LATERAL (SELECT s2.value_num, s2.confidence, s2.observability "
+        "LEFT JOIN LATERAL (SELECT s3.value_num, s3.confidence, s3.observability FROM ("
+        "(SELECT s2.until_ns, s2.value_num, s2.confidence, s2.observability "
         "FROM fact_samples s2 WHERE s2.fact_id = {fact} AND s2.until_ns > :t "
-        "ORDER BY s2.until_ns LIMIT 1) s ON true"
+        "ORDER BY s2.until_ns LIMIT 1) UNION ALL (SELECT b.untils_ns[b.i], b.value_nums[b.i], "
+        "b.confidences[b.i], b.observabilities[b.i] FROM (SELECT b2.*, "
+        "width_bucket(:t, b2.untils_ns) + 1 AS i FROM fact_sample_blocks b2 "
+        "WHERE b2.fact_id = {fact} AND b2.until_ns > :t ORDER BY b2.until_ns LIMIT 1) b)"
+        ") s3 ORDER BY s3.until_ns LIMIT 1) s ON true"
+    )
+    samples = (
+        "(SELECT fact_id, until_ns, value_num, confidence, observability FROM fact_samples "
+        "UNION ALL SELECT b.fact_id, u.* FROM fact_sample_blocks b CROSS JOIN LATERAL unnest("
+        "b.untils_ns, b.value_nums, b.confidences, b.observabilities) AS u(until_ns, "
+        "value_num, confidence, observability))"
     )
     least, greatest = "LEAST", "GREATEST"
     _begun: Any = None  # the connection begin_writes put in autocommit mode (after_writes)
@@ -175,10 +222,15 @@ class PostgreSQLBackend:
         )
 
     def maintain(self, raw: DBAPIConnection, *, beside_writer: bool = False) -> None:
-        # VACUUM takes a lock that only schema changes and other vacuums wait for: the same
-        # statement serves beside a writer
+        # Packing deletes only rows that no refresh writes again, and VACUUM takes a lock that
+        # only schema changes and other vacuums wait for: the same statements serve beside a
+        # writer
+        pack_samples(raw)
         with _autocommit(raw) as cur:
-            cur.execute("VACUUM (ANALYZE) facts, fact_samples, events, fact_keys, belief_follow")
+            cur.execute(
+                "VACUUM (ANALYZE) facts, fact_samples, fact_sample_blocks, events, fact_keys, "
+                "belief_follow"
+            )
 
     def set_page_cache(self, raw: DBAPIConnection, kib: int) -> None:
         """Nothing to bound: the server holds the page cache (shared_buffers)."""

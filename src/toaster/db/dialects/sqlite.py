@@ -56,6 +56,7 @@ class SQLiteBackend:
         "LEFT JOIN fact_samples s ON s.fact_id = {fact} AND s.until_ns = (SELECT "
         "MIN(s2.until_ns) FROM fact_samples s2 WHERE s2.fact_id = {fact} AND s2.until_ns > :t)"
     )
+    samples = "fact_samples"  # never packed: a row is one 34-byte b-tree entry here
     least, greatest = "MIN", "MAX"  # two-argument scalar forms
 
     def named(self, sql: str) -> str:
