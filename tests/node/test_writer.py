@@ -122,13 +122,14 @@ def test_a_write_held_up_does_not_hold_up_the_next_fact_lists_and_every_tick_is_
         node = LiveNode(db, outputs=[lists])
         with Node(node) as running:
             wait_for(lambda: node.stats.ticks >= 5 or running.errors, "the first ticks")
-            with write_lock(db_url):
-                held = node.stats.ticks
+            with write_lock(db_url), toaster.connect(db_url) as other:
+                changes = len(events(other, "toaster", subject="bob", property="IsInRoom"))
                 sent = len(lists.sent)
                 # the node goes on computing and sending fact lists while no write gets through
                 wait_for(lambda: len(lists.sent) >= sent + 30, "30 fact lists while locked")
-                assert node.stats.ticks <= held + 1  # (one that was committing when locked)
+                assert len(events(other, "toaster", subject="bob", property="IsInRoom")) == changes
                 assert node.stats.coalesced > 0  # ticks handed over meanwhile: the newest kept
+                held = node.stats.ticks
             wait_for(lambda: node.stats.ticks >= held + 3, "ticks stored again")
         assert not running.errors, running.errors
         last_t, inside = lists.sent[-1]
@@ -138,7 +139,7 @@ def test_a_write_held_up_does_not_hold_up_the_next_fact_lists_and_every_tick_is_
         ticks = {t for t, _ in lists.sent}
         rows = events(db, "toaster", subject="bob", property="IsInRoom")
         stamps = [r.stamp_ns for r in rows]
-        assert len(stamps) > 4 and stamps == sorted(stamps) and set(stamps) <= ticks
+        assert len(stamps) >= 2 and stamps == sorted(stamps) and set(stamps) <= ticks
         assert stamps[-1] <= last_t
         kinds = [r.kind for r in rows]  # in, out, in, ...: each appearance ended before the next
         assert all(a != b for a, b in itertools.pairwise(kinds))

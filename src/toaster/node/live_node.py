@@ -297,13 +297,18 @@ class LiveNode:
         now = self.clock.now(self.sources, self.world) if t_ns is None else t_ns
         t = max(now, self._last_t + 1)  # time only moves on
         self._last_t = t
+        writer = self._writer
+        if writer is not None:
+            writer.begin()  # a reader that flushes once its fact lists went out waits for it
         try:
             pending = self._compute(t)
         except Exception as exc:  # contained: see toaster.node.faults
+            if writer is not None:
+                writer.abandon()
             self._failed(exc, t)
             return TickFacts({})
-        if self._writer is not None:
-            if self._writer.submit(pending):
+        if writer is not None:
+            if writer.submit(pending):
                 self.stats.coalesced += 1
         elif not self._store(pending):
             return TickFacts({})
@@ -492,11 +497,10 @@ class LiveNode:
         if self.db is not None and maintain_every_s is not None:
             maintainer = Maintainer(self.db, maintain_every_s).start()
         self._watch = ControlWatch.of(self.db)
-        self._start_writer()
         try:
-            self._loop(period, stop, ticks, seconds, status_every_s)
+            with self.writing():
+                self._loop(period, stop, ticks, seconds, status_every_s)
         finally:
-            self._stop_writer()
             if maintainer is not None:
                 maintainer.stop()
             if self._watch is not None:
@@ -504,26 +508,27 @@ class LiveNode:
                 self._watch = None
         return self.stats
 
-    def _start_writer(self) -> None:
-        """The writer thread, and a connection of the node's thread for its reads (not for
-        an in-memory SQLite database, which has one connection: ticks are written in turn)."""
+    @contextmanager
+    def writing(self) -> Iterator[None]:
+        """Ticks inside are written on a writer thread (:meth:`run` ticks inside), and the
+        node's thread reads on a connection of its own; at the end the tick that waits is
+        stored (not during an outage: it is dropped, as a tick that fails) and the writer
+        ends. An in-memory SQLite database has one connection: its ticks are written in turn.
+        """
         db = self.db
-        if db is None or is_memory(db.engine.url):
+        if db is None or is_memory(db.engine.url) or self._writer is not None:
+            yield
             return
         from toaster.db.database import Database
 
-        self._reads = Database(db.engine, db.url)
-        self._reads.set_page_cache(LIVE_PAGE_CACHE_KIB)
-        self._writer = TickWriter(self._store, lambda: self.faults.delay)
-
-    def _stop_writer(self) -> None:
-        """Store the last tick (not during an outage: it is dropped, as a tick that fails)
-        and end the writer; close the node thread's connection."""
-        writer, reads = self._writer, self._reads
-        if writer is not None:
+        reads = self._reads = Database(db.engine, db.url)
+        reads.set_page_cache(LIVE_PAGE_CACHE_KIB)
+        writer = self._writer = TickWriter(self._store, lambda: self.faults.delay)
+        try:
+            yield
+        finally:
             writer.close(drain=not self.faults.failing)
-        self._writer = self._reads = None
-        if reads is not None:
+            self._writer = self._reads = None
             reads.release()
 
     def _loop(

@@ -49,37 +49,51 @@ class TickWriter:
         self._write, self._delay = write, delay
         self.lock = threading.Lock()  # held while the connection is in use (idle() too)
         self._cond = threading.Condition()
-        self._queued: Pending | None = None
+        self._queued: tuple[int, Pending] | None = None  # (its number, the tick)
         self._busy = False
-        self._handed = 0  # ticks handed over
-        self._done = 0  # ... of which the writer is through (written, failed or replaced)
+        self._begun = 0  # number of the last tick begun
+        self._through = 0  # every tick up to this number is through (written, failed, none)
+        self._abandoned = 0  # the last tick begun and not computed
         self._closing = threading.Event()
         self._drain = True
         self.thread = threading.Thread(target=self._run, name="toaster-writer", daemon=True)
         self.thread.start()
 
+    def begin(self) -> None:
+        """A tick starts computing: from now on :meth:`flush` waits for its write too (its
+        fact lists go out before it is handed over)."""
+        with self._cond:
+            self._begun += 1
+
+    def abandon(self) -> None:
+        """The tick begun was not computed: nothing to wait for."""
+        with self._cond:
+            self._abandoned = self._begun
+            if self._queued is None and not self._busy:
+                self._through = self._begun
+            self._cond.notify_all()
+
     def submit(self, pending: Pending) -> bool:
-        """Hand a computed tick over (never waits); True if it replaced one still waiting."""
+        """Hand the tick begun over (never waits); True if it replaced one still waiting
+        (whose number it takes over: a reader waiting for that one waits for this one)."""
         with self._cond:
             replaced = self._queued is not None
             if self._queued is not None:
-                pending = self._queued.merged(pending)
-                self._done += 1
-            self._queued = pending
-            self._handed += 1
+                pending = self._queued[1].merged(pending)
+            self._queued = (self._begun, pending)
             self._cond.notify_all()
         return replaced
 
     def flush(self, timeout_s: float, *, unless: Callable[[], bool] = lambda: False) -> bool:
-        """Wait until the ticks handed over so far are through the writer (read-your-writes
-        for another connection), at most ``timeout_s``, or until ``unless()`` (an outage:
+        """Wait until the ticks begun so far are through the writer (read-your-writes for
+        another connection), at most ``timeout_s``, or until ``unless()`` (an outage:
         nothing is written then); True if they are."""
         with self._cond:
-            target = self._handed
+            target = self._begun
             return self._cond.wait_for(
-                lambda: self._done >= target or unless() or not self.thread.is_alive(),
+                lambda: self._through >= target or unless() or not self.thread.is_alive(),
                 timeout_s,
-            ) and (self._done >= target)
+            ) and (self._through >= target)
 
     @contextmanager
     def idle(
@@ -99,28 +113,31 @@ class TickWriter:
             self._cond.notify_all()
         self.thread.join(timeout_s)
 
-    def _take(self) -> Pending | None:
+    def _take(self) -> tuple[int, Pending] | None:
         with self._cond:
             while self._queued is None and not self._closing.is_set():
                 self._cond.wait()
-            pending, self._queued = self._queued, None
-            if pending is not None and self._closing.is_set() and not self._drain:
-                self._done += 1
+            queued, self._queued = self._queued, None
+            if queued is not None and self._closing.is_set() and not self._drain:
+                self._through = self._begun  # dropped: nobody waits for it
                 self._cond.notify_all()
                 return None
-            self._busy = pending is not None
-            return pending
+            self._busy = queued is not None
+            return queued
 
     def _run(self) -> None:
         while True:
-            pending = self._take()
-            if pending is None:
+            queued = self._take()
+            if queued is None:
                 return
+            number, pending = queued
             with self.lock:
                 self._write(pending)
             with self._cond:
                 self._busy = False
-                self._done += 1
+                self._through = max(self._through, number)
+                if self._queued is None:  # a tick begun since and not computed
+                    self._through = max(self._through, self._abandoned)
                 self._cond.notify_all()
             delay = self._delay()
             if delay > 0:
