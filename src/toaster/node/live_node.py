@@ -73,9 +73,10 @@ FLUSH_WAIT_S = 5.0
 
 class Output(Protocol):
     """Something that publishes each tick's facts (ROS topics, a test's list, ...), once the
-    tick is stored. It may also have ``publish_facts(t_ns, facts, world)``, called as soon as
-    the producers computed the tick, before it is stored: the ROS bridge sends its fact lists
-    then, so that they do not wait for the database (docs/live.md, "Latency")."""
+    tick is stored (while :meth:`LiveNode.run` runs: handed to the writer thread). It may also
+    have ``publish_facts(t_ns, facts, world)``, called as soon as the producers computed the
+    tick, before it is stored: the ROS bridge sends its fact lists then, so that they do not
+    wait for the database (docs/live.md, "Latency")."""
 
     def publish(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None: ...
 

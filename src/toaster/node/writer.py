@@ -52,6 +52,7 @@ class TickWriter:
         self._queued: tuple[int, Pending] | None = None  # (its number, the tick)
         self._busy = False
         self._begun = 0  # number of the last tick begun
+        self._submitted = 0  # ... and of the last handed over
         self._through = 0  # every tick up to this number is through (written, failed, none)
         self._abandoned = 0  # the last tick begun and not computed
         self._closing = threading.Event()
@@ -81,15 +82,18 @@ class TickWriter:
             if self._queued is not None:
                 pending = self._queued[1].merged(pending)
             self._queued = (self._begun, pending)
+            self._submitted = self._begun
             self._cond.notify_all()
         return replaced
 
-    def flush(self, timeout_s: float, *, unless: Callable[[], bool] = lambda: False) -> bool:
-        """Wait until the ticks begun so far are through the writer (read-your-writes for
-        another connection), at most ``timeout_s``, or until ``unless()`` (an outage:
-        nothing is written then); True if they are."""
+    def flush(
+        self, timeout_s: float, *, unless: Callable[[], bool] = lambda: False, begun: bool = True
+    ) -> bool:
+        """Wait until the ticks begun so far (``begun``; else those handed over) are through
+        the writer (read-your-writes for another connection), at most ``timeout_s``, or until
+        ``unless()`` (an outage: nothing is written then); True if they are."""
         with self._cond:
-            target = self._begun
+            target = self._begun if begun else self._submitted
             return self._cond.wait_for(
                 lambda: self._through >= target or unless() or not self.thread.is_alive(),
                 timeout_s,
@@ -99,9 +103,10 @@ class TickWriter:
     def idle(
         self, timeout_s: float = 10.0, *, unless: Callable[[], bool] = lambda: False
     ) -> Iterator[None]:
-        """Use the store's connection on this thread: after the ticks handed over (see
-        :meth:`flush`), with the writer kept out."""
-        self.flush(timeout_s, unless=unless)
+        """Use the store's connection on this thread (the one that begins and hands over the
+        ticks, maybe while it computes one): after the ticks handed over (see :meth:`flush`),
+        with the writer kept out."""
+        self.flush(timeout_s, unless=unless, begun=False)
         with self.lock:
             yield
 
