@@ -44,6 +44,8 @@ replays of 20 people; 4 s of PostgreSQL long run reported every 2 s.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import math
 import os
 import re
 import statistics
@@ -318,10 +320,14 @@ def bench_ticks(backends: list[str], pg: str | None, ticks: int, repeats: int) -
                 )
 
 
-def live_crowd(humans: int, url: str | None, ticks: int) -> tuple[float, float]:
+def live_crowd(
+    humans: int, url: str | None, ticks: int, *, writer: bool = False
+) -> tuple[float, float]:
     """(median ms to buffer one message's poses, median ms of a tick) of a live node on
-    bench_live's scene, after 15 warm-up ticks."""
-    from live_scene import human_pose, joint_offsets, object_pose, zone
+    bench_live's scene, after 15 warm-up ticks. ``writer``: ticks at 30 Hz with the writer
+    thread, as ``toaster serve`` runs (the tick's time is then its computation and hand-over on
+    the node's thread, the write runs beside it; ``nan`` for code without one)."""
+    from live_scene import joint_offsets, zone
     from toaster.node import LiveNode
 
     db = toaster.connect(url) if url else None
@@ -340,39 +346,57 @@ def live_crowd(humans: int, url: str | None, ticks: int) -> tuple[float, float]:
     targets += [(f"o{j}", "object", "", "") for j in range(50)]
     quats = np.tile([0.0, 0.0, 0.0, 1.0], (len(targets), 1))
     source, base = node.api, time.time_ns() - 600 * S
-    push_ms, tick_ms = [], []
-    for k in range(ticks + 15):
-        elapsed, t = k / 30, base + k * S // 30
-        pos = []
-        for i in range(humans):
-            _, x, y = human_pose(i, humans, elapsed)
-            pos.append((x, y, 0.0))
-            pos += [(x + dx, y + dy, dz) for dx, dy, dz in joint_offsets().values()]
-        pos += [object_pose(j) for j in range(50)]
-        xyz = np.asarray(pos, float)
-        start = time.perf_counter()
-        if hasattr(source, "push_many"):
-            source.push_many(targets, xyz, quats, [t] * len(targets))
-        else:  # the code before push_many: a pose at a time
-            for (eid, kind, owner, joint), p in zip(targets, pos, strict=True):
-                source.push(
-                    eid,
-                    p,
-                    quat=(0.0, 0.0, 0.0, 1.0),
-                    t_ns=t,
-                    kind=kind,
-                    owner_id=owner,
-                    joint=joint,
-                )
-        pushed = time.perf_counter()
-        node.tick(t)
-        done = time.perf_counter()
-        if k >= 15:
-            push_ms.append((pushed - start) * 1e3)
-            tick_ms.append((done - pushed) * 1e3)
+    push_ms: list[float] = []
+    tick_ms: list[float] = []
+    if writer and not hasattr(node, "writing"):
+        return math.nan, math.nan
+    with node.writing() if writer else contextlib.nullcontext():
+        paced = time.perf_counter()
+        for k in range(ticks + 15):
+            if writer:  # at 30 Hz, as served
+                paced += 1 / 30
+                time.sleep(max(0.0, paced - time.perf_counter()))
+            push_ms_k, tick_ms_k = _live_tick(node, source, humans, targets, quats, base, k)
+            if k >= 15:
+                push_ms.append(push_ms_k)
+                tick_ms.append(tick_ms_k)
     if db is not None:
         db.close()
     return statistics.median(push_ms), statistics.median(tick_ms)
+
+
+def _live_tick(
+    node: Any, source: Any, humans: int, targets: list, quats: np.ndarray, base: int, k: int
+) -> tuple[float, float]:
+    """One message's poses buffered and one tick: (ms to buffer, ms of the tick)."""
+    from live_scene import human_pose, joint_offsets, object_pose
+
+    elapsed, t = k / 30, base + k * S // 30
+    pos = []
+    for i in range(humans):
+        _, x, y = human_pose(i, humans, elapsed)
+        pos.append((x, y, 0.0))
+        pos += [(x + dx, y + dy, dz) for dx, dy, dz in joint_offsets().values()]
+    pos += [object_pose(j) for j in range(50)]
+    xyz = np.asarray(pos, float)
+    start = time.perf_counter()
+    if hasattr(source, "push_many"):
+        source.push_many(targets, xyz, quats, [t] * len(targets))
+    else:  # the code before push_many: a pose at a time
+        for (eid, kind, owner, joint), p in zip(targets, pos, strict=True):
+            source.push(
+                eid,
+                p,
+                quat=(0.0, 0.0, 0.0, 1.0),
+                t_ns=t,
+                kind=kind,
+                owner_id=owner,
+                joint=joint,
+            )
+    pushed = time.perf_counter()
+    node.tick(t)
+    done = time.perf_counter()
+    return (pushed - start) * 1e3, (done - pushed) * 1e3
 
 
 def bench_live_crowds(backends: list[str], pg: str | None, ticks: int, repeats: int) -> None:
@@ -380,22 +404,30 @@ def bench_live_crowds(backends: list[str], pg: str | None, ticks: int, repeats: 
         f"\n1b. The live node's tick on crowds (bench_live's scene; median ms of {ticks} ticks,"
         f" median of {repeats} runs; target: the tick without database well under 33 ms)"
     )
-    print(f"{'humans':>6} {'entities':>9} {'backend':<11} {'push ms':>8} {'tick ms':>8}")
+    print(
+        f"{'humans':>6} {'entities':>9} {'backend':<11} {'push ms':>8} {'tick ms':>8} {'writer':>8}"
+    )
+    print("  (writer: the tick on the node's thread at 30 Hz, its write on the writer thread)")
     for humans in SIZES["live_humans"]:
         for backend in ["none", *backends]:
-            runs = []
+            runs, written = [], []
             for _ in range(repeats):
-                with tempfile.TemporaryDirectory() as tmp:
-                    database = Database(backend, pg, tmp) if backend != "none" else None
-                    try:
-                        runs.append(live_crowd(humans, database.url if database else None, ticks))
-                    finally:
-                        if database is not None:
-                            database.close()
+                for out, writer in ((runs, False), (written, True)):
+                    if writer and backend == "none":
+                        continue
+                    with tempfile.TemporaryDirectory() as tmp:
+                        database = Database(backend, pg, tmp) if backend != "none" else None
+                        url = database.url if database else None
+                        try:
+                            out.append(live_crowd(humans, url, ticks, writer=writer))
+                        finally:
+                            if database is not None:
+                                database.close()
+            beside = statistics.median(r[1] for r in written) if written else math.nan
             print(
                 f"{humans:>6} {3 * humans + 50:>9} {backend:<11}"
                 f" {statistics.median(r[0] for r in runs):>8.2f}"
-                f" {statistics.median(r[1] for r in runs):>8.2f}",
+                f" {statistics.median(r[1] for r in runs):>8.2f} {beside:>8.2f}",
                 flush=True,
             )
 

@@ -60,7 +60,8 @@ def test_ticks_go_on_while_maintenance_waits(pg_schema_url: str) -> None:
                 f"in {WAIT_S:.0f} s while a VACUUM waited for a lock"
             )
             assert not errors, errors
-            assert node.stats.ticks == 60
+            # every tick stored, or written with the next one (the writer thread's coalescing)
+            assert node.stats.ticks + node.stats.coalesced == 60 and node.stats.ticks > 0
             conn.rollback()
     finally:
         stop.set()

@@ -17,11 +17,14 @@ that ended during the gap ends at that tick.
 
 from __future__ import annotations
 
+import functools
 import sqlite3
+import threading
 import time
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any, TypeVar
 
 from sqlalchemy.exc import DBAPIError, SQLAlchemyError
 
@@ -178,10 +181,24 @@ class _Trouble:
     count: int = 1
 
 
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+
+def _locked(method: _F) -> _F:
+    """Run under the instance's lock: a live node's tick and writer threads both report."""
+
+    @functools.wraps(method)
+    def run(self: Faults, *args: Any, **kwargs: Any) -> Any:
+        with self._lock:
+            return method(self, *args, **kwargs)
+
+    return run  # type: ignore[return-value]
+
+
 @dataclass
 class Faults:
     """The fault state of one node: the current outage, its backoff, the gaps to record,
-    the components that fail, and counts for the summary."""
+    the components that fail, and counts for the summary (thread-safe)."""
 
     warn: Callable[[str], None]
     backoff: Backoff = field(default_factory=Backoff)
@@ -194,6 +211,7 @@ class Faults:
     _outage: tuple[int, str, str] | None = None  # (start_ns, kind, reason)
     _tick: _Trouble | None = None
     _parts: dict[str, _Trouble] = field(default_factory=dict)
+    _lock: threading.RLock = field(default_factory=threading.RLock)
 
     @property
     def failing(self) -> bool:
@@ -205,6 +223,7 @@ class Faults:
         """Seconds to wait before the next attempt (0: tick at the usual pace)."""
         return self.backoff.delay
 
+    @_locked
     def tick_failed(self, exc: BaseException, t_ns: int) -> str:
         """A tick at ``t_ns`` was not stored: note it, log it once; returns its kind."""
         kind = classify(exc)
@@ -238,6 +257,7 @@ class Faults:
             )
         return kind
 
+    @_locked
     def tick_stored(self, t_ns: int) -> Gap | None:
         """A tick at ``t_ns`` was stored; the gap it ends, if any (also kept in
         :attr:`pending` until :meth:`recorded`)."""
@@ -260,10 +280,12 @@ class Faults:
         )
         return gap
 
+    @_locked
     def recorded(self, gap: Gap) -> None:
         """``gap``'s event is stored."""
         self.pending.remove(gap)
 
+    @_locked
     def part_failed(
         self,
         name: str,
@@ -286,18 +308,21 @@ class Faults:
                 f"{now - trouble.first:.0f} s): {describe(exc)}"
             )
 
+    @_locked
     def part_worked(self, name: str) -> None:
         """A component that failed works again."""
         trouble = self._parts.pop(name, None)
         if trouble is not None:
             self.warn(f"{name} works again after {trouble.count} failures")
 
+    @_locked
     def noted(self, what: str, exc: BaseException, effect: str) -> str:
         """An error beside a stored tick (maintenance, a gap's event): logged like a
         component's (:meth:`part_worked` when it works again); returns its kind."""
         self.part_failed(what, exc, effect)
         return classify(exc)
 
+    @_locked
     def summary(self) -> str:
         """One line for the end of a run ('' when nothing failed)."""
         if not self.counts and not self._parts:

@@ -7,9 +7,10 @@ apply its newest poses, register entities seen for the first time, compute the p
 write all their snapshots in one transaction, publish the facts, answer pending queries from
 the world as it is now. The loop never queues input (sources keep the newest pose per entity),
 counts overruns, and stops between two ticks when asked (SIGINT/SIGTERM in :func:`serve`): the
-last tick is committed whole or not at all. A restart on the same database carries on
-(entities, areas, control state, open intervals). No error inside a tick stops the node:
-:mod:`toaster.node.faults` says what happens instead.
+last tick is committed whole or not at all. While :meth:`LiveNode.run` runs, each tick's write
+goes to a writer thread (:mod:`toaster.node.writer`) and the next tick computes meanwhile. A
+restart on the same database carries on (entities, areas, control state, open intervals). No
+error inside a tick stops the node: :mod:`toaster.node.faults` says what happens instead.
 """
 
 from __future__ import annotations
@@ -19,10 +20,12 @@ import logging
 import signal
 import threading
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, Protocol
 
 from toaster.db import catalog
+from toaster.db.engine import is_memory
 from toaster.db.maintenance import Maintainer
 from toaster.errors import ToasterError
 from toaster.model import Fact, shown
@@ -32,8 +35,9 @@ from toaster.node.faults import GAP_SOURCE, RECONNECT_KINDS, Faults
 from toaster.node.pacing import IDLE_WAIT, TickBudget
 from toaster.node.stamps import TickClock
 from toaster.node.stats import LiveStats
+from toaster.node.writer import Pending, TickWriter
 from toaster.producers.areas import AreaManager
-from toaster.producers.batch import TickFacts
+from toaster.producers.batch import FactBatch, TickFacts
 from toaster.producers.monitor import AgentMonitor
 from toaster.producers.registry import builtin_producers
 from toaster.producers.runner import (
@@ -41,7 +45,7 @@ from toaster.producers.runner import (
     MAINTAIN_EVERY_S,
     Runner,
     Source,
-    register_row,
+    entity_row,
 )
 from toaster.timeutil import now_ns
 from toaster.world.config import make_config
@@ -63,13 +67,16 @@ LIVE_PAGE_CACHE_KIB = 2000
 
 #: a tick is at its newest pose's stamp if at most this old (s), else on the wall clock (stamps.py)
 MAX_STAMP_LAG_S = 1.0
+#: a service waits at most this long for the writes of the ticks before it (read-your-writes)
+FLUSH_WAIT_S = 5.0
 
 
 class Output(Protocol):
     """Something that publishes each tick's facts (ROS topics, a test's list, ...), once the
-    tick is stored. It may also have ``publish_facts(t_ns, facts, world)``, called as soon as
-    the producers computed the tick, before it is stored: the ROS bridge sends its fact lists
-    then, so that they do not wait for the database (docs/live.md, "Latency")."""
+    tick is stored (while :meth:`LiveNode.run` runs: handed to the writer thread). It may also
+    have ``publish_facts(t_ns, facts, world)``, called as soon as the producers computed the
+    tick, before it is stored: the ROS bridge sends its fact lists then, so that they do not
+    wait for the database (docs/live.md, "Latency")."""
 
     def publish(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None: ...
 
@@ -114,6 +121,7 @@ class LiveNode:
             self.world, [], self.producers, store=self.store, agent_id=self_id, config=self.config
         )
         self.stats = LiveStats()
+        self._warn_lock = threading.Lock()
         self.faults = Faults(self.warn)
         self.clock = TickClock(stamp, MAX_STAMP_LAG_S, self.warn)  # each tick's time
         self._version = -1
@@ -122,7 +130,11 @@ class LiveNode:
         self._woken_at = 0.0  # when it was set (monotonic s)
         self._queries_waiting = False
         self._watch: ControlWatch | None = None  # while run() runs on PostgreSQL
+        # while run() runs: the writer thread, and the node thread's own connection for reads
+        self._writer: TickWriter | None = None
+        self._reads: Database | None = None
         self._registered: set[str] = set()
+        self._carry: list[tuple[str, str, str, str, bool | None]] = []  # to register again
         self._hands: dict[str, tuple[str, str]] = {}
         self._default_monitored = self.config["monitored_agents"]
         for source in self.sources:
@@ -156,16 +168,42 @@ class LiveNode:
                 self.world.active[self.world.row(entity_id)] = False  # until it is seen
                 self._registered.add(entity_id)
 
+    # -- connections ---------------------------------------------------------------------------
+    @property
+    def read_db(self) -> Database:
+        """The handle this (the node's) thread reads with: its own connection while the
+        writer thread runs (which owns the store's), else the store's."""
+        assert self.db is not None
+        return self._reads if self._reads is not None else self.db
+
+    @contextmanager
+    def exclusive(self) -> Iterator[None]:
+        """Use the store's connection on the node's thread: while the writer runs, after the
+        ticks handed to it (read-your-writes) and with it kept out (node/writer.py)."""
+        if self._writer is None:
+            yield
+            return
+        with self._writer.idle(FLUSH_WAIT_S, unless=lambda: self.faults.failing):
+            yield
+
+    def flush_writes(self, timeout_s: float = FLUSH_WAIT_S) -> bool:
+        """Wait until the ticks computed so far are stored (or failed: not during an
+        outage), at most ``timeout_s``; for a reader on another connection (a ROS service)
+        that must see them. True if they are (also when there is no writer)."""
+        if self._writer is None:
+            return True
+        return self._writer.flush(timeout_s, unless=lambda: self.faults.failing)
+
     # -- control plane -------------------------------------------------------------------------
     def apply_control(self, t_ns: int | None = None) -> bool:
         """Apply the control plane if it changed since the last look; True if it did.
         Commands take effect at ``t_ns`` (default: now)."""
         if self.db is None or (self._watch is not None and not self._watch.due()):
             return False
-        with self.db.transaction() as conn:  # a read, every tick (PostgreSQL: on a NOTIFY)
+        with self.read_db.transaction() as conn:  # every tick (PostgreSQL: on a NOTIFY)
             if catalog.control_version(conn) == self._version:
                 return False
-        with self.db.transaction(write=True) as conn:  # commands are answered in it
+        with self.exclusive(), self.db.transaction(write=True) as conn:  # commands answered
             version = catalog.control_version(conn)
             state = control.read_state(conn)
             stored_areas = catalog.areas(conn)
@@ -221,7 +259,7 @@ class LiveNode:
         after the control version moved: a query bumps it)."""
         if self.db is None or not self._queries_waiting:
             return 0
-        with self.db.transaction(write=True) as conn:
+        with self.exclusive(), self.db.transaction(write=True) as conn:
             queries = control.pending(conn, control.QUERIES)
             for query in queries:
                 try:
@@ -238,39 +276,66 @@ class LiveNode:
     # -- ticks ----------------------------------------------------------------------------------
     def warn(self, line: str) -> None:
         """One warning line (logged, counted); the node keeps running."""
-        self.stats.warnings += 1
+        with self._warn_lock:  # from the node's and the writer's threads
+            self.stats.warnings += 1
         log.warning("%s", line)
 
-    def _register_new(self, t_ns: int) -> None:
-        world, store = self.world, self.store
-        assert store is not None
+    def _new_rows(self) -> list[tuple[str, str, str, str, bool | None]]:
+        """Entities seen for the first time, as rows to register (with the tick's write)."""
+        world = self.world
         new = [
             r for r, eid in enumerate(world.ids) if eid not in self._registered and world.active[r]
         ]
-        if not new:
-            return
-        with store.transaction():
-            for r in new:
-                register_row(store, world, r, self.holders, t_ns)
         self._registered.update(world.ids[r] for r in new)
+        return [entity_row(world, r, self.holders) for r in new]
 
     def tick(self, t_ns: int | None = None) -> TickFacts:
         """One tick at ``t_ns`` (default: the perception time, :mod:`toaster.node.stamps`);
         returns the facts per producer (Fact tuples built when read), none when the tick was
         not stored. It never raises: a failed tick is rolled back and handled as
-        :mod:`toaster.node.faults` says."""
+        :mod:`toaster.node.faults` says. While :meth:`run` runs, the write is handed to the
+        writer thread and the facts are returned (and published) before it."""
         now = self.clock.now(self.sources, self.world) if t_ns is None else t_ns
         t = max(now, self._last_t + 1)  # time only moves on
         self._last_t = t
+        writer = self._writer
+        if writer is not None:
+            writer.begin()  # a reader that flushes once its fact lists went out waits for it
         try:
-            return self._tick(t)
+            pending = self._compute(t)
         except Exception as exc:  # contained: see toaster.node.faults
-            if self.faults.tick_failed(exc, t) in RECONNECT_KINDS:
-                self._reconnect()
+            if writer is not None:
+                writer.abandon()
+            self._failed(exc, t)
             return TickFacts({})
+        if writer is not None:
+            if writer.submit(pending):
+                self.stats.coalesced += 1
+        elif not self._store(pending):
+            return TickFacts({})
+        self._publish(t, pending.facts, "publish")
+        try:
+            self.answer_queries()
+        except Exception as exc:
+            if self._writer is None:  # as a failed tick (the queries are answered again)
+                self._failed(exc, t)
+                return TickFacts({})
+            self._read_failed("answering queries", exc)
+        return pending.facts
 
-    def _tick(self, t: int) -> TickFacts:
-        self.apply_control(t)
+    def _failed(self, exc: Exception, t: int) -> None:
+        """A tick not stored (on the thread whose connection failed: the writer's, or the
+        node's without a writer)."""
+        if self.faults.tick_failed(exc, t) in RECONNECT_KINDS:
+            if self._writer is not None and threading.current_thread() is not self._writer.thread:
+                if self._reads is not None:  # the node's thread: its own connection
+                    self._reads.reset_connection()
+                return
+            self._reconnect()
+
+    def _compute(self, t: int) -> Pending:
+        """The node thread's part of a tick: control plane, sources, producers, fact lists."""
+        self._control(t)
         for entity_id, pose in self._simulated.items():
             self.simu.push(entity_id, t_ns=t, **pose)
         for source in self.sources:
@@ -286,25 +351,67 @@ class LiveNode:
         # what arrived so far is applied: only poses arriving from now on call for a tick (not
         # those pushed while the sources advanced, e.g. /tf mapped on this thread)
         self.wake.clear()
-        if self.store is not None:
-            self._register_new(t)
-        facts = TickFacts({})
-
-        def computed(out: Mapping[str, Any]) -> None:  # before the write: the fact lists go
-            nonlocal facts
-            facts = TickFacts(out)
-            self._publish(t, facts, "publish_facts")
-
-        out = self.runner.tick(t, on_error=self._producer_failed, computed=computed)
-        self.faults.tick_stored(t)  # (raised above: rolled back)
+        register = self._new_rows() if self.store is not None else []
+        out = self.runner.compute(t, on_error=self._producer_failed)
+        for batch in out.values():  # the writer builds their facts after the world moved on
+            if isinstance(batch, FactBatch):
+                batch.pin()
+        facts = TickFacts(out)
+        self._publish(t, facts, "publish_facts")  # before the write: the fact lists go
         for name in out:
             self.faults.part_worked(f"producer {name}")
+        return Pending(t, out, self.runner.hands.movers, facts, register)
+
+    def _control(self, t: int) -> None:
+        """Apply the control plane. Without a writer a failure fails the tick (as before);
+        with one, the tick goes on (its fact lists go out), the control plane is read again
+        at the next tick, and not at all during an outage (the writer meets it)."""
+        if self._writer is None:
+            self.apply_control(t)
+            return
+        if self.faults.failing:
+            return
+        try:
+            self.apply_control(t)
+        except Exception as exc:
+            self._read_failed("reading the control plane", exc)
+        else:
+            self.faults.part_worked("reading the control plane")
+
+    def _read_failed(self, what: str, exc: Exception) -> None:
+        """A database error on the node's thread while the writer runs: logged once (the
+        next tick tries again); a lost connection is dropped."""
+        effect = "tried again at the next tick"
+        if self.faults.noted(what, exc, effect) in RECONNECT_KINDS and self._reads is not None:
+            self._reads.reset_connection()
+
+    def _store(self, pending: Pending) -> bool:
+        """Write one computed tick (on the writer thread while :meth:`run` runs); True if it
+        was stored. A failure is handled as :mod:`toaster.node.faults` says; the entities it
+        would have registered are registered with the next tick."""
+        store = self.store
+        t = pending.t_ns
+        register, self._carry = self._carry + pending.register, []
+        try:
+            if store is not None:
+                if register:
+                    with store.transaction():
+                        for entity_id, kind, name, owner, agent in register:
+                            store.add_entity(
+                                entity_id, kind, name=name, owner_id=owner, agent=agent, t_ns=t
+                            )
+                self.runner.write(t, pending.out, pending.movers)
+        except Exception as exc:  # contained: see toaster.node.faults
+            self._carry = register
+            self._failed(exc, t)
+            return False
+        self.runner.stats.ticks += 1
+        self.faults.tick_stored(t)
         if self.faults.pending:
             self._record_gaps()
-        self._publish(t, facts, "publish")
-        self.stats.ticks += 1
-        self.answer_queries()
-        return facts
+        with self._warn_lock:
+            self.stats.ticks += 1
+        return True
 
     def _publish(self, t: int, facts: TickFacts, method: str) -> None:
         """Every output's ``method`` (those that have it); an output failing does not stop
@@ -392,7 +499,8 @@ class LiveNode:
             maintainer = Maintainer(self.db, maintain_every_s).start()
         self._watch = ControlWatch.of(self.db)
         try:
-            self._loop(period, stop, ticks, seconds, status_every_s)
+            with self.writing():
+                self._loop(period, stop, ticks, seconds, status_every_s)
         finally:
             if maintainer is not None:
                 maintainer.stop()
@@ -400,6 +508,29 @@ class LiveNode:
                 self._watch.stop()
                 self._watch = None
         return self.stats
+
+    @contextmanager
+    def writing(self) -> Iterator[None]:
+        """Ticks inside are written on a writer thread (:meth:`run` ticks inside), and the
+        node's thread reads on a connection of its own; at the end the tick that waits is
+        stored (not during an outage: it is dropped, as a tick that fails) and the writer
+        ends. An in-memory SQLite database has one connection: its ticks are written in turn.
+        """
+        db = self.db
+        if db is None or is_memory(db.engine.url) or self._writer is not None:
+            yield
+            return
+        from toaster.db.database import Database
+
+        reads = self._reads = Database(db.engine, db.url)
+        reads.set_page_cache(LIVE_PAGE_CACHE_KIB)
+        writer = self._writer = TickWriter(self._store, lambda: self.faults.delay)
+        try:
+            yield
+        finally:
+            writer.close(drain=not self.faults.failing)
+            self._writer = self._reads = None
+            reads.release()
 
     def _loop(
         self,
@@ -428,8 +559,8 @@ class LiveNode:
             if status_every_s > 0 and now - last_status >= status_every_s:
                 self.report_status()
                 last_status = now
-            if self.faults.delay:  # a database fault: wait for the backoff, or a stop
-                stop.wait(self.faults.delay)
+            if self._writer is None and self.faults.delay:  # a database fault: the backoff
+                stop.wait(self.faults.delay)  # (with a writer, the writer waits for it)
                 continue
             if not self.faults.failing:
                 self._record(time.monotonic() - start, period)
@@ -445,6 +576,8 @@ class LiveNode:
             f"status: up {time.monotonic() - s.started:.0f} s, {s.ticks} ticks, "
             f"{s.overruns} overruns, drops {self.drops.summary()}, {s.warnings} warnings"
         )
+        if s.coalesced:
+            line += f", {s.coalesced} ticks written with the next"
         if s.wait_ms:
             waits = sorted(s.wait_ms)
             p50, p99 = (waits[min(len(waits) - 1, int(p * len(waits)))] for p in (0.5, 0.99))

@@ -18,6 +18,7 @@ class LiveStats:
     worst_ms: float = 0.0
     warnings: int = 0
     commands: int = 0
+    coalesced: int = 0  # ticks replaced by a newer one before their write (node/writer.py)
     tick_ms: list[float] = field(default_factory=list)  # the last 1,000 tick durations
     #: the last 1,000 waits of input for its tick: from the first pose that woke the loop to
     #: the start of the tick that applies it (the gap after the previous tick, or its end)

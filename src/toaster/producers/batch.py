@@ -17,6 +17,7 @@ of the subject and target rows, and a fact key is never produced both by a const
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterator, Mapping
 from functools import partial
 from itertools import repeat
@@ -34,10 +35,14 @@ _EMPTY = np.zeros(0, np.int64)
 _NEG = np.full(1024, -1, np.int64)
 
 
+_NEW_CODE = threading.Lock()  # codes are made on a live node's tick and writer threads
+
+
 def _sig_id(sig: tuple) -> int:
     got = _SIGS.get(sig)
     if got is None:
-        got = _SIGS[sig] = len(_SIGS)
+        with _NEW_CODE:
+            got = _SIGS.setdefault(sig, len(_SIGS))
     return got
 
 
@@ -45,7 +50,8 @@ def text_code(text: str) -> int:
     """A process-wide integer for a value_text."""
     got = _TEXTS.get(text)
     if got is None:
-        got = _TEXTS[text] = len(_TEXTS)
+        with _NEW_CODE:
+            got = _TEXTS.setdefault(text, len(_TEXTS))
     return got
 
 
@@ -69,13 +75,21 @@ class Group(NamedTuple):
 class FactBatch:
     """A producer's snapshot as array groups, tied to the world whose rows it names."""
 
-    __slots__ = ("_facts", "groups", "n", "world")
+    __slots__ = ("_facts", "_ids", "groups", "n", "world")
 
     def __init__(self, world: Any) -> None:
         self.world = world
         self.groups: list[Group] = []
         self.n = 0
         self._facts: list[Fact] | None = None
+        self._ids: tuple[np.ndarray, np.ndarray] | None = None
+
+    def pin(self) -> FactBatch:
+        """Bind the batch to the world's ids and owners as they are now, so that its facts
+        can be built later on another thread (a live node's writer) while the world goes on
+        (the arrays are replaced, never changed, when entities change)."""
+        self._ids = (self.world.id_array(), self.world.owner_id_array())
+        return self
 
     def __len__(self) -> int:
         return self.n
@@ -179,8 +193,7 @@ class FactBatch:
 
     def _group_facts(self, g: Group, local: np.ndarray | None) -> list[Fact]:
         """One group's facts, all of them or those at ``local`` positions in the group."""
-        world = self.world
-        ids = world.id_array()
+        ids, owners = self._ids or (self.world.id_array(), self.world.owner_id_array())
         m = g.size if local is None else len(local)
 
         def pick(column: Any) -> Any:
@@ -189,7 +202,7 @@ class FactBatch:
         if isinstance(g.subj, np.ndarray):
             rows = pick(g.subj)
             subj: Any = ids[rows].tolist()
-            subj_owner: Any = world.owner_id_array()[rows].tolist()
+            subj_owner: Any = owners[rows].tolist()
         else:
             subj, subj_owner = repeat(g.subj, m), repeat(g.subj_owner, m)
         if isinstance(g.tgt, np.ndarray):

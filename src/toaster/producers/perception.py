@@ -138,23 +138,32 @@ class HandActors:
                 self.movers.setdefault(world.ids[row], world.ids[int(world.owner[joints[j]])])
 
     def actor_of(self, agents: Mapping[str, bool]) -> Callable[[Fact], str | None] | None:
-        """The actor of each changed fact of this tick (None: nothing is held or released).
+        """The actor of each changed fact of this tick (see :func:`actors_of`)."""
+        return actors_of(self.movers, agents)
 
-        ``agents``: the store's holders (id -> is self); only agents that hold beliefs of
-        their own (not the self agent, not nested holders) are named."""
-        if not self.movers:
-            return None
 
-        def acts(agent: str) -> bool:
-            return agents.get(agent) is False and ">" not in agent
+def actors_of(
+    movers: Mapping[str, str], agents: Mapping[str, bool]
+) -> Callable[[Fact], str | None] | None:
+    """The actor of each changed fact of a tick whose :attr:`HandActors.movers` were
+    ``movers`` (None: nothing is held or released). A tick's movers are a dict of their own
+    (the next update makes a new one), so a writer thread may use them after the next tick.
 
-        movers = {obj: agent for obj, agent in self.movers.items() if acts(agent)}
+    ``agents``: the store's holders (id -> is self); only agents that hold beliefs of
+    their own (not the self agent, not nested holders) are named."""
+    if not movers:
+        return None
 
-        def actor_of(fact: Fact) -> str | None:
-            if fact.property == "IsInHand":
-                return fact.target_id if acts(fact.target_id) else None
-            if fact.property_type == "position":
-                return movers.get(fact.subject_id)
-            return None
+    def acts(agent: str) -> bool:
+        return agents.get(agent) is False and ">" not in agent
 
-        return actor_of
+    moved = {obj: agent for obj, agent in movers.items() if acts(agent)}
+
+    def actor_of(fact: Fact) -> str | None:
+        if fact.property == "IsInHand":
+            return fact.target_id if acts(fact.target_id) else None
+        if fact.property_type == "position":
+            return moved.get(fact.subject_id)
+        return None
+
+    return actor_of

@@ -12,7 +12,7 @@ from toaster.errors import FileFormatError, InvalidInputError
 from toaster.model import Fact
 from toaster.producers.batch import FactBatch
 from toaster.producers.diff import SnapshotDiff
-from toaster.producers.perception import HandActors
+from toaster.producers.perception import HandActors, actors_of
 from toaster.producers.registry import Producer, builtin_producers
 from toaster.timeutil import NS_PER_S, check_rate
 from toaster.world.bags import is_bag, read_bag
@@ -93,6 +93,18 @@ class Runner:
         ``computed(out)`` is called once every producer is computed, before the write (a live
         node publishes the fact lists then).
         """
+        out = self.compute(t_ns, on_error=on_error)
+        if computed is not None:
+            computed(out)
+        if self.store is not None:
+            self.write(t_ns, out, self.hands.movers)
+        self.stats.ticks += 1
+        return out
+
+    def compute(
+        self, t_ns: int, *, on_error: Callable[[str, Exception], None] | None = None
+    ) -> dict[str, list[Fact] | FactBatch]:
+        """The computing half of :meth:`tick`: sources, world, producers, no write."""
         clock = time.perf_counter
         start = clock()
         for source in self.sources:
@@ -120,23 +132,21 @@ class Runner:
             self.stats.appeared += changes.appeared
             self.stats.changed += changes.changed
             self.stats.ended += changes.ended
-        if computed is not None:
-            computed(out)
-        if self.store is not None:
-            start = clock()
-            self._write(t_ns, out)
-            self._add("store", clock() - start)
-        self.stats.ticks += 1
         return out
 
-    def _write(self, t_ns: int, out: dict[str, list[Fact] | FactBatch]) -> None:
-        """All producers' snapshots in one transaction (one commit per tick, the belief rules
-        run once over all of them); fact batches go to the store as they are (diffed as arrays
-        there). A tick is all or nothing: the store retries it whole when it conflicts with
-        a concurrent writer."""
+    def write(
+        self, t_ns: int, out: Mapping[str, list[Fact] | FactBatch], movers: Mapping[str, str]
+    ) -> None:
+        """The writing half of :meth:`tick`: all producers' snapshots in one transaction (one
+        commit per tick, the belief rules run once over all of them); fact batches go to the
+        store as they are (diffed as arrays there). ``movers``: the tick's
+        :attr:`HandActors.movers`. A tick is all or nothing: the store retries it whole when
+        it conflicts with a concurrent writer. A live node calls it on its writer thread."""
+        start = time.perf_counter()
         store, agent = self.store, self.agent_id
-        actors = self.hands.actor_of(store.agents()) if self.hands.movers else None
+        actors = actors_of(movers, store.agents()) if movers else None
         store.sync_many(agent, t_ns, list(out.items()), actors=actors)
+        self._add("store", time.perf_counter() - start)
 
     def _add(self, name: str, seconds: float) -> None:
         self.stats.seconds[name] = self.stats.seconds.get(name, 0.0) + seconds

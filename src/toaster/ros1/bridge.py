@@ -3,8 +3,9 @@ each tick's facts, TF frames and markers, and the original's services call the c
 
 Threads: rospy runs callbacks and services on its own threads. Callbacks only push poses into
 thread-safe LiveSources and queue warning lines; services use their own database connections
-(:class:`~toaster.ros1.services.DbPool`). Everything that reads the world runs on the node's
-thread (the output, and the queries the node answers between ticks).
+(:class:`~toaster.ros1.services.DbPool`), once the node's writer stored the ticks before them.
+Everything that reads the world runs on the node's thread (the output, and the queries the
+node answers between ticks).
 """
 
 from __future__ import annotations
@@ -357,7 +358,7 @@ class Bridge:
                 "a second connection can open (not :memory:)"
             )
             return
-        self.pool = DbPool(url)
+        self.pool = DbPool(url, before=getattr(self.node, "flush_writes", lambda: None))
         handlers = Handlers(
             self.pool,
             self.registry,
@@ -405,7 +406,7 @@ class Bridge:
     def area_numbers(self, names: frozenset[str]) -> dict[str, int]:
         """The original's numeric ids of the areas (re-read when the set of areas changes)."""
         if names != self._area_numbers[0] and self.node.db is not None:
-            with self.node.db.transaction() as conn:
+            with self.node.read_db.transaction() as conn:  # the node's thread's connection
                 stored = catalog.get_setting(conn, AREA_SCOPE, AREA_KEY, {}) or {}
             self._area_numbers = (names, {k: int(v) for k, v in stored.items()})
         return self._area_numbers[1]

@@ -89,8 +89,7 @@ class TablesOut:
 
     def publish(self) -> None:
         """Publish the tables (re-read when facts may have changed) while someone listens."""
-        db = self.node.db
-        if db is None or not self.pub.get_num_connections():
+        if self.node.db is None or not self.pub.get_num_connections():
             return
         events = self.node.runner.stats.events
         now = time.monotonic()
@@ -99,6 +98,7 @@ class TablesOut:
             from toaster import queries as q
 
             self._events, self._read_at = events, now
+            db = self.node.read_db  # the node thread's own connection (the writer's is busy)
             tables: dict[str, list[dict[str, Any]]] = {a.id: [] for a in q.agents(db)}
             for row in q.current_facts(db, list(tables)):
                 tables[row.agent_id].append(row_fields(row))

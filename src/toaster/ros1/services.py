@@ -50,17 +50,20 @@ AREA_IDS = ("ros1", "area_ids")  # settings scope and key: {area name: the origi
 class DbPool:
     """Connections to the node's database for service threads (one per concurrent call)."""
 
-    def __init__(self, url: str) -> None:
+    def __init__(self, url: str, before: Callable[[], object] = lambda: None) -> None:
         self.url = url
+        self.before = before  # the node's flush_writes: a call sees the ticks before it
         self._free: list[Any] = []
         self._all: list[Any] = []
         self._lock = threading.Lock()
 
     @contextmanager
     def db(self) -> Iterator[Any]:
-        """Borrow a connection."""
+        """Borrow a connection, once the ticks computed before the call are stored
+        (read-your-writes: the node writes them on its writer thread)."""
         from toaster.app.session import connect
 
+        self.before()
         with self._lock:
             db = self._free.pop() if self._free else None
         if db is None:
