@@ -28,6 +28,8 @@ FIRST_COLUMN = {
     "belief_follow": "hkey",
     "belief_chain": "holder_id",
     "belief_groups": "holder_id",
+    "belief_perceived": "holder_id",
+    "belief_settled": "key_id",
 }
 
 
@@ -35,8 +37,8 @@ FIRST_COLUMN = {
 def story(db: toaster.Database) -> toaster.Database:
     """Sally-Anne (holders, followed periods, nested holders) plus a refreshed number
     (sample rows, on PostgreSQL a block of them once maintained) and two people in a lab, who
-    perceive alike (a group of holders): every guarded table has rows (SQLite's blocks
-    excepted: it never packs)."""
+    perceive alike (a group of holders; the kept perception and settled keys of the lab's
+    ticks): every guarded table has rows (SQLite's blocks excepted: it never packs)."""
     scenario.replay(db, SALLY_ANNE)
     st = db.store()
     for person in ("XAVI", "YUKI"):

@@ -45,6 +45,8 @@ NOT_PUBLISHED = {
     "belief_runs": "inserting a row runs the belief rule: rows are not kept",
     "belief_steps": "SQLite's blocks of a run",
     "belief_groups": "the rule's grouping of holders, for its next run",
+    "belief_perceived": "the rule's kept perception, for its next runs (store_state says whose)",
+    "belief_settled": "the rule's settled keys, kept with its perception",
     **dict.fromkeys(
         ("belief_changed", "belief_focus", "belief_seen", "belief_in", "belief_todo",
          "belief_freeze", "belief_mat", "belief_new_chain"),

@@ -162,7 +162,7 @@ def test_downgrade_moves_blocks_back_to_rows_and_upgrade_keeps_them(
     url = db.url
     db.close()
     engine = make_engine(url)
-    migrate.downgrade(engine, "0022")
+    migrate.downgrade(engine, "0023")
     with engine.connect() as conn:
         assert conn.exec_driver_sql("SELECT COUNT(*) FROM fact_samples").scalar() == samples
     migrate.upgrade(engine)

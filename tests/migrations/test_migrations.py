@@ -291,6 +291,20 @@ RELEASED_FROZEN = {
     "0018/40_refresh.json": "e95276160960c276727e18fad48dda8394da62081f10f9e8e18323f71d4b3448",
     "0019_units.json": "a6ed8555dac949ccd8c95f5c0b1c4efa47e5b66877c9ffd8f1b8bdb8770dac2f",
     "0019/10_focus.json": "c6ea450f2bc9fac01c14c30836edf0131362c5b3caae1f35baa3fb7dc4b3f752",
+    "0023_units.json": "405ded312a2c2dc26cec916a8a97996460d5d3e1a3da9dae3292362fd41f6f2f",
+    "0023/15_ungroup.json": "bdde86e16bf5784c24a37e52be4fc1a0ea4b4132e188b57b1085a3b1f7c1c28f",
+    "0023/19_settled.json": "019fd1fa5a284a233201dd957f6d1ab2142ddd391c215dd68f1bd215c6c98d74",
+    "0023/20_reuse.json": "3a8f4cebee8877eb1a7562781ac238ee4a84421cf72676e2cc207e1a64f0acfa",
+    "0023/21_remember.json": "f277226a7bac281d9405a8434b119e06e9b956ced763c2f36e413a6e0be3d749",
+    "0023/58_frozen.json": "9e3658220d855d4b6e3bee204fd0affa4188997c9d92a00d3228770c5e8a6a9d",
+    "0023/85_refresh_rows.json": "311db5279a10fb515f1c20f1e06a43f1fdb5cdcb34e0d8d8b2d81dc1348b037c",
+    "0023/94_keep_groups.json": "0a09293b811691d15c21232aeed16fde5102ff914bb4156837733ad3cd3f6bdc",
+    "0023/97_unsettle.json": "49d37a14ff0cc42b93482b0509a11e4ecec7c77e515477d5ba754f39c14a6ab7",
+    "0023/98_settle.json": "7cda26c5d0304ed152a408e172d3d33ec91b6920f0b8f81cb281988d6f557b50",
+    "0023/inbox.json": "c0332ed4591d72ec5401a9edc8d322fee68d575c458d5cfd0bbab732675c8b11",
+    "0023/pipeline.json": "c30a08a1070a5145f246bdd7ae29f323626fdc7dd78533464aaf35cd7cfaa264",
+    "0023/reperceive.json": "999c874f2be66ea245db233daf8a9431715cb59197aa0f0054451af790143578",
+    "0023/ungroup.json": "096487ff1bac36092294329db7db8f488b9be07f726273eb412d806c398c6296",
 }
 
 
@@ -357,8 +371,8 @@ def _frozen_objects(backend: str, create: list[str]) -> set[str]:
 
 
 def _frozen_sets(backend: str) -> dict[str, set[str]]:
-    """What revisions 0015, 0016, 0018 and 0019 install (their frozen files, not the package's
-    rendering)."""
+    """What revisions 0015, 0016, 0018, 0019 and 0023 install (their frozen files, not the
+    package's rendering)."""
     frozen = Path(toaster.__file__).parent / "migrations" / "frozen"
     whole = json.loads((frozen / "0015_triggers.json").read_text(encoding="utf-8"))
     return {
@@ -367,7 +381,7 @@ def _frozen_sets(backend: str) -> dict[str, set[str]]:
             revision: _frozen_objects(
                 backend, frozen_triggers.unit_statements(revision, backend, "create")
             )
-            for revision in ("0016", "0018", "0019")
+            for revision in ("0016", "0018", "0019", "0023")
         },
     }
 
@@ -458,3 +472,41 @@ def test_a_revision_swaps_the_units_it_changed_and_back(empty_url: str) -> None:
     migrate.downgrade(engine, "0018")
     assert _rule_objects(engine) == expected["0018"]
     engine.dispose()
+
+
+def _kept_tables(engine: Any) -> tuple[set[str], set[str]]:
+    """The kept perception's tables and store_state's columns that are there."""
+    with engine.connect() as conn:
+        inspector = inspect(conn)
+        tables = set(inspector.get_table_names()) & {"belief_perceived", "belief_settled"}
+        columns = {c["name"] for c in inspector.get_columns("store_state")}
+    return tables, columns & {"perceived_for", "perceived_ns"}
+
+
+def test_kept_perception_installs_and_goes_back(empty_url: str, tmp_path: Path) -> None:
+    """0022 <-> 0023: the kept perception's tables, columns and rule units come and go (every
+    unit replaced: exactly each revision's frozen objects), its tables refuse direct writes,
+    and a plain SQL client's writes give the same rows with either revision's rule."""
+    engine = make_engine(empty_url)
+    expected = _frozen_sets(engine.dialect.name)
+    migrate.upgrade(engine, "0022")
+    assert _rule_objects(engine) == expected["0019"]
+    assert _kept_tables(engine) == (set(), set())
+    migrate.upgrade(engine, "0023")
+    assert _rule_objects(engine) == expected["0023"] != expected["0019"]
+    assert _kept_tables(engine) == (
+        {"belief_perceived", "belief_settled"},
+        {"perceived_for", "perceived_ns"},
+    )
+    for table, row in (("belief_perceived", "('A', 'B', 1.0)"), ("belief_settled", "(1, 1)")):
+        with pytest.raises(Exception, match=f"{table} is kept by toaster"), engine.begin() as conn:
+            conn.exec_driver_sql(f"INSERT INTO {table} VALUES {row}")
+    migrate.downgrade(engine, "0022")
+    assert _rule_objects(engine) == expected["0019"]
+    assert _kept_tables(engine) == (set(), set())
+    migrate.downgrade(engine, "base")
+    engine.dispose()
+    with _another(empty_url, tmp_path) as other:
+        old, kept = _inbox_story(empty_url, "0022"), _inbox_story(other, "0023")
+    assert old == kept
+    assert len(kept[0]) > 30 and len({row[0] for row in kept[0]}) > 3

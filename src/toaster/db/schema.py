@@ -28,6 +28,11 @@ Tables
 ``belief_groups`` holders that perceive alike and follow the same self keys, each with its
                 group's representative (revision 0011): while no perception fact changes, the
                 rule computes a group's perception once (step 96_regroup forms them).
+``belief_perceived`` who perceives which entity (holder, confidence), kept between runs for
+                the self agent ``store_state.perceived_for``: a run whose changes hold no
+                perception input reuses it (revision 0023, step 21_remember).
+``belief_settled`` self keys that every holder perceiving them follows (and no other): while
+                the kept perception holds, their changes take no step (0023, 98_settle).
 ``fact_samples`` the numeric history inside an interval (revision 0004): when a number,
                 confidence or observability changes beyond its tolerance, the open interval
                 is refreshed in place and the values it held *until* then are kept here, so
@@ -306,6 +311,10 @@ store_state = Table(
     Column("beliefs_self", Text, nullable=True),
     # Bumped by any write to ``agents`` (trigger): stores re-read their agents (0012).
     Column("agents_version", BigInteger, nullable=False, server_default=text("0")),
+    # The self agent whose perception ``belief_perceived`` keeps, NULL: none (it ends with the
+    # groups of holders), and the first run time it holds for (0023).
+    Column("perceived_for", Text, nullable=True),
+    Column("perceived_ns", BigInteger, nullable=True),
     CheckConstraint("id = 1", name="single_row"),
 )
 
@@ -454,6 +463,21 @@ belief_groups = Table(  # holders that perceive alike and follow the same keys (
     Column("holder_id", Text, ForeignKey("holders.id", ondelete="CASCADE"), primary_key=True),
     Column("rep_id", Text, ForeignKey("holders.id", ondelete="CASCADE"), nullable=False),
     Index("ix_belief_groups_rep_id", "rep_id"),
+)
+
+belief_perceived = Table(  # who perceives which entity, kept between runs (0023)
+    "belief_perceived",
+    metadata,
+    Column("entity_id", Text, primary_key=True),
+    Column("holder_id", Text, primary_key=True),
+    Column("pconf", Float, nullable=False),
+)
+
+belief_settled = Table(  # self keys whose steady changes need no step (0023)
+    "belief_settled",
+    metadata,
+    Column("key_id", BigInteger, primary_key=True, autoincrement=False),
+    Column("since_ns", BigInteger, nullable=False),
 )
 
 belief_chain = Table(

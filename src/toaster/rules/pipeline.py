@@ -95,12 +95,7 @@ HOLDERS_ADDED = "EXISTS (SELECT 1 FROM belief_new_chain)"
 PERCEPTION_CHANGED = (  # (each changed key's property looked up by its id: a join was
     # planned as a scan of every key of the database; docs/beliefs.md)
     "EXISTS (SELECT 1 FROM belief_changed b "
-    "WHERE (SELECT k.property FROM fact_keys k WHERE k.id = b.key_id) IN ("
-    "SELECT value FROM {{setting_list(copresence)}} "
-    "UNION ALL SELECT value FROM {{setting_list(containment)}} "
-    "UNION ALL SELECT key FROM {{setting_map(visibility)}} "
-    "UNION ALL SELECT x.value FROM {{setting_pairs(attention)}} AS x "
-    "UNION ALL SELECT {{setting_text(closed)}}))"
+    "WHERE (SELECT k.property FROM fact_keys k WHERE k.id = b.key_id) IN ({{perception}}))"
 )
 #: A holder takes a change (or sees something again), or follows a changed key: when nobody
 #: perceives anything, as in a crowd replay with no rooms, the write steps are skipped.
@@ -123,63 +118,112 @@ STEADY = (
 )
 #: The groups were ended (by this run, or by a write since the last run).
 REGROUP = "{{groups_ended}}"
+NO_ACTOR = "NOT EXISTS (SELECT 1 FROM belief_changed WHERE actor_id IS NOT NULL)"
+#: The kept perception (``belief_perceived``, 21_remember) is this self agent's.
+KEPT = "COALESCE((SELECT perceived_for FROM store_state WHERE id = 1), '') = NEW.self_id"
+#: A steady run whose time the kept perception holds for: it is what 20_perceive would compute
+#: (no perception input changed since it was kept: a run with one, a write that ends the
+#: groups, a change of agents or settings ends it) and this run reuses it (20_reuse).
+REUSE = (
+    f"{STEADY} AND {KEPT} "
+    "AND COALESCE((SELECT perceived_ns FROM store_state WHERE id = 1), NEW.t_ns + 1) <= NEW.t_ns"
+)
+#: A steady run that keeps no perception computes it for every located entity and keeps it,
+#: when no perception fact starts or ends at its time or later (then perceiving around the
+#: tick is perceiving after it).
+REMEMBER = (
+    f"{STEADY} AND NOT ({REUSE}) "
+    "AND COALESCE({{perception_horizon(NEW.self_id)}}, NEW.t_ns - 1) < NEW.t_ns"
+)
+#: A run that changed perception keeps what it perceives after the tick (for every holder:
+#: the groups are ended), unless an actor perceived its own change there, or a perception
+#: fact starts or ends after the run's time.
+REMEMBER_AFTER = (
+    f"{NO_ACTOR} AND COALESCE({{{{perception_horizon(NEW.self_id)}}}}, NEW.t_ns) <= NEW.t_ns"
+)
+#: Steady runs drop the settled keys (98_settle) from their changes, unless nested holders
+#: are still to be registered (NEW_AGENTS would run for them).
+SETTLED = (
+    f"{REUSE} AND (CAST({{{{setting(depth)}}}} AS INTEGER) < 2 "
+    "OR {{holders_basis}} = (SELECT holders_basis FROM store_state WHERE id = 1))"
+)
+#: Something is left to do: a change that is not settled.
+WORK = "EXISTS (SELECT 1 FROM belief_changed)"
 
 PIPELINE = Block(
     "run",
     RUNS,
     (
-        *_steps("10_focus", "12_moves", "13_late", "58_frozen"),
-        Block("not_steady", f"NOT ({STEADY})", _steps("15_ungroup")),
-        *_steps("20_perceive", **AROUND),
-        *_steps("30_changes", moves="0"),
-        *_steps("32_expand"),
+        Block("settled", SETTLED, _steps("19_settled")),
         Block(
-            "new_agents",
-            NEW_AGENTS,
+            "work",
+            WORK,
             (
-                *_steps("holders"),
+                *_steps("10_focus", "12_moves", "13_late", "58_frozen"),
+                Block("not_steady", f"NOT ({STEADY})", _steps("15_ungroup")),
                 Block(
-                    "holders_added",
-                    HOLDERS_ADDED,
+                    "remember",
+                    REMEMBER,
                     (
-                        *_steps("reperceive"),
-                        *_steps("20_perceive", **AROUND),
-                        *_steps("30_changes", moves="0"),
+                        *_steps("20_perceive", phase="'after'", everything="1"),
+                        *_steps("21_remember"),
                     ),
                 ),
-                *_steps("holders_seen"),
-            ),
-        ),
-        Block(
-            "phases",
-            PERCEPTION_CHANGED,
-            (
-                *_steps("20_perceive", phase="'before'", everything="1"),
-                *_steps("20_perceive", phase="'after'", everything="1"),
-                *_steps("30_changes", moves="1"),
-                *_steps("40_refresh", "42_keep_max"),
-            ),
-        ),
-        Block(
-            "write",
-            ANY_WORK,
-            (
-                *_steps(
-                    "35_freeze",
-                    "45_resolve",
-                    "50_keys",
-                    "45_resolve",
-                    "55_switch",
-                    "58_frozen",
-                    "60_plan",
-                    "70_events",
-                    "80_close",
-                    "85_refresh_rows",
+                Block("reuse", REUSE, _steps("20_reuse")),
+                Block("perceive", f"NOT ({REUSE})", _steps("20_perceive", **AROUND)),
+                *_steps("30_changes", moves="0"),
+                *_steps("32_expand"),
+                Block(
+                    "new_agents",
+                    NEW_AGENTS,
+                    (
+                        *_steps("holders"),
+                        Block(
+                            "holders_added",
+                            HOLDERS_ADDED,
+                            (
+                                *_steps("reperceive"),
+                                *_steps("20_perceive", **AROUND),
+                                *_steps("30_changes", moves="0"),
+                            ),
+                        ),
+                        *_steps("holders_seen"),
+                    ),
                 ),
-                Block("follow", SHARE_ROWS, _steps("90_follow")),
-                Block("own", f"NOT ({SHARE_ROWS})", _steps("91_open")),
-                Block("repconf", REPCONF, _steps("92_repconf")),
-                *_steps("94_keep_groups"),
+                Block(
+                    "phases",
+                    PERCEPTION_CHANGED,
+                    (
+                        *_steps("20_perceive", phase="'before'", everything="1"),
+                        *_steps("20_perceive", phase="'after'", everything="1"),
+                        *_steps("30_changes", moves="1"),
+                        *_steps("40_refresh", "42_keep_max"),
+                        Block("remember_after", REMEMBER_AFTER, _steps("21_remember")),
+                    ),
+                ),
+                Block(
+                    "write",
+                    ANY_WORK,
+                    (
+                        *_steps(
+                            "35_freeze",
+                            "45_resolve",
+                            "50_keys",
+                            "45_resolve",
+                            "55_switch",
+                            "58_frozen",
+                            "60_plan",
+                            "70_events",
+                            "80_close",
+                            "85_refresh_rows",
+                        ),
+                        Block("follow", SHARE_ROWS, _steps("90_follow")),
+                        Block("own", f"NOT ({SHARE_ROWS})", _steps("91_open")),
+                        Block("repconf", REPCONF, _steps("92_repconf")),
+                        *_steps("94_keep_groups", "97_unsettle"),
+                    ),
+                ),
+                Block("settle", KEPT, _steps("98_settle")),
             ),
         ),
         Block("regroup", REGROUP, _steps("96_regroup")),

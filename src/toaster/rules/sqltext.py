@@ -33,7 +33,10 @@ STEPS = (
     "12_moves",
     "13_late",
     "15_ungroup",
+    "19_settled",
     "20_perceive",
+    "20_reuse",
+    "21_remember",
     "30_changes",
     "32_expand",
     "35_freeze",
@@ -53,6 +56,8 @@ STEPS = (
     "94_keep_groups",
     "95_materialize",
     "96_regroup",
+    "97_unsettle",
+    "98_settle",
     "99_clear",
 )
 
@@ -213,13 +218,41 @@ SELF_HOLDS = {
     ),
 }
 
+#: The perception inputs: the properties whose self facts decide who perceives what (rooms,
+#: containment, visibility, attention) or what is seen again (closed containers). A run whose
+#: changes hold none of them (and no actor) perceives as the last one did: it reuses the kept
+#: perception (``belief_perceived``, step 21_remember). One list for every place that needs
+#: it (the macro ``perception``: the pipeline's test of a perception change, the kept
+#: perception's horizon).
+PERCEPTION = (
+    "SELECT value FROM {{setting_list(copresence)}}",
+    "SELECT value FROM {{setting_list(containment)}}",
+    "SELECT key FROM {{setting_map(visibility)}}",
+    "SELECT x.value FROM {{setting_pairs(attention)}} AS x",
+    "SELECT {{setting_text(closed)}}",
+)
+#: The kept perception (``belief_perceived``, ``belief_settled``) and the self agent it is of
+#: (``store_state.perceived_for``); it ends with the groups (below), and a run computes it again.
+KEPT = {
+    "perception": " UNION ALL ".join(PERCEPTION),
+    # The latest boundary (start or end) of the self agent <arg>'s perception facts: beyond
+    # the run's time, perception would change without a write (a fact written ahead of the
+    # clock, with no run), and nothing is kept.
+    "perception_horizon": (
+        "(SELECT MAX((SELECT COALESCE(f.valid_to_ns, f.valid_from_ns) FROM facts f "
+        "WHERE f.key_id = k.id ORDER BY f.valid_from_ns DESC, f.id DESC LIMIT 1)) "
+        f"FROM fact_keys k WHERE k.agent_id = {ARG} AND k.property IN ({{{{perception}}}}))"
+    ),
+}
 #: Ends the groups of holders outside a run (a write that changes a holder's followed keys,
-#: the settings, the agents): the next run forms them again (96_regroup).
-UNGROUP = "UPDATE store_state SET groups_for = NULL WHERE id = 1"
+#: the settings, the agents): the next run forms them again (96_regroup). The kept perception
+#: ends with them (it covers the holders computed while they hold).
+UNGROUP = "UPDATE store_state SET groups_for = NULL, perceived_for = NULL WHERE id = 1"
 #: A write to ``agents`` (any client): the groups end and every store re-reads its agents
 #: (``store_state.agents_version``, read at the start of each store write).
 AGENTS_CHANGED = (
-    "UPDATE store_state SET groups_for = NULL, agents_version = agents_version + 1 WHERE id = 1"
+    "UPDATE store_state SET groups_for = NULL, perceived_for = NULL, "
+    "agents_version = agents_version + 1 WHERE id = 1"
 )
 
 #: Groups of holders that perceive alike (96_regroup).
@@ -237,6 +270,7 @@ COMMON = {
     **HOLDERS,
     **SELF_HOLDS,
     **GROUPS,
+    **KEPT,
     # A beliefs setting as stored (JSON text), or its default.
     "setting": f"(SELECT value_json FROM belief_settings WHERE key = '{ARG}')",
     **FOLLOWED,

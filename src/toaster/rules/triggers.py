@@ -219,7 +219,8 @@ _UNGROUP_ON = {"settings": UNGROUP, "agents": AGENTS_CHANGED}
 _PG_ONCE = {
     "agents": (
         "IF current_setting('toaster.agents_changed', true) IS DISTINCT FROM 'yes' "
-        "OR (SELECT groups_for FROM store_state WHERE id = 1) IS NOT NULL THEN",
+        "OR (SELECT groups_for FROM store_state WHERE id = 1) IS NOT NULL "
+        "OR (SELECT perceived_for FROM store_state WHERE id = 1) IS NOT NULL THEN",
         "PERFORM set_config('toaster.agents_changed', 'yes', true);",
     )
 }

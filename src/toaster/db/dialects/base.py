@@ -37,6 +37,8 @@ GUARDED_TABLES = (
     "belief_follow",
     "belief_chain",
     "belief_groups",
+    "belief_perceived",
+    "belief_settled",
 )
 GUARD_MESSAGE = (
     "{table} is kept by toaster's store and belief rules and cannot be written "

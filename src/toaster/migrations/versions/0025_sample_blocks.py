@@ -11,7 +11,7 @@ Upgrade keeps every row (the next maintenance packs them); downgrade moves the b
 back into rows.
 
 Revision ID: 0025
-Revises: 0022
+Revises: 0023
 Create Date: 2026-11-28
 """
 
@@ -24,7 +24,7 @@ import sqlalchemy as sa
 from alembic import op
 
 revision = "0025"
-down_revision = "0022"
+down_revision = "0023"
 branch_labels = None
 depends_on = None
 
