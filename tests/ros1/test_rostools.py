@@ -306,11 +306,8 @@ def test_rosbag_and_rostopic_echo_read_a_recording(
         facts = tools.yaml("rostopic", "echo", "-b", str(bag), "-n", "1", topic)["factList"]
         t_ns = facts[0]["time"]
         producer = topic.split("/")[1]
-        held = {  # the intervals the run stored, as the recording writes them
-            r.to_fact()
-            for r in q.history(db, robot, source=producer)
-            if r.valid_from_ns <= t_ns and (r.valid_to_ns is None or t_ns < r.valid_to_ns)
-        }
+        # what the run stored as held then, numbers of that time included
+        held = {r.to_fact() for r in q.beliefs_at(db, robot, t_ns, source=producer)}
         assert {decoded(f) for f in facts} == held, topic
     sally = tools.yaml("rostopic", "echo", "-b", str(bag), "-n", "1", "/toaster/beliefs/SALLY")
     assert (sally["holder"], sally["chain"], sally["is_self"]) == ("SALLY", ["SALLY"], False)

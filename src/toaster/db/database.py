@@ -120,14 +120,6 @@ class Database:
                 conn.close()
         self.engine.dispose()
 
-    def release(self) -> None:
-        """Close this handle's connection and keep the engine (a second handle on one engine,
-        as a live node's thread for reads beside its writer thread)."""
-        conn, self._conn = self._conn, None
-        if conn is not None:
-            with suppress(Exception):  # a dead connection may fail to say goodbye
-                conn.close()
-
     def cursor(self) -> Cursor:
         """A raw DBAPI cursor on the shared connection (inside a transaction)."""
         return dbapi(self.connection).cursor()

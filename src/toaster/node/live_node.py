@@ -521,8 +521,11 @@ class LiveNode:
             yield
             return
         from toaster.db.database import Database
+        from toaster.db.engine import make_engine
 
-        reads = self._reads = Database(db.engine, db.url)
+        # An engine of its own: resetting a lost connection disposes its handle's pool, which
+        # on a shared engine would orphan the other thread's connection (closed only by GC).
+        reads = self._reads = Database(make_engine(db.url), db.url)
         reads.set_page_cache(LIVE_PAGE_CACHE_KIB)
         writer = self._writer = TickWriter(self._store, lambda: self.faults.delay)
         try:
@@ -530,7 +533,7 @@ class LiveNode:
         finally:
             writer.close(drain=not self.faults.failing)
             self._writer = self._reads = None
-            reads.release()
+            reads.close()
 
     def _loop(
         self,
