@@ -291,6 +291,17 @@ RELEASED_FROZEN = {
     "0018/40_refresh.json": "e95276160960c276727e18fad48dda8394da62081f10f9e8e18323f71d4b3448",
     "0019_units.json": "a6ed8555dac949ccd8c95f5c0b1c4efa47e5b66877c9ffd8f1b8bdb8770dac2f",
     "0019/10_focus.json": "c6ea450f2bc9fac01c14c30836edf0131362c5b3caae1f35baa3fb7dc4b3f752",
+    "0027_units.json": "ca7d025261f4884dd698d5e4d2db4a58984303af4cb5a32b216ac69ffc0ea441",
+    "0027/20_perceive.json": "cf8bcc03ced88ba14b3702b70f8a01f7b8dd16dd5bb5f81140bc558c15865be5",
+    "0027/20_perceive_0_around.json": (
+        "3f6a3d26b4d3141772fc9560f95f966e31320a9b6b670ebbbea90c52261ee756"
+    ),
+    "0027/20_perceive_1_after.json": (
+        "780ff16c76f00ec68b1d88c7e40c3e3668610336df6fd67c1399bbf5d7a22676"
+    ),
+    "0027/20_perceive_1_before.json": (
+        "2be1797a0b5d0d4cfb570c0689fc97f5d48ff57733b85cf6e5e4b00596399851"
+    ),
 }
 
 
@@ -357,8 +368,8 @@ def _frozen_objects(backend: str, create: list[str]) -> set[str]:
 
 
 def _frozen_sets(backend: str) -> dict[str, set[str]]:
-    """What revisions 0015, 0016, 0018 and 0019 install (their frozen files, not the package's
-    rendering)."""
+    """What revisions 0015, 0016, 0018, 0019 and 0027 install (their frozen files, not the
+    package's rendering)."""
     frozen = Path(toaster.__file__).parent / "migrations" / "frozen"
     whole = json.loads((frozen / "0015_triggers.json").read_text(encoding="utf-8"))
     return {
@@ -367,7 +378,7 @@ def _frozen_sets(backend: str) -> dict[str, set[str]]:
             revision: _frozen_objects(
                 backend, frozen_triggers.unit_statements(revision, backend, "create")
             )
-            for revision in ("0016", "0018", "0019")
+            for revision in ("0016", "0018", "0019", "0027")
         },
     }
 
@@ -458,3 +469,32 @@ def test_a_revision_swaps_the_units_it_changed_and_back(empty_url: str) -> None:
     migrate.downgrade(engine, "0018")
     assert _rule_objects(engine) == expected["0018"]
     engine.dispose()
+
+
+def test_sqlite_runs_the_perception_step_as_one_trigger_with_the_same_rows(
+    empty_url: str, tmp_path: Path
+) -> None:
+    """0022 <-> 0027 installs exactly each revision's frozen objects; at 0027 SQLite holds the
+    perception statement once (a trigger of its own that its four places enter: a connection
+    compiles it once, not four times), and a plain SQL client's writes give the same rows."""
+    engine = make_engine(empty_url)
+    expected = _frozen_sets(engine.dialect.name)
+    migrate.upgrade(engine, "0022")
+    assert _rule_objects(engine) == expected["0019"]
+    migrate.upgrade(engine, "0027")
+    assert _rule_objects(engine) == expected["0027"]
+    if engine.dialect.name == "sqlite":
+        with engine.connect() as conn:
+            holding = conn.exec_driver_sql(
+                "SELECT name FROM sqlite_master WHERE type = 'trigger' "
+                "AND sql LIKE '%INSERT INTO belief_seen%'"
+            ).all()
+        assert [name for (name,) in holding] == ["belief_step_20_perceive"]
+    migrate.downgrade(engine, "0022")
+    assert _rule_objects(engine) == expected["0019"]
+    migrate.downgrade(engine, "base")
+    engine.dispose()
+    with _another(empty_url, tmp_path) as other:
+        before, after = _inbox_story(empty_url, "0022"), _inbox_story(other, "0027")
+    assert before == after
+    assert len(after[0]) > 30 and len({row[0] for row in after[0]}) > 3  # holders' rows too
