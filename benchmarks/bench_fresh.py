@@ -13,6 +13,9 @@ machine slows both sides alike):
   lines, written here in the data set's format), then ``close()``; the baseline makes the
   database by the migration path. "replay" is the story alone.
 
+"cpu ms" is this process's CPU time of the fresh case (``time.process_time``): a busy machine
+inflates it less than the wall time (PostgreSQL's server time is not in it).
+
 A PostgreSQL schema is made empty beforehand (``CREATE SCHEMA``, not timed) and dropped after.
 The first creation of a run leaves the script (and the SQLite template) in the cache
 (``$XDG_CACHE_HOME/toaster/templates``); it is made before timing.
@@ -92,10 +95,10 @@ def migrated(url: str) -> None:
         engine.dispose()
 
 
-def timed(fresh: Fresh, baseline: bool, story: bool) -> tuple[float, float]:
-    """(seconds of the whole case, seconds of the story's replay alone)."""
+def timed(fresh: Fresh, baseline: bool, story: bool) -> tuple[float, float, float]:
+    """(seconds of the whole case, of the story's replay alone, of this process's CPU)."""
     url = fresh.url()
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     if baseline:
         migrated(url)
     db = toaster.connect(url)
@@ -110,10 +113,12 @@ def timed(fresh: Fresh, baseline: bool, story: bool) -> tuple[float, float]:
                 raise SystemExit(msg)
     finally:
         db.close()
-    return time.perf_counter() - start, replay
+    return time.perf_counter() - start, replay, time.process_time() - cpu
 
 
-def _medians(cases: dict[bool, list[tuple[float, float]]]) -> Callable[[bool, int], float]:
+def _medians(
+    cases: dict[bool, list[tuple[float, float, float]]],
+) -> Callable[[bool, int], float]:
     """``med(baseline, i)``: the median in ms of the ``i``-th time of ``cases[baseline]``."""
     return lambda baseline, i: 1000 * statistics.median(r[i] for r in cases[baseline])
 
@@ -124,7 +129,7 @@ def run(backend: str, pg: str, repeats: int) -> list[tuple[str, ...]]:
     try:
         timed(fresh, False, True)  # leaves the template / the script, warms the imports
         for story in (False, True):
-            cases: dict[bool, list[tuple[float, float]]] = {False: [], True: []}
+            cases: dict[bool, list[tuple[float, float, float]]] = {False: [], True: []}
             for _ in range(repeats):
                 for baseline in (True, False):
                     cases[baseline].append(timed(fresh, baseline, story))
@@ -132,8 +137,9 @@ def run(backend: str, pg: str, repeats: int) -> list[tuple[str, ...]]:
             fast, slow = med(False, 0), med(True, 0)
             replay = f"{med(False, 1):.0f}" if story else ""
             name = "story (fresh + replay)" if story else "connect (new database)"
+            cpu = f"{med(False, 2):.0f}"
             rows.append(
-                (name, backend, f"{fast:.0f}", f"{slow:.0f}", f"{slow / fast:.2f}x", replay)
+                (name, backend, f"{fast:.0f}", f"{slow:.0f}", f"{slow / fast:.2f}x", replay, cpu)
             )
     finally:
         fresh.close()
@@ -152,7 +158,7 @@ def main() -> int:
     backends = [b for b in ("sqlite", "postgresql") if not (b == "sqlite" and args.only_pg)]
     backends = [b for b in backends if not (b == "postgresql" and args.no_pg)]
     rows = [row for backend in backends for row in run(backend, args.pg, repeats)]
-    header = ("measure", "backend", "fresh ms", "migrations ms", "ratio", "replay ms")
+    header = ("measure", "backend", "fresh ms", "migrations ms", "ratio", "replay ms", "cpu ms")
     widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
     for row in [header, *rows]:
         print("  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)))

@@ -305,6 +305,17 @@ RELEASED_FROZEN = {
     "0023/pipeline.json": "c30a08a1070a5145f246bdd7ae29f323626fdc7dd78533464aaf35cd7cfaa264",
     "0023/reperceive.json": "999c874f2be66ea245db233daf8a9431715cb59197aa0f0054451af790143578",
     "0023/ungroup.json": "096487ff1bac36092294329db7db8f488b9be07f726273eb412d806c398c6296",
+    "0027_units.json": "d2a4da56e17eccf435c13f01721f50ba5b68c9b25be9672c517c2dd1374de84a",
+    "0027/20_perceive.json": "dfea02b1b67a05f599c4181b865a9ff9aae8ee47818f5fafa4d2f6d2fb5b83d5",
+    "0027/20_perceive_0_around.json": (
+        "3f6a3d26b4d3141772fc9560f95f966e31320a9b6b670ebbbea90c52261ee756"
+    ),
+    "0027/20_perceive_1_after.json": (
+        "780ff16c76f00ec68b1d88c7e40c3e3668610336df6fd67c1399bbf5d7a22676"
+    ),
+    "0027/20_perceive_1_before.json": (
+        "2be1797a0b5d0d4cfb570c0689fc97f5d48ff57733b85cf6e5e4b00596399851"
+    ),
 }
 
 
@@ -371,8 +382,8 @@ def _frozen_objects(backend: str, create: list[str]) -> set[str]:
 
 
 def _frozen_sets(backend: str) -> dict[str, set[str]]:
-    """What revisions 0015, 0016, 0018, 0019 and 0023 install (their frozen files, not the
-    package's rendering)."""
+    """What revisions 0015, 0016, 0018, 0019, 0023 and 0027 install (their frozen files, not
+    the package's rendering)."""
     frozen = Path(toaster.__file__).parent / "migrations" / "frozen"
     whole = json.loads((frozen / "0015_triggers.json").read_text(encoding="utf-8"))
     return {
@@ -381,7 +392,7 @@ def _frozen_sets(backend: str) -> dict[str, set[str]]:
             revision: _frozen_objects(
                 backend, frozen_triggers.unit_statements(revision, backend, "create")
             )
-            for revision in ("0016", "0018", "0019", "0023")
+            for revision in ("0016", "0018", "0019", "0023", "0027")
         },
     }
 
@@ -510,3 +521,32 @@ def test_kept_perception_installs_and_goes_back(empty_url: str, tmp_path: Path) 
         old, kept = _inbox_story(empty_url, "0022"), _inbox_story(other, "0023")
     assert old == kept
     assert len(kept[0]) > 30 and len({row[0] for row in kept[0]}) > 3
+
+
+def test_sqlite_runs_the_perception_step_as_one_trigger_with_the_same_rows(
+    empty_url: str, tmp_path: Path
+) -> None:
+    """0025 <-> 0027 installs exactly each revision's frozen objects; at 0027 SQLite holds the
+    perception statement once (a trigger of its own that its five places enter: a connection
+    compiles it once, not at each place), and a plain SQL client's writes give the same rows."""
+    engine = make_engine(empty_url)
+    expected = _frozen_sets(engine.dialect.name)
+    migrate.upgrade(engine, "0025")
+    assert _rule_objects(engine) == expected["0023"]
+    migrate.upgrade(engine, "0027")
+    assert _rule_objects(engine) == expected["0027"]
+    if engine.dialect.name == "sqlite":
+        with engine.connect() as conn:
+            holding = conn.exec_driver_sql(
+                "SELECT name FROM sqlite_master WHERE type = 'trigger' "
+                "AND sql LIKE '%INSERT INTO belief_seen%WITH RECURSIVE%'"
+            ).all()
+        assert [name for (name,) in holding] == ["belief_step_20_perceive"]
+    migrate.downgrade(engine, "0025")
+    assert _rule_objects(engine) == expected["0023"]
+    migrate.downgrade(engine, "base")
+    engine.dispose()
+    with _another(empty_url, tmp_path) as other:
+        before, after = _inbox_story(empty_url, "0025"), _inbox_story(other, "0027")
+    assert before == after
+    assert len(after[0]) > 30 and len({row[0] for row in after[0]}) > 3  # holders' rows too

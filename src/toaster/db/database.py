@@ -255,7 +255,8 @@ def open_engine(
     engine = make_engine(url, allow_memory=allow_memory)
     try:
         with engine.connect() as conn:
-            current = migrate.toaster_revision(conn, where)
+            # A file just made is a copy of the template or migrated: at ``revision``, in WAL.
+            current = revision if created else migrate.toaster_revision(conn, where)
         if current is None and create:
             migrate.upgrade(engine, revision)
         elif current is not None:

@@ -48,7 +48,9 @@ def migrations_hash() -> str:
     return digest.hexdigest()[:16]
 
 
+@cache
 def _version() -> str:
+    """This toaster's installed version (read once: the metadata lookup scans the path)."""
     try:
         return metadata.version("toaster")
     except metadata.PackageNotFoundError:  # run from a source tree without installing

@@ -14,7 +14,8 @@ of the pipeline (``20_perceive_1_before`` is 20_perceive with its constants), ``
 SQLite a step's statements are inlined into the driver's block triggers where its placeholder
 ``{{unit:<name>}}`` stands, when the driver is installed (``compose``): a trigger per step on
 ``belief_steps`` made every run slower, as every insert there runs each trigger's program
-(docs/beliefs.md).
+(docs/beliefs.md). The exception: a template of :data:`SHARED` (20_perceive, at five places)
+is one trigger of its own, entered by a row naming the instance (revision 0027).
 
 A migration installs frozen copies (``migrations/frozen/NNNN_units.json``, the manifest: each
 unit's revision, and ``migrations/frozen/NNNN/<unit>.json``, written by :func:`freeze` for the
@@ -302,8 +303,53 @@ def _sqlite_block(block: Block) -> str:
     return _sqlite_trigger(f"belief_block_{block.name}", block.name, body)
 
 
+#: SQLite: the templates run at several places of the pipeline that run as one trigger of their
+#: own (``belief_step_<template>``), entered by a row naming the instance, its constants read
+#: from that name. SQLite compiles a trigger's program once per outer statement but inlined
+#: statements once per place, and a connection's first run compiles the whole pipeline:
+#: 20_perceive's inlined copies were ~70 % of that (a fresh database's story, docs/beliefs.md).
+SHARED = ("20_perceive",)
+
+
+def _instances(template: str) -> dict[str, Step]:
+    return {u: s for u, s in step_units().items() if s.name == template}
+
+
 def _sqlite_unit(unit: str) -> dict[str, list[str]]:
+    step = step_units().get(unit)
+    if step is not None and step.name in SHARED:
+        enter = (
+            "INSERT INTO belief_steps (block, self_id, t_ns, recorded_ns) "
+            f"VALUES ('{unit}', NEW.self_id, NEW.t_ns, NEW.recorded_ns);"
+        )
+        return {"create": [], "drop": [], "inline": [enter]}
     return {"create": [], "drop": [], "inline": [s + ";" for s in _unit_sql(unit, "sqlite")]}
+
+
+def _sqlite_shared(template: str) -> dict[str, list[str]]:
+    """The trigger of ``template``'s instances: each constant is a ``CASE`` over the name."""
+    instances = _instances(template)
+    names = {tuple(n for n, _ in step.constants) for step in instances.values()}
+    if len(names) != 1:
+        msg = f"the instances of {template} take different constants: {sorted(names)}"
+        raise ValueError(msg)
+    constants = {
+        name: "(CASE NEW.block "
+        + " ".join(f"WHEN '{u}' THEN {dict(s.constants)[name]}" for u, s in instances.items())
+        + " END)"
+        for name in names.pop()
+    }
+    body = [s + ";" for s in _sql(template, "sqlite", {**RUN_PARAMS, **constants})]
+    blocks_in = ", ".join(f"'{u}'" for u in instances)
+    name = f"belief_step_{template}"
+    return {
+        "create": [
+            f"CREATE TRIGGER {name} AFTER INSERT ON belief_steps "
+            f"WHEN NEW.block IN ({blocks_in}) AND EXISTS (SELECT 1 FROM rule_writer) "
+            "BEGIN\n" + "\n".join(body) + "\nEND"
+        ],
+        "drop": [f"DROP TRIGGER IF EXISTS {name}"],
+    }
 
 
 def _sqlite_pipeline() -> dict[str, list[str]]:
@@ -353,6 +399,11 @@ def units() -> dict[str, Unit]:
     found: dict[str, Unit] = {
         unit: {"sqlite": _sqlite_unit(unit), "postgresql": _pg_unit(unit)} for unit in names
     }
+    for template in SHARED:  # SQLite's trigger of the instances (PostgreSQL: their functions)
+        found[template] = {
+            "sqlite": _sqlite_shared(template),
+            "postgresql": {"create": [], "drop": []},
+        }
     blocks_named = {b.name for b in blocks()}
     if blocks_named & found.keys():  # a belief_steps row names one trigger only
         msg = f"blocks and steps share names: {sorted(blocks_named & found.keys())}"
