@@ -64,24 +64,48 @@ RUNS = (
     "AND EXISTS (SELECT 1 FROM agents WHERE NOT is_self) "
     "AND EXISTS (SELECT 1 FROM belief_changed)"
 )
-#: A run that applies first moves the rules' clock (``store_state.beliefs_ns``) to its time
-#: unless it is behind: a robot or producer whose clock lags another's (or a late SQL writer)
-#: never writes a holder's row before one already written (the store also writes the self
-#: agents' own facts at the clock's time: Store._writes). A run at the clock's time whose
-#: self agent set it (``beliefs_self``) shares its instant: one robot's writes at one time
-#: reach the holders at that time. Any other run at or behind the clock takes the instant
-#: after it: two robots' runs, or a late robot's runs of different times, never share an
-#: instant (they could take a holder's key in and out at one time; revision 0015). The run
-#: then takes the clock's time (:data:`CLOCK_NS`). On PostgreSQL the update's row lock also
-#: serializes the runs of concurrent writers: each sees the rows of the runs committed
-#: before it.
-CLOCK = (
-    "UPDATE store_state SET beliefs_ns = CASE "
-    "WHEN beliefs_ns IS NULL OR NEW.t_ns > beliefs_ns THEN NEW.t_ns "
-    "WHEN NEW.t_ns = beliefs_ns AND beliefs_self = NEW.self_id THEN beliefs_ns "
-    "ELSE beliefs_ns + 1 END, beliefs_self = NEW.self_id WHERE id = 1"
+#: Whom a robot's run may change (revision 0024): the holders whose chain's agents its facts
+#: name (subject or target of one of its keys) or which act in its changes (a holder perceives
+#: only what its agents perceive in the run's self facts, and an actor its own changes), and
+#: the holders following one of its changed keys. The runs of robots whose people never meet
+#: change disjoint sets: each takes its own holders' clocks (below) and never waits for the
+#: other's; runs that share a holder take turns on its clock.
+_NAMED = (
+    "({m} IN (SELECT actor_id FROM belief_changed WHERE actor_id IS NOT NULL) "
+    "OR EXISTS (SELECT 1 FROM fact_keys k WHERE k.subject_id = {m} AND k.agent_id = NEW.self_id) "
+    "OR EXISTS (SELECT 1 FROM fact_keys k WHERE k.target_id = {m} AND k.agent_id = NEW.self_id))"
 )
-CLOCK_NS = "(SELECT beliefs_ns FROM store_state WHERE id = 1)"
+MINE = (
+    "SELECT h.id FROM holders h WHERE (h.depth = 1 AND "
+    + _NAMED.format(m="h.id")
+    + ") OR (h.depth >= 2 AND NOT EXISTS (SELECT 1 FROM belief_chain c "
+    "WHERE c.holder_id = h.id AND NOT "
+    + _NAMED.format(m="c.member_id")
+    + ")) OR EXISTS (SELECT 1 FROM belief_changed b JOIN belief_follow w ON w.self_key = b.key_id "
+    "AND w.holder_id = h.id AND w.to_ns IS NULL)"
+)
+#: The rules' clock is per holder (``holders.clock_ns``, ``clock_self``; revision 0024, before
+#: it one row of ``store_state``). A run that applies first moves the clocks of its holders
+#: (:data:`MINE`, ``{mine}``: a condition on ``id``) to its time unless it is behind one of
+#: them: a robot or producer whose clock lags another's (or a late SQL writer) never writes a
+#: holder's row before one already written (the store also writes the self agents' own facts
+#: at the latest clock's time: Store._writes). A run at a holder's clock whose self agent set
+#: it (``clock_self``) shares its instant: one robot's writes at one time reach the holders at
+#: that time. Any other run at or behind a clock takes the instant after it: two robots' runs
+#: never share an instant of a holder (they could take its key in and out at one time;
+#: revision 0015). The run's time is the latest of its holders' so moved, and every one of
+#: them takes it (:data:`CLOCK_NS`: the clocks agree after :data:`CLOCK`). On PostgreSQL
+#: the run first locks its holders' rows, in the order of their ids: runs that share a holder
+#: take turns, and each sees the rows of the runs committed before it.
+CLOCK = (
+    "UPDATE holders SET clock_ns = CASE "
+    "WHEN clock_ns IS NULL OR NEW.t_ns > clock_ns THEN NEW.t_ns "
+    "WHEN NEW.t_ns = clock_ns AND clock_self = NEW.self_id THEN clock_ns "
+    "ELSE clock_ns + 1 END WHERE {mine}",
+    "UPDATE holders SET clock_ns = (SELECT MAX(x.clock_ns) FROM holders x WHERE x.{mine}), "
+    "clock_self = NEW.self_id WHERE {mine}",
+)
+CLOCK_NS = "COALESCE((SELECT MAX(x.clock_ns) FROM holders x WHERE x.{mine}), NEW.t_ns)"
 #: The agents (or the depth) changed since the nested holders were last registered, and
 #: somebody perceives something (a database where nobody does keeps only its real agents).
 NEW_AGENTS = (
@@ -121,15 +145,21 @@ STEADY = (
     f"AND NOT ({PERCEPTION_CHANGED}) "
     "AND NOT EXISTS (SELECT 1 FROM belief_changed WHERE actor_id IS NOT NULL)"
 )
-#: The groups were ended (by this run, or by a write since the last run).
-REGROUP = "{{groups_ended}}"
+#: The groups were ended (by this run, or by a write since the last run), and one robot runs
+#: the rules: with several, each robot's run would end the groups formed for another's (and
+#: write ``store_state``, which every run would then wait for; revision 0024).
+REGROUP = "{{groups_ended}} AND (SELECT COUNT(*) FROM agents WHERE is_self) = 1"
+#: A run that is not :data:`STEADY` ends the groups, if any are left.
+ENDS_GROUPS = (
+    f"NOT ({STEADY}) AND NOT ({{{{groups_ended}}}} AND NOT EXISTS (SELECT 1 FROM belief_groups))"
+)
 
 PIPELINE = Block(
     "run",
     RUNS,
     (
         *_steps("10_focus", "12_moves", "13_late", "58_frozen"),
-        Block("not_steady", f"NOT ({STEADY})", _steps("15_ungroup")),
+        Block("not_steady", ENDS_GROUPS, _steps("15_ungroup")),
         *_steps("20_perceive", **AROUND),
         *_steps("30_changes", moves="0"),
         *_steps("32_expand"),
