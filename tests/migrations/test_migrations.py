@@ -292,7 +292,7 @@ RELEASED_FROZEN = {
     "0019_units.json": "a6ed8555dac949ccd8c95f5c0b1c4efa47e5b66877c9ffd8f1b8bdb8770dac2f",
     "0019/10_focus.json": "c6ea450f2bc9fac01c14c30836edf0131362c5b3caae1f35baa3fb7dc4b3f752",
     "0024_units.json": "67c5fcbd4110ddc51efd69f4c5a6f9112a6f26d4ff93d6d970f6e83fc37ffd5b",
-    "0024/holders.json": "6d380a755b6f8f1d0b94bcef544f5c9c41b1d14896be704545d23c18e5a7bc5b",
+    "0024/holders.json": "94f3a32447e2bc6ef924be35084d0ddf9809017b2c1c0b56df3c4a020280f988",
     "0024/pipeline.json": "695b4b7ef26f683877db2a342f2730f696dd6f31b380e6e9a0a3d395c2114ce3",
 }
 
