@@ -202,8 +202,8 @@ def main() -> None:
     print(
         f"{'writers':>7} {'database':>8} {'p50 ms':>8} {'p99 ms':>8} {'wall s':>7} "
         f"{'failed':>6} {'runs/s':>7}   (medians of {args.repeats}; {args.ticks} ticks per "
-        f"writer; holders: {args.holders}; people: {args.people}; pace: {args.pace}; runs/s: belief runs of all "
-        "the run's databases a second of ticking)"
+        f"writer; holders: {args.holders}; people: {args.people}; pace: {args.pace}; "
+        "runs/s: belief runs of all the run's databases a second of ticking)"
     )
     for n in counts:
         results = {}
