@@ -166,3 +166,20 @@ def test_a_reader_that_flushes_sees_the_ticks_before_it(db_url: str) -> None:
                 assert node.flush_writes(60.0)
                 assert (("bob", "kitchen") in stored(other, "IsInRoom")) == (place == IN)
         assert not running.errors, running.errors
+
+
+def test_a_replaced_tick_leaves_its_registrations_and_its_actors_to_the_next() -> None:
+    """A tick replaced while it waited is written as the newer one's snapshot: the entities
+    it registered and who moved what in it (the actor of a change first stored then) go with
+    the newer tick; the newer tick's own actor wins for a thing both moved."""
+    from toaster.node.writer import Pending
+    from toaster.producers.batch import TickFacts
+
+    older = Pending(
+        1, {}, {"CUP": "ANNE", "BALL": "BOB"}, TickFacts({}), [("CUP", "object", "", "", None)]
+    )
+    newer = Pending(2, {}, {"BALL": "SALLY"}, TickFacts({}), [("BOX", "object", "", "", None)])
+    written = older.merged(newer)
+    assert written.t_ns == 2
+    assert written.movers == {"CUP": "ANNE", "BALL": "SALLY"}
+    assert [row[0] for row in written.register] == ["CUP", "BOX"]

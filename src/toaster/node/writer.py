@@ -35,8 +35,11 @@ class Pending:
     register: list[tuple[str, str, str, str, bool | None]] = field(default_factory=list)
 
     def merged(self, newer: Pending) -> Pending:
-        """``newer`` written in place of this one (the registrations of both)."""
+        """``newer`` written in place of this one: the registrations of both, and who moved
+        what in either (a thing moved in this tick is first written with ``newer``'s
+        snapshot: its actor made that change)."""
         newer.register = self.register + newer.register
+        newer.movers = {**self.movers, **newer.movers}
         return newer
 
 
