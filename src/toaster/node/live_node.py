@@ -17,22 +17,22 @@ from __future__ import annotations
 
 import gc
 import logging
-import signal
 import threading
 import time
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 from toaster.db import catalog
 from toaster.db.engine import is_memory
 from toaster.db.maintenance import Maintainer
 from toaster.errors import ToasterError
-from toaster.model import Fact, shown
+from toaster.model import shown
 from toaster.node import control, requests
 from toaster.node.control_watch import ControlWatch
 from toaster.node.faults import GAP_SOURCE, RECONNECT_KINDS, Faults
-from toaster.node.pacing import IDLE_WAIT, TickBudget
+from toaster.node.output import Output
+from toaster.node.pacing import TickBudget, wait_for_tick
 from toaster.node.stamps import TickClock
 from toaster.node.stats import LiveStats
 from toaster.node.writer import Pending, TickWriter
@@ -69,16 +69,6 @@ LIVE_PAGE_CACHE_KIB = 2000
 MAX_STAMP_LAG_S = 1.0
 #: a service waits at most this long for the writes of the ticks before it (read-your-writes)
 FLUSH_WAIT_S = 5.0
-
-
-class Output(Protocol):
-    """Something that publishes each tick's facts (ROS topics, a test's list, ...), once the
-    tick is stored (while :meth:`LiveNode.run` runs: handed to the writer thread). It may also
-    have ``publish_facts(t_ns, facts, world)``, called as soon as the producers computed the
-    tick, before it is stored: the ROS bridge sends its fact lists then, so that they do not
-    wait for the database (docs/live.md, "Latency")."""
-
-    def publish(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None: ...
 
 
 class LiveNode:
@@ -567,26 +557,11 @@ class LiveNode:
                 continue
             if not self.faults.failing:
                 self._record(time.monotonic() - start, period)
-            self._pace(start, period, stop, budget)
+            wait_for_tick(start, period, stop, self.wake, budget)
 
     def status(self, *, window: bool = False) -> str:
-        """One line: uptime, ticks, overruns, drops per topic and field, warnings, how long
-        input waited for its tick (p50, p99 of the last 1,000 ticks it woke), and the window
-        since the previous windowed line (``window=True`` starts a new one) or the last one
-        taken."""
-        s = self.stats
-        line = (
-            f"status: up {time.monotonic() - s.started:.0f} s, {s.ticks} ticks, "
-            f"{s.overruns} overruns, drops {self.drops.summary()}, {s.warnings} warnings"
-        )
-        if s.coalesced:
-            line += f", {s.coalesced} ticks written with the next"
-        if s.wait_ms:
-            waits = sorted(s.wait_ms)
-            p50, p99 = (waits[min(len(waits) - 1, int(p * len(waits)))] for p in (0.5, 0.99))
-            line += f", input waits p50 {p50:.1f} ms, p99 {p99:.1f} ms"
-        last = s.take_window() if window else s.last_window
-        return f"{line}; {last}" if last else line
+        """The status line (:meth:`LiveStats.line`) with this node's dropped messages."""
+        return self.stats.line(self.drops.summary(), window=window)
 
     def report_status(self) -> str:
         """Log a windowed status line and hand it to the outputs that publish it."""
@@ -606,22 +581,6 @@ class LiveNode:
             self._woken_at = time.monotonic()
             self.wake.set()
 
-    def _pace(self, start: float, period: float, stop: threading.Event, budget: TickBudget) -> None:
-        """Wait for the next tick: input, once the budget has a tick for it; else
-        ``IDLE_WAIT`` periods after ``start``."""
-        deadline = start + IDLE_WAIT * period
-        while not stop.is_set():
-            now = time.monotonic()
-            if now >= deadline:
-                return
-            if not self.wake.is_set():
-                self.wake.wait(deadline - now)
-                continue
-            ready = budget.ready_at(now)
-            if ready <= now:
-                return
-            stop.wait(min(ready, deadline) - now)
-
     def _record(self, took: float, period: float) -> None:
         ms = took * 1e3
         self.stats.record(ms, took > period)
@@ -633,27 +592,4 @@ class LiveNode:
             )
 
 
-def serve(
-    node: LiveNode,
-    rate_hz: float = 30.0,
-    *,
-    seconds: float | None = None,
-    status_every_s: float = 0.0,
-) -> LiveStats:
-    """Run a node until SIGINT or SIGTERM (or ``seconds``), stopping between two ticks; a
-    status line every ``status_every_s`` seconds (0: none)."""
-    stop = threading.Event()
-
-    def ask_stop(signum: int, _frame: object) -> None:
-        log.info("signal %d: stopping after this tick", signum)
-        stop.set()
-
-    previous = {sig: signal.signal(sig, ask_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        return node.run(rate_hz, stop=stop, seconds=seconds, status_every_s=status_every_s)
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-
-
-__all__ = ["LiveNode", "LiveStats", "Output", "serve"]
+__all__ = ["LiveNode", "LiveStats", "Output"]

@@ -11,6 +11,9 @@ made a pose wait up to 27 ms for its tick, the p99 of the latency on a busy mach
 
 from __future__ import annotations
 
+import threading
+import time
+
 #: tokens come in at one every FOLLOW_GAP periods (at most 1.25 × --rate ticks a second)
 FOLLOW_GAP = 0.8
 #: ... and the bucket holds at most this many: two ticks in a row at once, no more
@@ -43,3 +46,22 @@ class TickBudget:
         """When a tick triggered by input may start (``now`` if a token is there)."""
         self._refill(now)
         return now if self.tokens >= 1.0 else now + (1.0 - self.tokens) * self.refill_s
+
+
+def wait_for_tick(
+    start: float, period: float, stop: threading.Event, wake: threading.Event, budget: TickBudget
+) -> None:
+    """Wait for the next tick: input (``wake``), once the budget has a tick for it; else
+    ``IDLE_WAIT`` periods after ``start``; at once when ``stop`` is set."""
+    deadline = start + IDLE_WAIT * period
+    while not stop.is_set():
+        now = time.monotonic()
+        if now >= deadline:
+            return
+        if not wake.is_set():
+            wake.wait(deadline - now)
+            continue
+        ready = budget.ready_at(now)
+        if ready <= now:
+            return
+        stop.wait(min(ready, deadline) - now)

@@ -50,6 +50,24 @@ class LiveStats:
         self.wait_ms.append(ms)
         del self.wait_ms[:-1000]
 
+    def line(self, drops: str, *, window: bool = False) -> str:
+        """The status line: uptime, ticks, overruns, ``drops`` per topic and field, warnings,
+        how long input waited for its tick (p50, p99 of the last 1,000 ticks it woke), and the
+        window since the previous windowed line (``window=True`` starts a new one) or the last
+        one taken."""
+        line = (
+            f"status: up {time.monotonic() - self.started:.0f} s, {self.ticks} ticks, "
+            f"{self.overruns} overruns, drops {drops}, {self.warnings} warnings"
+        )
+        if self.coalesced:
+            line += f", {self.coalesced} ticks written with the next"
+        if self.wait_ms:
+            waits = sorted(self.wait_ms)
+            p50, p99 = (waits[min(len(waits) - 1, int(p * len(waits)))] for p in (0.5, 0.99))
+            line += f", input waits p50 {p50:.1f} ms, p99 {p99:.1f} ms"
+        last = self.take_window() if window else self.last_window
+        return f"{line}; {last}" if last else line
+
     def take_window(self, now: float | None = None) -> str:
         """``"window N s: K ticks, p50 X ms, p99 Y ms, max Z ms, O overruns"`` since the
         previous call (percentiles over its newest WINDOW_TICKS ticks); starts a new one."""

@@ -1,0 +1,39 @@
+"""Running a live node as ``toaster serve`` does: until SIGINT or SIGTERM, stopping between two
+ticks."""
+
+from __future__ import annotations
+
+import logging
+import signal
+import threading
+
+from toaster.node.live_node import LiveNode
+from toaster.node.stats import LiveStats
+
+log = logging.getLogger("toaster.node")
+
+
+def serve(
+    node: LiveNode,
+    rate_hz: float = 30.0,
+    *,
+    seconds: float | None = None,
+    status_every_s: float = 0.0,
+) -> LiveStats:
+    """Run a node until SIGINT or SIGTERM (or ``seconds``), stopping between two ticks; a
+    status line every ``status_every_s`` seconds (0: none)."""
+    stop = threading.Event()
+
+    def ask_stop(signum: int, _frame: object) -> None:
+        log.info("signal %d: stopping after this tick", signum)
+        stop.set()
+
+    previous = {sig: signal.signal(sig, ask_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        return node.run(rate_hz, stop=stop, seconds=seconds, status_every_s=status_every_s)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+__all__ = ["serve"]
