@@ -7,6 +7,7 @@ All are NamedTuples: cheap to build in bulk, comparable, and easy to turn into d
 
 from __future__ import annotations
 
+import bisect
 import builtins
 import math
 import re
@@ -124,13 +125,15 @@ class NumberedInterval(NamedTuple):
     numbers: tuple[tuple[int, float | None, float, float], ...]
 
     def at(self, t_ns: int) -> FactRow:
-        """The interval with the numbers it had at ``t_ns`` (within its tolerance)."""
-        for until_ns, value, confidence, observability in self.numbers:
-            if t_ns < until_ns:
-                return self.row._replace(
-                    value_num=value, confidence=confidence, observability=observability
-                )
-        return self.row
+        """The interval with the numbers it had at ``t_ns`` (within its tolerance): the first
+        stored refresh after ``t_ns``, found by bisection (a recording asks at every frame)."""
+        i = bisect.bisect_right(self.numbers, t_ns, key=lambda number: number[0])
+        if i == len(self.numbers):
+            return self.row
+        _, value, confidence, observability = self.numbers[i]
+        return self.row._replace(
+            value_num=value, confidence=confidence, observability=observability
+        )
 
 
 class EventRow(NamedTuple):
