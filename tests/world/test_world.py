@@ -59,6 +59,35 @@ def test_joint_pose_reported_in_world_frame_is_kept_relative():
     assert w.pos[w.row("bob/head")] == pytest.approx([5, 5.2, 1.7])
 
 
+def test_joints_follow_every_kind_of_change_between_commits():
+    """commit recomputes a joint only where its agent, its local pose or its world pose
+    changed since they last agreed: each of those changes must still move it."""
+    w = World()
+    w.add_entity("bob", "human")
+    w.add_entity("bob/head", "joint", owner_id="bob", name="head")
+    head = w.row("bob/head")
+    w.set_pose("bob", (1, 0, 0), 1, (0, 0, math.pi / 2))
+    w.set_pose("bob/head", (1, 0.2, 1.7), 1, (0.1, 0.2, 0.3))
+    w.commit()  # observed in world coordinates: kept as observed
+    assert w.pos[head].tolist() == [1, 0.2, 1.7]
+    assert w.rpy[head].tolist() == [0.1, 0.2, 0.3]
+    w.set_pose("bob/head", (1, 0.3, 1.7), 2)  # the joint first, then its agent, in one tick
+    w.set_pose("bob", (2, 0, 0), 2, (0, 0, math.pi / 2))
+    w.commit()
+    assert w.pos[head] == pytest.approx([2, 0.3, 1.7])
+    w.commit()  # nothing changed: nothing moves
+    assert w.pos[head] == pytest.approx([2, 0.3, 1.7])
+    w.set_joint_local("bob/head", (0.5, 0, 1.5))  # a local pose set directly
+    w.commit()
+    assert w.pos[head] == pytest.approx([2, 0.5, 1.5])
+    w.rpy[w.row("bob")] = (0, 0, 0)  # an agent's pose written into the columns
+    w.commit()
+    assert w.pos[head] == pytest.approx([2.5, 0, 1.5])
+    w.pos[head] = (9, 9, 9)  # a joint's world pose written into the columns: local wins
+    w.commit()
+    assert w.pos[head] == pytest.approx([2.5, 0, 1.5])
+
+
 def test_history_as_of_and_time_bound():
     w = World(history_horizon_ns=S)
     w.add_entity("cup")

@@ -82,24 +82,37 @@ def rotation_matrices(rpy: np.ndarray) -> np.ndarray:
 
 
 def from_frames(
-    parent_pos: np.ndarray, parent_rpy: np.ndarray, local_pos: np.ndarray, local_rpy: np.ndarray
+    parent_pos: np.ndarray,
+    parent_rpy: np.ndarray,
+    local_pos: np.ndarray,
+    local_rpy: np.ndarray,
+    parents: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """World positions (n, 3) and roll, pitch, yaw (n, 3) of children posed in their parents'
-    frames (a joint on its agent)."""
-    if not len(parent_pos):
+    frames (a joint on its agent). ``parents``: child i's parent is row ``parents[i]`` of the
+    parent arrays (each parent's rotation is then built once, not once per child)."""
+    if not len(local_pos):
         return np.zeros((0, 3)), np.zeros((0, 3))
     parent = rotations(parent_rpy)
+    if parents is not None:
+        parent, parent_pos = parent[parents], parent_pos[parents]
     return parent_pos + parent.apply(local_pos), rpy_of(parent * rotations(local_rpy))
 
 
 def to_frames(
-    parent_pos: np.ndarray, parent_rpy: np.ndarray, pos: np.ndarray, rpy: np.ndarray
+    parent_pos: np.ndarray,
+    parent_rpy: np.ndarray,
+    pos: np.ndarray,
+    rpy: np.ndarray,
+    parents: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Positions and roll, pitch, yaw (n, 3) of world poses in their parents' frames
-    (from_frames's inverse)."""
-    if not len(parent_pos):
+    (from_frames's inverse; ``parents`` as there)."""
+    if not len(pos):
         return np.zeros((0, 3)), np.zeros((0, 3))
     inverse = rotations(parent_rpy).inv()
+    if parents is not None:
+        inverse, parent_pos = inverse[parents], parent_pos[parents]
     return inverse.apply(pos - parent_pos), rpy_of(inverse * rotations(rpy))
 
 

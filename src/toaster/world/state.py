@@ -2,8 +2,10 @@
 
 Rows are stable: an entity keeps its row for the life of the world (leaving only clears
 ``active``). Joints are stored relative to their agent (``local_pos``/``local_rpy``) and their
-world pose is recomputed from the agent on every :meth:`World.commit`, so they move rigidly
-with it. Objects held in a hand take the hand's pose.
+world pose is recomputed from the agent on :meth:`World.commit`, so they move rigidly with it
+(only where the agent's pose, the local pose or the joint's world pose changed since they
+last agreed: a joint observed in world coordinates keeps the pose observed). Objects held in
+a hand take the hand's pose.
 
 Several sources may report one entity. Rule: the observation with the newest perception time
 wins; on equal times, the most confident one; on equal confidence, the one applied last.
@@ -83,6 +85,9 @@ class World:
         self.conf = np.zeros(0)
         self.active = np.zeros(0, bool)
         self.held_by = np.zeros(0, np.int64)
+        # per joint: the agent's pose, the local pose and the world pose when they last agreed
+        # (NaN: never), so that commit recomputes only the joints where one of them changed
+        self._agreed = np.zeros((0, 18))
         self.sources_enabled: dict[str, bool] = {}
         self.roles: dict[str, str] = {}  # spatial shape roles: "support" | "container"
         self.closed: dict[str, bool] = {}  # containers that are closed (lid on)
@@ -111,6 +116,7 @@ class World:
         self.conf = grow(self.conf, 0.0)
         self.active = grow(self.active, False)
         self.held_by = grow(self.held_by, -1)
+        self._agreed = grow(self._agreed, np.nan)
         self._cap = cap
 
     def add_entity(
@@ -314,9 +320,24 @@ class World:
             self.t_ns[row] = max(int(self.t_ns[row]), t_ns)
 
     def _set_local_from_world(self, joints: np.ndarray) -> None:
-        agents = self.owner[joints]
+        agents, parents = np.unique(self.owner[joints], return_inverse=True)
         self.local_pos[joints], self.local_rpy[joints] = to_frames(
-            self.pos[agents], self.rpy[agents], self.pos[joints], self.rpy[joints]
+            self.pos[agents], self.rpy[agents], self.pos[joints], self.rpy[joints], parents
+        )
+        self._agreed[joints] = self._joint_poses(joints)
+
+    def _joint_poses(self, joints: np.ndarray) -> np.ndarray:
+        """(n, 18): each joint's agent's pose, its local pose and its world pose."""
+        agents = self.owner[joints]
+        return np.hstack(
+            [
+                self.pos[agents],
+                self.rpy[agents],
+                self.local_pos[joints],
+                self.local_rpy[joints],
+                self.pos[joints],
+                self.rpy[joints],
+            ]
         )
 
     def set_shape(
@@ -374,9 +395,17 @@ class World:
         joints = np.flatnonzero(self.kind[:n] == JOINT)
         if joints.size:
             agents = self.owner[joints]
-            self.pos[joints], self.rpy[joints] = from_frames(
-                self.pos[agents], self.rpy[agents], self.local_pos[joints], self.local_rpy[joints]
-            )
+            moved = joints[(self._joint_poses(joints) != self._agreed[joints]).any(axis=1)]
+            if moved.size:
+                parents_of, parents = np.unique(self.owner[moved], return_inverse=True)
+                self.pos[moved], self.rpy[moved] = from_frames(
+                    self.pos[parents_of],
+                    self.rpy[parents_of],
+                    self.local_pos[moved],
+                    self.local_rpy[moved],
+                    parents,
+                )
+                self._agreed[moved] = self._joint_poses(moved)
             self.t_ns[joints] = np.maximum(self.t_ns[joints], self.t_ns[agents])
         held = np.flatnonzero(self.held_by[:n] >= 0)
         if held.size:
