@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -186,25 +187,74 @@ class Runner:
         """
         wall0 = last_maintained = time.monotonic()
         first: int | None = None
-        for t in times:
-            first = t if first is None else first
-            if realtime:
-                delay = (t - first) / NS_PER_S - (time.monotonic() - wall0)
-                if delay > 0:
-                    time.sleep(delay)
-            self.tick(t)
-            if on_tick is not None:
-                on_tick(t)
-            now = time.monotonic()
-            if (
-                self.store is not None
-                and maintain_every_s is not None
-                and now - last_maintained >= maintain_every_s
-            ):
-                self.store.db.maintain()
-                last_maintained = time.monotonic()
-                self._add("maintain", last_maintained - now)
+        with _Pipeline(self) as pipeline:
+            for t in times:
+                first = t if first is None else first
+                if realtime:
+                    delay = (t - first) / NS_PER_S - (time.monotonic() - wall0)
+                    if delay > 0:
+                        time.sleep(delay)
+                pipeline.tick(t)
+                if on_tick is not None:
+                    on_tick(t)
+                now = time.monotonic()
+                if (
+                    self.store is not None
+                    and maintain_every_s is not None
+                    and now - last_maintained >= maintain_every_s
+                ):
+                    pipeline.wait()
+                    self.store.db.maintain()
+                    last_maintained = time.monotonic()
+                    self._add("maintain", last_maintained - now)
         return self.stats
+
+
+class _Pipeline:
+    """Ticks of :meth:`Runner.run_at` with tick k written on a thread while tick k+1
+    computes (the database releases the interpreter while it works): one write in flight,
+    every tick written, in order; a write's error is raised before the next write (the
+    ticks computed after it write nothing). Without a store, plain ticks."""
+
+    def __init__(self, runner: Runner) -> None:
+        self.runner = runner
+        self._pool: ThreadPoolExecutor | None = None
+        self._writing: Future[None] | None = None
+
+    def __enter__(self) -> _Pipeline:
+        if self.runner.store is not None:
+            self._pool = ThreadPoolExecutor(1, thread_name_prefix="toaster-write")
+        return self
+
+    def tick(self, t_ns: int) -> None:
+        runner = self.runner
+        if self._pool is None:
+            runner.tick(t_ns)
+            return
+        out = runner.compute(t_ns)
+        for batch in out.values():  # their facts are built on the thread, the world moves on
+            if isinstance(batch, FactBatch):
+                batch.pin()
+        movers = dict(runner.hands.movers)
+        self.wait()
+        self._writing = self._pool.submit(runner.write, t_ns, out, movers)
+        runner.stats.ticks += 1
+
+    def wait(self) -> None:
+        """Wait for the write in flight (raising its error)."""
+        writing, self._writing = self._writing, None
+        if writing is not None:
+            writing.result()
+
+    def __exit__(self, kind: object, error: object, trace: object) -> None:
+        try:
+            if kind is None:
+                self.wait()
+            elif self._writing is not None:  # the write in flight ends; the first error wins
+                self._writing.exception()
+        finally:
+            if self._pool is not None:
+                self._pool.shutdown(wait=True)
 
 
 @dataclass
