@@ -13,6 +13,7 @@ from toaster.cli.output import emit, listing_options, say
 
 if TYPE_CHECKING:
     from toaster.db.database import Database
+    from toaster.db.writer.store import Store
 
 GET_TYPES = ("FACT", "EVENT", "ONTOLOGY", "ID", "ENTITY", "AGENT", "PROPERTY")
 SET_TYPES = ("ENTITY", "FACT", "EVENT", "ONTOLOGY", "PROPERTY")
@@ -284,7 +285,7 @@ def set_info(
     say(WRITERS[info_type.upper()](store, add, opts))
 
 
-def _set_entity(store: Any, add: bool, opts: dict[str, Any]) -> str:
+def _set_entity(store: Store, add: bool, opts: dict[str, Any]) -> str:
     entity_id = _need(opts, "entity_id", "--id")
     if not add:
         store.remove_entity(entity_id)
@@ -326,8 +327,8 @@ def _fact(opts: dict[str, Any]) -> Any:
     return fact_from_mapping(row)
 
 
-def _set_fact(store: Any, add: bool, opts: dict[str, Any]) -> str:
-    agent = _self_agent(store.db, opts["agent"])
+def _set_fact(store: Store, add: bool, opts: dict[str, Any]) -> str:
+    agent = opts["agent"] or store.self_agent()
     _need(opts, "property", "--property")
     if not add:
         n = store.retract_facts(
@@ -346,8 +347,8 @@ def _set_fact(store: Any, add: bool, opts: dict[str, Any]) -> str:
     return f"fact {outcome} for {agent}"
 
 
-def _set_event(store: Any, add: bool, opts: dict[str, Any]) -> str:
-    agent = _self_agent(store.db, opts["agent"])
+def _set_event(store: Store, add: bool, opts: dict[str, Any]) -> str:
+    agent = opts["agent"] or store.self_agent()
     _need(opts, "property", "--property")
     if not add:
         raise click.UsageError("an event cannot be removed: it happened")
@@ -355,7 +356,7 @@ def _set_event(store: Any, add: bool, opts: dict[str, Any]) -> str:
     return f"event recorded for {agent}"
 
 
-def _set_ontology(store: Any, add: bool, opts: dict[str, Any]) -> str:
+def _set_ontology(store: Store, add: bool, opts: dict[str, Any]) -> str:
     entity_class = _need(opts, "entity_class", "--class")
     if not add:
         return f"{store.remove_ontology(entity_class, opts['individual'])} ontology row(s) removed"
@@ -365,7 +366,7 @@ def _set_ontology(store: Any, add: bool, opts: dict[str, Any]) -> str:
     return "ontology row saved"
 
 
-def _set_property(store: Any, add: bool, opts: dict[str, Any]) -> str:
+def _set_property(store: Store, add: bool, opts: dict[str, Any]) -> str:
     from toaster.db.seed import property_value
 
     entity_id = _need(opts, "entity_id", "--id")

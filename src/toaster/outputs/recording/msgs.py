@@ -26,6 +26,8 @@ from toaster.world.rosmsg import strip_frame
 from toaster.world.state import EntityPose, World
 
 if TYPE_CHECKING:
+    from rosbags.typesys.store import Typestore
+
     from toaster.db.database import Database
 
 TIME = "builtin_interfaces/msg/Time"
@@ -66,7 +68,7 @@ class Messages:
     """Builds messages of a rosbags typestore from nested dicts: missing fields at zero, ints
     accepted for times (ns), original toaster_msgs field names filling ROS 2 ones."""
 
-    def __init__(self, store: Any) -> None:
+    def __init__(self, store: Typestore) -> None:
         self.store = store
         self._plans: dict[str, list[tuple[str, str, Any]]] = {}
         self._zeros: dict[str, Any] = {}
