@@ -1,0 +1,130 @@
+"""The DDS side of the ROS 2 bridge: a participant, QoS as ROS 2's profiles, typed readers and
+writers on ROS 2 topic names (:mod:`toaster.ros2.names`)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from toaster.ros2 import names
+from toaster.ros2.idl import Types
+
+#: keep-last depths: rclcpp's default profile (10), tf2's /tf listener (100), latched lists (1)
+DEPTH, TF_DEPTH = 10, 100
+
+
+def qos(kind: str, depth: int = DEPTH) -> Any:
+    """A ROS 2 QoS profile: ``reliable`` (rmw_qos_profile_default), ``sensor``
+    (rmw_qos_profile_sensor_data: best effort), ``latched`` (reliable, transient local, as
+    /tf_static and ``ros2 topic pub --qos-durability transient_local``), or ``reader``
+    (reliable, and ignoring member names: ROS 2's rmw match on the type name)."""
+    from cyclonedds.core import Policy, Qos
+    from cyclonedds.util import duration
+
+    reliability = (
+        Policy.Reliability.BestEffort
+        if kind == "sensor"
+        else Policy.Reliability.Reliable(max_blocking_time=duration(milliseconds=100))
+    )
+    durability = (
+        Policy.Durability.TransientLocal if kind == "latched" else Policy.Durability.Volatile
+    )
+    return Qos(reliability, durability, Policy.History.KeepLast(depth))
+
+
+def reader_qos(kind: str, depth: int = DEPTH, *, ignore_own: bool = False) -> Any:
+    """A reader's QoS: ``kind`` as :func:`qos` (a best-effort reader matches both kinds of
+    writer), member names not compared (a ROS 2 type is matched by its name and layout)."""
+    from cyclonedds.core import Policy, Qos
+
+    extra: list[Any] = [
+        Policy.TypeConsistency.AllowTypeCoercion(
+            ignore_sequence_bounds=True, ignore_string_bounds=True, ignore_member_names=True
+        )
+    ]
+    if ignore_own:
+        extra.append(Policy.IgnoreLocal.Participant)
+    return Qos(*qos(kind, depth).policies, *extra)
+
+
+class Dds:
+    """One DDS participant on a domain, with readers and writers of ROS 2 topics."""
+
+    def __init__(self, domain: int, types: Types) -> None:
+        from cyclonedds.domain import DomainParticipant
+
+        self.domain, self.types = domain, types
+        self.participant: Any = DomainParticipant(domain)
+        self._topics: dict[str, Any] = {}
+        self.readers: list[Any] = []
+        self.writers: list[Any] = []
+
+    def topic(self, dds_name: str, cls: Any) -> Any:
+        from cyclonedds.topic import Topic
+
+        if dds_name not in self._topics:
+            self._topics[dds_name] = Topic(self.participant, dds_name, cls)
+        return self._topics[dds_name]
+
+    def writer(
+        self, ros_topic: str, msgtype: str, kind: str = "reliable", depth: int = DEPTH
+    ) -> Any:
+        """A writer of ``msgtype`` on ROS 2 topic ``ros_topic``."""
+        return self.raw_writer(names.topic(ros_topic), self.types.cls(msgtype), qos(kind, depth))
+
+    def raw_writer(self, dds_name: str, cls: Any, profile: Any) -> Any:
+        from cyclonedds.pub import DataWriter
+
+        writer = DataWriter(self.participant, self.topic(dds_name, cls), qos=profile)
+        self.writers.append(writer)
+        return writer
+
+    def reader(
+        self,
+        ros_topic: str,
+        msgtype: str,
+        on_sample: Callable[[Any], None],
+        kind: str = "sensor",
+        depth: int = DEPTH,
+        *,
+        ignore_own: bool = False,
+    ) -> Any:
+        """A reader of ``msgtype`` on ROS 2 topic ``ros_topic``; ``on_sample`` runs on
+        cyclonedds' receive thread for each sample."""
+        profile = reader_qos(kind, depth, ignore_own=ignore_own)
+        return self.raw_reader(names.topic(ros_topic), self.types.cls(msgtype), profile, on_sample)
+
+    def raw_reader(
+        self, dds_name: str, cls: Any, profile: Any, on_sample: Callable[[Any], None]
+    ) -> Any:
+        from cyclonedds.core import Listener
+        from cyclonedds.sub import DataReader
+
+        def available(reader: Any) -> None:
+            for sample in reader.take(N=256):
+                if getattr(sample, "sample_info", None) is None or sample.sample_info.valid_data:
+                    on_sample(sample)
+
+        reader = DataReader(
+            self.participant,
+            self.topic(dds_name, cls),
+            qos=profile,
+            listener=Listener(on_data_available=available),
+        )
+        self.readers.append(reader)
+        return reader
+
+    @staticmethod
+    def listened(writer: Any) -> bool:
+        """Whether a reader is matched to ``writer`` (nothing is built for nobody)."""
+        return bool(writer.get_publication_matched_status().current_count)
+
+    def close(self) -> None:
+        """Delete the participant and everything in it."""
+        from cyclonedds.core import Listener
+
+        for reader in self.readers:
+            reader.set_listener(Listener())
+        self.readers, self.writers, self._topics = [], [], {}
+        participant, self.participant = self.participant, None
+        del participant

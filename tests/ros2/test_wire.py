@@ -1,0 +1,159 @@
+"""ROS 2's wire conventions as toaster's bridge writes them, checked against the ROS 2 design
+documents and rmw_cyclonedds (docs/ros2.md lists the sources), and every message and service
+part toaster's IDL types write read back by rosbags' ROS 2 CDR codec (an independent one)."""
+
+from __future__ import annotations
+
+import struct
+from typing import Any
+
+import pytest
+
+from tests.ros2.conftest import require_cyclonedds
+from toaster.errors import InvalidInputError
+from toaster.ros2 import names
+
+
+@pytest.mark.parametrize(
+    ("ros", "dds"),
+    [("/tf", "rt/tf"), ("/pdg/factList", "rt/pdg/factList"), ("/a/b/c", "rt/a/b/c")],
+)
+def test_topic_names(ros: str, dds: str) -> None:
+    """design article "Topic and Service name mapping to DDS": the ``rt`` prefix."""
+    assert names.topic(ros) == dds
+
+
+def test_service_names() -> None:
+    """The same article: ``rq/<name>Request`` and ``rr/<name>Reply``."""
+    assert names.request_topic("/area_manager/add_area") == "rq/area_manager/add_areaRequest"
+    assert names.reply_topic("/area_manager/add_area") == "rr/area_manager/add_areaReply"
+
+
+def test_type_names() -> None:
+    """rosidl's DDS IDL: ``pkg::msg::dds_::T_``, a service's parts under ``srv``."""
+    assert names.dds_type("tf2_msgs/msg/TFMessage") == "tf2_msgs::msg::dds_::TFMessage_"
+    assert names.dds_type("std_srvs/srv/Trigger_Request") == "std_srvs::srv::dds_::Trigger_Request_"
+
+
+@pytest.mark.parametrize("bad", ["tf", "/tf/", "/a//b", ""])
+def test_relative_names_are_refused(bad: str) -> None:
+    with pytest.raises(InvalidInputError, match="must be absolute"):
+        names.topic(bad)
+
+
+def test_domain_id(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("ROS_DOMAIN_ID", raising=False)
+    assert names.domain_id() == 0
+    monkeypatch.setenv("ROS_DOMAIN_ID", "42")
+    assert names.domain_id() == 42
+    assert names.domain_id(7) == 7
+    for bad in ("x", "233", "-1"):
+        monkeypatch.setenv("ROS_DOMAIN_ID", bad)
+        with pytest.raises(InvalidInputError, match="ROS_DOMAIN_ID"):
+            names.domain_id()
+
+
+@pytest.fixture(scope="module")
+def types() -> Any:
+    require_cyclonedds()
+    from toaster.ros2.idl import Types
+
+    return Types()
+
+
+@pytest.fixture(scope="module")
+def rosbags_store() -> Any:
+    """rosbags' ROS 2 Humble types, toaster_msgs parsed by rosbags from the shipped .msg
+    texts with ROS 2 field names (what the recordings use)."""
+    from rosbags.typesys import Stores, get_typestore
+
+    from toaster.outputs.recording.msgs import toaster_types
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    store.register(toaster_types("ros2"))
+    return store
+
+
+SAMPLES = {
+    "tf2_msgs/msg/TFMessage": {
+        "transforms": [
+            {
+                "header": {"stamp": 1_700_000_000_123_456_789, "frame_id": "map"},
+                "child_frame_id": "cup",
+                "transform": {
+                    "translation": {"x": 1.5, "y": -2.0, "z": 0.25},
+                    "rotation": {"x": 0, "y": 0, "z": 0.7071, "w": 0.7071},
+                },
+            }
+        ]
+    },
+    "toaster_msgs/msg/FactList": {
+        "factList": [
+            {"property": "IsInRoom", "subjectId": "cup", "targetId": "kitchen", "time": 5},
+            {"property": "Distance", "doubleValue": 1.25, "valueType": True, "confidence": 0.5},
+        ]
+    },
+    "visualization_msgs/msg/MarkerArray": {
+        "markers": [
+            {
+                "header": {"stamp": 3, "frame_id": "map"},
+                "ns": "objects",
+                "id": 4,
+                "type": 9,
+                "points": [{"x": 1}, {"y": 2}],
+                "text": "cup",
+                "color": {"r": 1, "a": 0.5},
+            }
+        ]
+    },
+    "hri_msgs/msg/IdsList": {"header": {"frame_id": "f"}, "ids": ["alice", "bob"]},
+    "geometry_msgs/msg/PoseStamped": {"pose": {"position": {"x": 3}, "orientation": {"w": 1}}},
+    "std_msgs/msg/String": {"data": "status: up"},
+}
+
+
+@pytest.mark.parametrize("msgtype", sorted(SAMPLES))
+def test_rosbags_reads_what_toaster_writes(types: Any, rosbags_store: Any, msgtype: str) -> None:
+    data = types.build(msgtype, SAMPLES[msgtype]).serialize()
+    assert data[:4] == b"\x00\x01\x00\x00"  # plain CDR (XCDR1), little endian
+    back = rosbags_store.deserialize_cdr(data, msgtype)
+    again = rosbags_store.serialize_cdr(back, msgtype)
+    assert again == data  # rosbags writes the same bytes: layout, alignment and values
+
+
+def test_every_toaster_message_has_the_rosbags_layout(types: Any, rosbags_store: Any) -> None:
+    """Every toaster_msgs / hri_msgs type, zero-filled, reads back in rosbags."""
+    from toaster.outputs.recording.msgs import toaster_types
+
+    for msgtype in toaster_types("ros2"):
+        data = types.build(msgtype, {}).serialize()
+        assert (
+            rosbags_store.serialize_cdr(rosbags_store.deserialize_cdr(data, msgtype), msgtype)
+            == data
+        )
+
+
+def test_service_parts_carry_rmw_cyclonedds_sample_identity(types: Any) -> None:
+    """rmw_cyclonedds_cpp/src/serdata.hpp: ``cdds_request_header_t {uint64 guid; int64 seq}``
+    before the request's own fields; an empty request has rosidl's one uint8 member."""
+    request = types.wrapped("std_srvs/Trigger", "Request")
+    part = types.service_part("std_srvs/Trigger", "Request")
+    body = types.build(part, {}, "std_srvs::srv::dds_::Trigger_Request_body_")
+    data = request(guid=0x0102030405060708, seq=9, body=body).serialize()
+    assert data == b"\x00\x01\x00\x00" + struct.pack("<Qq", 0x0102030405060708, 9) + b"\x00"
+    assert request.__idl_typename__ == "std_srvs::srv::dds_::Trigger_Request_"
+    reply = types.wrapped("toaster_msgs/AddArea", "Response")
+    assert reply.__idl_typename__ == "toaster_msgs::srv::dds_::AddArea_Response_"
+
+
+def test_values_read_back(types: Any, rosbags_store: Any) -> None:
+    """Original field names fill ROS 2 ones; times in ns become sec/nanosec."""
+    facts = types.build("toaster_msgs/msg/FactList", SAMPLES["toaster_msgs/msg/FactList"])
+    back = rosbags_store.deserialize_cdr(facts.serialize(), "toaster_msgs/msg/FactList")
+    first, second = back.fact_list
+    assert (first.subject_id, first.target_id, first.time) == ("cup", "kitchen", 5)
+    assert (second.double_value, second.value_type, second.confidence) == (1.25, True, 0.5)
+    tf = types.build("tf2_msgs/msg/TFMessage", SAMPLES["tf2_msgs/msg/TFMessage"])
+    item = rosbags_store.deserialize_cdr(tf.serialize(), "tf2_msgs/msg/TFMessage").transforms[0]
+    assert (item.header.stamp.sec, item.header.stamp.nanosec) == (1_700_000_000, 123_456_789)
+    assert (item.child_frame_id, item.transform.translation.x) == ("cup", 1.5)
