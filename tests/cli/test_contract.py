@@ -460,6 +460,7 @@ BLOCKED = [
         ],
     ),
     ("rosbags", "rosbag", lambda p: ["record", str(p / "frames.jsonl"), str(p / "rec")]),
+    ("cyclonedds", "ros2", lambda p: ["serve", "--ros2", "--seconds", "0"]),
     ("matplotlib", "plot", lambda p: ["plot-facts", str(p / "out.png")]),
     ("pyarrow", "export", lambda p: ["export", "history", str(p / "out.parquet")]),
 ]

@@ -99,6 +99,19 @@ def self_agent_of(db: Database, requested: str | None) -> str:
     is_flag=True,
     help="Bridge to ROS 1 (needs Debian's ROS 1 packages; see docs/ros1.md).",
 )
+@click.option(
+    "--ros2",
+    is_flag=True,
+    help="Bridge to ROS 2 over DDS, no ROS 2 install needed (toaster[ros2]; docs/ros2.md).",
+)
+@click.option(
+    "--domain-id",
+    "domain_id",
+    type=int,
+    default=None,
+    metavar="N",
+    help="ROS 2 domain (default: ROS_DOMAIN_ID, else 0).",
+)
 @ros_input_options
 @click.pass_obj
 def serve(
@@ -111,6 +124,8 @@ def serve(
     status_every: float,
     stamp: str,
     ros1: bool,
+    ros2: bool,
+    domain_id: int | None,
     tf_map: Path | None,
     pose_topics: tuple[str, ...],
 ) -> None:
@@ -130,8 +145,15 @@ def serve(
     if seconds is not None and seconds < 0:
         msg = f"--seconds {seconds:g} must not be negative"
         raise InvalidInputError(msg)
-    if (tf_map is not None or pose_topics) and not ros1:
-        msg = "--tf-map and --pose-topic are ROS 1 inputs: add --ros1"
+    if (tf_map is not None or pose_topics) and not (ros1 or ros2):
+        msg = "--tf-map and --pose-topic are ROS inputs: add --ros1 or --ros2"
+        raise InvalidInputError(msg)
+    if ros2:
+        from toaster.extras import require
+
+        require("ros2", "toaster serve --ros2")  # before the node starts
+    elif domain_id is not None:
+        msg = "--domain-id is a ROS 2 option: add --ros2"
         raise InvalidInputError(msg)
     from toaster.world.config import read_config_file
 
@@ -157,12 +179,19 @@ def serve(
         from toaster.ros1.bridge import start_bridge
 
         bridge = start_bridge(node, tf_map=tf_map, pose_topics=topics)
+    bridge2 = None
+    if ros2:
+        from toaster.ros2.bridge import start_bridge as start_ros2
+
+        bridge2 = start_ros2(node, domain_id=domain_id, tf_map=tf_map, pose_topics=topics)
     click.echo(f"toaster serve: {rate:g} Hz on {app.db.url} (Ctrl-C stops)", err=True)
     try:
         stats = serve_node(node, rate, seconds=seconds, status_every_s=status_every)
     finally:
         if bridge is not None:
             bridge.shutdown()
+        if bridge2 is not None:
+            bridge2.shutdown()
     p50 = sorted(stats.tick_ms)[len(stats.tick_ms) // 2] if stats.tick_ms else 0.0
     click.echo(
         f"toaster serve: stopped after {stats.ticks} ticks ({stats.overruns} overran "

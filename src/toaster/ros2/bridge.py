@@ -1,0 +1,262 @@
+"""The ROS 2 transport of a live node, over DDS without a ROS 2 install (cyclonedds): the ROS 1
+bridge's inputs and outputs with ROS 2 names, types and QoS.
+
+In: /tf and /tf_static (tf2_msgs/TFMessage; /tf_static transient local), PoseStamped topics,
+ROS4HRI's hri_msgs/IdsList on /humans/bodies/tracked and /humans/faces/tracked, toaster_simu's
+entity lists. Out (:mod:`toaster.ros2.output`): the fact lists, /tf, the markers, the area
+list (transient local), the status line (transient local). Services: :mod:`toaster.ros2.services`.
+
+Threads as in the ROS 1 bridge: cyclonedds' receive thread only pushes poses into LiveSources
+and stores transforms; everything that reads the world runs on the node's thread.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from toaster.errors import InvalidInputError
+from toaster.extras import require
+from toaster.producers.seen import SeenFacts
+from toaster.ros1.bridge import SIMU_LISTS, STATUS_SERVICE, STATUS_TOPIC, Warnings
+from toaster.ros1.bridge import pose_topic_targets as pose_targets
+from toaster.ros2 import names
+from toaster.ros2.dds import TF_DEPTH, Dds
+from toaster.ros2.idl import Types
+from toaster.world.drops import Drops
+from toaster.world.live import LiveSource
+from toaster.world.rosmsg import (
+    FIXED_FRAME,
+    FrameTarget,
+    PoseUpdate,
+    TfTree,
+    hri_target,
+    list_updates,
+    pose_stamped_update,
+    read_frame_map,
+    tracked_ids,
+)
+from toaster.world.tftree import Edges, stamp_ns
+
+__all__ = ["STATUS_SERVICE", "STATUS_TOPIC", "Ros2Bridge", "start_bridge"]
+OPTIONS = ("fixed_frame", "toaster_simu", "ros4hri", "services", "publish_tf", "markers")
+
+
+def _one_line(exc: BaseException) -> str:
+    lines = str(exc).strip().splitlines()
+    return lines[0] if lines else type(exc).__name__
+
+
+def tf_edges(msg: Any) -> Edges:
+    """A tf2_msgs/TFMessage as :class:`~toaster.world.tftree.Edges`."""
+    items = msg.transforms
+    n = len(items)
+    t, q = np.empty((n, 3)), np.empty((n, 4))
+    stamps = np.empty(n, np.int64)
+    for i, item in enumerate(items):
+        tr, rot = item.transform.translation, item.transform.rotation
+        t[i] = (tr.x, tr.y, tr.z)
+        q[i] = (rot.x, rot.y, rot.z, rot.w)
+        stamps[i] = stamp_ns(item.header.stamp)
+    return Edges(
+        [i.child_frame_id for i in items], [i.header.frame_id for i in items], stamps, t, q
+    )
+
+
+class Ros2Bridge:
+    """A running ROS 2 bridge; :meth:`shutdown` detaches it from the node."""
+
+    def __init__(
+        self,
+        node: Any,
+        domain: int,
+        *,
+        tf_map: Any = None,
+        pose_topics: Mapping[str, Any] | None = None,
+        fixed_frame: str = FIXED_FRAME,
+        toaster_simu: bool = True,
+        ros4hri: bool = True,
+        services: bool = True,
+        publish_tf: bool = True,
+        markers: bool = True,
+    ) -> None:
+        from toaster.ros1.bridge import _TfFlush
+        from toaster.ros2.output import Ros2Output
+        from toaster.ros2.services import Server
+
+        self.node = node
+        self.types = Types()
+        self.dds = Dds(domain, self.types)
+        self.warnings = Warnings()
+        self.drops: Drops = node.drops
+        self.tree = TfTree(fixed_frame)
+        self.frames = read_frame_map(tf_map)
+        self.topics = pose_targets(pose_topics)
+        self.ros4hri = ros4hri
+        self.tracked: dict[str, set[str] | None] = {"body": None, "face": None}
+        self.seen = next((p for p in node.producers if p.name == SeenFacts.name), None)
+        self.sources: dict[str, LiveSource] = {}
+        self._tf_lock = threading.Lock()
+        self._tf_changed: set[str] = set()
+        self._tracked_version = 0
+        self._hri_key: tuple[int, int] = (-1, 0)
+        self._hri_cache: dict[str, FrameTarget] = {}
+        self._flush = _TfFlush(self)  # type: ignore[arg-type]  # duck-typed: flush_tf
+        self._subscribe(toaster_simu)
+        self.output = Ros2Output(self, publish_tf=publish_tf, draw=markers)
+        node.outputs.append(self.output)
+        self.server = Server(self) if services else None
+
+    # -- inputs --------------------------------------------------------------------------------
+    def source(self, name: str) -> LiveSource:
+        """The LiveSource of an input stream (made and added to the node on first use)."""
+        if name not in self.sources:
+            self.sources[name] = LiveSource(name, drops=self.drops)
+            self.node.sources.append(self.sources[name])
+        return self.sources[name]
+
+    def push(self, source: str, update: PoseUpdate, topic: str) -> None:
+        self.source(source).push(
+            update.entity_id,
+            update.position,
+            quat=update.quat,
+            t_ns=update.t_ns,
+            kind=update.kind,
+            owner_id=update.owner_id,
+            joint=update.joint,
+            topic=topic,
+        )
+
+    def _sub(self, topic: str, msgtype: str, callback: Any, *args: Any, **kw: Any) -> None:
+        def guarded(msg: Any) -> None:
+            try:
+                callback(msg, *args)
+            except Exception as exc:  # a callback never raises into cyclonedds
+                self.drops.drop(topic, "message", f"{type(exc).__name__}: {_one_line(exc)}")
+
+        self.dds.reader(topic, msgtype, guarded, **kw)
+
+    def _subscribe(self, toaster_simu: bool) -> None:
+        self.node.sources.append(self._flush)  # before the tf and ros4hri sources it feeds
+        for name in ("tf", "pose_topics", "ros4hri"):
+            self.source(name)
+        tf = "tf2_msgs/msg/TFMessage"
+        self._sub("/tf", tf, self._on_tf, "/tf", depth=TF_DEPTH, ignore_own=True)
+        self._sub("/tf_static", tf, self._on_tf, "/tf_static", kind="latched", depth=TF_DEPTH)
+        for topic, target in self.topics.items():
+            self._sub(topic, "geometry_msgs/msg/PoseStamped", self._on_pose, topic, target)
+        if toaster_simu:
+            for name, (topic, type_name) in SIMU_LISTS.items():
+                msgtype = f"toaster_msgs/msg/{type_name}"
+                self._sub(topic, msgtype, self._on_list, name, topic, kind="reliable")
+        if self.ros4hri:
+            for which in ("body", "face"):
+                topic = f"/humans/{which}s/tracked"
+                self._sub(topic, "hri_msgs/msg/IdsList", self._on_tracked, which)
+
+    def _on_tf(self, msg: Any, topic: str) -> None:
+        changed, bad = self.tree.update_edges(tf_edges(msg))
+        for line in bad:
+            self.drops.drop(topic, "transform", line)
+        with self._tf_lock:
+            self._tf_changed |= changed
+        wake = self.sources["tf"].on_push
+        if wake is not None:
+            wake()
+
+    def flush_tf(self) -> None:
+        """Push the poses of the mapped (and ROS4HRI) frames moved since the last tick."""
+        with self._tf_lock:
+            changed, self._tf_changed = self._tf_changed, set()
+        if not changed:
+            return
+        poses, lost = self.tree.poses(self.frames, changed)
+        self.source("tf").push_many(poses.targets, poses.pos, poses.quat, poses.stamps, topic="/tf")
+        if self.ros4hri:
+            hri = self._hri_frames()
+            if hri:
+                found, _ = self.tree.poses(hri, changed)
+                self.source("ros4hri").push_many(
+                    found.targets, found.pos, found.quat, found.stamps, topic="/tf"
+                )
+        for frame in lost:
+            self.warnings.add(
+                f"lost:{frame}",
+                f"/tf: frame {frame!r} ({self.frames[frame].entity_id}) does not reach "
+                f"{self.tree.fixed!r}: its pose is not known",
+            )
+
+    def _hri_frames(self) -> dict[str, FrameTarget]:
+        key = (self.tree.generation, self._tracked_version)
+        if key != self._hri_key:
+            self._hri_cache = {f: t for f in self.tree.frames() if (t := self._hri(f)) is not None}
+            self._hri_key = key
+        return self._hri_cache
+
+    def _hri(self, frame: str) -> FrameTarget | None:
+        target = hri_target(frame)
+        if target is None:
+            return None
+        tracked = self.tracked["body" if frame.startswith("body_") else "face"]
+        human = target.owner_id or target.entity_id
+        return target if tracked is None or human in tracked else None
+
+    def _on_tracked(self, msg: Any, which: str) -> None:
+        self.tracked[which] = ids = tracked_ids(msg)
+        self._tracked_version += 1
+        if self.seen is not None:
+            self.seen.report(f"ros4hri_{which}", ids, self.node.self_id)
+
+    def _on_pose(self, msg: Any, topic: str, target: FrameTarget) -> None:
+        try:
+            update = pose_stamped_update(msg, target.entity_id, target.kind, tree=self.tree)
+        except ValueError as exc:
+            self.drops.drop(topic, "pose", str(exc))
+            return
+        self.push(
+            "pose_topics", update._replace(owner_id=target.owner_id, joint=target.joint), topic
+        )
+
+    def _on_list(self, msg: Any, source: str, topic: str) -> None:
+        updates, bad = list_updates(msg)
+        for line in bad:
+            self.drops.drop(topic, "pose", line)
+        for update in updates:
+            self.push(source, update, topic)
+
+    # -- stopping ------------------------------------------------------------------------------
+    def shutdown(self) -> None:
+        """Stop the services, detach from the node, delete the DDS participant."""
+        if self.server is not None:
+            self.server.close()
+        if self.output in self.node.outputs:
+            self.node.outputs.remove(self.output)
+        for source in [self._flush, *self.sources.values()]:
+            if source in self.node.sources:
+                self.node.sources.remove(source)
+        self.dds.close()
+
+
+def start_bridge(
+    node: Any,
+    *,
+    domain_id: int | str | None = None,
+    tf_map: str | Path | Mapping[str, Any] | None = None,
+    pose_topics: Mapping[str, Any] | None = None,
+    **options: Any,
+) -> Ros2Bridge:
+    """Connect a :class:`~toaster.node.LiveNode` to ROS 2 over DDS on ``domain_id``
+    (default ``ROS_DOMAIN_ID``, else 0). Options: ``fixed_frame`` ("map"), ``toaster_simu``,
+    ``ros4hri``, ``services``, ``publish_tf``, ``markers`` (all True)."""
+    require("ros2", "toaster serve --ros2")
+    domain = names.domain_id(domain_id)
+    frames = read_frame_map(tf_map)  # bad maps fail before anything starts
+    unknown = set(options) - set(OPTIONS)
+    if unknown:
+        msg = f"start_bridge: unknown option(s) {sorted(unknown)}; give {', '.join(OPTIONS)}"
+        raise InvalidInputError(msg)
+    return Ros2Bridge(node, domain, tf_map=frames, pose_topics=pose_topics, **options)
