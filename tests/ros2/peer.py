@@ -219,6 +219,39 @@ class TriggerResponse(IdlStruct, typename="std_srvs::srv::dds_::Trigger_Response
     body: TriggerResponseBody = field(default_factory=TriggerResponseBody)
 
 
+@dataclass
+class RelativeRequestBody(
+    IdlStruct, typename="toaster_msgs::srv::dds_::GetRelativePosition_Request_body_"
+):
+    subject_id: str = ""
+    target_id: str = ""
+
+
+@dataclass
+class RelativeRequest(IdlStruct, typename="toaster_msgs::srv::dds_::GetRelativePosition_Request_"):
+    guid: t.uint64 = 0
+    seq: t.int64 = 0
+    body: RelativeRequestBody = field(default_factory=RelativeRequestBody)
+
+
+@dataclass
+class RelativeResponseBody(
+    IdlStruct, typename="toaster_msgs::srv::dds_::GetRelativePosition_Response_body_"
+):
+    direction: str = ""
+    angle_value: t.float64 = 0.0
+    answer: bool = False
+
+
+@dataclass
+class RelativeResponse(
+    IdlStruct, typename="toaster_msgs::srv::dds_::GetRelativePosition_Response_"
+):
+    guid: t.uint64 = 0
+    seq: t.int64 = 0
+    body: RelativeResponseBody = field(default_factory=RelativeResponseBody)
+
+
 IDL = {
     "tf2_msgs/msg/TFMessage": TFMessage,
     "geometry_msgs/msg/PoseStamped": PoseStamped,
@@ -227,7 +260,10 @@ IDL = {
     "hri_msgs/msg/IdsList": IdsList,
     "std_msgs/msg/String": String,
 }
-SERVICES = {"std_srvs/srv/Trigger": (TriggerRequest, TriggerResponse)}
+SERVICES = {
+    "std_srvs/srv/Trigger": (TriggerRequest, TriggerResponse),
+    "toaster_msgs/srv/GetRelativePosition": (RelativeRequest, RelativeResponse),
+}
 FACT_MSG = """string property
 string property_type
 string sub_property
@@ -253,7 +289,15 @@ def typestore() -> Any:
     types |= get_types_from_msg(FACT_MSG, "toaster_msgs/msg/Fact")
     types |= get_types_from_msg("toaster_msgs/Fact[] fact_list", "toaster_msgs/msg/FactList")
     types |= get_types_from_msg("std_msgs/Header header\nstring[] ids", "hri_msgs/msg/IdsList")
+    types |= get_types_from_msg(
+        "uint8 structure_needs_at_least_one_member", "std_srvs/msg/Trigger_Request"
+    )
     types |= get_types_from_msg("bool success\nstring message", "std_srvs/msg/Trigger_Response")
+    relative = "toaster_msgs/msg/GetRelativePosition"
+    types |= get_types_from_msg("string subject_id\nstring target_id", f"{relative}_Request")
+    types |= get_types_from_msg(
+        "string direction\nfloat64 angle_value\nbool answer", f"{relative}_Response"
+    )
     store.register(types)
     return store
 
@@ -380,7 +424,7 @@ class Peer:
             time.sleep(0.02)
         return {"error": f"no {msgtype} on {ros_topic} after {after} in {timeout:g} s"}
 
-    def call(self, service: str, srvtype: str, timeout: float) -> Any:
+    def call(self, service: str, srvtype: str, request: Any, timeout: float) -> Any:
         request_cls, reply_cls = SERVICES[srvtype]
         name = service.lstrip("/")
         key = (f"rq/{name}Request", "call")
@@ -398,7 +442,10 @@ class Peer:
             time.sleep(0.05)
         time.sleep(0.2)  # the reply reader's match with the server's writer too
         self.seq += 1
-        ddspy_write(writer._ref, CDR_LE + struct.pack("<Qq", self.guid, self.seq) + b"\x00")
+        request_type = srvtype.replace("/srv/", "/msg/") + "_Request"
+        body = STORE.serialize_cdr(build(request_type, request), request_type)
+        # the sample identity at offset 0 of the stream, the fields after it at offset 16
+        ddspy_write(writer._ref, CDR_LE + struct.pack("<Qq", self.guid, self.seq) + body[4:])
         mask = SampleState.Any | ViewState.Any | InstanceState.Any
         while time.monotonic() < deadline:
             for data, info in ddspy_take(reader._ref, mask, 16):
@@ -433,7 +480,9 @@ def main() -> None:
                     cmd["topic"], cmd["type"], cmd.get("after", 0), cmd.get("timeout", 60)
                 )
             else:
-                out = peer.call(cmd["service"], cmd["type"], cmd.get("timeout", 60))
+                out = peer.call(
+                    cmd["service"], cmd["type"], cmd.get("request", {}), cmd.get("timeout", 60)
+                )
         except Exception as exc:  # report, keep serving
             out = {"error": f"{type(exc).__name__}: {exc}"}
         print(json.dumps(out), flush=True)

@@ -124,6 +124,21 @@ def test_status_service_and_latched_status(world: Peer) -> None:
     assert line["msg"]["data"].startswith("status: up")
 
 
+def test_toaster_msgs_service_with_ros2_field_names(world: Peer) -> None:
+    """GetRelativePosition: the request's ROS 2 fields (subject_id) reach the original's
+    handler, its answer comes back in ROS 2 fields (angle_value); a bad request answers false."""
+    srv = "toaster_msgs/srv/GetRelativePosition"
+    name = "/area_manager/get_relative_position"
+    good = world.send(
+        "call", service=name, type=srv, request={"subject_id": "bob", "target_id": "cup"}
+    )["msg"]
+    assert good["answer"] is True and good["direction"], good
+    bad = world.send(
+        "call", service=name, type=srv, request={"subject_id": "bob", "target_id": "nobody"}
+    )["msg"]
+    assert bad["answer"] is False
+
+
 def test_node_log_is_clean(world: Peer, node: NodeProcess) -> None:
     log = node.stderr()
     assert "Traceback" not in log and "reply not sent" not in log, log[-2000:]
