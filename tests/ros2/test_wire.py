@@ -157,3 +157,59 @@ def test_values_read_back(types: Any, rosbags_store: Any) -> None:
     item = rosbags_store.deserialize_cdr(tf.serialize(), "tf2_msgs/msg/TFMessage").transforms[0]
     assert (item.header.stamp.sec, item.header.stamp.nanosec) == (1_700_000_000, 123_456_789)
     assert (item.child_frame_id, item.transform.translation.x) == ("cup", 1.5)
+
+
+def test_tf_bytes_written_by_rosbags_read_as_arrays(rosbags_store: Any) -> None:
+    """toaster.ros2.cdr.read_tf against rosbags' serializer, in both byte orders."""
+    require_cyclonedds()
+    from toaster.ros2.cdr import read_tf
+
+    types = rosbags_store.types
+    msg = types["tf2_msgs/msg/TFMessage"](
+        transforms=[
+            types["geometry_msgs/msg/TransformStamped"](
+                header=types["std_msgs/msg/Header"](
+                    stamp=types["builtin_interfaces/msg/Time"](sec=17 + i, nanosec=5),
+                    frame_id="map" if i else "a_longer_parent_frame",
+                ),
+                child_frame_id=f"frame{i}" * (i + 1),
+                transform=types["geometry_msgs/msg/Transform"](
+                    translation=types["geometry_msgs/msg/Vector3"](x=i, y=0.5, z=-1.0),
+                    rotation=types["geometry_msgs/msg/Quaternion"](x=0, y=0, z=0.6, w=0.8),
+                ),
+            )
+            for i in range(3)
+        ]
+    )
+    for little in (True, False):
+        data = rosbags_store.serialize_cdr(msg, "tf2_msgs/msg/TFMessage", little_endian=little)
+        edges = read_tf(data)
+        assert edges.parents == ["a_longer_parent_frame", "map", "map"]
+        assert edges.children == ["frame0", "frame1" * 2, "frame2" * 3]
+        assert edges.stamps.tolist() == [17_000_000_005, 18_000_000_005, 19_000_000_005]
+        assert edges.t.tolist() == [[0, 0.5, -1.0], [1, 0.5, -1.0], [2, 0.5, -1.0]]
+        assert edges.q.tolist() == [[0, 0, 0.6, 0.8]] * 3
+    for bad in (b"", b"\x00\x01\x00\x00\xff\xff\xff\xff", b"\x07\x07\x00\x00\x00\x00\x00\x00"):
+        with pytest.raises(ValueError, match="not a|cannot fit"):
+            read_tf(bad)
+
+
+def test_fact_list_bytes_are_the_codecs_bytes(types: Any, rosbags_store: Any) -> None:
+    """toaster.ros2.cdr.fact_list_bytes writes what cyclonedds' codec writes, and rosbags
+    reads it."""
+    from toaster.model import Fact
+    from toaster.ros2.cdr import fact_list_bytes
+    from toaster.world.factmsg import fact_fields
+
+    facts = [
+        Fact("cup", "IsInRoom", "kitchen"),
+        Fact("bob", "Distance", "cup", value_num=1.25, value_text="near", confidence=0.5),
+        Fact("h\u00e9l\u00e8ne", "isPresent", ""),
+    ]
+    items = [fact_fields(f, 7_000_000_000) for f in facts]
+    data = fact_list_bytes(items)
+    assert data == types.build("toaster_msgs/msg/FactList", {"factList": items}).serialize()
+    back = rosbags_store.deserialize_cdr(data, "toaster_msgs/msg/FactList").fact_list
+    assert [f.subject_id for f in back] == ["cup", "bob", "h\u00e9l\u00e8ne"]
+    assert (back[1].double_value, back[1].time, back[1].confidence) == (1.25, 7_000_000_000, 0.5)
+    assert fact_list_bytes([]) == b"\x00\x01\x00\x00\x00\x00\x00\x00"

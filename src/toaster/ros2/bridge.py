@@ -17,14 +17,12 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from toaster.errors import InvalidInputError
 from toaster.extras import require
 from toaster.producers.seen import SeenFacts
 from toaster.ros1.bridge import SIMU_LISTS, STATUS_SERVICE, STATUS_TOPIC, Warnings
 from toaster.ros1.bridge import pose_topic_targets as pose_targets
-from toaster.ros2 import names
+from toaster.ros2 import cdr, names
 from toaster.ros2.dds import TF_DEPTH, Dds
 from toaster.ros2.idl import Types
 from toaster.world.drops import Drops
@@ -40,7 +38,6 @@ from toaster.world.rosmsg import (
     read_frame_map,
     tracked_ids,
 )
-from toaster.world.tftree import Edges, stamp_ns
 
 __all__ = ["STATUS_SERVICE", "STATUS_TOPIC", "Ros2Bridge", "start_bridge"]
 OPTIONS = ("fixed_frame", "toaster_simu", "ros4hri", "services", "publish_tf", "markers")
@@ -49,22 +46,6 @@ OPTIONS = ("fixed_frame", "toaster_simu", "ros4hri", "services", "publish_tf", "
 def _one_line(exc: BaseException) -> str:
     lines = str(exc).strip().splitlines()
     return lines[0] if lines else type(exc).__name__
-
-
-def tf_edges(msg: Any) -> Edges:
-    """A tf2_msgs/TFMessage as :class:`~toaster.world.tftree.Edges`."""
-    items = msg.transforms
-    n = len(items)
-    t, q = np.empty((n, 3)), np.empty((n, 4))
-    stamps = np.empty(n, np.int64)
-    for i, item in enumerate(items):
-        tr, rot = item.transform.translation, item.transform.rotation
-        t[i] = (tr.x, tr.y, tr.z)
-        q[i] = (rot.x, rot.y, rot.z, rot.w)
-        stamps[i] = stamp_ns(item.header.stamp)
-    return Edges(
-        [i.child_frame_id for i in items], [i.header.frame_id for i in items], stamps, t, q
-    )
 
 
 class Ros2Bridge:
@@ -145,8 +126,11 @@ class Ros2Bridge:
         for name in ("tf", "pose_topics", "ros4hri"):
             self.source(name)
         tf = "tf2_msgs/msg/TFMessage"
-        self._sub("/tf", tf, self._on_tf, "/tf", depth=TF_DEPTH, ignore_own=True)
-        self._sub("/tf_static", tf, self._on_tf, "/tf_static", kind="latched", depth=TF_DEPTH)
+        # /tf as bytes, read as arrays (cdr.py); the node's own /tf is not delivered back
+        self._sub("/tf", tf, self._on_tf, "/tf", depth=TF_DEPTH, ignore_own=True, raw=True)
+        self._sub(
+            "/tf_static", tf, self._on_tf, "/tf_static", kind="latched", depth=TF_DEPTH, raw=True
+        )
         for topic, target in self.topics.items():
             self._sub(topic, "geometry_msgs/msg/PoseStamped", self._on_pose, topic, target)
         if toaster_simu:
@@ -158,8 +142,10 @@ class Ros2Bridge:
                 topic = f"/humans/{which}s/tracked"
                 self._sub(topic, "hri_msgs/msg/IdsList", self._on_tracked, which)
 
-    def _on_tf(self, msg: Any, topic: str) -> None:
-        changed, bad = self.tree.update_edges(tf_edges(msg))
+    def _on_tf(self, data: bytes, topic: str) -> None:
+        """Store the transforms (cyclonedds' receive thread); their frames' poses are worked
+        out once per tick on the node's thread (:meth:`flush_tf`)."""
+        changed, bad = self.tree.update_edges(cdr.read_tf(data))
         for line in bad:
             self.drops.drop(topic, "transform", line)
         with self._tf_lock:

@@ -88,19 +88,37 @@ class Dds:
         depth: int = DEPTH,
         *,
         ignore_own: bool = False,
+        raw: bool = False,
     ) -> Any:
         """A reader of ``msgtype`` on ROS 2 topic ``ros_topic``; ``on_sample`` runs on
-        cyclonedds' receive thread for each sample."""
+        cyclonedds' receive thread for each sample (its CDR bytes when ``raw``)."""
         profile = reader_qos(kind, depth, ignore_own=ignore_own)
-        return self.raw_reader(names.topic(ros_topic), self.types.cls(msgtype), profile, on_sample)
+        cls = self.types.cls(msgtype)
+        return self.raw_reader(names.topic(ros_topic), cls, profile, on_sample, raw=raw)
 
     def raw_reader(
-        self, dds_name: str, cls: Any, profile: Any, on_sample: Callable[[Any], None]
+        self,
+        dds_name: str,
+        cls: Any,
+        profile: Any,
+        on_sample: Callable[[Any], None],
+        *,
+        raw: bool = False,
     ) -> Any:
-        from cyclonedds.core import Listener
+        """A reader of DDS topic ``dds_name``; ``on_sample`` gets each sample, as CDR bytes
+        when ``raw`` (:mod:`toaster.ros2.cdr` reads them faster than cyclonedds' codec)."""
+        from cyclonedds._clayer import ddspy_take  # type: ignore[import-not-found]
+        from cyclonedds.core import InstanceState, Listener, SampleState, ViewState
         from cyclonedds.sub import DataReader
 
+        mask = SampleState.Any | ViewState.Any | InstanceState.Any
+
         def available(reader: Any) -> None:
+            if raw:
+                for data, info in ddspy_take(reader._ref, mask, 256):
+                    if info.valid_data:
+                        on_sample(data)
+                return
             for sample in reader.take(N=256):
                 if getattr(sample, "sample_info", None) is None or sample.sample_info.valid_data:
                     on_sample(sample)
@@ -113,6 +131,16 @@ class Dds:
         )
         self.readers.append(reader)
         return reader
+
+    @staticmethod
+    def write_raw(writer: Any, data: bytes) -> None:
+        """Write a sample's CDR bytes as they are (cyclonedds checks them against the type)."""
+        from cyclonedds._clayer import ddspy_write  # type: ignore[import-not-found]
+
+        ret = ddspy_write(writer._ref, data)
+        if ret < 0:
+            msg = f"DDS write of {len(data)} bytes failed (code {ret})"
+            raise OSError(msg)
 
     @staticmethod
     def listened(writer: Any) -> bool:

@@ -1,7 +1,8 @@
 """What the ROS 2 bridge publishes each tick (:class:`Ros2Output`, a node output), as the ROS 1
 bridge's :class:`~toaster.ros1.tickout.TickOutput`: the fact lists every tick (as soon as the
-producers computed them), and at 1/VIEW_EVERY of the ticks /tf, the markers and the area list;
-the status line when the node reports it. Messages are built only for matched readers."""
+producers computed them; written as CDR bytes, :mod:`toaster.ros2.cdr`), and at 1/VIEW_EVERY
+of the ticks /tf, the markers and the area list; the status line when the node reports it.
+Messages are built only for matched readers."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from toaster.producers.registry import NAMES as PRODUCERS
 from toaster.ros1.dbcalls import AREA_KEY, AREA_SCOPE
 from toaster.ros1.published import AreaOut
 from toaster.ros1.tickout import VIEW_EVERY
+from toaster.ros2.cdr import fact_list_bytes
 from toaster.world.factmsg import fact_fields
 from toaster.world.rosmsg import area_fields, strip_frame
 from toaster.world.state import World
@@ -54,8 +56,8 @@ class Ros2Output:
         """The fact lists, as soon as the producers computed them (before the write)."""
         for producer, pub in self.fact_pubs.items():
             if self.dds.listened(pub):
-                items = [fact_fields(f, t_ns) for f in facts.get(producer, None) or []]
-                pub.write(self.types.build(FACT_LIST, {"factList": items}))
+                items = (fact_fields(f, t_ns) for f in facts.get(producer, None) or [])
+                self.dds.write_raw(pub, fact_list_bytes(items))
         self._sent = t_ns
 
     def publish(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None:
