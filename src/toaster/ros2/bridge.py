@@ -12,6 +12,7 @@ and stores transforms; everything that reads the world runs on the node's thread
 
 from __future__ import annotations
 
+import sys
 import threading
 from collections.abc import Mapping
 from pathlib import Path
@@ -245,4 +246,7 @@ def start_bridge(
     if unknown:
         msg = f"start_bridge: unknown option(s) {sorted(unknown)}; give {', '.join(OPTIONS)}"
         raise InvalidInputError(msg)
+    # as the ROS 1 bridge: DDS's receive thread gets the interpreter within 1 ms of asking,
+    # not 5, so that a pose does not wait behind a tick (docs/live.md, "Latency")
+    sys.setswitchinterval(0.001)
     return Ros2Bridge(node, domain, tf_map=frames, pose_topics=pose_topics, **options)

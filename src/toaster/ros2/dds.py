@@ -3,6 +3,7 @@ writers on ROS 2 topic names (:mod:`toaster.ros2.names`)."""
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -11,6 +12,8 @@ from toaster.ros2.idl import Types
 
 #: keep-last depths: rclcpp's default profile (10), tf2's /tf listener (100), latched lists (1)
 DEPTH, TF_DEPTH = 10, 100
+#: how long a writer's "has a reader" answer is kept (a new reader waits at most this long)
+MATCH_EVERY_S = 0.5
 
 
 def qos(kind: str, depth: int = DEPTH) -> Any:
@@ -58,6 +61,7 @@ class Dds:
         self._topics: dict[str, Any] = {}
         self.readers: list[Any] = []
         self.writers: list[Any] = []
+        self._matched: dict[int, tuple[float, bool]] = {}
 
     def topic(self, dds_name: str, cls: Any) -> Any:
         from cyclonedds.topic import Topic
@@ -142,10 +146,16 @@ class Dds:
             msg = f"DDS write of {len(data)} bytes failed (code {ret})"
             raise OSError(msg)
 
-    @staticmethod
-    def listened(writer: Any) -> bool:
-        """Whether a reader is matched to ``writer`` (nothing is built for nobody)."""
-        return bool(writer.get_publication_matched_status().current_count)
+    def listened(self, writer: Any) -> bool:
+        """Whether a reader is matched to ``writer`` (nothing is built for nobody), asked of
+        DDS at most every :data:`MATCH_EVERY_S` per writer: each ask is a ctypes call that
+        hands the interpreter to the receive thread and waits to get it back."""
+        now = time.monotonic()
+        known = self._matched.get(id(writer))
+        if known is None or now >= known[0]:
+            count = writer.get_publication_matched_status().current_count
+            known = self._matched[id(writer)] = (now + MATCH_EVERY_S, bool(count))
+        return known[1]
 
     def close(self) -> None:
         """Delete the participant and everything in it."""

@@ -77,8 +77,10 @@ class Ros2Output:
         self._markers(t_ns, facts, world)
 
     def _areas(self, t_ns: int, world: World) -> None:
-        """The area list (transient local: sent again only when it changed)."""
-        if not self.areas_out.on:
+        """The area list while someone listens (transient local: sent again only when it
+        changed, and to a reader that comes later at the next view tick)."""
+        if not self.areas_out.on or not self.dds.listened(self.area_pub):
+            self._last_areas = None
             return
         areas = self.bridge.node.areas.areas
         lists = self.areas_out.lists.lists(world, t_ns)
