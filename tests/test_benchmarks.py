@@ -1,7 +1,7 @@
 """Every benchmark of ``benchmarks/`` runs its ``--quick`` mode (small sizes, one run) on each
 backend it takes, as a subprocess, so that the benchmarks cannot rot: it must exit 0 and print
 its table. Figures are not checked (a loaded machine gives any). bench_soak.py's quick run is
-tests/ros1/test_bench_soak.py; bench_live.py needs ROS 1 (skips, or fails under CI, without)."""
+tests/ros1/test_bench_soak.py; bench_live.py and bench_live_ros2.py need ROS 1 (skip, or fail under CI, without)."""
 
 from __future__ import annotations
 
@@ -58,6 +58,7 @@ CASES = [
         ["--quick", "--only-pg", "--pg", PG_URL],
         r"path\s+humans\s+backend\s+changes",
     ),
+    ("bench_live_ros2.py", "", ["--quick"], r"path\s+humans\s+changes\s+db p50"),
     ("bench_writers.py", "postgresql", ["--quick", "--pg", PG_URL], r"writers\s+database\s+p50"),
     ("bench_fresh.py", "sqlite", ["--quick", "--no-pg"], r"measure\s+backend\s+fresh ms"),
     (
@@ -85,7 +86,7 @@ CASES = [
 def test_quick_run_prints_its_table(
     script: str, backend: str, args: list[str], header: str
 ) -> None:
-    if script == "bench_live.py":
+    if script in ("bench_live.py", "bench_live_ros2.py"):
         require_ros()
     if backend == "postgresql":
         require_postgres()
