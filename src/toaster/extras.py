@@ -17,6 +17,7 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "export": ("pyarrow",),
     "pandas": ("pandas",),
     "rosbag": ("rosbags",),
+    "foxglove": ("foxglove",),
 }
 
 
