@@ -30,7 +30,7 @@ def _export(kw: dict[str, Any]) -> list[Need]:
 def _run(kw: dict[str, Any]) -> list[Need]:
     from toaster.app.runs import needed_extras
 
-    return needed_extras(kw["path"], kw["record_dir"])
+    return needed_extras(kw["path"], kw["record_dir"], kw["record_format"])
 
 
 #: command path (as typed after ``toaster``) -> the extras its arguments need
