@@ -39,6 +39,7 @@ NEEDS: dict[str, Callable[[dict[str, Any]], list[Need]]] = {
     "export": _export,
     "record": lambda _kw: [("rosbag", "record")],
     "run": _run,
+    "serve": lambda kw: [("foxglove", "serve --foxglove")] if kw["foxglove"] is not None else [],
 }
 
 

@@ -99,6 +99,16 @@ def self_agent_of(db: Database, requested: str | None) -> str:
     is_flag=True,
     help="Bridge to ROS 1 (needs Debian's ROS 1 packages; see docs/ros1.md).",
 )
+@click.option(
+    "--foxglove",
+    type=click.IntRange(0, 65535),
+    is_flag=False,
+    flag_value=8765,
+    default=None,
+    metavar="[PORT]",
+    help="Serve the Foxglove app on ws://127.0.0.1:PORT (default 8765; 0: a free port, "
+    "printed); needs toaster[foxglove] (docs/foxglove.md).",
+)
 @ros_input_options
 @click.pass_obj
 def serve(
@@ -111,6 +121,7 @@ def serve(
     status_every: float,
     stamp: str,
     ros1: bool,
+    foxglove: int | None,
     tf_map: Path | None,
     pose_topics: tuple[str, ...],
 ) -> None:
@@ -157,12 +168,20 @@ def serve(
         from toaster.ros1.bridge import start_bridge
 
         bridge = start_bridge(node, tf_map=tf_map, pose_topics=topics)
+    fox = None
+    if foxglove is not None:
+        from toaster.foxglove.server import start_server
+
+        fox = start_server(node, foxglove)
+        click.echo(f"toaster serve: Foxglove on ws://127.0.0.1:{fox.port}", err=True)
     click.echo(f"toaster serve: {rate:g} Hz on {app.db.url} (Ctrl-C stops)", err=True)
     try:
         stats = serve_node(node, rate, seconds=seconds, status_every_s=status_every)
     finally:
         if bridge is not None:
             bridge.shutdown()
+        if fox is not None:
+            fox.shutdown()
     p50 = sorted(stats.tick_ms)[len(stats.tick_ms) // 2] if stats.tick_ms else 0.0
     click.echo(
         f"toaster serve: stopped after {stats.ticks} ticks ({stats.overruns} overran "
