@@ -29,6 +29,7 @@ HEAVY = (
     "pandas",
     "pyarrow",
     "rosbags",
+    "foxglove",
 )
 
 
