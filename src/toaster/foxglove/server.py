@@ -18,6 +18,7 @@ from typing import Any
 from toaster.model import EventRow, Fact
 from toaster.outputs.foxglove import (
     BELIEFS_TOPIC,
+    EVENTS_TOPIC,
     FACTS_TOPIC,
     HEALTH_TOPIC,
     Channels,
@@ -31,8 +32,9 @@ log = logging.getLogger("toaster.foxglove")
 #: the scene, areas, motion and /tf go out every VIEW_EVERY ticks (10 Hz at 30 Hz), as the
 #: ROS 1 bridge's views; fact lists every tick
 VIEW_EVERY = 3
-#: beliefs, events and health are re-read and re-sent at least this often
-READ_EVERY_S = 1.0
+#: beliefs, events and health are re-read and re-sent at least this often, and beliefs and
+#: events re-read at most this often when the node stored new events (5 Hz)
+READ_EVERY_S, MIN_READ_S = 1.0, 0.2
 DEFAULT_PORT = 8765
 
 
@@ -53,12 +55,15 @@ class FoxgloveOutput:
 
     def publish_facts(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None:
         """The self agent's fact lists, as soon as the producers computed them."""
+        self._sent = t_ns
+        if self.ticks % VIEW_EVERY == 0:  # the next publish draws the views
+            self._area_facts = facts.get("area_manager", [])
+            self._motion = facts.get("agent_monitor", [])
+        if not self.channels.wanted(FACTS_TOPIC):
+            return
         put = self.channels.put
         for producer, held in facts.items():
             put(FACTS_TOPIC, facts_message(t_ns, self.node.self_id, producer, held))
-        self._area_facts = facts.get("area_manager", [])
-        self._motion = facts.get("agent_monitor", [])
-        self._sent = t_ns
 
     def publish(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None:
         """The rest of a tick: the views every VIEW_EVERY ticks, beliefs, events, health."""
@@ -70,13 +75,12 @@ class FoxgloveOutput:
             self.channels.frame(t_ns, world, areas, self._area_facts, self._motion)
         events = self.node.runner.stats.events
         now = time.monotonic()
-        if self.node.db is not None and (
-            events != self._events or now - self._read_at >= READ_EVERY_S
-        ):
-            again = now - self._read_at >= READ_EVERY_S
+        again = now - self._read_at >= READ_EVERY_S
+        if again or (events != self._events and now - self._read_at >= MIN_READ_S):
             self._events, self._read_at = events, now
-            self._read(t_ns, resend=again)
-            if again:
+            if self.node.db is not None:
+                self._read(t_ns, resend=again)
+            if again and self.channels.wanted(HEALTH_TOPIC):
                 self.health(t_ns, self.node.status())
 
     def status(self, line: str) -> None:
@@ -92,6 +96,13 @@ class FoxgloveOutput:
         from toaster import queries as q
 
         db = self.node.read_db
+        if self.watches or self.channels.wanted(EVENTS_TOPIC) or self.channels.log.has_sinks():
+            self._new_events(db)
+        else:  # nobody listens: the events from the next subscription on
+            self._last_event = None
+        if not self.channels.wanted(BELIEFS_TOPIC):
+            self._beliefs = {}
+            return
         held: dict[str, list[Any]] = {}
         for row in q.current_facts(db):
             held.setdefault(row.agent_id, []).append(row)
@@ -104,7 +115,6 @@ class FoxgloveOutput:
         for holder in self._beliefs.keys() - held.keys():  # a holder that believes nothing now
             self.channels.put(BELIEFS_TOPIC, beliefs_message(t_ns, holder, [], truth))
         self._beliefs = held
-        self._new_events(db)
 
     def _new_events(self, db: Any) -> None:
         from toaster import queries as q

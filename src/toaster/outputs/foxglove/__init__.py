@@ -400,16 +400,24 @@ class Channels:
         area_facts: Sequence[Fact],
         motion_facts: Sequence[Fact],
     ) -> None:
-        """The scene, the areas, motion and gaze, and /tf of ``world`` at ``t_ns``."""
-        self.tf.log(frame_transforms(t_ns, world), log_time=t_ns)
-        drawn = markers.entity_markers(world, t_ns)
-        self.scene.log(
-            scene_update(t_ns, [mk for array in drawn.values() for mk in array]), log_time=t_ns
-        )
-        area = markers.area_markers(world, areas, occupied_areas(area_facts), t_ns)
-        self.areas.log(scene_update(t_ns, area), log_time=t_ns)
-        motion = markers.motion_markers(world, motion_facts, t_ns)
-        self.motion.log(scene_update(t_ns, motion), log_time=t_ns)
+        """The scene, the areas, motion and gaze, and /tf of ``world`` at ``t_ns`` (on the
+        channels that have a sink: a client subscribed, a recording)."""
+        if self.tf.has_sinks():
+            self.tf.log(frame_transforms(t_ns, world), log_time=t_ns)
+        if self.scene.has_sinks():
+            drawn = markers.entity_markers(world, t_ns)
+            entities = [mk for array in drawn.values() for mk in array]
+            self.scene.log(scene_update(t_ns, entities), log_time=t_ns)
+        if self.areas.has_sinks():
+            area = markers.area_markers(world, areas, occupied_areas(area_facts), t_ns)
+            self.areas.log(scene_update(t_ns, area), log_time=t_ns)
+        if self.motion.has_sinks():
+            motion = markers.motion_markers(world, motion_facts, t_ns)
+            self.motion.log(scene_update(t_ns, motion), log_time=t_ns)
+
+    def wanted(self, *topics: str) -> bool:
+        """Whether one of the JSON ``topics`` has a sink."""
+        return any(self.json[topic].has_sinks() for topic in topics)
 
     def put(self, topic: str, message: Mapping[str, Any]) -> None:
         """A JSON channel's message, logged at its own timestamp."""
