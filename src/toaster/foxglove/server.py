@@ -173,12 +173,12 @@ class FoxgloveServer:
         self.context = foxglove.Context()
         self.channels = Channels(self.context)
         self.output = FoxgloveOutput(node, self.channels)
-        handlers = node_services(self) if services else []
+        self.calls, handlers = node_services(self) if services else (None, [])
         self.server = foxglove.start_server(
             name="toaster",
             host=host,
             port=port,
-            capabilities=[Capability.Services, Capability.Time] if handlers else [],
+            capabilities=[Capability.Services] if handlers else [],
             supported_encodings=["json"],
             services=handlers,
             context=self.context,
@@ -191,6 +191,8 @@ class FoxgloveServer:
         if self.output in self.node.outputs:
             self.node.outputs.remove(self.output)
         self.server.stop()
+        if self.calls is not None:
+            self.calls.close()
 
 
 def start_server(

@@ -98,6 +98,13 @@ class Calls:
             self._db = connect(self.node.db.url)
         return self._db
 
+    def close(self) -> None:
+        """Close the services' database connection."""
+        with self._lock:
+            if self._db is not None:
+                self._db.close()
+                self._db = None
+
     def call(self, name: str, request: Any) -> bytes:
         try:
             args = json.loads(bytes(request.payload) or b"{}")
@@ -181,13 +188,13 @@ class Calls:
         return {"topic": topic}
 
 
-def node_services(server: Any) -> list[Any]:
-    """The :data:`SERVICES` of ``server``'s node as foxglove Services (none without a
-    database)."""
+def node_services(server: Any) -> tuple[Calls | None, list[Any]]:
+    """The :data:`SERVICES` of ``server``'s node as foxglove Services, and what answers them
+    (none without a database)."""
     from foxglove import MessageSchema, Schema, Service, ServiceSchema
 
     if server.node.db is None:
-        return []
+        return None, []
     calls = Calls(server)
     out = []
     for name, (request, _what) in SERVICES.items():
@@ -203,7 +210,7 @@ def node_services(server: Any) -> list[Any]:
             ),
         )
         out.append(Service(name, schema=schema, handler=_handler(calls, name)))
-    return out
+    return calls, out
 
 
 def _handler(calls: Calls, name: str) -> Callable[[Any], bytes]:
