@@ -1,6 +1,7 @@
 """The Foxglove side of ``bench_live.py --foxglove``: a WebSocket client (the websockets
-package, no toaster code) subscribed to ``/toaster/facts`` of ``toaster serve --foxglove``,
-noting when each human's IsInArea zone_<human> appears or ends in area_manager's fact list.
+package, no toaster code) subscribed to every channel of ``toaster serve --foxglove``,
+noting, on ``/toaster/facts``, when each human's IsInArea zone_<human> appears or ends in
+area_manager's fact list.
 
     python benchmarks/foxglove_listener.py PORT SECONDS
 
@@ -36,12 +37,12 @@ def main() -> None:
         now = time.time_ns()
         if isinstance(frame, str):
             msg = json.loads(frame)
-            if msg["op"] == "advertise" and subscription is None:
+            if msg["op"] == "advertise":  # every channel, as the app with toaster's layout
+                subs = [{"id": c["id"], "channelId": c["id"]} for c in msg["channels"]]
                 for channel in msg["channels"]:
                     if channel["topic"] == "/toaster/facts":
-                        subscription = 1
-                        sub = {"id": 1, "channelId": channel["id"]}
-                        ws.send(json.dumps({"op": "subscribe", "subscriptions": [sub]}))
+                        subscription = channel["id"]
+                ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
             continue
         if frame[0] != 1 or struct.unpack_from("<I", frame, 1)[0] != subscription:
             continue
