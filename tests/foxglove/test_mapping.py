@@ -16,6 +16,8 @@ from toaster.world.state import EntityPose
 
 foxglove = pytest.importorskip("foxglove")
 pytest.importorskip("google.protobuf")
+pytest.importorskip("websockets")  # tests/foxglove/client.py's imports
+pytest.importorskip("jsonschema")
 
 FRONT = {"shape": "polygon", "points": [[0.5, -0.5], [1.5, -0.5], [1.5, 0.5], [0.5, 0.5]]}
 
