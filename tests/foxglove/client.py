@@ -195,6 +195,8 @@ def sally(client: Client) -> dict[str, Any]:
         lambda: (f := held(client, "SALLY", "ROOM")) and f["false_belief"] and f
     )
     watch = client.call("/toaster/watch", {"agent": "SALLY", "property": "IsInRoom"})
+    # subscribed before the tell (the server takes a client's messages in order)
+    client.wait_for(lambda: any(c["topic"] == watch["topic"] for c in client.channels.values()))
     told = client.call(
         "/toaster/tell",
         {

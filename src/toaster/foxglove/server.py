@@ -35,6 +35,8 @@ VIEW_EVERY = 3
 #: beliefs, events and health are re-read and re-sent at least this often, and beliefs and
 #: events re-read at most this often when the node stored new events (5 Hz)
 READ_EVERY_S, MIN_READ_S = 1.0, 0.2
+#: events stamped this long before the newest one sent are looked for again (late commits)
+LOOKBACK_NS = 2_000_000_000
 DEFAULT_PORT = 8765
 
 
@@ -117,26 +119,31 @@ class FoxgloveOutput:
         self._beliefs = held
 
     def _new_events(self, db: Any) -> None:
+        """The events committed since the last read: those stamped up to LOOKBACK_NS before
+        the newest seen are read again (a writer may commit an event stamped before the
+        node's newest, as `toaster tell` does) and sent unless already sent."""
         from toaster import queries as q
 
         if self._last_event is None:  # events from now on: the history is in the database
             newest = q.events(db, limit=1, newest_first=True)
             stamp = newest[0].stamp_ns if newest else 0
-            seen = {(e.id, e.agent_id) for e in q.events(db, since=stamp)}
-            self._last_event = (stamp, seen)
+            since = max(0, stamp - LOOKBACK_NS)
+            self._last_event = (stamp, {(e.id, e.agent_id) for e in q.events(db, since=since)})
             return
         stamp, seen = self._last_event
-        fresh = [e for e in q.events(db, since=stamp) if (e.id, e.agent_id) not in seen]
-        for event in fresh:
+        read = q.events(db, since=max(0, stamp - LOOKBACK_NS))
+        for event in read:
+            if (event.id, event.agent_id) in seen:
+                continue
             self.channels.event(event)
             for channel, patterns in self.watches:
                 if matches(event, patterns):
                     channel.log(watch_message(event), log_time=event.stamp_ns)
-        if fresh:
-            newest_stamp = max(e.stamp_ns for e in fresh)
-            keep = {k for k in seen if stamp == newest_stamp}
-            keep |= {(e.id, e.agent_id) for e in fresh if e.stamp_ns == newest_stamp}
-            self._last_event = (newest_stamp, keep)
+        if read:
+            self._last_event = (
+                max(stamp, max(e.stamp_ns for e in read)),
+                {(e.id, e.agent_id) for e in read},
+            )
 
 
 def matches(event: EventRow, patterns: Mapping[str, str]) -> bool:
