@@ -18,6 +18,7 @@ Run: .venv/bin/python benchmarks/bench_live.py [--no-pg | --only-pg] [--seconds 
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import os
@@ -44,6 +45,7 @@ from toaster.ros1.core import RosCore
 
 HERE = Path(__file__).resolve().parent
 PG_DEFAULT = "postgresql://postgres@127.0.0.1:5432/test"
+LISTENER = [sys.executable, str(HERE / "foxglove_listener.py")]
 
 
 def put_zones(url: str, humans: int) -> None:
@@ -103,8 +105,11 @@ def pct(values: list[float], q: float) -> float:
     return float(np.percentile(values, q)) if values else float("nan")
 
 
-def ros_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dict[str, Any]:
-    """One run with roscore, `toaster serve --ros1` and the rospy client."""
+def ros_run(
+    backend: str, pg: str, humans: int, seconds: float, tmp: str, foxglove: bool = False
+) -> dict[str, Any]:
+    """One run with roscore, `toaster serve --ros1` and the rospy client (``foxglove``: and
+    `--foxglove 0` with foxglove_listener.py on /toaster/facts, the same ticks)."""
     database = Database(backend, pg, tmp)
     frames = Path(tmp) / f"frames{humans}.json"
     frames.write_text(json.dumps(frame_map(humans, 50)))
@@ -126,6 +131,7 @@ def ros_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dic
                         str(frames),
                         "--status-every",
                         "2",
+                        *(["--foxglove", "0"] if foxglove else []),
                     ],
                     env=env,
                     stderr=err,
@@ -136,6 +142,15 @@ def ros_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dic
                         raise RuntimeError(log.read_text()[-2000:])
                     time.sleep(0.05)
                 watcher = Watcher(database.url)
+                listener = None
+                if foxglove:
+                    port = re.search(r"Foxglove on ws://127.0.0.1:(\d+)", log.read_text())
+                    assert port is not None
+                    listener = subprocess.Popen(
+                        [*LISTENER, port[1], str(seconds + 300)],  # until SIGINT
+                        stdout=subprocess.PIPE,
+                        text=True,
+                    )
                 client = subprocess.run(
                     [
                         "/usr/bin/python3",
@@ -150,6 +165,11 @@ def ros_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dic
                     timeout=seconds + 120,
                 )
                 watcher.close()
+                fox_out = ""
+                if listener is not None:
+                    time.sleep(1.0)  # as the rospy client waits for its last fact lists
+                    listener.send_signal(signal.SIGINT)
+                    fox_out = listener.communicate(timeout=60)[0]
                 os.killpg(node.pid, signal.SIGTERM)
                 node.wait(30)
             if client.returncode != 0:
@@ -169,6 +189,7 @@ def ros_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dic
         "wait": [float(w) for w in waits[-1]] if waits else [math.nan, math.nan],
         "db": latencies(out["toggles"], watcher.seen),
         "ros": latencies(out["toggles"], out["seen"]),
+        "fox": latencies(out["toggles"], json.loads(fox_out)["seen"]) if fox_out else [],
         "toggles": len(out["toggles"]),
         "ticks": int(ticks),
         "overruns": int(overruns),
@@ -224,6 +245,7 @@ def api_run(backend: str, pg: str, humans: int, seconds: float, tmp: str) -> dic
         "wait": [pct(waits, 50), pct(waits, 99)],
         "db": latencies(toggles, watcher.seen),
         "ros": [],
+        "fox": [],
         "toggles": len(toggles),
         "ticks": stats.ticks,
         "overruns": stats.overruns,
@@ -240,6 +262,12 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--humans", default="10,100")
     parser.add_argument("--quick", action="store_true", help="small sizes (a smoke run)")
+    parser.add_argument(
+        "--foxglove",
+        action="store_true",
+        help="also `toaster serve --ros1 --foxglove`: FactList and /toaster/facts latency "
+        "of the same ticks (needs toaster[foxglove] and websockets)",
+    )
     args = parser.parse_args()
     if args.quick:
         args.seconds, args.repeats, args.humans = 2.0, 1, "3"
@@ -252,15 +280,20 @@ def main() -> None:
     print(
         f"{'path':<20} {'humans':>6} {'backend':<11} {'changes':>8} {'db p50':>7} "
         f"{'db p99':>7} {'ros p50':>8} {'ros p99':>8} {'tick ms':>8} {'overruns':>9}"
-        f" {'wait p50':>9} {'wait p99':>9}"
+        f" {'wait p50':>9} {'wait p99':>9}" + (" fox p50  fox p99" if args.foxglove else "")
     )
+    paths: list[tuple[str, Any]] = [
+        ("in-process (base)", api_run),
+        ("toaster serve --ros1", ros_run),
+    ]
+    if args.foxglove:
+        paths.append(
+            ("serve --ros1 --fox", functools.partial(ros_run, foxglove=True))  # same ticks
+        )
     with tempfile.TemporaryDirectory() as tmp:
         for humans in (int(h) for h in args.humans.split(",")):
             for backend in backends:
-                for label, run in (
-                    ("in-process (base)", api_run),
-                    ("toaster serve --ros1", ros_run),
-                ):
+                for label, run in paths:
                     runs = [
                         run(backend, args.pg, humans, args.seconds, tmp)
                         for _ in range(args.repeats)
@@ -277,7 +310,12 @@ def main() -> None:
                         f"{statistics.median(r['tick_ms'] for r in runs):>8.1f} "
                         f"{statistics.median(r['overruns'] for r in runs):>9.0f}"
                         f" {statistics.median(r['wait'][0] for r in runs):>9.1f}"
-                        f" {statistics.median(r['wait'][1] for r in runs):>9.1f}",
+                        f" {statistics.median(r['wait'][1] for r in runs):>9.1f}"
+                        + (
+                            f" {med('fox', 50):>8.1f} {med('fox', 99):>8.1f}"
+                            if args.foxglove
+                            else ""
+                        ),
                         flush=True,
                     )
 

@@ -30,6 +30,7 @@ HEAVY = (
     "pyarrow",
     "rosbags",
     "cyclonedds",
+    "foxglove",
 )
 
 

@@ -18,6 +18,7 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "pandas": ("pandas",),
     "rosbag": ("rosbags",),
     "ros2": ("cyclonedds", "rosbags"),
+    "foxglove": ("foxglove",),
 }
 
 

@@ -461,6 +461,19 @@ BLOCKED = [
     ),
     ("rosbags", "rosbag", lambda p: ["record", str(p / "frames.jsonl"), str(p / "rec")]),
     ("cyclonedds", "ros2", lambda p: ["serve", "--ros2", "--seconds", "0"]),
+    ("foxglove", "foxglove", lambda p: ["serve", "--foxglove", "0", "--seconds", "1"]),
+    (
+        "foxglove",
+        "foxglove",
+        lambda p: [
+            "run",
+            str(EXAMPLES / "scenario_flat.yaml"),
+            "--record",
+            str(p / "rec.mcap"),
+            "--record-format",
+            "foxglove",
+        ],
+    ),
     ("matplotlib", "plot", lambda p: ["plot-facts", str(p / "out.png")]),
     ("pyarrow", "export", lambda p: ["export", "history", str(p / "out.parquet")]),
 ]

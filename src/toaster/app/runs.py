@@ -46,31 +46,42 @@ class RunReport:
     notes: tuple[str, ...] = ()
 
 
-def needed_extras(path: str | Path, record_dir: str | Path | None = None) -> list[tuple[str, str]]:
+def needed_extras(
+    path: str | Path, record_dir: str | Path | None = None, record_format: str = "ros"
+) -> list[tuple[str, str]]:
     """The optional extras a run of ``path`` needs, as ``(extra, feature)``: reading a ROS bag
-    and writing a recording need ``rosbag``."""
+    and writing a recording need ``rosbag`` (a Foxglove recording ``foxglove``)."""
     from toaster.world.bags import is_bag
 
     needs = []
     if is_bag(Path(path)):
         needs.append(("rosbag", f"running the bag {Path(path).name}"))
     if record_dir is not None:
-        needs.append(("rosbag", "run --record"))
+        extra = "foxglove" if record_format == "foxglove" else "rosbag"
+        needs.append((extra, f"run --record-format {record_format}"))
     return needs
 
 
 def check_run(
-    path: str | Path, *, record_dir: str | Path | None = None, rate_hz: float | None = None
+    path: str | Path,
+    *,
+    record_dir: str | Path | None = None,
+    rate_hz: float | None = None,
+    record_format: str = "ros",
 ) -> float | None:
     """Refuse what would fail later, before anything is read or written: a recording folder
     that exists, a missing extra, a bad rate. Returns the checked rate."""
     from toaster.extras import require
     from toaster.timeutil import check_rate
 
-    if record_dir is not None and Path(record_dir).exists():
+    if record_dir is not None and record_format == "foxglove":
+        from toaster.outputs.foxglove.record import check_path
+
+        check_path(record_dir)
+    elif record_dir is not None and Path(record_dir).exists():
         msg = f"cannot record into {str(record_dir)!r}: it exists; give a new folder name"
         raise InvalidInputError(msg)
-    for extra, feature in needed_extras(path, record_dir):
+    for extra, feature in needed_extras(path, record_dir, record_format):
         require(extra, feature)
     return None if rate_hz is None else check_rate(rate_hz, "--rate")
 
@@ -117,6 +128,7 @@ def run_file(
     pose_topics: Mapping[str, tuple[str, str]] | None = None,
     record_dir: str | Path | None = None,
     progress: Progress | None = None,
+    record_format: str = "ros",
 ) -> RunReport:
     """Tick ``path`` into ``db`` (None: compute only) and report what happened.
 
@@ -129,7 +141,8 @@ def run_file(
         record_dir: also write the run as a rosbag2/MCAP recording in this new folder, or as
             a ROS 1 bag for a ``.bag`` name (:mod:`toaster.outputs.recording`; needs
             ``toaster[rosbag]``), with what replays it whole (``/toaster/run``,
-            ``/toaster/world``).
+            ``/toaster/world``); ``record_format`` ``foxglove``: a ``FILE.mcap`` of the
+            live Foxglove server's channels instead (needs ``toaster[foxglove]``).
         progress: called after each tick with (ticks done, ticks in all).
 
     Areas stored in ``db`` are added to the file's, and the file's are stored; the same input
@@ -141,7 +154,7 @@ def run_file(
     from toaster.world.recorded import world_fields
 
     path = Path(path)
-    rate_hz = check_run(path, record_dir=record_dir, rate_hz=rate_hz)
+    rate_hz = check_run(path, record_dir=record_dir, rate_hz=rate_hz, record_format=record_format)
     store = db.store() if db is not None else None
     session = load_session(
         path,
@@ -188,7 +201,12 @@ def run_file(
         from toaster.outputs.recording import record
 
         info = replay.run_info(session, db, end, rate_hz or session.rate_hz)
-        recording = record(record_dir, frames, db=db, run=info, world=world)
+        recorder: Any = None
+        if record_format == "foxglove":
+            from toaster.outputs.foxglove.record import FoxgloveRecorder
+
+            recorder = FoxgloveRecorder
+        recording = record(record_dir, frames, db=db, run=info, world=world, recorder=recorder)
     return RunReport(
         path.name,
         runner.stats,

@@ -30,7 +30,7 @@ def _export(kw: dict[str, Any]) -> list[Need]:
 def _run(kw: dict[str, Any]) -> list[Need]:
     from toaster.app.runs import needed_extras
 
-    return needed_extras(kw["path"], kw["record_dir"])
+    return needed_extras(kw["path"], kw["record_dir"], kw["record_format"])
 
 
 #: command path (as typed after ``toaster``) -> the extras its arguments need
@@ -39,6 +39,10 @@ NEEDS: dict[str, Callable[[dict[str, Any]], list[Need]]] = {
     "export": _export,
     "record": lambda _kw: [("rosbag", "record")],
     "run": _run,
+    "serve": lambda kw: (
+        ([("ros2", "toaster serve --ros2")] if kw["ros2"] else [])
+        + ([("foxglove", "serve --foxglove")] if kw["foxglove"] is not None else [])
+    ),
 }
 
 

@@ -65,6 +65,14 @@ from toaster.errors import InvalidInputError
     "docs/recordings.md) for Foxglove, Lichtblick, RViz or `toaster run DIR`; "
     "needs toaster[rosbag].",
 )
+@click.option(
+    "--record-format",
+    type=click.Choice(["ros", "foxglove"]),
+    default="ros",
+    show_default=True,
+    help="foxglove: --record FILE.mcap holds the channels of `toaster serve --foxglove` "
+    "(docs/foxglove.md); needs toaster[foxglove].",
+)
 @click.pass_obj
 def run(
     app: Any,
@@ -79,6 +87,7 @@ def run(
     pose_topics: tuple[str, ...],
     no_db: bool,
     record_dir: Path | None,
+    record_format: str,
 ) -> None:
     """Tick a scenario (.yaml/.json), recording (obsmat .txt, .csv, .jsonl) or ROS bag
     (.bag, .mcap, .db3 or a rosbag2 folder) into the store.
@@ -89,7 +98,7 @@ def run(
     from toaster.app.runs import check_run, run_file
     from toaster.world.config import read_config_file
 
-    rate = check_run(path, record_dir=record_dir, rate_hz=rate)  # before the database opens
+    rate = check_run(path, record_dir=record_dir, rate_hz=rate, record_format=record_format)
     until_ns = None if until is None else parse_duration_option(until, "--until")
     config = read_config_file(config_file) if config_file is not None else None
     go = functools.partial(
@@ -105,6 +114,7 @@ def run(
         tf_map=tf_map,
         pose_topics=parse_pose_topics(pose_topics),
         record_dir=record_dir,
+        record_format=record_format,
     )
     if sys.stderr.isatty():
         from rich.progress import Progress

@@ -112,6 +112,16 @@ def self_agent_of(db: Database, requested: str | None) -> str:
     metavar="N",
     help="ROS 2 domain (default: ROS_DOMAIN_ID, else 0).",
 )
+@click.option(
+    "--foxglove",
+    type=click.IntRange(0, 65535),
+    is_flag=False,
+    flag_value=8765,
+    default=None,
+    metavar="[PORT]",
+    help="Serve the Foxglove app on ws://127.0.0.1:PORT (default 8765; 0: a free port, "
+    "printed); needs toaster[foxglove] (docs/foxglove.md).",
+)
 @ros_input_options
 @click.pass_obj
 def serve(
@@ -126,6 +136,7 @@ def serve(
     ros1: bool,
     ros2: bool,
     domain_id: int | None,
+    foxglove: int | None,
     tf_map: Path | None,
     pose_topics: tuple[str, ...],
 ) -> None:
@@ -148,11 +159,7 @@ def serve(
     if (tf_map is not None or pose_topics) and not (ros1 or ros2):
         msg = "--tf-map and --pose-topic are ROS inputs: add --ros1 or --ros2"
         raise InvalidInputError(msg)
-    if ros2:
-        from toaster.extras import require
-
-        require("ros2", "toaster serve --ros2")  # before the node starts
-    elif domain_id is not None:
+    if not ros2 and domain_id is not None:
         msg = "--domain-id is a ROS 2 option: add --ros2"
         raise InvalidInputError(msg)
     from toaster.world.config import read_config_file
@@ -184,6 +191,12 @@ def serve(
         from toaster.ros2.bridge import start_bridge as start_ros2
 
         bridge2 = start_ros2(node, domain_id=domain_id, tf_map=tf_map, pose_topics=topics)
+    fox = None
+    if foxglove is not None:
+        from toaster.foxglove.server import start_server
+
+        fox = start_server(node, foxglove)
+        click.echo(f"toaster serve: Foxglove on ws://127.0.0.1:{fox.port}", err=True)
     click.echo(f"toaster serve: {rate:g} Hz on {app.db.url} (Ctrl-C stops)", err=True)
     try:
         stats = serve_node(node, rate, seconds=seconds, status_every_s=status_every)
@@ -192,6 +205,8 @@ def serve(
             bridge.shutdown()
         if bridge2 is not None:
             bridge2.shutdown()
+        if fox is not None:
+            fox.shutdown()
     p50 = sorted(stats.tick_ms)[len(stats.tick_ms) // 2] if stats.tick_ms else 0.0
     click.echo(
         f"toaster serve: stopped after {stats.ticks} ticks ({stats.overruns} overran "

@@ -352,18 +352,23 @@ def record(
     toaster_names: str | None = None,
     run: RunInfo | None = None,
     world: Iterable[tuple[int, Mapping[str, Any]]] = (),
+    recorder: Any = None,
 ) -> RecordingResult:
     """Record ``frames`` (in time order) and, with ``db``, the self agent's fact lists, the
     beliefs and the events of ``agent`` (default: every agent and holder) between ``since``
     and ``until`` (default: the first and last frame). ``distro`` and ``toaster_names`` as
     :class:`Recorder`. ``run`` and ``world`` (``(t_ns, World fields)`` in time order) are what
     ``toaster run`` records so that the recording replays whole (:mod:`toaster.world.recorded`).
-    Returns the bag and the file to open."""
+    ``recorder``: what writes it, called as :class:`Recorder` (default), e.g.
+    :class:`toaster.outputs.foxglove.record.FoxgloveRecorder`. Returns the bag and the file to
+    open."""
     frame_list = check_frames(frames)
     if not frame_list and db is None:
         msg = "nothing to record: give at least one frame or a database"
         raise InvalidInputError(msg)
-    toaster_spelling(bag_format(path, distro), toaster_names)
+    if recorder is None:
+        recorder = Recorder
+        toaster_spelling(bag_format(path, distro), toaster_names)
     events: list[EventRow] = []
     timeline, beliefs = FactTimeline([]), BeliefTimeline({}, [])
     lo = since if since is not None else (frame_list[0].t_ns if frame_list else None)
@@ -382,7 +387,7 @@ def record(
             *(t for t in changes if (lo is None or t >= lo) and (hi is None or t <= hi)),
         }
     )
-    with Recorder(path, frame_id=frame_id, distro=distro, toaster_names=toaster_names) as rec:
+    with recorder(path, frame_id=frame_id, distro=distro, toaster_names=toaster_names) as rec:
         if run is not None:
             rec.write_run(run)
         for kind, item in _merged(
