@@ -143,7 +143,7 @@ holders = Table(
     # time, whatever the clocks of the producers that start them), and the self agent whose run
     # set it (its next write at that time shares the instant, any other run at or before it
     # comes 1 ns later). PostgreSQL: a run locks its holders' rows, so that the runs sharing a
-    # holder take turns and the others do not wait (revision 0024; before, one clock for all in
+    # holder take turns and the others do not wait (revision 0028; before, one clock for all in
     # ``store_state``).
     Column("clock_ns", BigInteger, nullable=True),
     Column("clock_self", Text, nullable=True),

@@ -64,7 +64,7 @@ RUNS = (
     "AND EXISTS (SELECT 1 FROM agents WHERE NOT is_self) "
     "AND EXISTS (SELECT 1 FROM belief_changed)"
 )
-#: Whom a robot's run may change (revision 0024): the holders whose chain's agents its facts
+#: Whom a robot's run may change (revision 0028): the holders whose chain's agents its facts
 #: name (subject or target of one of its keys) or which act in its changes (a holder perceives
 #: only what its agents perceive in the run's self facts, and an actor its own changes), and
 #: the holders following one of its changed keys. The runs of robots whose people never meet
@@ -84,7 +84,7 @@ MINE = (
     + ")) OR EXISTS (SELECT 1 FROM belief_changed b JOIN belief_follow w ON w.self_key = b.key_id "
     "AND w.holder_id = h.id AND w.to_ns IS NULL)"
 )
-#: The rules' clock is per holder (``holders.clock_ns``, ``clock_self``; revision 0024, before
+#: The rules' clock is per holder (``holders.clock_ns``, ``clock_self``; revision 0028, before
 #: it one row of ``store_state``). A run that applies first moves the clocks of its holders
 #: (:data:`MINE`, ``{mine}``: a condition on ``id``) to its time unless it is behind one of
 #: them: a robot or producer whose clock lags another's (or a late SQL writer) never writes a

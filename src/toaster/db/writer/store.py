@@ -24,7 +24,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
-from sqlalchemy import Connection, text
+from sqlalchemy import Connection, bindparam, text
 
 from toaster.db import catalog, tolerance
 from toaster.db.dialects import LATEST_CLOCK, Key
@@ -255,7 +255,10 @@ class Store(FactSteps):
         open interval, whoever wrote it (``plan.resolve``)."""
         key_ids, old = self._key_ids, plan.state.facts
         # Events in order: ended, changed, appeared.
-        writes = plan.writes = self._writes(conn, agent_id, plan.source, plan.t_ns, snapshot=True)
+        named = {x for _, f in (*plan.touched, *plan.gone) for x in (f.subject_id, f.target_id)}
+        writes = plan.writes = self._writes(
+            conn, agent_id, plan.source, plan.t_ns, snapshot=True, named=named
+        )
         for key, fact in plan.gone:
             writes.end(key_ids[(agent_id, key)], fact)
         if plan.trust_cache and plan.touched and self.agents().get(agent_id):
@@ -351,7 +354,14 @@ class Store(FactSteps):
         return bool(self._rules) and agent_id in agents and not all(agents.values())
 
     def _writes(
-        self, conn: Connection, agent_id: str, source: str, t_ns: int, *, snapshot: bool = False
+        self,
+        conn: Connection,
+        agent_id: str,
+        source: str,
+        t_ns: int,
+        *,
+        snapshot: bool = False,
+        named: set[str] | None = None,
     ) -> Writes:
         """The rows of one write of ``agent_id`` at ``t_ns``.
 
@@ -381,6 +391,15 @@ class Store(FactSteps):
             if clock is None:
                 row = conn.execute(text(LATEST_CLOCK), {"agent": agent_id}).first()
                 clock = (row[0], row[1]) if row is not None else (None, None)
+            if clock[0] is None and named:  # its keys name nobody yet: the snapshot's people
+                row = conn.execute(
+                    text(
+                        "SELECT clock_ns, clock_self FROM holders WHERE depth = 1 "
+                        "AND clock_ns IS NOT NULL AND id IN :ids ORDER BY clock_ns DESC LIMIT 1"
+                    ).bindparams(bindparam("ids", expanding=True)),
+                    {"ids": sorted(named - {""})},
+                ).first()
+                clock = (row[0], row[1]) if row is not None else clock
             last, last_self = clock
             moved = max(
                 self._moved_to.get((agent_id, s), t_ns) for s in (*self._tick_sources, source)
