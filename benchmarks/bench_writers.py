@@ -13,13 +13,15 @@ told apart from what sharing the database costs. The table gives, per case, the 
 tick of each left out), the wall time, the failed ticks (there must be none), and the belief
 runs a second: every database's runs (its ``belief_runs`` id sequence, registrations'
 runs left out) over the span of ticking, the first tick's start to the last tick's end.
+``--people own``: each robot's people are its own (renamed per robot), so the robots'
+belief holders are disjoint sets, as sites whose people never meet sharing one server.
 ``--holders none``: the scenario's people hold no beliefs, so the ticks measure the store
 alone (no belief run to serialize). ``--pace live`` (default) paces each robot's ticks at
 30 Hz of wall time, as live robots tick (``toaster serve``, ``run --realtime``); ``--pace
 none`` ticks back to back, as an offline ``toaster run``: every writer then saturates the
 machine and, shared, the one timeline of the holders' beliefs (one belief run at a time).
 Usage: python benchmarks/bench_writers.py [--writers 1,2,4,8] [--ticks 150] [--repeats 3]
-       [--holders humans|none] [--pace live|none] [--pg URL] [--quick]
+       [--holders humans|none] [--people shared|own] [--pace live|none] [--pg URL] [--quick]
 (PostgreSQL only. ``--quick``: 2 writers, 10 ticks each, one run: a smoke run.)
 """
 
@@ -98,7 +100,13 @@ def _start_together(outs: list[Path], procs: list[subprocess.Popen[bytes]]) -> N
 
 
 def once(
-    url: str, writers: int, shared: bool, ticks: int, holders: str = "humans", pace: str = ""
+    url: str,
+    writers: int,
+    shared: bool,
+    ticks: int,
+    holders: str = "humans",
+    pace: str = "",
+    people: str = "shared",
 ) -> tuple[float, float, float, int, float]:
     """(p50 ms, p99 ms, wall s, failed ticks, belief runs/s) of one run (runs/s: every
     database's runs over the span of the writers' ticks, first start to last end)."""
@@ -108,7 +116,7 @@ def once(
         start = time.perf_counter()
         for i in range(writers):
             out = Path(tmp) / f"w{i}.json"
-            role = f"run:R{i}:{SCENARIO}:30:{ticks}:{holders}:{pace}"
+            role = f"run:R{i}:{SCENARIO}:30:{ticks}:{holders}:{pace}:{people}"
             procs.append(
                 (
                     out,
@@ -177,6 +185,14 @@ def main() -> None:
         help="humans (the scenario's people hold beliefs) or none (no belief "
         "rule work: the store alone)",
     )
+    parser.add_argument(
+        "--people",
+        choices=("shared", "own"),
+        default="shared",
+        help="shared (default): every robot sees the same people (the holders are one set); "
+        "own: each robot's people are its own (disjoint holder sets, as sites whose people "
+        "never meet)",
+    )
     parser.add_argument("--quick", action="store_true", help="small sizes (a smoke run)")
     args = parser.parse_args()
     if args.quick:
@@ -186,8 +202,8 @@ def main() -> None:
     print(
         f"{'writers':>7} {'database':>8} {'p50 ms':>8} {'p99 ms':>8} {'wall s':>7} "
         f"{'failed':>6} {'runs/s':>7}   (medians of {args.repeats}; {args.ticks} ticks per "
-        f"writer; holders: {args.holders}; pace: {args.pace}; runs/s: belief runs of all "
-        "the run's databases a second of ticking)"
+        f"writer; holders: {args.holders}; people: {args.people}; pace: {args.pace}; "
+        "runs/s: belief runs of all the run's databases a second of ticking)"
     )
     for n in counts:
         results = {}
@@ -200,6 +216,7 @@ def main() -> None:
                     args.ticks,
                     args.holders,
                     "" if args.pace == "none" else args.pace,
+                    args.people,
                 )
                 for _ in range(args.repeats)
             ]

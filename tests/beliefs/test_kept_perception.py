@@ -211,8 +211,14 @@ def _databases(backend_url: str, tmp_path: Path, n: int) -> Iterator[list[str]]:
 
 
 def _at(url: str, revision: str) -> toaster.Database:
+    """A database at ``revision`` that this package's store can write: the holders' clocks it
+    reads (revision 0028) are added, and stay empty (the old rule keeps its clock in
+    ``store_state``; the stories' ticks only move forward, so no snapshot is stamped later)."""
     engine = make_engine(url)
     migrate.upgrade(engine, revision)
+    with engine.begin() as conn:
+        conn.execute(sa.text("ALTER TABLE holders ADD COLUMN clock_ns BIGINT"))
+        conn.execute(sa.text("ALTER TABLE holders ADD COLUMN clock_self TEXT"))
     engine.dispose()
     return toaster.connect(url, check=False)
 

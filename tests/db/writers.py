@@ -2,7 +2,7 @@
 
 ``python -m tests.db.writers URL ROLE TICKS SEED OUT.json [PROGRESS]`` from the project root
 (ROLE: ``ROBOT:rooms``, ``ROBOT:things``, ``reader`` or
-``run:ROBOT:SCENARIO:RATE:TICKS[:HOLDERS[:live]]``).
+``run:ROBOT:SCENARIO:RATE:TICKS[:HOLDERS[:live[:PEOPLE]]]``).
 A writer
 is one producer of one robot: it registers the robot (a self agent), the people and the
 things (the same ids in every process, so registrations race), then writes a snapshot of its
@@ -26,6 +26,8 @@ import tempfile
 import time
 from pathlib import Path
 from typing import Any
+
+import yaml
 
 import toaster
 from toaster.model import Fact
@@ -168,6 +170,7 @@ def run(
     ticks: int,
     holders: str | None = None,
     pace: str = "",
+    people: str = "shared",
     out: str = "",
 ) -> dict[str, Any]:
     """``toaster run PATH --rate RATE`` as robot ``robot`` (the library path of the command:
@@ -175,7 +178,10 @@ def run(
     (its robot's body) is renamed ``robot``: each writer is its own robot in the same scene,
     and no other robot of the scene is a belief holder. ``pace`` "live":
     each tick starts at its time on the wall clock, as ``--realtime`` and a live node tick
-    (a late tick starts at once); else ticks follow one another at once."""
+    (a late tick starts at once); else ticks follow one another at once. ``people`` "own":
+    the scene's humans are this robot's alone (renamed ``NAME_ROBOT``): robots whose holder
+    sets are disjoint, as sites whose people never meet; else every robot sees the same
+    people."""
     from toaster.producers import Runner, load_session
 
     failures: list[str] = []
@@ -183,12 +189,17 @@ def run(
     with toaster.connect(url) as db, tempfile.TemporaryDirectory() as tmp:
         store = db.store()
         session = load_session(path, store.areas(), holders=holders)
-        if session.self_id != robot:  # the scene's robot body is this robot, under its id
+        renames = {session.self_id: robot} if session.self_id != robot else {}
+        if people == "own":
+            scene = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+            humans = [e["id"] for e in scene.get("entities", []) if e.get("kind") == "human"]
+            renames.update({human: f"{human}_{robot}" for human in humans})
+        if renames:  # the scene's robot body is this robot, under its id (and its people)
             text = Path(path).read_text(encoding="utf-8")
+            for old, new in renames.items():
+                text = re.sub(rf"\b{re.escape(old)}\b", new, text)
             mine = Path(tmp) / Path(path).name
-            mine.write_text(
-                re.sub(rf"\b{re.escape(session.self_id)}\b", robot, text), encoding="utf-8"
-            )
+            mine.write_text(text, encoding="utf-8")
             session = load_session(mine, store.areas(), holders=holders)
         runner = Runner(
             session.world,
@@ -229,7 +240,7 @@ def main(argv: list[str]) -> None:
     url, role, ticks, seed, out, *progress = argv
     if role == "reader":
         result = read(url, int(ticks), int(seed))
-    elif role.startswith("run:"):  # run:ROBOT:PATH:RATE:TICKS[:HOLDERS[:live]]
+    elif role.startswith("run:"):  # run:ROBOT:PATH:RATE:TICKS[:HOLDERS[:live[:PEOPLE]]]
         _, robot, path, rate, run_ticks, *holders = role.split(":")
         result = run(url, robot, path, float(rate), int(run_ticks), *holders, out=out)
     else:

@@ -316,6 +316,9 @@ RELEASED_FROZEN = {
     "0027/20_perceive_1_before.json": (
         "2be1797a0b5d0d4cfb570c0689fc97f5d48ff57733b85cf6e5e4b00596399851"
     ),
+    "0028_units.json": "89e974e8d72034202c34c29a143bfa188d9101aa7959c1d4b56306529f394be3",
+    "0028/holders.json": "94f3a32447e2bc6ef924be35084d0ddf9809017b2c1c0b56df3c4a020280f988",
+    "0028/pipeline.json": "cae06bb17b23d46e239b4855951d997357d0030a36cbbcda25f15a15407dfdb7",
 }
 
 
@@ -382,7 +385,7 @@ def _frozen_objects(backend: str, create: list[str]) -> set[str]:
 
 
 def _frozen_sets(backend: str) -> dict[str, set[str]]:
-    """What revisions 0015, 0016, 0018, 0019, 0023 and 0027 install (their frozen files, not
+    """What revisions 0015, 0016, 0018, 0019, 0023, 0027 and 0028 install (their frozen files, not
     the package's rendering)."""
     frozen = Path(toaster.__file__).parent / "migrations" / "frozen"
     whole = json.loads((frozen / "0015_triggers.json").read_text(encoding="utf-8"))
@@ -392,7 +395,7 @@ def _frozen_sets(backend: str) -> dict[str, set[str]]:
             revision: _frozen_objects(
                 backend, frozen_triggers.unit_statements(revision, backend, "create")
             )
-            for revision in ("0016", "0018", "0019", "0023", "0027")
+            for revision in ("0016", "0018", "0019", "0023", "0027", "0028")
         },
     }
 
@@ -550,3 +553,44 @@ def test_sqlite_runs_the_perception_step_as_one_trigger_with_the_same_rows(
         before, after = _inbox_story(empty_url, "0025"), _inbox_story(other, "0027")
     assert before == after
     assert len(after[0]) > 30 and len({row[0] for row in after[0]}) > 3  # holders' rows too
+
+
+def test_holder_clocks_take_over_the_one_clock_and_give_it_back(
+    empty_url: str, tmp_path: Path
+) -> None:
+    """0027 <-> 0028 installs exactly each revision's frozen objects and moves the rules' clock
+    between ``store_state`` and the holders (the latest holder's clock when going back); a
+    plain SQL client's writes give the same rows with either rule."""
+    engine = make_engine(empty_url)
+    expected = _frozen_sets(engine.dialect.name)
+    migrate.upgrade(engine, "0027")
+    assert _rule_objects(engine) == expected["0027"]
+    migrate.upgrade(engine, "0028")
+    assert _rule_objects(engine) == expected["0028"]
+    migrate.downgrade(engine, "0027")
+    assert _rule_objects(engine) == expected["0027"]
+    migrate.downgrade(engine, "base")
+    with toaster.connect(empty_url) as db:
+        beliefs_story.first_half(db)
+    clocks = "SELECT DISTINCT clock_ns, clock_self FROM holders WHERE clock_ns IS NOT NULL"
+    with engine.connect() as conn:
+        latest = max(conn.exec_driver_sql(clocks).all())
+    migrate.downgrade(engine, "0027")
+    with engine.connect() as conn:
+        one = conn.exec_driver_sql("SELECT beliefs_ns, beliefs_self FROM store_state").one()
+        assert "clock_ns" not in _columns(conn, "holders")
+    assert tuple(one) == tuple(latest)
+    migrate.upgrade(engine, "0028")
+    with engine.connect() as conn:
+        assert conn.exec_driver_sql(clocks).all() == [tuple(latest)]  # every holder at it
+        assert "beliefs_ns" not in _columns(conn, "store_state")
+    migrate.downgrade(engine, "base")
+    engine.dispose()
+    with _another(empty_url, tmp_path) as other:
+        before, after = _inbox_story(empty_url, "0027"), _inbox_story(other, "0028")
+    assert before == after
+    assert len(after[0]) > 30 and len({row[0] for row in after[0]}) > 3  # holders' rows too
+
+
+def _columns(conn: Any, table: str) -> set[str]:
+    return {column["name"] for column in inspect(conn).get_columns(table)}

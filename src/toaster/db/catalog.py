@@ -289,8 +289,8 @@ def empty_facts(conn: Connection, agent_id: str | None) -> None:
     if agent_id is None:
         for table in (s.events, s.fact_samples, s.fact_sample_blocks, s.facts, s.fact_keys):
             conn.execute(delete(table))
-        # No belief run happened yet: the rules' clock starts again (a replay from 0).
-        conn.execute(update(s.store_state).values(beliefs_ns=None, beliefs_self=None))
+        # No belief run happened yet: the rules' clocks start again (a replay from 0).
+        conn.execute(update(s.holders).values(clock_ns=None, clock_self=None))
         delete_setting(conn, "data", "start_ns")  # nor any data: the next run's start counts
         return
     keys = select(s.fact_keys.c.id).where(s.fact_keys.c.agent_id == agent_id)

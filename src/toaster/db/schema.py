@@ -139,6 +139,14 @@ holders = Table(
     ),
     Column("depth", Integer, nullable=False),
     Column("registered_ns", BigInteger, nullable=False),
+    # The rules' clock of this holder: the time of its last belief run (runs never go back in
+    # time, whatever the clocks of the producers that start them), and the self agent whose run
+    # set it (its next write at that time shares the instant, any other run at or before it
+    # comes 1 ns later). PostgreSQL: a run locks its holders' rows, so that the runs sharing a
+    # holder take turns and the others do not wait (revision 0028; before, one clock for all in
+    # ``store_state``).
+    Column("clock_ns", BigInteger, nullable=True),
+    Column("clock_self", Text, nullable=True),
     CheckConstraint(
         "(depth = 1 AND agent_id = id) OR (depth >= 2 AND agent_id IS NULL)", name="agent_or_nested"
     ),
@@ -303,12 +311,6 @@ store_state = Table(
     Column("holders_basis", Text, nullable=False, server_default=text("''")),
     # The self agent the groups of holders were formed for; NULL: none hold (revision 0011).
     Column("groups_for", Text, nullable=True),
-    # The time of the last belief run: runs never go back in time, whatever the clocks of the
-    # producers that start them; PostgreSQL: its row lock serializes the runs (0012).
-    Column("beliefs_ns", BigInteger, nullable=True),
-    # The self agent whose run set ``beliefs_ns``: its next write at that time shares the
-    # instant, any other run at or before it comes 1 ns later (0015).
-    Column("beliefs_self", Text, nullable=True),
     # Bumped by any write to ``agents`` (trigger): stores re-read their agents (0012).
     Column("agents_version", BigInteger, nullable=False, server_default=text("0")),
     # The self agent whose perception ``belief_perceived`` keeps, NULL: none (it ends with the

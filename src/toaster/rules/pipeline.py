@@ -64,24 +64,48 @@ RUNS = (
     "AND EXISTS (SELECT 1 FROM agents WHERE NOT is_self) "
     "AND EXISTS (SELECT 1 FROM belief_changed)"
 )
-#: A run that applies first moves the rules' clock (``store_state.beliefs_ns``) to its time
-#: unless it is behind: a robot or producer whose clock lags another's (or a late SQL writer)
-#: never writes a holder's row before one already written (the store also writes the self
-#: agents' own facts at the clock's time: Store._writes). A run at the clock's time whose
-#: self agent set it (``beliefs_self``) shares its instant: one robot's writes at one time
-#: reach the holders at that time. Any other run at or behind the clock takes the instant
-#: after it: two robots' runs, or a late robot's runs of different times, never share an
-#: instant (they could take a holder's key in and out at one time; revision 0015). The run
-#: then takes the clock's time (:data:`CLOCK_NS`). On PostgreSQL the update's row lock also
-#: serializes the runs of concurrent writers: each sees the rows of the runs committed
-#: before it.
-CLOCK = (
-    "UPDATE store_state SET beliefs_ns = CASE "
-    "WHEN beliefs_ns IS NULL OR NEW.t_ns > beliefs_ns THEN NEW.t_ns "
-    "WHEN NEW.t_ns = beliefs_ns AND beliefs_self = NEW.self_id THEN beliefs_ns "
-    "ELSE beliefs_ns + 1 END, beliefs_self = NEW.self_id WHERE id = 1"
+#: Whom a robot's run may change (revision 0028): the holders whose chain's agents its facts
+#: name (subject or target of one of its keys) or which act in its changes (a holder perceives
+#: only what its agents perceive in the run's self facts, and an actor its own changes), and
+#: the holders following one of its changed keys. The runs of robots whose people never meet
+#: change disjoint sets: each takes its own holders' clocks (below) and never waits for the
+#: other's; runs that share a holder take turns on its clock.
+_NAMED = (
+    "({m} IN (SELECT actor_id FROM belief_changed WHERE actor_id IS NOT NULL) "
+    "OR EXISTS (SELECT 1 FROM fact_keys k WHERE k.subject_id = {m} AND k.agent_id = NEW.self_id) "
+    "OR EXISTS (SELECT 1 FROM fact_keys k WHERE k.target_id = {m} AND k.agent_id = NEW.self_id))"
 )
-CLOCK_NS = "(SELECT beliefs_ns FROM store_state WHERE id = 1)"
+MINE = (
+    "SELECT h.id FROM holders h WHERE (h.depth = 1 AND "
+    + _NAMED.format(m="h.id")
+    + ") OR (h.depth >= 2 AND NOT EXISTS (SELECT 1 FROM belief_chain c "
+    "WHERE c.holder_id = h.id AND NOT "
+    + _NAMED.format(m="c.member_id")
+    + ")) OR EXISTS (SELECT 1 FROM belief_changed b JOIN belief_follow w ON w.self_key = b.key_id "
+    "AND w.holder_id = h.id AND w.to_ns IS NULL)"
+)
+#: The rules' clock is per holder (``holders.clock_ns``, ``clock_self``; revision 0028, before
+#: it one row of ``store_state``). A run that applies first moves the clocks of its holders
+#: (:data:`MINE`, ``{mine}``: a condition on ``id``) to its time unless it is behind one of
+#: them: a robot or producer whose clock lags another's (or a late SQL writer) never writes a
+#: holder's row before one already written (the store also writes the self agents' own facts
+#: at the latest clock's time: Store._writes). A run at a holder's clock whose self agent set
+#: it (``clock_self``) shares its instant: one robot's writes at one time reach the holders at
+#: that time. Any other run at or behind a clock takes the instant after it: two robots' runs
+#: never share an instant of a holder (they could take its key in and out at one time;
+#: revision 0015). The run's time is the latest of its holders' so moved, and every one of
+#: them takes it (:data:`CLOCK_NS`: the clocks agree after :data:`CLOCK`). On PostgreSQL
+#: the run first locks its holders' rows, in the order of their ids: runs that share a holder
+#: take turns, and each sees the rows of the runs committed before it.
+CLOCK = (
+    "UPDATE holders SET clock_ns = CASE "
+    "WHEN clock_ns IS NULL OR NEW.t_ns > clock_ns THEN NEW.t_ns "
+    "WHEN NEW.t_ns = clock_ns AND clock_self = NEW.self_id THEN clock_ns "
+    "ELSE clock_ns + 1 END WHERE {mine}",
+    "UPDATE holders SET clock_ns = (SELECT MAX(x.clock_ns) FROM holders x WHERE x.{mine}), "
+    "clock_self = NEW.self_id WHERE {mine}",
+)
+CLOCK_NS = "COALESCE((SELECT MAX(x.clock_ns) FROM holders x WHERE x.{mine}), NEW.t_ns)"
 #: The agents (or the depth) changed since the nested holders were last registered, and
 #: somebody perceives something (a database where nobody does keeps only its real agents).
 NEW_AGENTS = (
@@ -116,8 +140,21 @@ STEADY = (
     f"AND NOT ({PERCEPTION_CHANGED}) "
     "AND NOT EXISTS (SELECT 1 FROM belief_changed WHERE actor_id IS NOT NULL)"
 )
-#: The groups were ended (by this run, or by a write since the last run).
-REGROUP = "{{groups_ended}}"
+#: No other robot (self agent) is registered: the groups of holders and the kept perception
+#: are one robot's, in ``store_state`` (revisions 0011, 0023). With several, each robot's run
+#: would end what another's formed (and write ``store_state``, which every run would then wait
+#: for): they keep neither, and their runs compute perception (revision 0028).
+ONE_ROBOT = "NOT EXISTS (SELECT 1 FROM agents WHERE is_self AND id <> NEW.self_id)"
+#: The groups were ended (by this run, or by a write since the last run), and one robot runs
+#: the rules.
+REGROUP = f"{{{{groups_ended}}}} AND {ONE_ROBOT}"
+#: A run that is not :data:`STEADY` ends the groups and the kept perception, if any are left
+#: (a database with several robots keeps none: its runs write no ``store_state``).
+ENDS_GROUPS = (
+    f"NOT ({STEADY}) AND NOT ({{{{groups_ended}}}} "
+    "AND (SELECT perceived_for FROM store_state WHERE id = 1) IS NULL "
+    "AND NOT EXISTS (SELECT 1 FROM belief_groups))"
+)
 NO_ACTOR = "NOT EXISTS (SELECT 1 FROM belief_changed WHERE actor_id IS NOT NULL)"
 #: The kept perception (``belief_perceived``, 21_remember) is this self agent's.
 KEPT = "COALESCE((SELECT perceived_for FROM store_state WHERE id = 1), '') = NEW.self_id"
@@ -137,9 +174,10 @@ REMEMBER = (
 )
 #: A run that changed perception keeps what it perceives after the tick (for every holder:
 #: the groups are ended), unless an actor perceived its own change there, or a perception
-#: fact starts or ends after the run's time.
+#: fact starts or ends after the run's time, or another robot runs the rules (:data:`ONE_ROBOT`).
 REMEMBER_AFTER = (
-    f"{NO_ACTOR} AND COALESCE({{{{perception_horizon(NEW.self_id)}}}}, NEW.t_ns) <= NEW.t_ns"
+    f"{NO_ACTOR} AND COALESCE({{{{perception_horizon(NEW.self_id)}}}}, NEW.t_ns) <= NEW.t_ns "
+    f"AND {ONE_ROBOT}"
 )
 #: Steady runs drop the settled keys (98_settle) from their changes, unless nested holders
 #: are still to be registered (NEW_AGENTS would run for them).
@@ -160,7 +198,7 @@ PIPELINE = Block(
             WORK,
             (
                 *_steps("10_focus", "12_moves", "13_late", "58_frozen"),
-                Block("not_steady", f"NOT ({STEADY})", _steps("15_ungroup")),
+                Block("not_steady", ENDS_GROUPS, _steps("15_ungroup")),
                 Block(
                     "remember",
                     REMEMBER,

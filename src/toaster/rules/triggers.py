@@ -42,6 +42,7 @@ from toaster.rules import sqltext
 from toaster.rules.pipeline import (
     CLOCK,
     CLOCK_NS,
+    MINE,
     PIPELINE,
     RUN_PARAMS,
     Block,
@@ -123,8 +124,13 @@ def _pg_call(unit: str, args: str = "NEW.self_id, NEW.t_ns, NEW.recorded_ns") ->
 
 def _pg_block(block: Block) -> list[str]:
     body: list[str] = []
-    if block is PIPELINE:  # the run takes the rules' clock (see pipeline.CLOCK)
-        body += [sqltext.expand(CLOCK, "postgresql") + ";", f"NEW.t_ns := {CLOCK_NS};"]
+    if block is PIPELINE:  # the run locks its holders and takes their clock (pipeline.CLOCK)
+        mine = {"mine": "id = ANY(mine)"}
+        body += [
+            f"mine := ARRAY({MINE} ORDER BY h.id FOR NO KEY UPDATE);",
+            *[sqltext.expand(s.format(**mine), "postgresql") + ";" for s in CLOCK],
+            f"NEW.t_ns := {CLOCK_NS.format(**mine)};",
+        ]
     for part in block.body:
         body += _pg_block(part) if isinstance(part, Block) else _pg_call(unit_name(part))
     if block.condition is None:
@@ -169,6 +175,7 @@ def _pg_pipeline() -> dict[str, list[str]]:
             *_pg_block(PIPELINE),
             *_pg_call("99_clear", ""),
         ],
+        declare="DECLARE mine text[];\n",  # the run's holders (pipeline.MINE)
     )
     return {
         "create": [
@@ -274,8 +281,11 @@ def _sqlite_enter(block: Block) -> str:
     t_ns = "NEW.t_ns"
     clock = ""
     if block is PIPELINE:
-        clock = f"{sqltext.expand(CLOCK, 'sqlite')} AND {condition};\n"
-        t_ns = CLOCK_NS
+        mine = {"mine": f"id IN ({MINE})"}
+        clock = "".join(
+            f"{sqltext.expand(s.format(**mine), 'sqlite')} AND {condition};\n" for s in CLOCK
+        )
+        t_ns = CLOCK_NS.format(**mine)
     return (
         f"{clock}INSERT INTO belief_steps (block, self_id, t_ns, recorded_ns) SELECT "
         f"'{block.name}', NEW.self_id, {t_ns}, NEW.recorded_ns WHERE {condition};"

@@ -10,6 +10,7 @@ from __future__ import annotations
 from toaster.db.dialects.base import (
     GUARD_MESSAGE,
     GUARDED_TABLES,
+    LATEST_CLOCK,
     Backend,
     Key,
     insert_with_conflicts,
@@ -18,6 +19,7 @@ from toaster.db.dialects.base import (
 __all__ = [
     "GUARDED_TABLES",
     "GUARD_MESSAGE",
+    "LATEST_CLOCK",
     "Backend",
     "Key",
     "backend_for",

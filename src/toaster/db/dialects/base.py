@@ -22,8 +22,22 @@ _T = TypeVar("_T")
 #: A statement's result, read when called: inside :meth:`Backend.batch` the statement is only
 #: queued, so call it after the batch (PostgreSQL: calling it inside waits for the server).
 Later: TypeAlias = Callable[[], _T]
-#: The rules' clock as a write transaction found it: ``(beliefs_ns, beliefs_self)``.
+#: The rules' clock as a write transaction found it: ``(clock_ns, clock_self)``.
 Clock = tuple[int | None, str | None]
+#: The latest clock of the holders the facts of the self agent ``:agent`` name (revision 0028:
+#: a clock per holder), read without a lock: a snapshot stamps its rows there when it is a
+#: little behind (Store._writes); its run takes its own holders' clocks
+#: (toaster.rules.pipeline.CLOCK) and waits only for the runs that share one of them. (A
+#: nested holder's clock is never ahead of all its agents': the runs that move it move theirs.)
+#: None found (a robot's first snapshot: its keys name nobody yet): the store reads the clocks
+#: of the holders the snapshot's facts name (Store._writes).
+LATEST_CLOCK = (
+    "SELECT h.clock_ns, h.clock_self FROM holders h WHERE h.depth = 1 "
+    "AND h.clock_ns IS NOT NULL "
+    "AND (EXISTS (SELECT 1 FROM fact_keys k WHERE k.subject_id = h.id AND k.agent_id = :agent) "
+    "OR EXISTS (SELECT 1 FROM fact_keys k WHERE k.target_id = h.id AND k.agent_id = :agent)) "
+    "ORDER BY h.clock_ns DESC LIMIT 1"
+)
 
 
 #: Tables only toaster's store and rules write (the guard triggers of migration 0006 refuse
@@ -157,12 +171,12 @@ class Backend(Protocol):
         """Make the current transaction read-only, enforced by the database."""
 
     def begin_writes(
-        self, cur: Cursor, *, clock: bool = False, begin: bool = False
+        self, cur: Cursor, *, clock: str | None = None, begin: bool = False
     ) -> tuple[int, int, Clock | None]:
         """Open a store write: take the rules' writer role (the guard triggers of the
         internal tables let this transaction through) and return ``store_state``'s
-        ``(cache_epoch, agents_version, clock)``; with ``clock``, the rules' clock too,
-        locked until the transaction ends as the belief runs lock it (else None).
+        ``(cache_epoch, agents_version, clock)``; with ``clock`` (a self agent), the latest
+        clock of its holders too (:data:`LATEST_CLOCK`, not locked; else None).
         ``begin``: nothing was sent in the transaction yet, it may begin with this statement
         (call :meth:`after_writes` once it ended)."""
 

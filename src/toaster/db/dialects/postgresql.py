@@ -14,7 +14,7 @@ from collections.abc import Iterator
 from contextlib import AbstractContextManager, closing, contextmanager, nullcontext
 from typing import TYPE_CHECKING, Any
 
-from toaster.db.dialects.base import Clock, Cursor, Key, Later
+from toaster.db.dialects.base import LATEST_CLOCK, Clock, Cursor, Key, Later
 
 if TYPE_CHECKING:
     from sqlalchemy import Connection
@@ -246,18 +246,21 @@ class PostgreSQLBackend:
                 cur.execute("VACUUM " + ", ".join(f'pg_temp."{name}"' for name in names))
 
     def begin_writes(
-        self, cur: Cursor, *, clock: bool = False, begin: bool = False
+        self, cur: Cursor, *, clock: str | None = None, begin: bool = False
     ) -> tuple[int, int, Clock | None]:
         # A transaction-local setting: other sessions never see it; one round trip in all.
-        # The clock's row is locked as an UPDATE locks it, without writing a new version.
+        # The clocks are not locked here: the run locks its own holders' (pipeline.CLOCK).
         header = (
-            "SELECT cache_epoch, agents_version, set_config('toaster.writer', 'rules', true), "
+            "SELECT s.cache_epoch, s.agents_version, "
+            "set_config('toaster.writer', 'rules', true), "
             + (
-                "beliefs_ns, beliefs_self FROM store_state WHERE id = 1 FOR NO KEY UPDATE"
+                f"c.clock_ns, c.clock_self FROM store_state s LEFT JOIN "
+                f"({self.named(LATEST_CLOCK)}) c ON true WHERE s.id = 1"
                 if clock
-                else "NULL, NULL FROM store_state WHERE id = 1"
+                else "NULL, NULL FROM store_state s WHERE s.id = 1"
             )
         )
+        params = {"agent": clock} if clock else None
         raw: Any = cur.connection  # type: ignore[attr-defined]
         if begin and _pipelines() and not raw.autocommit and raw.info.transaction_status == _IDLE:
             # psycopg would send its own BEGIN and wait for it: sent with the header instead,
@@ -266,9 +269,9 @@ class PostgreSQLBackend:
             self._begun = raw
             with raw.pipeline():
                 raw.execute("BEGIN")
-                cur.execute(header)
+                cur.execute(header, params)
         else:
-            cur.execute(header)
+            cur.execute(header, params)
         epoch, agents, _, beliefs_ns, beliefs_self = cur.fetchone()
         return int(epoch), int(agents), (beliefs_ns, beliefs_self) if clock else None
 

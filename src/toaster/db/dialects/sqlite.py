@@ -11,7 +11,7 @@ from collections.abc import Iterator
 from contextlib import AbstractContextManager, nullcontext
 from typing import TYPE_CHECKING, Any
 
-from toaster.db.dialects.base import Clock, Cursor, Key, Later
+from toaster.db.dialects.base import LATEST_CLOCK, Clock, Cursor, Key, Later
 
 if TYPE_CHECKING:
     from sqlalchemy import Connection
@@ -218,16 +218,17 @@ class SQLiteBackend:
         cur.close()
 
     def begin_writes(
-        self, cur: Cursor, *, clock: bool = False, begin: bool = False
+        self, cur: Cursor, *, clock: str | None = None, begin: bool = False
     ) -> tuple[int, int, Clock | None]:
         # One writer at a time in SQLite: a row in rule_writer, deleted before the commit,
         # is seen only by this transaction (whose write lock also holds the clock).
         cur.execute("INSERT OR IGNORE INTO rule_writer (id, holder) VALUES (1, 'store')")
-        epoch, agents, beliefs_ns, beliefs_self = cur.execute(
-            "SELECT cache_epoch, agents_version, beliefs_ns, beliefs_self FROM store_state "
-            "WHERE id = 1"
+        epoch, agents, clock_ns, clock_self = cur.execute(
+            "SELECT s.cache_epoch, s.agents_version, c.clock_ns, c.clock_self FROM store_state s "
+            f"LEFT JOIN ({LATEST_CLOCK}) c ON 1 = 1 WHERE s.id = 1",
+            {"agent": clock or ""},
         ).fetchone()
-        return int(epoch), int(agents), (beliefs_ns, beliefs_self) if clock else None
+        return int(epoch), int(agents), (clock_ns, clock_self) if clock else None
 
     def end_writes(self, cur: Cursor) -> None:
         cur.execute("DELETE FROM rule_writer")

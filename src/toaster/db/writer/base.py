@@ -63,9 +63,10 @@ class WriterBase:
 
     # ------------------------------------------------------------------ transactions, caches
     @contextmanager
-    def transaction(self, *, clock: bool = False) -> Iterator[Connection]:
+    def transaction(self, *, clock: str | None = None) -> Iterator[Connection]:
         """One write transaction; store calls made inside it join it (all or nothing).
-        ``clock``: read (and lock) the rules' clock with the cache epoch, for a snapshot."""
+        ``clock`` (a self agent): read the latest clock of its holders with the cache epoch,
+        for a snapshot."""
         if self._in_tx:
             yield self.db.connection
             return
@@ -319,7 +320,7 @@ class WriterBase:
         written again from the start when it conflicts with a concurrent writer."""
         return self._retrying(write)
 
-    def _retrying(self, write: Callable[[Connection], _T], *, clock: bool = False) -> _T:
+    def _retrying(self, write: Callable[[Connection], _T], *, clock: str | None = None) -> _T:
         """``write(conn)`` in one transaction. Outermost, a conflict with a concurrent writer
         (a stale cache, a deadlock, a serialization failure, a unique key taken meanwhile)
         rolls it back and runs it again with fresh caches, a few times; inside a caller's
@@ -409,7 +410,7 @@ class WriterBase:
 
 def _lock_timed_out(db: Handle, exc: Exception) -> ToasterError | None:
     """The one-line error of a lock wait a raw cursor's statement gave up (PostgreSQL's
-    lock_timeout: the rules' clock, locked by the header, or a row another writer holds);
+    lock_timeout: the clock of a holder another robot's run holds, or another row);
     SQLAlchemy's statements get it from the engine's error handler."""
     if getattr(exc, "sqlstate", None) != "55P03":
         return None

@@ -24,10 +24,10 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
-from sqlalchemy import Connection, text
+from sqlalchemy import Connection, bindparam, text
 
 from toaster.db import catalog, tolerance
-from toaster.db.dialects import Key
+from toaster.db.dialects import LATEST_CLOCK, Key
 from toaster.db.tolerance import Tolerance
 from toaster.db.writer.changes import Actors, Rule, SyncResult, Writes, merged
 from toaster.db.writer.changes import ChangeSet as ChangeSet  # where callers found it
@@ -126,7 +126,7 @@ class Store(FactSteps):
             plan = self._plan(conn, source, agent_id, t_ns, given)
             return self._write_plans(conn, agent_id, [plan], exact=exact)[0]
 
-        return self._retrying(write, clock=self._may_clock(agent_id))
+        return self._retrying(write, clock=agent_id if self._may_clock(agent_id) else None)
 
     def _state(self, conn: Connection, source: str, agent_id: str) -> SourceState:
         state = self._sources.get((source, agent_id))
@@ -255,7 +255,10 @@ class Store(FactSteps):
         open interval, whoever wrote it (``plan.resolve``)."""
         key_ids, old = self._key_ids, plan.state.facts
         # Events in order: ended, changed, appeared.
-        writes = plan.writes = self._writes(conn, agent_id, plan.source, plan.t_ns, snapshot=True)
+        named = {x for _, f in (*plan.touched, *plan.gone) for x in (f.subject_id, f.target_id)}
+        writes = plan.writes = self._writes(
+            conn, agent_id, plan.source, plan.t_ns, snapshot=True, named=named
+        )
         for key, fact in plan.gone:
             writes.end(key_ids[(agent_id, key)], fact)
         if plan.trust_cache and plan.touched and self.agents().get(agent_id):
@@ -351,12 +354,20 @@ class Store(FactSteps):
         return bool(self._rules) and agent_id in agents and not all(agents.values())
 
     def _writes(
-        self, conn: Connection, agent_id: str, source: str, t_ns: int, *, snapshot: bool = False
+        self,
+        conn: Connection,
+        agent_id: str,
+        source: str,
+        t_ns: int,
+        *,
+        snapshot: bool = False,
+        named: set[str] | None = None,
     ) -> Writes:
         """The rows of one write of ``agent_id`` at ``t_ns``.
 
-        The belief runs follow the rules' clock (``store_state.beliefs_ns``, the last run's
-        time, and ``beliefs_self``, its self agent): a write at the time of its own robot's
+        The belief runs follow the rules' clocks (each holder's ``clock_ns``, its last run's
+        time, and ``clock_self``, its self agent; a snapshot reads the latest): a write at the
+        time of its own robot's
         last run shares that instant, any other run at or before the clock comes 1 ns after it
         (revision 0015: one robot's writes at one time reach the holders at that time, two
         robots' runs never share an instant). A ``snapshot`` behind the clock (before it, or
@@ -369,20 +380,26 @@ class Store(FactSteps):
         The sources of one :meth:`sync_many` (a tick) are written at one stamp, the latest any
         of them needs. Older snapshots (one source imported after another) and single writes
         (assert, retract, tell) keep their time: their runs happen at the clock's (or just
-        after). On PostgreSQL reading the clock locks it: such writes run one at a time
-        (their belief runs would anyway)."""
+        after). The clock is read without a lock: a run locks its own holders' clocks
+        (toaster.rules.pipeline.CLOCK), so that runs sharing no holder do not wait for each
+        other; a run whose holders' clocks moved meanwhile happens just after them."""
         given = t_ns
         if snapshot and self._in_tick and self._tick_ns is not None:
             t_ns = self._tick_ns  # a later source of the tick: the first one's stamp
         elif snapshot and self._clocked(agent_id):
-            clock, self._clock = self._clock, None  # read (and locked) as the write began
+            clock, self._clock = self._clock, None  # read as the write began
             if clock is None:
-                clock = conn.execute(
+                row = conn.execute(text(LATEST_CLOCK), {"agent": agent_id}).first()
+                clock = (row[0], row[1]) if row is not None else (None, None)
+            if clock[0] is None and named:  # its keys name nobody yet: the snapshot's people
+                row = conn.execute(
                     text(
-                        "UPDATE store_state SET beliefs_ns = beliefs_ns WHERE id = 1 "
-                        "RETURNING beliefs_ns, beliefs_self"
-                    )
-                ).one()
+                        "SELECT clock_ns, clock_self FROM holders WHERE depth = 1 "
+                        "AND clock_ns IS NOT NULL AND id IN :ids ORDER BY clock_ns DESC LIMIT 1"
+                    ).bindparams(bindparam("ids", expanding=True)),
+                    {"ids": sorted(named - {""})},
+                ).first()
+                clock = (row[0], row[1]) if row is not None else clock
             last, last_self = clock
             moved = max(
                 self._moved_to.get((agent_id, s), t_ns) for s in (*self._tick_sources, source)
@@ -425,7 +442,7 @@ class Store(FactSteps):
                 self._in_tick, self._tick_ns, self._tick_sources = False, None, ()
 
         with self.acting(actor, actors):
-            return self._retrying(write, clock=self._may_clock(agent_id))
+            return self._retrying(write, clock=agent_id if self._may_clock(agent_id) else None)
 
     # ------------------------------------------------------------------ single writes
     def assert_fact(
