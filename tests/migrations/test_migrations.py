@@ -316,6 +316,9 @@ RELEASED_FROZEN = {
     "0027/20_perceive_1_before.json": (
         "2be1797a0b5d0d4cfb570c0689fc97f5d48ff57733b85cf6e5e4b00596399851"
     ),
+    "0029_units.json": "b8fb10558fa4266c19be9df6535c0bd0073d32cb831231cb55954a8324a2cb5a",
+    "0029/20_perceive.json": "f377b44f44f9100d3e970bd78284d802fd03e48dc5f8ca48bd06e46a0c44ef23",
+    "0029/96_regroup.json": "dc3252688837890b592d71652a6b4aa25236bd986263990ea2457607681794fd",
 }
 
 
@@ -382,7 +385,7 @@ def _frozen_objects(backend: str, create: list[str]) -> set[str]:
 
 
 def _frozen_sets(backend: str) -> dict[str, set[str]]:
-    """What revisions 0015, 0016, 0018, 0019, 0023 and 0027 install (their frozen files, not
+    """What revisions 0015, 0016, 0018, 0019, 0023, 0027 and 0029 install (their frozen files, not
     the package's rendering)."""
     frozen = Path(toaster.__file__).parent / "migrations" / "frozen"
     whole = json.loads((frozen / "0015_triggers.json").read_text(encoding="utf-8"))
@@ -392,7 +395,7 @@ def _frozen_sets(backend: str) -> dict[str, set[str]]:
             revision: _frozen_objects(
                 backend, frozen_triggers.unit_statements(revision, backend, "create")
             )
-            for revision in ("0016", "0018", "0019", "0023", "0027")
+            for revision in ("0016", "0018", "0019", "0023", "0027", "0029")
         },
     }
 
@@ -548,5 +551,45 @@ def test_sqlite_runs_the_perception_step_as_one_trigger_with_the_same_rows(
     engine.dispose()
     with _another(empty_url, tmp_path) as other:
         before, after = _inbox_story(empty_url, "0025"), _inbox_story(other, "0027")
+    assert before == after
+    assert len(after[0]) > 30 and len({row[0] for row in after[0]}) > 3  # holders' rows too
+
+
+def test_sqlite_perceives_through_a_scratch_table_with_the_same_rows(
+    empty_url: str, tmp_path: Path
+) -> None:
+    """0027 <-> 0029 installs exactly each revision's frozen objects; at 0029 SQLite's
+    perception and regrouping statements read the self's perception facts from
+    ``belief_percepts`` (filled first, a statement of its own; empty after), PostgreSQL's
+    functions are 0027's, and a plain SQL client's writes give the same rows."""
+    engine = make_engine(empty_url)
+    expected = _frozen_sets(engine.dialect.name)
+    migrate.upgrade(engine, "0027")
+    assert _rule_objects(engine) == expected["0027"]
+    migrate.upgrade(engine, "0029")
+    assert _rule_objects(engine) == expected["0029"]
+    if engine.dialect.name == "sqlite":
+        with engine.connect() as conn:
+            reading = conn.exec_driver_sql(
+                "SELECT name FROM sqlite_master WHERE type = 'trigger' "
+                "AND sql LIKE '%INSERT INTO belief_percepts%FROM belief_percepts%'"
+            ).all()
+        assert sorted(name for (name,) in reading) == [
+            "belief_block_regroup",
+            "belief_step_20_perceive",
+        ]
+    else:
+        assert expected["0029"] == expected["0027"]
+    migrate.downgrade(engine, "0027")
+    assert _rule_objects(engine) == expected["0027"]
+    assert "belief_percepts" not in inspect(engine).get_table_names()
+    migrate.downgrade(engine, "base")
+    engine.dispose()
+    with _another(empty_url, tmp_path) as other:
+        before, after = _inbox_story(empty_url, "0027"), _inbox_story(other, "0029")
+        engine = make_engine(other)
+        with engine.connect() as conn:  # a scratch table: empty between runs
+            assert conn.exec_driver_sql("SELECT COUNT(*) FROM belief_percepts").scalar() == 0
+        engine.dispose()
     assert before == after
     assert len(after[0]) > 30 and len({row[0] for row in after[0]}) > 3  # holders' rows too
