@@ -49,7 +49,7 @@ NOT_PUBLISHED = {
     "belief_settled": "the rule's settled keys, kept with its perception",
     **dict.fromkeys(
         ("belief_changed", "belief_focus", "belief_seen", "belief_in", "belief_todo",
-         "belief_freeze", "belief_mat", "belief_new_chain"),
+         "belief_freeze", "belief_mat", "belief_new_chain", "belief_percepts"),
         "the rule's scratch tables, empty between runs",
     ),
 }  # fmt: skip

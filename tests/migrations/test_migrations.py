@@ -319,6 +319,9 @@ RELEASED_FROZEN = {
     "0028_units.json": "89e974e8d72034202c34c29a143bfa188d9101aa7959c1d4b56306529f394be3",
     "0028/holders.json": "94f3a32447e2bc6ef924be35084d0ddf9809017b2c1c0b56df3c4a020280f988",
     "0028/pipeline.json": "cae06bb17b23d46e239b4855951d997357d0030a36cbbcda25f15a15407dfdb7",
+    "0029_units.json": "a42f984607012b1aa8facb911375a878a5569fe01d0bc8473dffaecd75ab1c01",
+    "0029/20_perceive.json": "f377b44f44f9100d3e970bd78284d802fd03e48dc5f8ca48bd06e46a0c44ef23",
+    "0029/96_regroup.json": "dc3252688837890b592d71652a6b4aa25236bd986263990ea2457607681794fd",
 }
 
 
@@ -385,7 +388,7 @@ def _frozen_objects(backend: str, create: list[str]) -> set[str]:
 
 
 def _frozen_sets(backend: str) -> dict[str, set[str]]:
-    """What revisions 0015, 0016, 0018, 0019, 0023, 0027 and 0028 install (their frozen files, not
+    """What revisions 0015, 0016, 0018, 0019, 0023, 0027, 0028 and 0029 install (their frozen files, not
     the package's rendering)."""
     frozen = Path(toaster.__file__).parent / "migrations" / "frozen"
     whole = json.loads((frozen / "0015_triggers.json").read_text(encoding="utf-8"))
@@ -395,7 +398,7 @@ def _frozen_sets(backend: str) -> dict[str, set[str]]:
             revision: _frozen_objects(
                 backend, frozen_triggers.unit_statements(revision, backend, "create")
             )
-            for revision in ("0016", "0018", "0019", "0023", "0027", "0028")
+            for revision in ("0016", "0018", "0019", "0023", "0027", "0028", "0029")
         },
     }
 
@@ -561,6 +564,15 @@ def test_holder_clocks_take_over_the_one_clock_and_give_it_back(
     """0027 <-> 0028 installs exactly each revision's frozen objects and moves the rules' clock
     between ``store_state`` and the holders (the latest holder's clock when going back); a
     plain SQL client's writes give the same rows with either rule."""
+
+
+def test_sqlite_perceives_through_a_scratch_table_with_the_same_rows(
+    empty_url: str, tmp_path: Path
+) -> None:
+    """0027 <-> 0029 installs exactly each revision's frozen objects; at 0029 SQLite's
+    perception and regrouping statements read the self's perception facts from
+    ``belief_percepts`` (filled first, a statement of its own; empty after), PostgreSQL's
+    functions are 0027's, and a plain SQL client's writes give the same rows."""
     engine = make_engine(empty_url)
     expected = _frozen_sets(engine.dialect.name)
     migrate.upgrade(engine, "0027")
@@ -594,3 +606,31 @@ def test_holder_clocks_take_over_the_one_clock_and_give_it_back(
 
 def _columns(conn: Any, table: str) -> set[str]:
     return {column["name"] for column in inspect(conn).get_columns(table)}
+
+    migrate.upgrade(engine, "0029")
+    assert _rule_objects(engine) == expected["0029"]
+    if engine.dialect.name == "sqlite":
+        with engine.connect() as conn:
+            reading = conn.exec_driver_sql(
+                "SELECT name FROM sqlite_master WHERE type = 'trigger' "
+                "AND sql LIKE '%INSERT INTO belief_percepts%FROM belief_percepts%'"
+            ).all()
+        assert sorted(name for (name,) in reading) == [
+            "belief_block_regroup",
+            "belief_step_20_perceive",
+        ]
+    else:
+        assert expected["0029"] == expected["0028"]
+    migrate.downgrade(engine, "0027")
+    assert _rule_objects(engine) == expected["0027"]
+    assert "belief_percepts" not in inspect(engine).get_table_names()
+    migrate.downgrade(engine, "base")
+    engine.dispose()
+    with _another(empty_url, tmp_path) as other:
+        before, after = _inbox_story(empty_url, "0027"), _inbox_story(other, "0029")
+        engine = make_engine(other)
+        with engine.connect() as conn:  # a scratch table: empty between runs
+            assert conn.exec_driver_sql("SELECT COUNT(*) FROM belief_percepts").scalar() == 0
+        engine.dispose()
+    assert before == after
+    assert len(after[0]) > 30 and len({row[0] for row in after[0]}) > 3  # holders' rows too

@@ -437,6 +437,14 @@ belief_mat = Table(
     metadata,
     Column("follow_id", BigInteger, primary_key=True, autoincrement=False),
 )
+belief_percepts = Table(  # SQLite: 20_perceive's self perception facts, one pass (0029)
+    "belief_percepts",
+    metadata,
+    Column("subject_id", Text),
+    Column("property", Text),
+    Column("target_id", Text),
+    Column("confidence", Float),
+)
 belief_new_chain = Table(  # nested holders being registered (step holders)
     "belief_new_chain",
     metadata,

@@ -231,6 +231,19 @@ PERCEPTION = (
     "SELECT x.value FROM {{setting_pairs(attention)}} AS x",
     "SELECT {{setting_text(closed)}}",
 )
+#: 20_perceive's settings, as CTEs (its two statements on SQLite read them). Attention (setting
+#: attention: copresence property -> attention properties): being in the room is not enough,
+#: the holder must attend (a fact HOLDER P ENTITY, HOLDER P ROOM or a targetless HOLDER P, for
+#: one of the properties). No entry: copresence alone.
+PERCEPTION_SETTINGS = {
+    "perception_settings": (
+        "cfg_room(p) AS (SELECT value FROM {{setting_list(copresence)}}),\n"
+        "cfg_in(p) AS (SELECT value FROM {{setting_list(containment)}}),\n"
+        "cfg_vis(p, side) AS (SELECT key, value FROM {{setting_map(visibility)}}),\n"
+        "cfg_att(p, a) AS (SELECT x.key, x.value FROM {{setting_pairs(attention)}} AS x),\n"
+        "cfg_depth(d) AS (SELECT CAST({{setting(depth)}} AS INTEGER))"
+    ),
+}
 #: The kept perception (``belief_perceived``, ``belief_settled``) and the self agent it is of
 #: (``store_state.perceived_for``); it ends with the groups (below), and a run computes it again.
 KEPT = {
@@ -271,6 +284,7 @@ COMMON = {
     **SELF_HOLDS,
     **GROUPS,
     **KEPT,
+    **PERCEPTION_SETTINGS,
     # A beliefs setting as stored (JSON text), or its default.
     "setting": f"(SELECT value_json FROM belief_settings WHERE key = '{ARG}')",
     **FOLLOWED,

@@ -1,19 +1,21 @@
 -- Who perceives which entity at :t, for :phase 'around' (before or after the tick), 'before' or
 -- 'after'. :everything = 1 computes it for every located entity, else for belief_focus only.
+{{#sqlite}}
+-- SQLite first keeps the self's perception facts (sf, below) in a scratch table: it resolves a
+-- CTE again at each reference (sf's ~70, each reading the settings), which made this statement
+-- most of the compilation of a connection's first run (docs/beliefs.md).
+INSERT INTO belief_percepts (subject_id, property, target_id, confidence)
+WITH
+{{perception_settings}}
+{{/sqlite}}
+{{#postgresql}}
 INSERT INTO belief_seen (holder_id, entity_id, phase, pconf)
 WITH RECURSIVE
-cfg_room(p) AS (SELECT value FROM {{setting_list(copresence)}}),
-cfg_in(p) AS (SELECT value FROM {{setting_list(containment)}}),
-cfg_vis(p, side) AS (SELECT key, value FROM {{setting_map(visibility)}}),
--- Attention (setting attention: copresence property -> attention properties): being in the
--- room is not enough, the holder must attend (a fact HOLDER P ENTITY, HOLDER P ROOM or a
--- targetless HOLDER P, for one of the properties). No entry: copresence alone.
-cfg_att(p, a) AS (SELECT x.key, x.value FROM {{setting_pairs(attention)}} AS x),
-cfg_depth(d) AS (SELECT CAST({{setting(depth)}} AS INTEGER)),
+{{perception_settings}},
 -- The self's perception facts holding at :t for the phase. PostgreSQL reads them through a
 -- LATERAL subquery: one index range per perception key, whatever the history (the plan
 -- differs; the rows are the same as SQLite's join).
-sf(s, p, tg, c) AS (
+sf(s, p, tg, c) AS ({{/postgresql}}
   SELECT k.subject_id, k.property, k.target_id, f.confidence
   FROM fact_keys k
 {{#sqlite}}
@@ -32,7 +34,12 @@ sf(s, p, tg, c) AS (
 {{/postgresql}}
   WHERE k.agent_id = :self
     AND (k.property IN (SELECT p FROM cfg_room) OR k.property IN (SELECT p FROM cfg_in)
-         OR k.property IN (SELECT p FROM cfg_vis) OR k.property IN (SELECT a FROM cfg_att))
+         OR k.property IN (SELECT p FROM cfg_vis) OR k.property IN (SELECT a FROM cfg_att)){{#sqlite}};
+INSERT INTO belief_seen (holder_id, entity_id, phase, pconf)
+WITH RECURSIVE
+{{perception_settings}},
+sf(s, p, tg, c) AS (SELECT subject_id, property, target_id, confidence FROM belief_percepts
+{{/sqlite}}
 ),
 -- The holders whose perception is computed: not the members of a group (96_regroup), who
 -- perceive as its representative does.
@@ -108,6 +115,9 @@ SELECT cp.holder, cp.e, {{as_text(:phase)}}, MAX(cp.c)
 FROM cp JOIN chain_len n ON n.holder = cp.holder AND n.n = cp.pos
 WHERE cp.e IN (SELECT e FROM focus)
 GROUP BY cp.holder, cp.e
+{{#sqlite}};
+DELETE FROM belief_percepts
+{{/sqlite}}
 {{#postgresql}};
 -- Temporary tables get no statistics unless asked: without them the planner probed the
 -- index by entity alone in 35_freeze and filtered every holder (docs/beliefs.md).

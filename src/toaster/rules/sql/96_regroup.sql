@@ -7,6 +7,13 @@
 -- (pipeline.STEADY) the representative's perception and decisions are the members' (20_perceive
 -- skips the members, 32_expand and 35_freeze give them the representative's changes).
 -- Settings with group_holders = false keep no groups.
+{{#sqlite}}
+-- SQLite first keeps the self's open perception facts (sf) in a scratch table, as 20_perceive.
+INSERT INTO belief_percepts (subject_id, property, target_id, confidence)
+WITH
+{{perception_settings}}
+{{/sqlite}}
+{{#postgresql}}
 INSERT INTO belief_groups (holder_id, rep_id)
 WITH RECURSIVE
 cfg_room(p) AS (SELECT value FROM {{setting_list(copresence)}}),
@@ -14,12 +21,17 @@ cfg_in(p) AS (SELECT value FROM {{setting_list(containment)}}),
 cfg_vis(p, side) AS (SELECT key, value FROM {{setting_map(visibility)}}),
 cfg_att(p) AS (SELECT x.key FROM {{setting_pairs(attention)}} AS x),
 cfg_depth(d) AS (SELECT CAST({{setting(depth)}} AS INTEGER)),
-sf(s, p, tg, c) AS (
+sf(s, p, tg, c) AS ({{/postgresql}}
   SELECT k.subject_id, k.property, k.target_id, f.confidence
   FROM fact_keys k JOIN facts f {{open_fact}} ON f.key_id = k.id AND f.valid_to_ns IS NULL
   WHERE k.agent_id = :self AND f.value_text NOT IN ('false', 'False', 'FALSE', '0')
     AND (k.property IN (SELECT p FROM cfg_room) OR k.property IN (SELECT p FROM cfg_in)
-         OR k.property IN (SELECT p FROM cfg_vis))
+         OR k.property IN (SELECT p FROM cfg_vis)){{#sqlite}};
+INSERT INTO belief_groups (holder_id, rep_id)
+WITH RECURSIVE
+{{perception_settings}},
+sf(s, p, tg, c) AS (SELECT subject_id, property, target_id, confidence FROM belief_percepts
+{{/sqlite}}
 ),
 members(m) AS (SELECT id FROM agents WHERE NOT is_self),
 up(e, cur) AS (
@@ -71,4 +83,7 @@ alike(holder, rep) AS (
 SELECT holder, rep FROM alike
 WHERE {{setting(group_holders)}} = 'true'
   AND rep IN (SELECT rep FROM alike WHERE holder <> rep);
+{{#sqlite}}
+DELETE FROM belief_percepts;
+{{/sqlite}}
 UPDATE store_state SET groups_for = :self WHERE id = 1
