@@ -564,15 +564,6 @@ def test_holder_clocks_take_over_the_one_clock_and_give_it_back(
     """0027 <-> 0028 installs exactly each revision's frozen objects and moves the rules' clock
     between ``store_state`` and the holders (the latest holder's clock when going back); a
     plain SQL client's writes give the same rows with either rule."""
-
-
-def test_sqlite_perceives_through_a_scratch_table_with_the_same_rows(
-    empty_url: str, tmp_path: Path
-) -> None:
-    """0027 <-> 0029 installs exactly each revision's frozen objects; at 0029 SQLite's
-    perception and regrouping statements read the self's perception facts from
-    ``belief_percepts`` (filled first, a statement of its own; empty after), PostgreSQL's
-    functions are 0027's, and a plain SQL client's writes give the same rows."""
     engine = make_engine(empty_url)
     expected = _frozen_sets(engine.dialect.name)
     migrate.upgrade(engine, "0027")
@@ -607,6 +598,18 @@ def test_sqlite_perceives_through_a_scratch_table_with_the_same_rows(
 def _columns(conn: Any, table: str) -> set[str]:
     return {column["name"] for column in inspect(conn).get_columns(table)}
 
+
+def test_sqlite_perceives_through_a_scratch_table_with_the_same_rows(
+    empty_url: str, tmp_path: Path
+) -> None:
+    """0027 <-> 0029 installs exactly each revision's frozen objects; at 0029 SQLite's
+    perception and regrouping statements read the self's perception facts from
+    ``belief_percepts`` (filled first, a statement of its own; empty after), PostgreSQL's
+    functions are 0028's, and a plain SQL client's writes give the same rows."""
+    engine = make_engine(empty_url)
+    expected = _frozen_sets(engine.dialect.name)
+    migrate.upgrade(engine, "0027")
+    assert _rule_objects(engine) == expected["0027"]
     migrate.upgrade(engine, "0029")
     assert _rule_objects(engine) == expected["0029"]
     if engine.dialect.name == "sqlite":
