@@ -316,6 +316,8 @@ RELEASED_FROZEN = {
     "0027/20_perceive_1_before.json": (
         "2be1797a0b5d0d4cfb570c0689fc97f5d48ff57733b85cf6e5e4b00596399851"
     ),
+    "0030_units.json": "1780570bc8fe43c55eb70bede3cdde2a5b9daffa7bf133cabc82684b46f0b75e",
+    "0030/inbox.json": "260ffefd8d7e3ef1a849df2588cf323ddae1bd15afffd75833703a350687ff86",
 }
 
 
