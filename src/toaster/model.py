@@ -198,6 +198,12 @@ class PropertyRow(NamedTuple):
 #: characters, 64 emoji. PostgreSQL's btree index rows hold at most 2704 bytes, and the
 #: widest index, a fact key of a nested holder ``A>B>C>D`` (depth 4), takes 10 ids.
 MAX_ID_BYTES = 256
+#: The characters ``str.isspace`` finds (an id made only of them is refused; the database's
+#: inbox check lists them too: ``rules.sqltext``).
+SPACES = (
+    "\t\n\x0b\x0c\r\x1c\x1d\x1e\x1f \x85\xa0\u1680\u2000\u2001\u2002\u2003\u2004\u2005"
+    "\u2006\u2007\u2008\u2009\u200a\u2028\u2029\u202f\u205f\u3000"
+)
 #: Coordinates (metres) beyond this are refused in files: a world of 2000 km across is plenty.
 MAX_COORD = 1e6
 _SURROGATE = re.compile("[\ud800-\udfff]")

@@ -26,7 +26,9 @@ from toaster.beliefs import api
 from toaster.db import migrate
 from toaster.db.engine import make_engine
 from toaster.db.invariants import violations
-from toaster.errors import TimeOrderError
+from toaster.errors import InvalidInputError, TimeOrderError
+from toaster.model import MAX_ID_BYTES, SPACES, check_id
+from toaster.rules.sqltext import INBOX_IDS
 
 pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
 
@@ -392,3 +394,56 @@ def test_a_write_inside_a_closed_interval_is_refused(db: toaster.Database) -> No
     store.assert_fact("ROBOT", cup, t_ns=10, strict=False)  # from its end on: fine
     with db.transaction() as conn:
         assert violations(conn) == []
+
+
+def test_the_inbox_lists_the_spaces_python_finds() -> None:
+    assert "".join(c for c in map(chr, range(0x110000)) if c.isspace()) == SPACES
+
+
+BAD_IDS = ["   ", "\u3000\t\u00a0", "x" * (MAX_ID_BYTES + 1), "\u00e9" * (MAX_ID_BYTES // 2 + 1)]
+GOOD_IDS = ["x" * MAX_ID_BYTES, "\u00e9" * (MAX_ID_BYTES // 2), " a ", "\u3000a"]
+
+
+def test_inbox_ids_are_checked_as_the_library_checks_them(db: toaster.Database) -> None:
+    """An id an SQL client writes through the inbox passes the check the library's writes
+    pass (``model.check_id``): refused in one line naming the field, nothing written."""
+    _setup(db)
+    bad = BAD_IDS + (["a\x00b"] if db.backend.name == "sqlite" else [])  # PostgreSQL: no NUL
+    for value in bad:
+        with pytest.raises(InvalidInputError):
+            check_id(value, "id")
+    for value in GOOD_IDS:
+        check_id(value, "id")
+    before = snapshot(db.url)
+    engine = make_engine(db.url)
+    try:
+        for t, (field, value) in enumerate(
+            [(field, value) for field in INBOX_IDS for value in bad], start=10
+        ):
+            row = {"action": "assert", "agent_id": "ROBOT", "subject_id": "CUP"}
+            row |= {"property": "IsOn", "t_ns": t, field: value}
+            with pytest.raises(sa.exc.DBAPIError) as info, engine.begin() as conn:
+                conn.execute(
+                    sa.text(
+                        f"INSERT INTO fact_inbox ({', '.join(row)}) "
+                        f"VALUES ({', '.join(':' + c for c in row)})"
+                    ),
+                    row,
+                )
+            error = str(info.value.orig).strip().splitlines()[0]
+            assert error.startswith(f"fact_inbox: invalid {field}"), (field, value, error)
+        assert snapshot(db.url) == before
+        for t, value in enumerate(GOOD_IDS, start=100):
+            row = {"action": "assert", "agent_id": "ROBOT", "subject_id": value}
+            row |= {"property": "IsOn", "target_id": value, "t_ns": t}
+            with engine.begin() as conn:
+                conn.execute(
+                    sa.text(
+                        f"INSERT INTO fact_inbox ({', '.join(row)}) "
+                        f"VALUES ({', '.join(':' + c for c in row)})"
+                    ),
+                    row,
+                )
+    finally:
+        engine.dispose()
+    assert {r.subject_id for r in q.current_facts(db)} >= set(GOOD_IDS)

@@ -25,6 +25,8 @@ import functools
 import re
 from importlib import resources
 
+from toaster.model import MAX_ID_BYTES, SPACES
+
 #: The steps of the rule, in order (see :class:`toaster.rules.hook.BeliefRule` for when each
 #: one runs).
 STEPS = (
@@ -197,6 +199,57 @@ INBOX = {
         )
     ),
 }
+
+#: The id fields of an inbox row that a write stores (checked as ``model.check_id`` checks
+#: ids; agent_id and actor_id must name registered agents already).
+INBOX_IDS = (
+    "subject_id",
+    "property",
+    "target_id",
+    "sub_property",
+    "subject_owner_id",
+    "target_owner_id",
+)
+_BAD_ID = (
+    "NEW.action <> 'retract' AND NEW.{c} IS NOT NULL AND NEW.{c} <> '' AND "
+    "({trim}(NEW.{c}, {spaces}) = '' OR {size} > " + str(MAX_ID_BYTES) + "{nul})"
+)
+_ID_RULE = (
+    "ids must not be only spaces, hold NUL or be over " + str(MAX_ID_BYTES) + " bytes of UTF-8"
+)
+_ID_FIX = "give a shorter id or one with a visible character"
+#: One check per id field (template ``inbox``), each naming its field (and, on PostgreSQL,
+#: the value): the rule of ``model.check_id``.
+INBOX_ID_CHECKS = {
+    "sqlite": "\n".join(
+        f"SELECT RAISE(ABORT, 'fact_inbox: invalid {c}: {_ID_RULE}: {_ID_FIX}') WHERE "
+        + _BAD_ID.format(
+            c=c,
+            trim="TRIM",
+            spaces="char(" + ",".join(str(ord(ch)) for ch in SPACES) + ")",
+            size=f"LENGTH(CAST(NEW.{c} AS BLOB))",
+            nul=f" OR INSTR(CAST(NEW.{c} AS BLOB), x'00') > 0",
+        )
+        + ";"
+        for c in INBOX_IDS
+    ),
+    "postgresql": "\n".join(
+        "IF "
+        + _BAD_ID.format(
+            c=c,
+            trim="BTRIM",
+            spaces="||".join(f"chr({ord(ch)})" for ch in SPACES),
+            size=f"OCTET_LENGTH(NEW.{c})",
+            nul="",  # PostgreSQL's text holds no NUL
+        )
+        + f" THEN\n  RAISE EXCEPTION 'fact_inbox: invalid {c} %L: {_ID_RULE}: {_ID_FIX}', "
+        f"NEW.{c};\nEND IF;"
+        for c in INBOX_IDS
+    ),
+}
+
+for _backend, _checks in INBOX_ID_CHECKS.items():
+    MACROS[_backend]["inbox_id_checks"] = _checks
 
 #: The nested holders (templates ``holders`` / ``holders_seen``): the agents and depth they
 #: were registered for.

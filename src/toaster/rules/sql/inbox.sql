@@ -50,6 +50,8 @@ IF NEW.action = 'assert' AND {{inbox_later}} THEN
   RAISE EXCEPTION 'fact_inbox: the % fact already changed after t_ns % (its last interval starts or ends later): write each fact in time order', NEW.property, NEW.t_ns;
 END IF;
 {{/postgresql}}
+-- Ids a write stores are checked as the library checks them (model.check_id).
+{{inbox_id_checks}}
 -- A write to an agent that is not self first turns the rows it shares with the self into its
 -- own (Store._resolve / retract_facts detach): 95_materialize over these periods.
 INSERT INTO belief_mat (follow_id)
