@@ -5,8 +5,9 @@
 Plain CDR (XCDR1), as ROS 2 writes it: a 4-byte encapsulation (``00 01`` little endian,
 ``00 00`` big endian, two option bytes), then each field aligned to its size (8 for float64 and
 uint64) counted from the end of the encapsulation; strings are a uint32 length with the NUL,
-sequences a uint32 count. ``tests/ros2/test_wire.py`` checks these bytes against cyclonedds'
-and rosbags' codecs.
+sequences a uint32 count. Fact lists are laid out from the tick's arrays (:class:`FactListCdr`,
+the ROS 1 writer's columns: ~2 ms per 100 facts through one dict per fact before).
+``tests/ros2/test_wire.py`` checks these bytes against cyclonedds' and rosbags' codecs.
 """
 
 from __future__ import annotations
@@ -17,6 +18,9 @@ from typing import Any
 
 import numpy as np
 
+from toaster.model import Fact
+from toaster.ros1.wire import Columns, FactListWriter, Pieces, _assemble
+from toaster.world.factmsg import fact_fields
 from toaster.world.tftree import Edges
 
 CDR_LE = b"\x00\x01\x00\x00"
@@ -59,6 +63,70 @@ def fact_list_bytes(items: Iterable[Mapping[str, Any]]) -> bytes:
                 out += b"\x00" * (-(len(out) - 4) % size)
                 out += struct.pack(fmt, value)
     return bytes(out)
+
+
+#: a Fact's valueType, then up to 7 bytes of padding, factObservability and doubleValue
+_MIDDLE = np.dtype([("vt", "u1"), ("pad", "u1", 7), ("obs", "<f8"), ("num", "<f8")])
+#: up to 8 bytes of padding, then confidence, time, timeStart, timeEnd
+_TAIL = np.dtype([("pad", "u1", 8), ("conf", "<f8"), ("t", "<u8"), ("t0", "<u8"), ("t1", "<u8")])
+_U32 = struct.Struct("<I")
+
+
+class CdrPieces(Pieces):
+    """CDR strings (a uint32 length counting the NUL, UTF-8, NUL), each padded to 4 bytes;
+    :attr:`unpadded` their lengths without the padding."""
+
+    def __init__(self, texts: Iterable[str] = ()) -> None:
+        self.unpadded: list[int] = []
+        super().__init__(list(texts))
+
+    def encode(self, text: str) -> bytes:
+        data = text.encode("utf-8") + b"\x00"
+        self.unpadded.append(4 + len(data))
+        return _U32.pack(len(data)) + data + b"\x00" * (-len(data) % 4)
+
+
+class FactListCdr(FactListWriter):
+    """toaster_msgs/FactList CDR bytes of a producer's facts, from a batch's arrays (the ROS 1
+    writer's :class:`~toaster.ros1.wire.Columns` laid out as CDR): what
+    :func:`fact_list_bytes` writes of their :func:`fact_fields`.
+
+    Every Fact ends 8-aligned (timeEnd, a uint64), so each one after the first starts at an
+    8-aligned offset and the first at 4 (after the count): a fact's padding depends only on its
+    own strings. A string is followed by another string (padded pieces), by valueType (the
+    7th, unpadded), or by 8-aligned fields (stringValue, unpadded, then 0-7 zero bytes)."""
+
+    pieces = CdrPieces
+
+    def _write_list(self, facts: list[Fact], t_ns: int) -> bytes:
+        return fact_list_bytes(fact_fields(f, t_ns) for f in facts)
+
+    def _layout(self, c: Columns, n: int, t_ns: int) -> bytes:
+        ids, consts, piece = c.ids, c.consts, c.piece
+        assert isinstance(ids, CdrPieces)
+        assert isinstance(consts, CdrPieces)
+        offsets = np.array(ids.offsets + [ids.size + o for o in consts.offsets], np.int64)
+        padded = np.array(ids.lengths + consts.lengths, np.int64)
+        unpadded = np.array(ids.unpadded + consts.unpadded, np.int64)
+        start = np.zeros(n, np.int64)
+        start[0] = 4
+        before_vt = start + sum(padded[p] for p in piece[:6]) + unpadded[piece[6]]
+        pad_mid = -(before_vt + 1) % 8
+        pad_tail = -unpadded[piece[7]] % 8  # stringValue starts 8-aligned
+        middle = np.zeros(n, _MIDDLE)
+        middle["vt"], middle["obs"], middle["num"] = c.vt, c.obs, c.num
+        tail = np.zeros(n, _TAIL)
+        tail["conf"], tail["t"], tail["t0"], tail["t1"] = c.conf, t_ns, t_ns, 0
+        at_mid = ids.size + consts.size + np.arange(n, dtype=np.int64) * _MIDDLE.itemsize
+        at_tail = at_mid[-1] + _MIDDLE.itemsize + np.arange(n, dtype=np.int64) * _TAIL.itemsize
+        segments = [(offsets[p], padded[p]) for p in piece[:6]]
+        segments.append((offsets[piece[6]], unpadded[piece[6]]))
+        segments.append((at_mid, np.ones(n, np.int64)))
+        segments.append((at_mid + 8 - pad_mid, pad_mid + 16))
+        segments.append((offsets[piece[7]], unpadded[piece[7]]))
+        segments.append((at_tail + 8 - pad_tail, pad_tail + 32))
+        sources = [ids.blob(), consts.blob(), middle.tobytes(), tail.tobytes()]
+        return CDR_LE + _assemble(n, sources, segments)
 
 
 def read_tf(data: bytes) -> Edges:
