@@ -264,3 +264,51 @@ def test_a_crowd_s_fact_lists_from_arrays_are_the_codecs_bytes(types: Any) -> No
         items = [fact_fields(f, t) for f in facts[name]]
         want = types.build("toaster_msgs/msg/FactList", {"factList": items}).serialize()
         assert writer.write(facts.raw(name), t) == want, name
+
+
+def test_a_tf_stream_is_read_with_its_layout_kept(rosbags_store: Any) -> None:
+    """toaster.ros2.cdr.TfReader: messages laid out alike (a stream) are read from the kept
+    layout, a message laid out otherwise (other frames, a longer name, big endian) anew; each
+    one as read_tf reads it."""
+    import numpy as np
+
+    from toaster.ros2.cdr import TfReader, read_tf
+
+    types = rosbags_store.types
+    rng = np.random.default_rng(5)
+
+    def message(frames: list[str], little: bool = True) -> bytes:
+        msg = types["tf2_msgs/msg/TFMessage"](
+            transforms=[
+                types["geometry_msgs/msg/TransformStamped"](
+                    header=types["std_msgs/msg/Header"](
+                        stamp=types["builtin_interfaces/msg/Time"](
+                            sec=int(rng.integers(0, 2**31)), nanosec=int(rng.integers(0, 10**9))
+                        ),
+                        frame_id="map",
+                    ),
+                    child_frame_id=child,
+                    transform=types["geometry_msgs/msg/Transform"](
+                        translation=types["geometry_msgs/msg/Vector3"](*rng.normal(size=3)),
+                        rotation=types["geometry_msgs/msg/Quaternion"](*rng.normal(size=4)),
+                    ),
+                )
+                for child in frames
+            ]
+        )
+        return bytes(
+            rosbags_store.serialize_cdr(msg, "tf2_msgs/msg/TFMessage", little_endian=little)
+        )
+
+    reader = TfReader()
+    streams = [["a", "bb", "ccc"]] * 3 + [["a", "bb", "ccd"], ["a", "bbb", "cc"], ["x"] * 5]
+    for frames in [*streams, ["a", "bb", "ccc"]]:
+        for little in (True, True, False):
+            data = message(frames, little)
+            got, want = reader.read(data), read_tf(data)
+            assert got.children == want.children == frames
+            assert got.parents == want.parents
+            assert got.stamps.tolist() == want.stamps.tolist()
+            assert got.t.tolist() == want.t.tolist()
+            assert got.q.tolist() == want.q.tolist()
+    assert reader.read(message([])).children == []
