@@ -6,7 +6,8 @@ Plain CDR (XCDR1), as ROS 2 writes it: a 4-byte encapsulation (``00 01`` little 
 ``00 00`` big endian, two option bytes), then each field aligned to its size (8 for float64 and
 uint64) counted from the end of the encapsulation; strings are a uint32 length with the NUL,
 sequences a uint32 count. Fact lists are laid out from the tick's arrays (:class:`FactListCdr`,
-the ROS 1 writer's columns: ~2 ms per 100 facts through one dict per fact before).
+the ROS 1 writer's columns: ~2 ms per 100 facts through one dict per fact before); a /tf stream
+is read with its layout kept (:class:`TfReader`).
 ``tests/ros2/test_wire.py`` checks these bytes against cyclonedds' and rosbags' codecs.
 """
 
