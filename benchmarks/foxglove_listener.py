@@ -12,6 +12,7 @@ receive wall ns]], as live_client.py's.
 from __future__ import annotations
 
 import json
+import signal
 import struct
 import sys
 import time
@@ -29,11 +30,15 @@ def main() -> None:
     inside_now: set[str] = set()
     subscription = None
     end = time.monotonic() + seconds
-    while (left := end - time.monotonic()) > 0:
+    # SIGINT only sets a flag: raised inside websockets' recv it could be swallowed there (a
+    # listener that never stopped: bench_live's communicate timed out)
+    stopped: list[int] = []
+    signal.signal(signal.SIGINT, lambda *_: stopped.append(1))
+    while not stopped and (left := end - time.monotonic()) > 0:
         try:
-            frame = ws.recv(timeout=left)
-        except (TimeoutError, KeyboardInterrupt):
-            break
+            frame = ws.recv(timeout=min(left, 0.2))
+        except TimeoutError:
+            continue
         now = time.time_ns()
         if isinstance(frame, str):
             msg = json.loads(frame)

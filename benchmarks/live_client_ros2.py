@@ -1,4 +1,4 @@
-"""The external side of bench_live_ros2.py: live_client.py's scene (H humans with head and right
+"""The external side of `bench_live.py --ros2`: live_client.py's scene (H humans with head and right
 hand, N objects, /tf at 30 Hz, each human into and out of its zone once a second) published as
 a ROS 2 node does, over DDS with cyclonedds (no toaster, no ROS 2 install), listening to
 /area_manager/factList (reliable, depth 10 as rclcpp's default).

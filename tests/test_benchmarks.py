@@ -1,7 +1,8 @@
 """Every benchmark of ``benchmarks/`` runs its ``--quick`` mode (small sizes, one run) on each
 backend it takes, as a subprocess, so that the benchmarks cannot rot: it must exit 0 and print
 its table. Figures are not checked (a loaded machine gives any). bench_soak.py's quick run is
-tests/ros1/test_bench_soak.py; bench_live.py and bench_live_ros2.py need ROS 1 (skip, or fail under CI, without)."""
+tests/ros1/test_bench_soak.py; bench_live.py needs ROS 1 (skip, or fail under CI, without), its
+``--ros2 --foxglove`` run also toaster[ros2] and toaster[foxglove] with websockets."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ import pytest
 
 from tests.conftest import PG_URL, require_postgres
 from tests.ros1.conftest import require_ros
+from tests.ros2.conftest import require_cyclonedds
 
 pytestmark = pytest.mark.slow  # every test here runs a benchmark process for seconds
 
@@ -58,7 +60,12 @@ CASES = [
         ["--quick", "--only-pg", "--pg", PG_URL],
         r"path\s+humans\s+backend\s+changes",
     ),
-    ("bench_live_ros2.py", "", ["--quick"], r"path\s+humans\s+changes\s+db p50"),
+    (
+        "bench_live.py",
+        "",
+        ["--quick", "--no-pg", "--ros2", "--foxglove"],
+        r"ROS 2 FactList / ROS 1 FactList: p50 [\d.]+x",
+    ),
     ("bench_writers.py", "postgresql", ["--quick", "--pg", PG_URL], r"writers\s+database\s+p50"),
     ("bench_fresh.py", "sqlite", ["--quick", "--no-pg"], r"measure\s+backend\s+fresh ms"),
     (
@@ -86,8 +93,12 @@ CASES = [
 def test_quick_run_prints_its_table(
     script: str, backend: str, args: list[str], header: str
 ) -> None:
-    if script in ("bench_live.py", "bench_live_ros2.py"):
+    if script == "bench_live.py":
         require_ros()
+    if "--ros2" in args:
+        require_cyclonedds()
+        pytest.importorskip("foxglove")
+        pytest.importorskip("websockets")
     if backend == "postgresql":
         require_postgres()
     env = os.environ | {

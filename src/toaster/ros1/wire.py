@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -49,11 +49,15 @@ class Pieces:
         for text in texts:
             self.add(text)
 
+    def encode(self, text: str) -> bytes:
+        """One string's bytes on the wire (ROS 1: a uint32 length, then UTF-8)."""
+        return _piece(text)
+
     def add(self, text: str) -> int:
         """The index of ``text`` (added on first use)."""
         got = self._at.get(text)
         if got is None:
-            piece = _piece(text)
+            piece = self.encode(text)
             got = self._at[text] = len(self._parts)
             self._parts.append(piece)
             self.offsets.append(self.size)
@@ -85,9 +89,26 @@ def _assemble(
     return _U32.pack(count) + source[index].tobytes()
 
 
+class Columns(NamedTuple):
+    """A batch's toaster_msgs/Fact fields as arrays: the strings as pieces of ``ids`` (row i's
+    id is piece i) then ``consts`` (piece ``len(ids.offsets) + j``), ``piece`` the 8 string
+    fields' piece numbers (property .. targetOwnerId, then stringValue), the rest per fact."""
+
+    ids: Pieces
+    consts: Pieces
+    piece: list[np.ndarray]
+    vt: np.ndarray
+    obs: np.ndarray
+    num: np.ndarray
+    conf: np.ndarray
+
+
 class FactListWriter:
     """toaster_msgs/FactList bytes of a producer's facts, as genpy serialises
     ``FactList(factList=[Fact(**fact_fields(f, t_ns)) for f in facts])``."""
+
+    #: the string encoding (a subclass writes another wire format: toaster.ros2.cdr)
+    pieces: type[Pieces] = Pieces
 
     def __init__(self) -> None:
         self._ids: tuple[Any, int, Pieces] | None = None
@@ -95,20 +116,23 @@ class FactListWriter:
     def _id_pieces(self, world: Any) -> Pieces:
         """Every row's id, piece i for row i (cached until the world has more rows)."""
         if self._ids is None or self._ids[0] is not world or self._ids[1] != world.n:
-            self._ids = (world, world.n, Pieces(world.ids[: world.n]))
+            self._ids = (world, world.n, self.pieces(world.ids[: world.n]))
         return self._ids[2]
 
     def write(self, facts: FactBatch | Sequence[Fact], t_ns: int) -> bytes:
         """The message's bytes (a batch as arrays; a list of facts through fact_fields)."""
         if not isinstance(facts, FactBatch):
             return self._write_list(list(facts), t_ns)
-        batch = facts
-        if not batch.n:
-            return _U32.pack(0)
+        if not facts.n:
+            return self._write_list([], t_ns)
+        return self._layout(self.columns(facts), facts.n, t_ns)
+
+    def columns(self, batch: FactBatch) -> Columns:
+        """The fields of a non-empty batch's facts as arrays."""
         world = batch.world
         ids = self._id_pieces(world)
         row_piece = np.arange(world.n, dtype=np.int64)
-        consts = Pieces()
+        consts = self.pieces()
         base = len(ids.offsets)  # const pieces follow the id pieces
         empty = base + consts.add("")
         owner = world.owner[: world.n]
@@ -159,16 +183,20 @@ class FactListWriter:
             else:
                 num.append(np.zeros(m))
             conf.append(np.broadcast_to(np.asarray(g.conf, np.float64), (m,)))
-        n = batch.n
+        piece = [np.concatenate(c) for c in cols]
+        return Columns(ids, consts, piece, *(np.concatenate(x) for x in (vt, obs, num, conf)))
+
+    def _layout(self, c: Columns, n: int, t_ns: int) -> bytes:
+        """The ROS 1 message of ``n`` facts' columns."""
+        ids, consts, piece = c.ids, c.consts, c.piece
         middle = np.empty(n, _MIDDLE)
-        middle["vt"], middle["obs"], middle["num"] = (np.concatenate(x) for x in (vt, obs, num))
+        middle["vt"], middle["obs"], middle["num"] = c.vt, c.obs, c.num
         tail = np.empty(n, _TAIL)
-        tail["conf"], tail["t"], tail["t0"], tail["t1"] = np.concatenate(conf), t_ns, t_ns, 0
+        tail["conf"], tail["t"], tail["t0"], tail["t1"] = c.conf, t_ns, t_ns, 0
         offsets = np.array(ids.offsets + [ids.size + o for o in consts.offsets], np.int64)
         lengths = np.array(ids.lengths + consts.lengths, np.int64)
         start_mid = ids.size + consts.size
         start_tail = start_mid + n * _MIDDLE.itemsize
-        piece = [np.concatenate(c) for c in cols]
         segments = [(offsets[p], lengths[p]) for p in piece[:7]]
         step = np.arange(n, dtype=np.int64)
         segments.append((start_mid + step * _MIDDLE.itemsize, np.full(n, _MIDDLE.itemsize)))

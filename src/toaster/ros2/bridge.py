@@ -87,6 +87,7 @@ class Ros2Bridge:
         self._tracked_version = 0
         self._hri_key: tuple[int, int] = (-1, 0)
         self._hri_cache: dict[str, FrameTarget] = {}
+        self._tf_readers = {"/tf": cdr.TfReader(), "/tf_static": cdr.TfReader()}
         self._flush = _TfFlush(self)  # type: ignore[arg-type]  # duck-typed: flush_tf
         self._subscribe(toaster_simu)
         self.output = Ros2Output(self, publish_tf=publish_tf, draw=markers)
@@ -146,7 +147,7 @@ class Ros2Bridge:
     def _on_tf(self, data: bytes, topic: str) -> None:
         """Store the transforms (cyclonedds' receive thread); their frames' poses are worked
         out once per tick on the node's thread (:meth:`flush_tf`)."""
-        changed, bad = self.tree.update_edges(cdr.read_tf(data))
+        changed, bad = self.tree.update_edges(self._tf_readers[topic].read(data))
         for line in bad:
             self.drops.drop(topic, "transform", line)
         with self._tf_lock:

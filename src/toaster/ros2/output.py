@@ -1,8 +1,8 @@
 """What the ROS 2 bridge publishes each tick (:class:`Ros2Output`, a node output), as the ROS 1
 bridge's :class:`~toaster.ros1.tickout.TickOutput`: the fact lists every tick (as soon as the
-producers computed them; written as CDR bytes, :mod:`toaster.ros2.cdr`), and at 1/VIEW_EVERY
-of the ticks /tf, the markers and the area list; the status line when the node reports it.
-Messages are built only for matched readers."""
+producers computed them; written as CDR bytes from the tick's arrays, :mod:`toaster.ros2.cdr`),
+and at 1/VIEW_EVERY of the ticks /tf, the markers and the area list; the status line when the
+node reports it. Messages are built only for matched readers."""
 
 from __future__ import annotations
 
@@ -15,8 +15,7 @@ from toaster.producers.registry import NAMES as PRODUCERS
 from toaster.ros1.dbcalls import AREA_KEY, AREA_SCOPE
 from toaster.ros1.published import AreaOut
 from toaster.ros1.tickout import VIEW_EVERY
-from toaster.ros2.cdr import fact_list_bytes
-from toaster.world.factmsg import fact_fields
+from toaster.ros2.cdr import FactListCdr
 from toaster.world.rosmsg import area_fields, strip_frame
 from toaster.world.state import World
 
@@ -37,6 +36,7 @@ class Ros2Output:
         dds = self.dds = bridge.dds
         self.types = bridge.types
         self.ticks = 0
+        self.writer = FactListCdr()
         self._sent = -1
         self.status_pub = dds.writer(STATUS_TOPIC, "std_msgs/msg/String", "latched", 1)
         self.fact_pubs = {p: dds.writer(f"/{p}/factList", FACT_LIST) for p in PRODUCERS}
@@ -54,10 +54,11 @@ class Ros2Output:
 
     def publish_facts(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None:
         """The fact lists, as soon as the producers computed them (before the write)."""
+        raw = getattr(facts, "raw", None)  # a tick's batches (TickFacts), not Fact tuples
         for producer, pub in self.fact_pubs.items():
             if self.dds.listened(pub):
-                items = (fact_fields(f, t_ns) for f in facts.get(producer, None) or [])
-                self.dds.write_raw(pub, fact_list_bytes(items))
+                found = raw(producer) if raw is not None else facts.get(producer, None)
+                self.dds.write_raw(pub, self.writer.write(found or [], t_ns))
         self._sent = t_ns
 
     def publish(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None:
