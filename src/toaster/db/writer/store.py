@@ -235,7 +235,9 @@ class Store(FactSteps):
             return plan
         new = Snapshot.of(batch, self.tolerances(conn))
         touched, keep, old_pos, gone = arrays.diff(new)
-        facts = [check_fact(f) for f in batch.facts_at(new.order[touched])]
+        facts = batch.facts_at(new.order[touched])
+        if facts and not batch.plain():  # checked as arrays, else one by one (one-line errors)
+            facts = [check_fact(f) for f in facts]
         keys = list(map(_KEY, facts))
         plan = Plan(source, state, t_ns, len(new.keys), trust_cache=True)
         plan.touched = list(zip(keys, facts, strict=True))
