@@ -241,11 +241,12 @@ class Store(FactSteps):
         keys = list(map(_KEY, facts))
         plan = Plan(source, state, t_ns, len(new.keys), trust_cache=True)
         plan.touched = list(zip(keys, facts, strict=True))
-        plan.gone = list(zip(arrays.tkey[gone].tolist(), arrays.fact[gone].tolist(), strict=True))
+        held = state.facts
+        plan.gone = [(key, held[key]) for key in arrays.gone(gone)]
 
         def updated() -> None:
             state.last_list = None
-            state.arrays = arrays.updated(new, touched, keep, old_pos, keys, facts)
+            state.arrays = arrays.updated(new, touched, keep, old_pos, keys, gone)
 
         plan.after.append(updated)
         return plan
@@ -321,8 +322,7 @@ class Store(FactSteps):
         state, writes = plan.state, plan.writes
         if writes is not None:
             old = state.facts
-            for key, fact in plan.touched:
-                old[key] = fact
+            old.update(plan.touched)
             for key, _ in plan.gone:
                 del old[key]
         state.last_t = plan.t_ns
