@@ -21,6 +21,7 @@ world state re-asserts itself as in the original's EMPTY. Belief rules registere
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
@@ -45,6 +46,7 @@ from toaster.model import Fact, check_fact, check_id, fact_key
 from toaster.timeutil import check_ns, format_ns, now_ns
 
 _KEY = key_of
+_FIRST = operator.itemgetter(0)
 
 
 #: How far behind the rules' clock a snapshot may be and still be taken for a live writer's
@@ -78,13 +80,15 @@ def _stages(plans: list[Plan]) -> list[list[Plan]]:
     key an earlier one writes (two sources stating one fact) starts a stage of its own."""
     stages: list[list[Plan]] = [[]]
     written: set[Key] = set()
-    for plan in plans:
-        if stages[-1] and not written.isdisjoint(key for key, _ in plan.resolve):
+    last = len(plans) - 1
+    for n, plan in enumerate(plans):
+        if stages[-1] and plan.resolve and not written.isdisjoint(map(_FIRST, plan.resolve)):
             stages.append([])
             written = set()
         stages[-1].append(plan)
-        written.update(key for key, _ in plan.touched)
-        written.update(key for key, _ in plan.gone)
+        if n < last:  # what the plans after it may read
+            written.update(map(_FIRST, plan.touched))
+            written.update(map(_FIRST, plan.gone))
     return stages
 
 
