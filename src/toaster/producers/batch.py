@@ -25,7 +25,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from toaster.model import Fact
+from toaster.model import MAX_ID_BYTES, Fact
 
 _B = 1 << 21  # rows < 2M
 _SIGS: dict[tuple, int] = {}
@@ -35,6 +35,7 @@ _EMPTY = np.zeros(0, np.int64)
 _NEG = np.full(1024, -1, np.int64)
 
 
+_CHECKED: list[object] = [None, None]  # the last world id and owner arrays found plain
 _NEW_CODE = threading.Lock()  # codes are made on a live node's tick and writer threads
 
 
@@ -246,6 +247,19 @@ class FactBatch:
             )
         )
 
+    # -- validation ---------------------------------------------------------------------------
+    def plain(self) -> bool:
+        """True when every fact of the batch passes :func:`toaster.model.check_fact`
+        unchanged (its fast path), checked as arrays: each constant and label once, the world's
+        ids once per id array, the numbers with numpy. False: check the facts one by one (a
+        bad value then fails in one line, as for any producer)."""
+        ids, owners = self._ids or (self.world.id_array(), self.world.owner_id_array())
+        if not (_CHECKED[0] is ids and _CHECKED[1] is owners):
+            if not (_all_ids(ids.tolist(), subject=True) and _all_ids(owners.tolist())):
+                return False
+            _CHECKED[:] = [ids, owners]
+        return all(map(_plain_group, self.groups))
+
     # -- keys ----------------------------------------------------------------------------------
     def keys(self) -> tuple[np.ndarray, np.ndarray]:
         """(int64 fact keys, int64 value_text codes) for every fact, in group order."""
@@ -303,6 +317,64 @@ class FactBatch:
                 table = np.array([text_code(x) for x in labels.tolist()], np.int64)
                 codes[ends[i] - sizes[i] : ends[i]] = table[lab_codes]
         return keys, codes
+
+
+def _is_id(x: object, *, subject: bool = False) -> bool:
+    """``x`` passes model._plain as an id (subject or property: non-empty, not blank)."""
+    return (
+        type(x) is str
+        and len(x) <= MAX_ID_BYTES
+        and x.isascii()
+        and "\x00" not in x
+        and (not subject or (bool(x) and not x.isspace()))
+    )
+
+
+def _all_ids(xs: list[Any], *, subject: bool = False) -> bool:
+    return all(_is_id(x, subject=subject) for x in xs)
+
+
+def _is_text(x: object) -> bool:
+    return type(x) is str and x.isascii() and "\x00" not in x
+
+
+def _plain_group(g: Group) -> bool:
+    """One group's constants, labels and numbers pass model._plain (ids: checked apart)."""
+    if not (
+        _is_id(g.prop, subject=True)
+        and _is_id(g.sub_property)
+        and _is_text(g.property_type)
+        and type(g.obs) is float
+        and 0.0 <= g.obs <= 1.0
+    ):
+        return False
+    if not isinstance(g.subj, np.ndarray) and not (
+        _is_id(g.subj, subject=True) and _is_id(g.subj_owner)
+    ):
+        return False
+    tgt = g.tgt
+    if isinstance(tgt, tuple):
+        if not _all_ids(tgt[1].tolist()):
+            return False
+    elif not isinstance(tgt, np.ndarray) and not _is_id(tgt):
+        return False
+    if not isinstance(g.tgt_owner, np.ndarray) and not _is_id(g.tgt_owner):
+        return False
+    vt = g.value_text
+    if isinstance(vt, tuple):
+        if not all(map(_is_text, vt[1].tolist())):
+            return False
+    elif not _is_text(vt):
+        return False
+    vn, conf = g.value_num, g.conf
+    if isinstance(vn, np.ndarray):
+        if vn.dtype.kind != "f" or not np.isfinite(vn).all():
+            return False
+    elif not (vn is None or (type(vn) is float and np.isfinite(vn))):
+        return False
+    if isinstance(conf, np.ndarray):
+        return conf.dtype.kind == "f" and bool(((conf >= 0.0) & (conf <= 1.0)).all())
+    return type(conf) is float and 0.0 <= conf <= 1.0
 
 
 def _neg1(m: int) -> np.ndarray:

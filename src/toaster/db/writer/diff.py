@@ -15,7 +15,7 @@ from __future__ import annotations
 import operator
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple, Protocol, runtime_checkable
+from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -50,6 +50,9 @@ class FactArrays(Protocol):
     def facts(self) -> list[Fact]: ...
     def facts_at(self, positions: np.ndarray) -> list[Fact]: ...
     def keys(self) -> tuple[np.ndarray, np.ndarray]: ...
+    def plain(self) -> bool:
+        """True when every fact passes :func:`toaster.model.check_fact` unchanged."""
+
     def numbers(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
 
 
@@ -83,9 +86,10 @@ class Snapshot(NamedTuple):
 
 
 class BatchState:
-    """What a batch source has stored: sorted keys, text codes, numbers, text keys, facts."""
+    """What a batch source has stored: sorted keys, text codes, numbers, and each batch key's
+    fact key (the facts themselves are the source's :attr:`SourceState.facts`)."""
 
-    __slots__ = ("codes", "fact", "keys", "numbers", "tkey", "world")
+    __slots__ = ("codes", "keys", "numbers", "tkeys", "world")
 
     def __init__(
         self,
@@ -93,11 +97,10 @@ class BatchState:
         keys: np.ndarray,
         codes: np.ndarray,
         numbers: np.ndarray,
-        tkey: np.ndarray,
-        fact: np.ndarray,
+        tkeys: dict[int, Key],
     ) -> None:
         self.world, self.keys, self.codes, self.numbers = world, keys, codes, numbers
-        self.tkey, self.fact = tkey, fact
+        self.tkeys = tkeys
 
     @classmethod
     def of(cls, batch: FactArrays, stored: dict[Key, Fact]) -> BatchState:
@@ -105,14 +108,15 @@ class BatchState:
         source's facts as stored, which may differ from the batch's within tolerance)."""
         snap = Snapshot.of(batch, {"*": Tolerance()})
         facts = batch.facts()
-        n = len(snap.keys)
         codes, numbers = snap.codes.copy(), snap.numbers.copy()
-        tkey, fact = np.empty(n, object), np.empty(n, object)
-        for j, i in enumerate(snap.order.tolist()):
+        tkeys: dict[int, Key] = {}
+        for j, (i, batch_key) in enumerate(
+            zip(snap.order.tolist(), snap.keys.tolist(), strict=True)
+        ):
             given = facts[i]
             key = key_of(given)
+            tkeys[batch_key] = key
             held = stored.get(key, given)
-            tkey[j], fact[j] = key, held
             if held is not given:
                 numbers[j] = (
                     np.nan if held.value_num is None else held.value_num,
@@ -121,7 +125,7 @@ class BatchState:
                 )
                 if held.value_text != given.value_text:
                     codes[j] = -1  # compare again next time (the database decides)
-        return cls(batch.world, snap.keys, codes, numbers, tkey, fact)
+        return cls(batch.world, snap.keys, codes, numbers, tkeys)
 
     def diff(self, new: Snapshot) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(positions in ``new`` to write, mask of ``new`` facts kept as stored, their
@@ -146,6 +150,10 @@ class BatchState:
         matched[pos[found]] = True
         return np.flatnonzero(~keep), keep, pos, np.flatnonzero(~matched)
 
+    def gone(self, positions: np.ndarray) -> list[Key]:
+        """The fact keys of the stored facts at ``positions``."""
+        return list(map(self.tkeys.__getitem__, self.keys[positions].tolist()))
+
     def updated(
         self,
         new: Snapshot,
@@ -153,27 +161,18 @@ class BatchState:
         keep: np.ndarray,
         pos: np.ndarray,
         keys: list[Key],
-        facts: list[Fact],
+        gone: np.ndarray,
     ) -> BatchState:
-        """The state once ``facts`` (at ``touched``) were written and the rest kept."""
-        n = len(new.keys)
+        """The state once the facts of ``keys`` (at ``touched``) were written, those at
+        ``gone`` ended and the rest kept (this state's key map is moved to the new one)."""
         numbers = new.numbers.copy()
-        tkey, fact = np.empty(n, object), np.empty(n, object)
         if len(self.keys):
-            kept = pos[keep]
-            numbers[keep] = self.numbers[kept]
-            tkey[keep], fact[keep] = self.tkey[kept], self.fact[kept]
-        tkey[touched] = _objects(keys)
-        fact[touched] = _objects(facts)
-        return BatchState(self.world, new.keys, new.codes, numbers, tkey, fact)
-
-
-def _objects(items: list[Any]) -> np.ndarray:
-    """A 1-D object array of tuples (numpy would otherwise make them a 2-D array)."""
-    out = np.empty(len(items), object)
-    for i, item in enumerate(items):
-        out[i] = item
-    return out
+            numbers[keep] = self.numbers[pos[keep]]
+        tkeys = self.tkeys
+        for batch_key in self.keys[gone].tolist():
+            del tkeys[batch_key]
+        tkeys.update(zip(new.keys[touched].tolist(), keys, strict=True))
+        return BatchState(self.world, new.keys, new.codes, numbers, tkeys)
 
 
 @dataclass

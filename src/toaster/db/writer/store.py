@@ -21,6 +21,7 @@ world state re-asserts itself as in the original's EMPTY. Belief rules registere
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
@@ -45,6 +46,7 @@ from toaster.model import Fact, check_fact, check_id, fact_key
 from toaster.timeutil import check_ns, format_ns, now_ns
 
 _KEY = key_of
+_FIRST = operator.itemgetter(0)
 
 
 #: How far behind the rules' clock a snapshot may be and still be taken for a live writer's
@@ -78,13 +80,15 @@ def _stages(plans: list[Plan]) -> list[list[Plan]]:
     key an earlier one writes (two sources stating one fact) starts a stage of its own."""
     stages: list[list[Plan]] = [[]]
     written: set[Key] = set()
-    for plan in plans:
-        if stages[-1] and not written.isdisjoint(key for key, _ in plan.resolve):
+    last = len(plans) - 1
+    for n, plan in enumerate(plans):
+        if stages[-1] and plan.resolve and not written.isdisjoint(map(_FIRST, plan.resolve)):
             stages.append([])
             written = set()
         stages[-1].append(plan)
-        written.update(key for key, _ in plan.touched)
-        written.update(key for key, _ in plan.gone)
+        if n < last:  # what the plans after it may read
+            written.update(map(_FIRST, plan.touched))
+            written.update(map(_FIRST, plan.gone))
     return stages
 
 
@@ -235,15 +239,18 @@ class Store(FactSteps):
             return plan
         new = Snapshot.of(batch, self.tolerances(conn))
         touched, keep, old_pos, gone = arrays.diff(new)
-        facts = [check_fact(f) for f in batch.facts_at(new.order[touched])]
+        facts = batch.facts_at(new.order[touched])
+        if facts and not batch.plain():  # checked as arrays, else one by one (one-line errors)
+            facts = [check_fact(f) for f in facts]
         keys = list(map(_KEY, facts))
         plan = Plan(source, state, t_ns, len(new.keys), trust_cache=True)
         plan.touched = list(zip(keys, facts, strict=True))
-        plan.gone = list(zip(arrays.tkey[gone].tolist(), arrays.fact[gone].tolist(), strict=True))
+        held = state.facts
+        plan.gone = [(key, held[key]) for key in arrays.gone(gone)]
 
         def updated() -> None:
             state.last_list = None
-            state.arrays = arrays.updated(new, touched, keep, old_pos, keys, facts)
+            state.arrays = arrays.updated(new, touched, keep, old_pos, keys, gone)
 
         plan.after.append(updated)
         return plan
@@ -322,8 +329,7 @@ class Store(FactSteps):
         state, writes = plan.state, plan.writes
         if writes is not None:
             old = state.facts
-            for key, fact in plan.touched:
-                old[key] = fact
+            old.update(plan.touched)
             for key, _ in plan.gone:
                 del old[key]
         state.last_t = plan.t_ns
