@@ -393,9 +393,6 @@ def check_fact(fact: Fact) -> Fact:
                 f"{fact.property}: must be finite"
             )
             raise InvalidInputError(msg)
-    normalised = (confidence, observability, value_num)
-    if normalised != (fact.confidence, fact.observability, fact.value_num):
-        fact = fact._replace(
-            confidence=confidence, observability=observability, value_num=value_num
-        )
-    return fact
+    # (1 == 1.0: compared by value, an int confidence would stay an int, which PostgreSQL's
+    # float arrays refuse beside floats)
+    return fact._replace(confidence=confidence, observability=observability, value_num=value_num)

@@ -85,8 +85,6 @@ def test_numbers_a_batch_gives_as_ints_are_stored_as_floats(
 ) -> None:
     """A batch whose constants are not floats (an int confidence) takes the fact-by-fact
     check, which normalises them, as before."""
-    if db.dialect_name == "postgresql":  # also on main @ b52c70e: the first write is refused
-        pytest.xfail("an int constant confidence in a batch: psycopg 'lists of mixed types'")
     world = _world()
     dist = np.array([1.0, 2.0, 3.0, 4.0])
     store.sync_snapshot("user_producer", "PR2_ROBOT", 10 * S, _batch(world, dist, conf=1))
@@ -123,3 +121,18 @@ def test_a_batch_ends_the_facts_it_no_longer_holds(
         ("e0", "IsInArea", "zone_a"),
         ("e1", "IsInArea", "zone_b"),
     }
+
+
+def test_int_numbers_of_listed_facts_are_stored_as_floats(
+    db: toaster.Database, store: toaster.Store
+) -> None:
+    """A user's Fact with an int confidence and value beside float ones (PostgreSQL's float
+    arrays refused the mix: check_fact compared 1 == 1.0 and kept the int)."""
+    facts = [
+        toaster.Fact("e0", "Distance", "e1", value_num=2, confidence=1),
+        toaster.Fact("e1", "Distance", "e0", value_num=2.5, confidence=0.5),
+    ]
+    store.sync_snapshot("user_producer", "PR2_ROBOT", 10 * S, facts)
+    got = _current(db)
+    assert got[("e0", "Distance", "e1")] == ("true", 2.0, 1.0)
+    assert all(isinstance(v, float) for v in got[("e0", "Distance", "e1")][1:])
