@@ -148,8 +148,8 @@ class Dds:
 
     def listened(self, writer: Any) -> bool:
         """Whether a reader is matched to ``writer`` (nothing is built for nobody), asked of
-        DDS at most every :data:`MATCH_EVERY_S` per writer: each ask is a ctypes call that
-        hands the interpreter to the receive thread and waits to get it back."""
+        DDS at most every :data:`MATCH_EVERY_S` per writer (a call into cyclonedds each time;
+        it keeps the interpreter, docs/ros2.md "Latency")."""
         now = time.monotonic()
         known = self._matched.get(id(writer))
         if known is None or now >= known[0]:
