@@ -39,6 +39,7 @@ from tests.outputs.conftest import (
 from toaster import Fact
 from toaster.cli import cli
 from toaster.db.views import quote_identifier
+from toaster.model import MAX_ID_BYTES
 from toaster.outputs.export import export, read_frame, read_rows, select_rows
 from toaster.outputs.plotting import plot_facts
 from toaster.quoting import (
@@ -88,8 +89,9 @@ HOSTILE = [
     "\u202eevil",
     "%s %n {0}",
 ]
-#: 10 kB: more than any id the store takes, so it comes through fact_inbox (plain SQL)
-LONG = (f'`touch {MARK}_long` $(touch {MARK}_long) "=1+1"\n' * 300)[:10_000]
+#: The longest id the database takes from anyone (MAX_ID_BYTES; fact_inbox refuses longer
+#: since revision 0030), written through fact_inbox (plain SQL): lines of shell and formulas
+LONG = (f'`touch {MARK}_long` $(touch {MARK}_long) "=1+1"\n' * 300)[:MAX_ID_BYTES]
 HELD = "MUG"  # every hostile agent believes MUG Distance TABLE (a number, -1.5)
 CREATED = re.compile(rf"^({MARK}|X$)")
 
@@ -97,7 +99,7 @@ CREATED = re.compile(rf"^({MARK}|X$)")
 def build_hostile(db: toaster.Database) -> None:
     """ROBOT (self); every hostile id as a human agent holding MUG Distance TABLE = -1.5 m;
     the robot's MUG Says with every hostile id as its value in turn; facts between hostile
-    subjects and targets; the 10 kB id as a subject and a value inserted into fact_inbox."""
+    subjects and targets; the longest id as a subject and a value inserted into fact_inbox."""
     store = db.store()
     store.add_entity("ROBOT", "robot", is_self=True, t_ns=T0)
     for name in (*HOSTILE, HELD, "TABLE"):
