@@ -23,6 +23,7 @@ from toaster.extras import require
 from toaster.producers.seen import SeenFacts
 from toaster.ros1.bridge import SIMU_LISTS, STATUS_SERVICE, STATUS_TOPIC, Warnings
 from toaster.ros1.bridge import pose_topic_targets as pose_targets
+from toaster.ros1.inputs import PoseInputs
 from toaster.ros2 import cdr, names
 from toaster.ros2.dds import TF_DEPTH, Dds
 from toaster.ros2.idl import Types
@@ -31,13 +32,8 @@ from toaster.world.live import LiveSource
 from toaster.world.rosmsg import (
     FIXED_FRAME,
     FrameTarget,
-    PoseUpdate,
     TfTree,
-    hri_target,
-    list_updates,
-    pose_stamped_update,
     read_frame_map,
-    tracked_ids,
 )
 
 __all__ = ["STATUS_SERVICE", "STATUS_TOPIC", "Ros2Bridge", "start_bridge"]
@@ -49,7 +45,7 @@ def _one_line(exc: BaseException) -> str:
     return lines[0] if lines else type(exc).__name__
 
 
-class Ros2Bridge:
+class Ros2Bridge(PoseInputs):
     """A running ROS 2 bridge; :meth:`shutdown` detaches it from the node."""
 
     def __init__(
@@ -95,25 +91,6 @@ class Ros2Bridge:
         self.server = Server(self) if services else None
 
     # -- inputs --------------------------------------------------------------------------------
-    def source(self, name: str) -> LiveSource:
-        """The LiveSource of an input stream (made and added to the node on first use)."""
-        if name not in self.sources:
-            self.sources[name] = LiveSource(name, drops=self.drops)
-            self.node.sources.append(self.sources[name])
-        return self.sources[name]
-
-    def push(self, source: str, update: PoseUpdate, topic: str) -> None:
-        self.source(source).push(
-            update.entity_id,
-            update.position,
-            quat=update.quat,
-            t_ns=update.t_ns,
-            kind=update.kind,
-            owner_id=update.owner_id,
-            joint=update.joint,
-            topic=topic,
-        )
-
     def _sub(self, topic: str, msgtype: str, callback: Any, *args: Any, **kw: Any) -> None:
         def guarded(msg: Any) -> None:
             try:
@@ -155,66 +132,6 @@ class Ros2Bridge:
         wake = self.sources["tf"].on_push
         if wake is not None:
             wake()
-
-    def flush_tf(self) -> None:
-        """Push the poses of the mapped (and ROS4HRI) frames moved since the last tick."""
-        with self._tf_lock:
-            changed, self._tf_changed = self._tf_changed, set()
-        if not changed:
-            return
-        poses, lost = self.tree.poses(self.frames, changed)
-        self.source("tf").push_many(poses.targets, poses.pos, poses.quat, poses.stamps, topic="/tf")
-        if self.ros4hri:
-            hri = self._hri_frames()
-            if hri:
-                found, _ = self.tree.poses(hri, changed)
-                self.source("ros4hri").push_many(
-                    found.targets, found.pos, found.quat, found.stamps, topic="/tf"
-                )
-        for frame in lost:
-            self.warnings.add(
-                f"lost:{frame}",
-                f"/tf: frame {frame!r} ({self.frames[frame].entity_id}) does not reach "
-                f"{self.tree.fixed!r}: its pose is not known",
-            )
-
-    def _hri_frames(self) -> dict[str, FrameTarget]:
-        key = (self.tree.generation, self._tracked_version)
-        if key != self._hri_key:
-            self._hri_cache = {f: t for f in self.tree.frames() if (t := self._hri(f)) is not None}
-            self._hri_key = key
-        return self._hri_cache
-
-    def _hri(self, frame: str) -> FrameTarget | None:
-        target = hri_target(frame)
-        if target is None:
-            return None
-        tracked = self.tracked["body" if frame.startswith("body_") else "face"]
-        human = target.owner_id or target.entity_id
-        return target if tracked is None or human in tracked else None
-
-    def _on_tracked(self, msg: Any, which: str) -> None:
-        self.tracked[which] = ids = tracked_ids(msg)
-        self._tracked_version += 1
-        if self.seen is not None:
-            self.seen.report(f"ros4hri_{which}", ids, self.node.self_id)
-
-    def _on_pose(self, msg: Any, topic: str, target: FrameTarget) -> None:
-        try:
-            update = pose_stamped_update(msg, target.entity_id, target.kind, tree=self.tree)
-        except ValueError as exc:
-            self.drops.drop(topic, "pose", str(exc))
-            return
-        self.push(
-            "pose_topics", update._replace(owner_id=target.owner_id, joint=target.joint), topic
-        )
-
-    def _on_list(self, msg: Any, source: str, topic: str) -> None:
-        updates, bad = list_updates(msg)
-        for line in bad:
-            self.drops.drop(topic, "pose", line)
-        for update in updates:
-            self.push(source, update, topic)
 
     # -- stopping ------------------------------------------------------------------------------
     def shutdown(self) -> None:
