@@ -21,6 +21,7 @@ from toaster.beliefs import api
 from toaster.db import migrate
 from toaster.db.engine import make_engine
 from toaster.db.invariants import violations
+from toaster.db.writer.store import LIVE_CLOCK_SKEW_NS
 
 pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
 
@@ -549,3 +550,31 @@ def test_a_late_robots_runs_never_share_an_instant(db: toaster.Database) -> None
         (r.valid_from_ns, r.valid_to_ns)
         for r in q.history(db, "ANNE", subject="PEN", property="IsIn")
     ] == [(10 * S + 1, 10 * S + 2), (10 * S + 3, None)]
+
+
+@pytest.mark.parametrize("later_s", [3, 5])
+def test_a_run_never_reads_a_self_fact_later_than_its_time(
+    db: toaster.Database, later_s: int
+) -> None:
+    """R1's things put the pen in the box (1 s), then in the drawer (``later_s``), naming
+    nobody; its rooms, written after, have Anne in the hall with the box from 2 s. Before
+    revision 0031 the things' runs moved no clock, so the rooms' run happened at 2 s: Anne saw
+    the pen (in the box then) and took where it is *now*, in the drawer, with an event of 2 s
+    that no interval began at (two producers of one robot writing at once, in
+    tests/db/test_many_writers.py). Now R1's runs take turns on its own clock: the rooms come
+    just after it (within LIVE_CLOCK_SKEW_NS: the snapshot is moved there; beyond it: the
+    snapshot keeps its time, its run comes after the clock), when the pen is in the drawer,
+    out of Anne's sight."""
+    st = _two_robots(db)
+    with st.transaction():
+        st.add_entity("BOX", "object", t_ns=0)
+    st.sync_many("R1", 1 * S, [("things", [Fact("PEN", "IsIn", "BOX")])])
+    st.sync_many("R1", later_s * S, [("things", [Fact("PEN", "IsIn", "DRAWER")])])
+    rooms = [*_rooms({**ROBOT_ROOMS, "ANNE": "HALL"}), Fact("BOX", "IsInRoom", "HALL")]
+    st.sync_many("R1", 2 * S, [("rooms", rooms)])
+    with db.transaction() as conn:
+        assert violations(conn) == []
+    anne = [r.valid_from_ns for r in q.history(db, "R1", subject="ANNE")]
+    assert anne == [later_s * S + 1 if later_s * S - 2 * S <= LIVE_CLOCK_SKEW_NS else 2 * S]
+    assert [r for r in q.history(db, "ANNE") if r.subject_id == "PEN"] == []
+    assert [e for e in q.events(db, "ANNE") if e.subject_id == "PEN"] == []

@@ -150,3 +150,30 @@ def test_a_run_waits_only_for_runs_sharing_a_holder(
         concurrent = _beliefs(a)
     with pg_schema() as url:
         assert concurrent == _serial(url, ("R1", "R2"))
+
+
+@pytest.mark.postgresql
+def test_a_robots_producers_take_turns_on_its_clock(
+    pg_schema_url: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """R1's rooms hold their transaction open after their run; R1's things, naming nobody,
+    wait for it (revision 0031: a run locks its own robot's clock) and, past the lock timeout,
+    fail in one line with nothing written. Before, they committed at once, and a statement of
+    the rooms' run that came after read them: a fact that began after the run's time, taken
+    with an event no interval began at (tests/db/test_many_writers.py)."""
+    monkeypatch.setenv("TOASTER_LOCK_TIMEOUT", "0.5")
+    room, people, thing, places = WORLDS["R1"]
+    with toaster.connect(pg_schema_url) as a, toaster.connect(pg_schema_url) as b:
+        _register(a)
+        store_a, store_b = a.store(), b.store()
+        with store_a.transaction():
+            rooms = [Fact(person, "IsInRoom", room) for person in (*people, places[0])]
+            store_a.sync_many("R1", 1 * S, [("rooms", rooms)])
+            with pytest.raises(DatabaseLockedError) as caught:
+                store_b.sync_many("R1", 1 * S, [("things", [Fact(thing, "IsIn", places[0])])])
+            assert "\n" not in str(caught.value)
+        store_b.sync_many("R1", 2 * S, [("things", [Fact(thing, "IsIn", places[0])])])
+        _, events = _beliefs(a)
+    assert [e for e in events if e[0] == "ANNE" and e[1] == thing] == [
+        ("ANNE", thing, "IsIn", places[0], "appeared", 2 * S)
+    ]

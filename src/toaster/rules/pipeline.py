@@ -67,7 +67,11 @@ RUNS = (
 #: Whom a robot's run may change (revision 0028): the holders whose chain's agents its facts
 #: name (subject or target of one of its keys) or which act in its changes (a holder perceives
 #: only what its agents perceive in the run's self facts, and an actor its own changes), and
-#: the holders following one of its changed keys. The runs of robots whose people never meet
+#: the holders following one of its changed keys; and the robot's own row (revision 0031): its
+#: runs take turns on it, so that a run never reads a self fact later than its time (a
+#: producer's run that names nobody, as a first tick of things, moved no clock, and another
+#: producer's run of the same robot at an earlier time then took, at that time, a fact that
+#: began after it: an event no interval began at). The runs of robots whose people never meet
 #: change disjoint sets: each takes its own holders' clocks (below) and never waits for the
 #: other's; runs that share a holder take turns on its clock.
 _NAMED = (
@@ -76,7 +80,7 @@ _NAMED = (
     "OR EXISTS (SELECT 1 FROM fact_keys k WHERE k.target_id = {m} AND k.agent_id = NEW.self_id))"
 )
 MINE = (
-    "SELECT h.id FROM holders h WHERE (h.depth = 1 AND "
+    "SELECT h.id FROM holders h WHERE h.id = NEW.self_id OR (h.depth = 1 AND "
     + _NAMED.format(m="h.id")
     + ") OR (h.depth >= 2 AND NOT EXISTS (SELECT 1 FROM belief_chain c "
     "WHERE c.holder_id = h.id AND NOT "

@@ -24,17 +24,18 @@ _T = TypeVar("_T")
 Later: TypeAlias = Callable[[], _T]
 #: The rules' clock as a write transaction found it: ``(clock_ns, clock_self)``.
 Clock = tuple[int | None, str | None]
-#: The latest clock of the holders the facts of the self agent ``:agent`` name (revision 0028:
-#: a clock per holder), read without a lock: a snapshot stamps its rows there when it is a
-#: little behind (Store._writes); its run takes its own holders' clocks
-#: (toaster.rules.pipeline.CLOCK) and waits only for the runs that share one of them. (A
-#: nested holder's clock is never ahead of all its agents': the runs that move it move theirs.)
-#: None found (a robot's first snapshot: its keys name nobody yet): the store reads the clocks
+#: The latest clock of the self agent ``:agent`` and of the holders its facts name (revision
+#: 0028: a clock per holder; the self's own since 0031), read without a lock: a snapshot
+#: stamps its rows there when it is a little behind (Store._writes); its run takes its own
+#: holders' clocks (toaster.rules.pipeline.CLOCK) and waits only for the runs that share one
+#: of them. (A nested holder's clock is never ahead of all its agents': the runs that move it
+#: move theirs.) None found (a robot's first snapshot: its keys name nobody yet): the store reads the clocks
 #: of the holders the snapshot's facts name (Store._writes).
 LATEST_CLOCK = (
     "SELECT h.clock_ns, h.clock_self FROM holders h WHERE h.depth = 1 "
     "AND h.clock_ns IS NOT NULL "
-    "AND (EXISTS (SELECT 1 FROM fact_keys k WHERE k.subject_id = h.id AND k.agent_id = :agent) "
+    "AND (h.id = :agent "
+    "OR EXISTS (SELECT 1 FROM fact_keys k WHERE k.subject_id = h.id AND k.agent_id = :agent) "
     "OR EXISTS (SELECT 1 FROM fact_keys k WHERE k.target_id = h.id AND k.agent_id = :agent)) "
     "ORDER BY h.clock_ns DESC LIMIT 1"
 )
