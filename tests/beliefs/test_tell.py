@@ -186,3 +186,30 @@ def test_attention_off_by_default_changes_nothing(db: toaster.Database) -> None:
     _flat(db)
     assert _where(db, "ANNE") == {"BOX"}
     assert api.config(db)["attention"] == {}
+
+
+def test_a_told_fact_takes_the_robots_sub_property(db: toaster.Database) -> None:
+    """The robot's IsInRoom facts carry the areas producer's sub-property ``room``; a telling
+    that names none is about the same key: Sally, told where Bob is (truly), holds no false
+    belief, and one told where he is not believes it on the robot's key."""
+    api.configure(db, depth=1)
+    st = db.store()
+    st.add_entity("ROBOT", "robot", is_self=True, t_ns=0)
+    for who in ("SALLY", "ANNE", "BOB"):
+        st.add_entity(who, "human", t_ns=0)
+    st.sync_snapshot(
+        "areas",
+        "ROBOT",
+        1 * S,
+        [
+            F("SALLY", "IsInRoom", "HALL", sub_property="room"),
+            F("ANNE", "IsInRoom", "HALL", sub_property="room"),
+            F("BOB", "IsInRoom", "ROOM", sub_property="room"),
+        ],
+    )
+    tell(db, "ANNE", F("BOB", "IsInRoom", "ROOM"), listeners=["SALLY"], t_ns=2 * S)
+    assert [d for d in api.false_beliefs(db, "SALLY") if d.subject_id == "BOB"] == []
+    told = [r for r in api.beliefs(db, "SALLY", subject="BOB") if r.property == "IsInRoom"]
+    assert [(r.target_id, r.sub_property, r.source) for r in told] == [
+        ("ROOM", "room", "told:ANNE")
+    ]

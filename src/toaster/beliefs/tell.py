@@ -12,6 +12,9 @@ Trust (settings ``trust`` and ``distrust``): ``everyone`` (default) believes eve
 those in ``distrust``; ``witnesses`` believes a speaker only if the speaker perceived the
 subject later than the listener did (its last belief change about the subject is more recent).
 Hearers of a public telling are the agents in the speaker's room, as the self agent sees it.
+A fact told without a sub-property takes the one the self agent's facts of that property use
+(IsInRoom's ``room`` from the areas producer): the listener's belief is then the key the robot
+holds and perceives, not a second key that read as a false belief beside the true one.
 """
 
 from __future__ import annotations
@@ -82,6 +85,8 @@ def tell(
             learners += [holder_id(a, speaker) for a in hearers if a != speaker]
         holders = set(conn.execute(text("SELECT id FROM holders")).scalars())  # the rule's own
         learners = [h for h in dict.fromkeys(learners) if h in holders]
+        if self_id is not None and not fact.sub_property:
+            fact = _as_the_self_says(conn, self_id, fact)
         places = {*settings["copresence"], *settings["containment"]}
         for holder in learners:
             _learn(store, conn, holder, fact, t, f"told:{speaker}", fact.property in places)
@@ -91,6 +96,32 @@ def tell(
                     self_id, Fact(speaker, TELLS, listener, _said(fact)), t_ns=t, source="tell"
                 )
     return learners
+
+
+def _as_the_self_says(conn: Connection, self_id: str, fact: Fact) -> Fact:
+    """``fact`` with the sub-property of the self agent's key of the same subject, property and
+    target, else the one sub-property its keys of that property all use (else unchanged)."""
+    subs = conn.execute(
+        text(
+            "SELECT sub_property, MAX(CASE WHEN subject_id = :s AND target_id = :t "
+            "AND subject_owner_id = :so AND target_owner_id = :to THEN 1 ELSE 0 END) "
+            "FROM fact_keys WHERE agent_id = :a AND property = :p GROUP BY sub_property"
+        ),
+        {
+            "a": self_id,
+            "p": fact.property,
+            "s": fact.subject_id,
+            "t": fact.target_id,
+            "so": fact.subject_owner_id,
+            "to": fact.target_owner_id,
+        },
+    ).all()
+    same_key = [sub for sub, same in subs if same]
+    if len(same_key) == 1:
+        return fact._replace(sub_property=same_key[0])
+    if len(subs) == 1:
+        return fact._replace(sub_property=subs[0][0])
+    return fact
 
 
 def _said(fact: Fact) -> str:
