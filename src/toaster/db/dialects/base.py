@@ -29,8 +29,8 @@ Clock = tuple[int | None, str | None]
 #: stamps its rows there when it is a little behind (Store._writes); its run takes its own
 #: holders' clocks (toaster.rules.pipeline.CLOCK) and waits only for the runs that share one
 #: of them. (A nested holder's clock is never ahead of all its agents': the runs that move it
-#: move theirs.) None found (a robot's first snapshot: its keys name nobody yet): the store reads the clocks
-#: of the holders the snapshot's facts name (Store._writes).
+#: move theirs.) None found (a robot's first snapshot: its keys name nobody yet): the store
+#: reads the clocks of the holders the snapshot's facts name (Store._writes).
 LATEST_CLOCK = (
     "SELECT h.clock_ns, h.clock_self FROM holders h WHERE h.depth = 1 "
     "AND h.clock_ns IS NOT NULL "
