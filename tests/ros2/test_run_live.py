@@ -31,9 +31,9 @@ class RunProcess:
         self.url = f"sqlite:///{tmp / 'run.db'}"
         self.out_path, self.err_path = tmp / "run.out", tmp / "run.err"
         self.out, self.err = self.out_path.open("w"), self.err_path.open("w")
+        command = [sys.executable, "-m", "toaster", "--db", self.url, "run", str(SCENARIO)]
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "toaster", "--db", self.url, "run", str(SCENARIO), "--ros2"]
-            + args,
+            [*command, "--ros2", *args],
             env=env,
             stdout=self.out,
             stderr=self.err,

@@ -1,8 +1,8 @@
-"""The live outputs shared by ``toaster serve`` and ``toaster run``: the options ``--ros2``,
-``--domain-id`` and ``--foxglove [PORT]``, and :func:`published`, which starts the outputs on a
-node (a :class:`~toaster.node.LiveNode`, or a run's :class:`~toaster.app.published.RunNode`)
-and stops them. Their packages are imported only when asked for (``toaster --help`` stays
-fast); ``cli/extras.py`` checks the extras first."""
+"""The live outputs shared by ``toaster serve`` and ``toaster run``: the options ``--ros1``,
+``--ros2``, ``--domain-id`` and ``--foxglove [PORT]``, and :func:`published`, which starts the
+outputs on a node (a :class:`~toaster.node.LiveNode`, or a run's
+:class:`~toaster.app.published.RunNode`) and stops them. Their packages are imported only
+when asked for (``toaster --help`` stays fast); ``cli/extras.py`` checks the extras first."""
 
 from __future__ import annotations
 
@@ -16,8 +16,11 @@ import click
 from toaster.errors import InvalidInputError
 
 
-def publish_options(ros2_help: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
-    """Add ``--ros2`` (its help ``ros2_help``), ``--domain-id N`` and ``--foxglove [PORT]``."""
+def publish_options(
+    ros1_help: str, ros2_help: str
+) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Add ``--ros1``, ``--ros2`` (their help as given), ``--domain-id N`` and ``--foxglove
+    [PORT]``."""
 
     def add(func: Callable[..., Any]) -> Callable[..., Any]:
         func = click.option(
@@ -38,7 +41,8 @@ def publish_options(ros2_help: str) -> Callable[[Callable[..., Any]], Callable[.
             metavar="N",
             help="ROS 2 domain (default: ROS_DOMAIN_ID, else 0).",
         )(func)
-        return click.option("--ros2", is_flag=True, help=ros2_help)(func)
+        func = click.option("--ros2", is_flag=True, help=ros2_help)(func)
+        return click.option("--ros1", is_flag=True, help=ros1_help)(func)
 
     return add
 
@@ -55,6 +59,7 @@ def published(
     node: Any,
     who: str,
     *,
+    run: bool = False,
     ros1: bool = False,
     ros2: bool = False,
     domain_id: int | None = None,
@@ -63,22 +68,27 @@ def published(
     pose_topics: Mapping[str, tuple[str, str]] | None = None,
 ) -> Iterator[None]:
     """Start the asked outputs on ``node`` (``who`` prefixes the lines printed: the Foxglove
-    port), stopped when the context ends. A run's node (it has ``clocks``) gets no services
-    that change a live node and no inputs beyond /tf; the outputs tell it who listens and
-    follow its clock (docs/foxglove.md, docs/ros2.md)."""
-    run = hasattr(node, "clocks")
+    port), stopped when the context ends. With ``run`` (a run's
+    :class:`~toaster.app.published.RunNode`) they offer no service that changes a live node
+    and read no input beyond /tf, tell the node who listens and follow its clock
+    (docs/foxglove.md, docs/ros2.md)."""
     with ExitStack() as stack:
+        reduced: dict[str, Any] = (
+            {"services": False, "toaster_simu": False, "ros4hri": False} if run else {}
+        )
         if ros1:
             from toaster.ros1.bridge import start_bridge
 
-            bridge = start_bridge(node, tf_map=tf_map, pose_topics=pose_topics)
+            bridge = start_bridge(node, tf_map=tf_map, pose_topics=pose_topics, **reduced)
             stack.callback(bridge.shutdown)
+            if run:
+                node.clocks.append(bridge.clock())
+                node.listeners.append(bridge.listened)
         if ros2:
             from toaster.ros2.bridge import start_bridge as start_ros2
 
-            options = {"services": False, "toaster_simu": False, "ros4hri": False} if run else {}
             bridge2 = start_ros2(
-                node, domain_id=domain_id, tf_map=tf_map, pose_topics=pose_topics, **options
+                node, domain_id=domain_id, tf_map=tf_map, pose_topics=pose_topics, **reduced
             )
             stack.callback(bridge2.shutdown)
             if run:

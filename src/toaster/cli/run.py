@@ -35,7 +35,7 @@ from toaster.errors import InvalidInputError
 @click.option(
     "--realtime/--no-realtime",
     default=None,
-    help="Pace ticks to the wall clock (default: when publishing, --foxglove or --ros2).",
+    help="Pace ticks to the wall clock (default: when publishing: --foxglove, --ros2, --ros1).",
 )
 @click.option(
     "--fps",
@@ -81,13 +81,15 @@ from toaster.errors import InvalidInputError
     "(docs/foxglove.md); needs toaster[foxglove].",
 )
 @publish_options(
+    "Publish each tick on ROS 1 as `toaster serve --ros1` does, with /clock at the run's "
+    "stamps (a roscore must run; docs/ros1.md).",
     "Publish each tick on ROS 2 over DDS as `toaster serve --ros2` does, with /clock at "
-    "the run's stamps (toaster[ros2]; docs/ros2.md)."
+    "the run's stamps (toaster[ros2]; docs/ros2.md).",
 )
 @click.option(
     "--wait",
     is_flag=True,
-    help="With --foxglove or --ros2: tick only once a client or reader subscribes.",
+    help="With --foxglove, --ros2 or --ros1: tick only once a client or reader subscribes.",
 )
 @click.pass_obj
 def run(
@@ -104,6 +106,7 @@ def run(
     no_db: bool,
     record_dir: Path | None,
     record_format: str,
+    ros1: bool,
     ros2: bool,
     domain_id: int | None,
     foxglove: int | None,
@@ -115,18 +118,18 @@ def run(
     Areas stored in the database are added to the file's; the file's areas are stored.
     Same input into a fresh database gives the same facts and events.
 
-    With --foxglove or --ros2 each tick is published as `toaster serve` publishes it, paced
-    to the wall clock, stamped with the run's own times (a scenario starts at 0 s) and with
-    the run's clock (Foxglove's server time, ROS 2's /clock); Ctrl-C or SIGTERM stops it
-    between two ticks.
+    With --foxglove, --ros2 or --ros1 each tick is published as `toaster serve` publishes
+    it, paced to the wall clock, stamped with the run's own times (a scenario starts at 0 s)
+    and with the run's clock (Foxglove's server time, ROS's /clock); Ctrl-C or SIGTERM stops
+    it between two ticks.
     """
     from toaster.app.runs import check_run, run_file
     from toaster.world.config import read_config_file
 
     check_publish(ros2=ros2, domain_id=domain_id)
-    publishing = ros2 or foxglove is not None
+    publishing = ros1 or ros2 or foxglove is not None
     if wait and not publishing:
-        msg = "--wait waits for a subscriber: add --foxglove or --ros2"
+        msg = "--wait waits for a subscriber: add --foxglove, --ros2 or --ros1"
         raise InvalidInputError(msg)
     realtime = publishing if realtime is None else realtime
     rate = check_run(path, record_dir=record_dir, rate_hz=rate, record_format=record_format)
@@ -153,7 +156,7 @@ def run(
     from toaster.node.serve import stop_on_signals
 
     live = functools.partial(
-        _publishing, ros2=ros2, domain_id=domain_id, foxglove=foxglove, wait=wait
+        _publishing, ros1=ros1, ros2=ros2, domain_id=domain_id, foxglove=foxglove, wait=wait
     )
     with stop_on_signals() as stop:  # the run stops between two ticks, as serve does
         _go(path, functools.partial(go, live=live, wait=wait, stop=stop))
@@ -163,7 +166,7 @@ def run(
 def _publishing(node: Any, **outputs: Any) -> Iterator[None]:
     """The run's outputs (cli/publish.py, as `toaster serve`'s), and what it says of them."""
     wait = outputs.pop("wait")
-    with published(node, "toaster run", **outputs):
+    with published(node, "toaster run", run=True, **outputs):
         if wait:
             click.echo("toaster run: waiting for a subscriber (Ctrl-C stops)", err=True)
         yield

@@ -95,12 +95,10 @@ def self_agent_of(db: Database, requested: str | None) -> str:
     help="A tick's time, hence its facts': the newest pose stamp it applies (if not older "
     "than the node's max_stamp_lag, else the wall clock; docs/time.md), or the wall clock.",
 )
-@click.option(
-    "--ros1",
-    is_flag=True,
-    help="Bridge to ROS 1 (needs Debian's ROS 1 packages; see docs/ros1.md).",
+@publish_options(
+    "Bridge to ROS 1 (needs Debian's ROS 1 packages; see docs/ros1.md).",
+    "Bridge to ROS 2 over DDS, no ROS 2 install needed (toaster[ros2]; docs/ros2.md).",
 )
-@publish_options("Bridge to ROS 2 over DDS, no ROS 2 install needed (toaster[ros2]; docs/ros2.md).")
 @ros_input_options
 @click.pass_obj
 def serve(
