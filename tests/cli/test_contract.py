@@ -474,6 +474,8 @@ BLOCKED = [
             "foxglove",
         ],
     ),
+    ("cyclonedds", "ros2", lambda p: ["run", str(EXAMPLES / "scenario_flat.yaml"), "--ros2"]),
+    ("foxglove", "foxglove", lambda p: ["run", str(EXAMPLES / "scenario_flat.yaml"), "--foxglove"]),
     ("matplotlib", "plot", lambda p: ["plot-facts", str(p / "out.png")]),
     ("pyarrow", "export", lambda p: ["export", "history", str(p / "out.parquet")]),
 ]

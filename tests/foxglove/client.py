@@ -8,6 +8,7 @@ foxglove-sdk 0.30 accepts only the subprotocol ``foxglove.sdk.v1`` (a client off
 
     python client.py ws://127.0.0.1:PORT sally    # drive Sally-Anne over the node's services
     python client.py ws://127.0.0.1:PORT listen SECONDS
+    python client.py ws://127.0.0.1:PORT follow SECONDS   # until the server closes (a run)
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from typing import Any
 
 import jsonschema
 from google.protobuf import descriptor_pb2, descriptor_pool, json_format, message_factory
+from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect
 
 SUBPROTOCOL = "foxglove.sdk.v1"
@@ -55,6 +57,8 @@ class Client:
         self.messages: dict[str, list[Any]] = {}
         self.responses: dict[int, Any] = {}
         self.server_info: dict[str, Any] = {}
+        self.times: list[int] = []  # the server's time (its time capability), as it came
+        self.closed = False
         self._next_sub = 1
         self._next_call = 1
 
@@ -65,6 +69,9 @@ class Client:
             try:
                 frame = self.ws.recv(timeout=left)
             except TimeoutError:
+                return
+            except ConnectionClosed:
+                self.closed = True
                 return
             self.handle(frame)
 
@@ -89,6 +96,8 @@ class Client:
             self.messages.setdefault(channel["topic"], []).append(
                 self.decoders[channel["id"]](frame[13:])
             )
+        elif op == 2:  # time
+            self.times.append(struct.unpack_from("<Q", frame, 1)[0])
         elif op == 3:  # service call response
             _service, call, n = struct.unpack_from("<III", frame, 1)
             encoding = frame[13 : 13 + n].decode()
@@ -240,10 +249,21 @@ def main() -> None:
     client = Client(url)
     if what == "sally":
         result = sally(client)
+    elif what == "follow":
+        end = time.monotonic() + float(sys.argv[3])
+        while not client.closed and time.monotonic() < end:
+            client.pump(0.5)
+        result = {
+            **client.summary(),
+            "closed": client.closed,
+            "times": client.times,
+            "beliefs": client.messages.get("/toaster/beliefs", []),
+        }
     else:
         client.pump(float(sys.argv[3]))
         result = client.summary()
     result["server"] = client.server_info.get("name")
+    result["capabilities"] = client.server_info.get("capabilities", [])
     json.dump(result, sys.stdout)
 
 

@@ -252,7 +252,13 @@ class RelativeResponse(
     body: RelativeResponseBody = field(default_factory=RelativeResponseBody)
 
 
+@dataclass
+class Clock(IdlStruct, typename="rosgraph_msgs::msg::dds_::Clock_"):
+    clock: Time = field(default_factory=Time)
+
+
 IDL = {
+    "rosgraph_msgs/msg/Clock": Clock,
     "tf2_msgs/msg/TFMessage": TFMessage,
     "geometry_msgs/msg/PoseStamped": PoseStamped,
     "visualization_msgs/msg/MarkerArray": MarkerArray,
@@ -412,6 +418,7 @@ class Peer:
     def get_latest(self, ros_topic: str, msgtype: str, after: int, timeout: float) -> Any:
         if ros_topic not in self.readers:
             kind = "latched" if ros_topic in ("/toaster/status", "/area_manager/areaList") else ""
+            kind = "sensor" if ros_topic == "/clock" else kind  # rclcpp's ClockQoS: best effort
             topic = self.topic(f"rt{ros_topic}", IDL[msgtype])
             profile = Qos(*qos(kind or "reliable"), Policy.IgnoreLocal.Participant)
             self.readers[ros_topic] = DataReader(self.dp, topic, qos=profile)

@@ -14,8 +14,10 @@ the run that made it (:mod:`toaster.app.replay`).
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable, Mapping
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -25,11 +27,15 @@ import numpy as np
 from toaster.errors import InvalidInputError
 
 if TYPE_CHECKING:
+    from toaster.app.published import RunNode
     from toaster.db import Database
     from toaster.producers import Session, Stats
 
 #: ``progress(ticks_done, ticks_total)``, called after every tick
 Progress = Callable[[int, int], None]
+#: ``live(node)``: start outputs on the run's node (:mod:`toaster.app.published`), stopped
+#: when the context ends
+Live = Callable[["RunNode"], AbstractContextManager[Any]]
 
 
 @dataclass(frozen=True)
@@ -129,6 +135,9 @@ def run_file(
     record_dir: str | Path | None = None,
     progress: Progress | None = None,
     record_format: str = "ros",
+    live: Live | None = None,
+    wait: bool = False,
+    stop: threading.Event | None = None,
 ) -> RunReport:
     """Tick ``path`` into ``db`` (None: compute only) and report what happened.
 
@@ -144,6 +153,10 @@ def run_file(
             ``/toaster/world``); ``record_format`` ``foxglove``: a ``FILE.mcap`` of the
             live Foxglove server's channels instead (needs ``toaster[foxglove]``).
         progress: called after each tick with (ticks done, ticks in all).
+        live: publish the ticks: ``live(node)`` starts outputs on the run's
+            :class:`~toaster.app.published.RunNode` (as ``toaster serve`` starts them on its
+            node) and is left at the end; ``wait``: tick only once someone subscribes.
+        stop: once set, the run stops between two ticks (what ran is stored and recorded).
 
     Areas stored in ``db`` are added to the file's, and the file's are stored; the same input
     into a fresh database gives the same facts and events. A toaster recording replays the run
@@ -182,20 +195,46 @@ def run_file(
     times = tick_times(session, end, rate_hz)
     frames: list[tuple[Any, ...]] = []
     world: list[tuple[int, dict[str, Any]]] = []
-    done = 0
+    done, last = 0, session.start_ns
+    stop = stop or threading.Event()
 
     def on_tick(t_ns: int) -> None:
-        nonlocal done
+        nonlocal done, last
+        if node is not None:
+            node.ticked(t_ns)
         if record_dir is not None:
             frames.append(session.frame(t_ns, with_areas=not frames))
             world.append((t_ns, world_fields(session.world, t_ns)))
-        done += 1
+        done, last = done + 1, t_ns
         if progress is not None:
             progress(done, len(times))
 
+    node: RunNode | None = None
     wall = time.perf_counter()
-    runner.run_at(times.tolist(), realtime=realtime, on_tick=on_tick)
+    if live is None:
+        runner.run_at(times.tolist(), realtime=realtime, on_tick=on_tick, stop=stop)
+    else:
+        from toaster.app.published import RunNode
+
+        node = RunNode(db, session, runner)
+        try:
+            with live(node):
+                if wait and node.wait_for_subscriber(stop):
+                    wall = time.perf_counter()
+                runner.run_at(
+                    times.tolist(),
+                    realtime=realtime,
+                    on_tick=on_tick,
+                    computed=node.computed,
+                    stop=stop,
+                    write_behind=node.write_behind,
+                )
+        finally:
+            node.close()
     wall_s = time.perf_counter() - wall
+    if done < len(times):
+        notes.append(f"stopped after {done} of {len(times)} ticks")
+        end = last
     recording = None
     if record_dir is not None:
         from toaster.outputs.recording import record

@@ -30,7 +30,14 @@ def _export(kw: dict[str, Any]) -> list[Need]:
 def _run(kw: dict[str, Any]) -> list[Need]:
     from toaster.app.runs import needed_extras
 
-    return needed_extras(kw["path"], kw["record_dir"], kw["record_format"])
+    return needed_extras(kw["path"], kw["record_dir"], kw["record_format"]) + _published("run", kw)
+
+
+def _published(command: str, kw: dict[str, Any]) -> list[Need]:
+    """The extras of the live outputs (cli/publish.py) that ``command`` is asked for."""
+    return ([("ros2", f"toaster {command} --ros2")] if kw["ros2"] else []) + (
+        [("foxglove", f"{command} --foxglove")] if kw["foxglove"] is not None else []
+    )
 
 
 #: command path (as typed after ``toaster``) -> the extras its arguments need
@@ -39,10 +46,7 @@ NEEDS: dict[str, Callable[[dict[str, Any]], list[Need]]] = {
     "export": _export,
     "record": lambda _kw: [("rosbag", "record")],
     "run": _run,
-    "serve": lambda kw: (
-        ([("ros2", "toaster serve --ros2")] if kw["ros2"] else [])
-        + ([("foxglove", "serve --foxglove")] if kw["foxglove"] is not None else [])
-    ),
+    "serve": lambda kw: _published("serve", kw),
 }
 
 

@@ -3,9 +3,11 @@ area`` (areas kept in the database) and ``toaster relpos``."""
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 import sys
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -13,6 +15,7 @@ import click
 
 from toaster.cli.checks import parse_duration_option
 from toaster.cli.output import emit, listing_options
+from toaster.cli.publish import check_publish, publish_options, published
 from toaster.cli.rosopts import pose_topics as parse_pose_topics
 from toaster.cli.rosopts import ros_input_options
 from toaster.errors import InvalidInputError
@@ -29,7 +32,11 @@ from toaster.errors import InvalidInputError
     "scenario's rate).",
 )
 @click.option("--until", "until", metavar="T", help="Stop after this much input time (20s).")
-@click.option("--realtime", is_flag=True, help="Pace ticks to the wall clock.")
+@click.option(
+    "--realtime/--no-realtime",
+    default=None,
+    help="Pace ticks to the wall clock (default: when publishing: --foxglove, --ros2, --ros1).",
+)
 @click.option(
     "--fps",
     type=float,
@@ -73,13 +80,24 @@ from toaster.errors import InvalidInputError
     help="foxglove: --record FILE.mcap holds the channels of `toaster serve --foxglove` "
     "(docs/foxglove.md); needs toaster[foxglove].",
 )
+@publish_options(
+    "Publish each tick on ROS 1 as `toaster serve --ros1` does, with /clock at the run's "
+    "stamps (a roscore must run; docs/ros1.md).",
+    "Publish each tick on ROS 2 over DDS as `toaster serve --ros2` does, with /clock at "
+    "the run's stamps (toaster[ros2]; docs/ros2.md).",
+)
+@click.option(
+    "--wait",
+    is_flag=True,
+    help="With --foxglove, --ros2 or --ros1: tick only once a client or reader subscribes.",
+)
 @click.pass_obj
 def run(
     app: Any,
     path: Path,
     rate: float | None,
     until: str | None,
-    realtime: bool,
+    realtime: bool | None,
     fps: float | None,
     holders: str | None,
     config_file: Path | None,
@@ -88,16 +106,32 @@ def run(
     no_db: bool,
     record_dir: Path | None,
     record_format: str,
+    ros1: bool,
+    ros2: bool,
+    domain_id: int | None,
+    foxglove: int | None,
+    wait: bool,
 ) -> None:
     """Tick a scenario (.yaml/.json), recording (obsmat .txt, .csv, .jsonl) or ROS bag
     (.bag, .mcap, .db3 or a rosbag2 folder) into the store.
 
     Areas stored in the database are added to the file's; the file's areas are stored.
     Same input into a fresh database gives the same facts and events.
+
+    With --foxglove, --ros2 or --ros1 each tick is published as `toaster serve` publishes
+    it, paced to the wall clock, stamped with the run's own times (a scenario starts at 0 s)
+    and with the run's clock (Foxglove's server time, ROS's /clock); Ctrl-C or SIGTERM stops
+    it between two ticks.
     """
     from toaster.app.runs import check_run, run_file
     from toaster.world.config import read_config_file
 
+    check_publish(ros2=ros2, domain_id=domain_id)
+    publishing = ros1 or ros2 or foxglove is not None
+    if wait and not publishing:
+        msg = "--wait waits for a subscriber: add --foxglove, --ros2 or --ros1"
+        raise InvalidInputError(msg)
+    realtime = publishing if realtime is None else realtime
     rate = check_run(path, record_dir=record_dir, rate_hz=rate, record_format=record_format)
     until_ns = None if until is None else parse_duration_option(until, "--until")
     config = read_config_file(config_file) if config_file is not None else None
@@ -116,6 +150,30 @@ def run(
         record_dir=record_dir,
         record_format=record_format,
     )
+    if not publishing:
+        _go(path, go)
+        return
+    from toaster.node.serve import stop_on_signals
+
+    live = functools.partial(
+        _publishing, ros1=ros1, ros2=ros2, domain_id=domain_id, foxglove=foxglove, wait=wait
+    )
+    with stop_on_signals() as stop:  # the run stops between two ticks, as serve does
+        _go(path, functools.partial(go, live=live, wait=wait, stop=stop))
+
+
+@contextlib.contextmanager
+def _publishing(node: Any, **outputs: Any) -> Iterator[None]:
+    """The run's outputs (cli/publish.py, as `toaster serve`'s), and what it says of them."""
+    wait = outputs.pop("wait")
+    with published(node, "toaster run", run=True, **outputs):
+        if wait:
+            click.echo("toaster run: waiting for a subscriber (Ctrl-C stops)", err=True)
+        yield
+
+
+def _go(path: Path, go: Callable[..., Any]) -> None:
+    """Run, with a progress bar on a terminal, and report."""
     if sys.stderr.isatty():
         from rich.progress import Progress
 

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
+from toaster.cli.publish import check_publish, publish_options, published
 from toaster.cli.rosopts import pose_topics as parse_pose_topics
 from toaster.cli.rosopts import ros_input_options
 from toaster.errors import InvalidInputError
@@ -94,33 +95,9 @@ def self_agent_of(db: Database, requested: str | None) -> str:
     help="A tick's time, hence its facts': the newest pose stamp it applies (if not older "
     "than the node's max_stamp_lag, else the wall clock; docs/time.md), or the wall clock.",
 )
-@click.option(
-    "--ros1",
-    is_flag=True,
-    help="Bridge to ROS 1 (needs Debian's ROS 1 packages; see docs/ros1.md).",
-)
-@click.option(
-    "--ros2",
-    is_flag=True,
-    help="Bridge to ROS 2 over DDS, no ROS 2 install needed (toaster[ros2]; docs/ros2.md).",
-)
-@click.option(
-    "--domain-id",
-    "domain_id",
-    type=int,
-    default=None,
-    metavar="N",
-    help="ROS 2 domain (default: ROS_DOMAIN_ID, else 0).",
-)
-@click.option(
-    "--foxglove",
-    type=click.IntRange(0, 65535),
-    is_flag=False,
-    flag_value=8765,
-    default=None,
-    metavar="[PORT]",
-    help="Serve the Foxglove app on ws://127.0.0.1:PORT (default 8765; 0: a free port, "
-    "printed); needs toaster[foxglove] (docs/foxglove.md).",
+@publish_options(
+    "Bridge to ROS 1 (needs Debian's ROS 1 packages; see docs/ros1.md).",
+    "Bridge to ROS 2 over DDS, no ROS 2 install needed (toaster[ros2]; docs/ros2.md).",
 )
 @ros_input_options
 @click.pass_obj
@@ -159,9 +136,7 @@ def serve(
     if (tf_map is not None or pose_topics) and not (ros1 or ros2):
         msg = "--tf-map and --pose-topic are ROS inputs: add --ros1 or --ros2"
         raise InvalidInputError(msg)
-    if not ros2 and domain_id is not None:
-        msg = "--domain-id is a ROS 2 option: add --ros2"
-        raise InvalidInputError(msg)
+    check_publish(ros2=ros2, domain_id=domain_id)
     from toaster.world.config import read_config_file
 
     config = read_config_file(config_file) if config_file is not None else None
@@ -181,32 +156,19 @@ def serve(
     status.propagate = False
     self_id = self_agent_of(app.db, self_id)
     node = LiveNode(app.db, config=config, self_id=self_id, holders=choice, stamp=stamp)
-    bridge = None
-    if ros1:
-        from toaster.ros1.bridge import start_bridge
-
-        bridge = start_bridge(node, tf_map=tf_map, pose_topics=topics)
-    bridge2 = None
-    if ros2:
-        from toaster.ros2.bridge import start_bridge as start_ros2
-
-        bridge2 = start_ros2(node, domain_id=domain_id, tf_map=tf_map, pose_topics=topics)
-    fox = None
-    if foxglove is not None:
-        from toaster.foxglove.server import start_server
-
-        fox = start_server(node, foxglove)
-        click.echo(f"toaster serve: Foxglove on ws://127.0.0.1:{fox.port}", err=True)
-    click.echo(f"toaster serve: {rate:g} Hz on {app.db.url} (Ctrl-C stops)", err=True)
-    try:
+    outputs = published(
+        node,
+        "toaster serve",
+        ros1=ros1,
+        ros2=ros2,
+        domain_id=domain_id,
+        foxglove=foxglove,
+        tf_map=tf_map,
+        pose_topics=topics,
+    )
+    with outputs:
+        click.echo(f"toaster serve: {rate:g} Hz on {app.db.url} (Ctrl-C stops)", err=True)
         stats = serve_node(node, rate, seconds=seconds, status_every_s=status_every)
-    finally:
-        if bridge is not None:
-            bridge.shutdown()
-        if bridge2 is not None:
-            bridge2.shutdown()
-        if fox is not None:
-            fox.shutdown()
     p50 = sorted(stats.tick_ms)[len(stats.tick_ms) // 2] if stats.tick_ms else 0.0
     click.echo(
         f"toaster serve: stopped after {stats.ticks} ticks ({stats.overruns} overran "

@@ -169,7 +169,12 @@ class FoxgloveServer:
     """A running server beside a node; :meth:`shutdown` stops it and detaches its output."""
 
     def __init__(
-        self, node: Any, port: int = DEFAULT_PORT, host: str = "127.0.0.1", services: bool = True
+        self,
+        node: Any,
+        port: int = DEFAULT_PORT,
+        host: str = "127.0.0.1",
+        services: bool = True,
+        clock: bool = False,
     ) -> None:
         from foxglove.websocket import Capability
 
@@ -181,11 +186,14 @@ class FoxgloveServer:
         self.channels = Channels(self.context)
         self.output = FoxgloveOutput(node, self.channels)
         self.calls, handlers = node_services(self) if services else (None, [])
+        capabilities = [Capability.Services] if handlers else []
+        if clock:
+            capabilities.append(Capability.Time)
         self.server = foxglove.start_server(
             name="toaster",
             host=host,
             port=port,
-            capabilities=[Capability.Services] if handlers else [],
+            capabilities=capabilities,
             supported_encodings=["json"],
             services=handlers,
             context=self.context,
@@ -203,7 +211,13 @@ class FoxgloveServer:
 
 
 def start_server(
-    node: Any, port: int = DEFAULT_PORT, host: str = "127.0.0.1", services: bool = True
+    node: Any,
+    port: int = DEFAULT_PORT,
+    host: str = "127.0.0.1",
+    services: bool = True,
+    clock: bool = False,
 ) -> FoxgloveServer:
-    """Serve ``node`` to Foxglove on ``host:port`` (0: a free port; see ``.port``)."""
-    return FoxgloveServer(node, port, host, services)
+    """Serve ``node`` to Foxglove on ``host:port`` (0: a free port; see ``.port``). With
+    ``clock`` the server has the protocol's time capability: the app follows the time given to
+    ``.server.broadcast_time(t_ns)`` (a run's own clock), not its own."""
+    return FoxgloveServer(node, port, host, services, clock)

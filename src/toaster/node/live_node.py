@@ -31,7 +31,7 @@ from toaster.model import shown
 from toaster.node import control, requests
 from toaster.node.control_watch import ControlWatch
 from toaster.node.faults import GAP_SOURCE, RECONNECT_KINDS, Faults
-from toaster.node.output import Output
+from toaster.node.output import Output, publish_to
 from toaster.node.pacing import TickBudget, wait_for_tick
 from toaster.node.stamps import TickClock
 from toaster.node.stats import LiveStats
@@ -406,17 +406,7 @@ class LiveNode:
     def _publish(self, t: int, facts: TickFacts, method: str) -> None:
         """Every output's ``method`` (those that have it); an output failing does not stop
         the node."""
-        for output in self.outputs:
-            publish = getattr(output, method, None)
-            if publish is None:
-                continue
-            name = f"output {type(output).__name__}"
-            try:
-                publish(t, facts, self.world)
-            except Exception as exc:  # an output failing must not stop the node
-                self.faults.part_failed(name, exc, "the others go on")
-            else:
-                self.faults.part_worked(name)
+        publish_to(self.outputs, method, t, facts, self.world, self.faults)
 
     def _producer_failed(self, name: str, exc: Exception) -> None:
         self.faults.part_failed(f"producer {name}", exc)

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import TYPE_CHECKING, Protocol
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Protocol
 
 from toaster.model import Fact
 
@@ -21,4 +21,29 @@ class Output(Protocol):
     def publish(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None: ...
 
 
-__all__ = ["Output"]
+def publish_to(
+    outputs: Sequence[Any],
+    method: str,
+    t_ns: int,
+    facts: Mapping[str, list[Fact]],
+    world: World,
+    faults: Any,
+) -> None:
+    """Every output's ``method`` (``publish_facts`` or ``publish``; those that have it), for
+    a live node and for a run that publishes (:mod:`toaster.app.published`). An output
+    failing does not stop the others: ``faults`` (:class:`toaster.node.faults.Faults`) warns
+    once, and again when it works."""
+    for output in outputs:
+        publish = getattr(output, method, None)
+        if publish is None:
+            continue
+        name = f"output {type(output).__name__}"
+        try:
+            publish(t_ns, facts, world)
+        except Exception as exc:  # an output failing must not stop the node
+            faults.part_failed(name, exc, "the others go on")
+        else:
+            faults.part_worked(name)
+
+
+__all__ = ["Output", "publish_to"]

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -178,22 +180,32 @@ class Runner:
         realtime: bool = False,
         on_tick: Callable[[int], None] | None = None,
         maintain_every_s: float | None = MAINTAIN_EVERY_S,
+        computed: Callable[[int, dict[str, list[Fact] | FactBatch]], None] | None = None,
+        stop: threading.Event | None = None,
+        write_behind: bool = True,
     ) -> Stats:
         """Tick at ``times`` (ns, increasing); pace them to the clock from the first if
-        ``realtime``.
+        ``realtime``; stop between two ticks once ``stop`` is set.
 
-        Every ``maintain_every_s`` seconds of wall time the database is maintained between two
-        ticks (:meth:`toaster.db.Database.maintain`: PostgreSQL vacuums the hot tables).
+        ``computed(t_ns, out)`` is called once a tick's producers are computed, before its
+        write (a run that publishes sends the tick then). ``write_behind`` False writes each
+        tick before the next computes (one connection: an in-memory SQLite database that the
+        caller also reads). Every ``maintain_every_s`` seconds of wall time the database is
+        maintained between two ticks (:meth:`toaster.db.Database.maintain`: PostgreSQL
+        vacuums the hot tables).
         """
         wall0 = last_maintained = time.monotonic()
         first: int | None = None
-        with _Pipeline(self) as pipeline:
+        stop = stop or threading.Event()
+        with _Pipeline(self, computed, write_behind=write_behind) as pipeline:
             for t in times:
                 first = t if first is None else first
                 if realtime:
                     delay = (t - first) / NS_PER_S - (time.monotonic() - wall0)
                     if delay > 0:
-                        time.sleep(delay)
+                        stop.wait(delay)
+                if stop.is_set():
+                    break
                 pipeline.tick(t)
                 if on_tick is not None:
                     on_tick(t)
@@ -216,25 +228,33 @@ class _Pipeline:
     every tick written, in order; a write's error is raised before the next write (the
     ticks computed after it write nothing). Without a store, plain ticks."""
 
-    def __init__(self, runner: Runner) -> None:
-        self.runner = runner
+    def __init__(
+        self,
+        runner: Runner,
+        computed: Callable[[int, dict[str, list[Fact] | FactBatch]], None] | None = None,
+        *,
+        write_behind: bool = True,
+    ) -> None:
+        self.runner, self.computed, self.write_behind = runner, computed, write_behind
         self._pool: ThreadPoolExecutor | None = None
         self._writing: Future[None] | None = None
 
     def __enter__(self) -> _Pipeline:
-        if self.runner.store is not None:
+        if self.runner.store is not None and self.write_behind:
             self._pool = ThreadPoolExecutor(1, thread_name_prefix="toaster-write")
         return self
 
     def tick(self, t_ns: int) -> None:
-        runner = self.runner
+        runner, computed = self.runner, self.computed
         if self._pool is None:
-            runner.tick(t_ns)
+            runner.tick(t_ns, computed=None if computed is None else partial(computed, t_ns))
             return
         out = runner.compute(t_ns)
         for batch in out.values():  # their facts are built on the thread, the world moves on
             if isinstance(batch, FactBatch):
                 batch.pin()
+        if computed is not None:
+            computed(t_ns, out)
         movers = dict(runner.hands.movers)
         self.wait()
         self._writing = self._pool.submit(runner.write, t_ns, out, movers)

@@ -14,7 +14,7 @@ import logging
 import sys
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -134,6 +134,7 @@ class Bridge(PoseInputs):
         self.sources: dict[str, LiveSource] = {}
         self.subscribers: list[Any] = []
         self.services: list[Any] = []
+        self._clock_pub: Any = None  # toaster run --ros1 (clock())
         self.pool: DbPool | None = None
         self.watchers: Watchers | None = None
         self._caller = rospy.get_name()
@@ -319,6 +320,32 @@ class Bridge(PoseInputs):
             self._area_numbers = (names, {k: int(v) for k, v in stored.items()})
         return self._area_numbers[1]
 
+    # -- a run's extras (toaster run --ros1) ----------------------------------------------------
+    def listened(self) -> bool:
+        """Whether a subscriber is connected to one of the outputs' topics."""
+        pubs = [
+            *self.fact_pubs.values(),
+            *self.marker_pubs.values(),
+            *self.list_pubs.values(),
+            self.area_pub,
+            self.tables_pub,
+            self.tf_pub,
+        ]
+        return any(p is not None and p.get_num_connections() for p in pubs)
+
+    def clock(self) -> Callable[[int], None]:
+        """A /clock publisher (rosgraph_msgs/Clock) as ``tell(t_ns)``: what ``rosbag play
+        --clock`` gives nodes with ``use_sim_time``."""
+        from rosgraph_msgs.msg import Clock  # type: ignore[import-not-found]
+
+        pub = self.rospy.Publisher("/clock", Clock, queue_size=1)
+        self._clock_pub = pub
+
+        def tell(t_ns: int) -> None:
+            pub.publish(Clock(clock=self.rospy.Time(t_ns // 1_000_000_000, t_ns % 1_000_000_000)))
+
+        return tell
+
     def shutdown(self) -> None:
         """Stop subscribers, services and publishers; detach from the node."""
         for sub in self.subscribers:
@@ -333,6 +360,7 @@ class Bridge(PoseInputs):
             self.status_pub,
             *self.marker_pubs.values(),
             *self.list_pubs.values(),
+            self._clock_pub,
         ]:
             if pub is not None:
                 pub.unregister()

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import sys
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -37,6 +37,7 @@ from toaster.world.rosmsg import (
 )
 
 __all__ = ["STATUS_SERVICE", "STATUS_TOPIC", "Ros2Bridge", "start_bridge"]
+CLOCK, CLOCK_TOPIC = "rosgraph_msgs/msg/Clock", "/clock"
 OPTIONS = ("fixed_frame", "toaster_simu", "ros4hri", "services", "publish_tf", "markers")
 
 
@@ -132,6 +133,24 @@ class Ros2Bridge(PoseInputs):
         wake = self.sources["tf"].on_push
         if wake is not None:
             wake()
+
+    # -- a run's extras -------------------------------------------------------------------------
+    def listened(self) -> bool:
+        """Whether a reader matched one of the outputs' topics (``toaster run --wait``)."""
+        out = self.output
+        writers = [*out.fact_pubs.values(), *out.marker_pubs.values(), out.area_pub, out.tf_pub]
+        return any(w is not None and self.dds.listened(w) for w in writers)
+
+    def clock(self) -> Callable[[int], None]:
+        """A /clock writer (rosgraph_msgs/msg/Clock, reliable, depth 1: every reader QoS,
+        rclcpp's best-effort ClockQoS too) as ``tell(t_ns)``: what ``ros2 bag play --clock``
+        gives nodes with ``use_sim_time``."""
+        writer = self.dds.writer(CLOCK_TOPIC, CLOCK, "reliable", 1)
+
+        def tell(t_ns: int) -> None:
+            writer.write(self.types.build(CLOCK, {"clock": t_ns}))
+
+        return tell
 
     # -- stopping ------------------------------------------------------------------------------
     def shutdown(self) -> None:

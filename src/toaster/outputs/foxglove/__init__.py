@@ -415,6 +415,11 @@ class Channels:
             motion = markers.motion_markers(world, motion_facts, t_ns)
             self.motion.log(scene_update(t_ns, motion), log_time=t_ns)
 
+    def listened(self) -> bool:
+        """Whether a client subscribes to any channel."""
+        fixed: list[Any] = [self.scene, self.areas, self.motion, self.tf, self.log]
+        return any(c.has_sinks() for c in [*fixed, *self.json.values()])
+
     def wanted(self, *topics: str) -> bool:
         """Whether one of the JSON ``topics`` has a sink."""
         return any(self.json[topic].has_sinks() for topic in topics)
