@@ -8,7 +8,7 @@ and 50 objects at 30 Hz, moving each human into and out of a zone once a second.
 the same run: the same scene pushed in-process into a `LiveNode` (no ROS transport), database
 latency only. ``--foxglove``: also `--ros1 --foxglove 0`, the FactList and Foxglove's
 /toaster/facts (foxglove_listener.py) of the same ticks. ``--ros2``: also `toaster serve --ros2`
-with the scene published over DDS (live_client_ros2.py: cyclonedds, no ROS 2 install) on a
+with the scene published over DDS (live_client_ros2.py: cyclonedds, rosbags, no ROS 2 install) on a
 random ROS_DOMAIN_ID over loopback. The paths alternate within each repeat; after the table,
 the ROS 2 FactList's and Foxglove's p50 / p99 as ratios to the `--ros1` FactList's (medians
 over repeats of each repeat's ratio). Quoted: medians over repeats of p50 / p99 in ms, ticks and

@@ -312,3 +312,41 @@ def test_a_tf_stream_is_read_with_its_layout_kept(rosbags_store: Any) -> None:
             assert got.t.tolist() == want.t.tolist()
             assert got.q.tolist() == want.q.tolist()
     assert reader.read(message([])).children == []
+
+
+def test_the_binding_s_raw_calls(types: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The bridge writes and takes CDR bytes through cyclonedds' private ``_clayer`` calls
+    (toaster.ros2.dds.raw_calls): a sample written as bytes arrives as those bytes, at a
+    raw reader's listener and at :meth:`Dds.take_raw`, and reads back with the codec. A
+    binding that renames or changes them fails here, not in a running node."""
+    import random
+
+    from cyclonedds.sub import DataReader
+
+    from tests.ros2.conftest import LOOPBACK, wait_for
+    from toaster.ros2.dds import Dds, raw_calls, reader_qos
+
+    write, take = raw_calls()
+    assert callable(write) and callable(take)
+    monkeypatch.setenv("CYCLONEDDS_URI", LOOPBACK)  # this domain stays on the loopback
+    dds = Dds(random.randint(1, 230), types)
+    try:
+        msgtype, topic = "std_msgs/msg/String", "/toaster_raw_check"
+        heard: list[bytes] = []
+        writer = dds.writer(topic, msgtype, "latched", 4)
+        dds.reader(topic, msgtype, heard.append, "reliable", raw=True)
+        plain = DataReader(
+            dds.participant, dds.topic("rt" + topic, types.cls(msgtype)), qos=reader_qos("latched")
+        )
+        wait_for(lambda: writer.get_publication_matched_status().current_count == 2, "readers")
+        sent = [types.build(msgtype, {"data": text}).serialize() for text in ("one", "twenty")]
+        for data in sent:
+            Dds.write_raw(writer, data)
+        wait_for(lambda: len(heard) == 2, "the listener's samples")
+        taken: list[bytes] = []
+        wait_for(lambda: taken.extend(Dds.take_raw(plain)) or len(taken) == 2, "take_raw")
+        for got in (heard, taken):
+            assert [bytes(g)[: len(s)] for g, s in zip(got, sent, strict=True)] == sent
+            assert [types.cls(msgtype).deserialize(bytes(g)).data for g in got] == ["one", "twenty"]
+    finally:
+        dds.close()

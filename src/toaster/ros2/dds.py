@@ -14,6 +14,31 @@ from toaster.ros2.idl import Types
 DEPTH, TF_DEPTH = 10, 100
 #: how long a writer's "has a reader" answer is kept (a new reader waits at most this long)
 MATCH_EVERY_S = 0.5
+#: samples taken per call when a reader's data comes
+TAKE_N = 256
+
+
+def raw_calls() -> tuple[Callable[[int, bytes], int], Callable[[int, int, int], Any]]:
+    """cyclonedds' ``_clayer.ddspy_write(ref, cdr)`` and ``ddspy_take(ref, mask, n)`` (a list
+    of (cdr bytes, sample info)): what its DataWriter.write and DataReader.take call around
+    its Python codec, which is ~10x slower than :mod:`toaster.ros2.cdr` on the messages of a
+    tick. They are private to the binding (checked for 11.0, pinned ``<12`` in pyproject):
+    if a release renames or changes them, the bridge fails here, at start, in one line, and
+    ``tests/ros2/test_wire.py::test_the_binding_s_raw_calls`` fails."""
+    try:
+        from cyclonedds import _clayer  # type: ignore[attr-defined]
+
+        write, take = _clayer.ddspy_write, _clayer.ddspy_take
+    except (ImportError, AttributeError) as exc:
+        from importlib.metadata import version
+
+        from toaster.errors import ToasterError
+
+        found = version("cyclonedds")
+        msg = f"cyclonedds {found} lacks the private calls toaster.ros2.dds uses ({exc}): "
+        msg += "pip install 'cyclonedds>=11.0,<12'"
+        raise ToasterError(msg) from exc
+    return write, take
 
 
 def qos(kind: str, depth: int = DEPTH) -> Any:
@@ -50,12 +75,18 @@ def reader_qos(kind: str, depth: int = DEPTH, *, ignore_own: bool = False) -> An
     return Qos(*qos(kind, depth).policies, *extra)
 
 
+#: :func:`raw_calls`, once a participant was made
+_RAW: list[Any] = []
+
+
 class Dds:
     """One DDS participant on a domain, with readers and writers of ROS 2 topics."""
 
     def __init__(self, domain: int, types: Types) -> None:
         from cyclonedds.domain import DomainParticipant
 
+        if not _RAW:
+            _RAW.extend(raw_calls())
         self.domain, self.types = domain, types
         self.participant: Any = DomainParticipant(domain)
         self._topics: dict[str, Any] = {}
@@ -111,19 +142,15 @@ class Dds:
     ) -> Any:
         """A reader of DDS topic ``dds_name``; ``on_sample`` gets each sample, as CDR bytes
         when ``raw`` (:mod:`toaster.ros2.cdr` reads them faster than cyclonedds' codec)."""
-        from cyclonedds._clayer import ddspy_take  # type: ignore[import-not-found]
-        from cyclonedds.core import InstanceState, Listener, SampleState, ViewState
+        from cyclonedds.core import Listener
         from cyclonedds.sub import DataReader
-
-        mask = SampleState.Any | ViewState.Any | InstanceState.Any
 
         def available(reader: Any) -> None:
             if raw:
-                for data, info in ddspy_take(reader._ref, mask, 256):
-                    if info.valid_data:
-                        on_sample(data)
+                for data in self.take_raw(reader):
+                    on_sample(data)
                 return
-            for sample in reader.take(N=256):
+            for sample in reader.take(N=TAKE_N):
                 if getattr(sample, "sample_info", None) is None or sample.sample_info.valid_data:
                     on_sample(sample)
 
@@ -139,12 +166,23 @@ class Dds:
     @staticmethod
     def write_raw(writer: Any, data: bytes) -> None:
         """Write a sample's CDR bytes as they are (cyclonedds checks them against the type)."""
-        from cyclonedds._clayer import ddspy_write  # type: ignore[import-not-found]
-
-        ret = ddspy_write(writer._ref, data)
+        ret = _RAW[0](writer._ref, data)
         if ret < 0:
             msg = f"DDS write of {len(data)} bytes failed (code {ret})"
             raise OSError(msg)
+
+    @staticmethod
+    def take_raw(reader: Any, n: int = TAKE_N) -> list[bytes]:
+        """Take up to ``n`` samples of ``reader`` as CDR bytes (samples without data, as a
+        disposed instance's, are left out)."""
+        from cyclonedds.core import InstanceState, SampleState, ViewState
+
+        mask = SampleState.Any | ViewState.Any | InstanceState.Any
+        taken = _RAW[1](reader._ref, mask, n)
+        if isinstance(taken, int):  # a DDS error code, as DataReader.take raises it
+            msg = f"DDS take failed (code {taken})"
+            raise OSError(msg)
+        return [data for data, info in taken if info.valid_data]
 
     def listened(self, writer: Any) -> bool:
         """Whether a reader is matched to ``writer`` (nothing is built for nobody), asked of
