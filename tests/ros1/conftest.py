@@ -7,38 +7,22 @@ Without roscore or rospy the tests skip with the reason; under CI (``CI`` set) t
 
 from __future__ import annotations
 
-import json
 import os
-import signal
 import subprocess
-import sys
-import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 
 import toaster
+from tests.processes import TIMEOUT, LineClient, NodeProcess
 from toaster.ros1 import RosUnavailableError
 from toaster.ros1.core import RosCore, stop_group
 
 HERE = Path(__file__).resolve().parent
 ROSCORE = "/usr/bin/roscore"
 SYSTEM_PYTHON = "/usr/bin/python3"
-TIMEOUT = 60.0  # generous: conditions are waited for, never a wall-clock window
-
-
-def wait_for(what: Callable[[], Any], message: str = "", timeout: float = TIMEOUT) -> Any:
-    """``what()`` once it is true, asked every 50 ms; fails the test after ``timeout``."""
-    deadline = time.monotonic() + timeout
-    while True:
-        value = what()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            pytest.fail(f"timed out after {timeout:g} s waiting for {message or what}")
-        time.sleep(0.05)
 
 
 def ros_unavailable() -> str | None:
@@ -92,50 +76,6 @@ def ros_env(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, str]
         pytest.fail(str(exc))
 
 
-class NodeProcess:
-    """``toaster serve --ros1`` as users run it (its stderr is kept for the warning lines)."""
-
-    def __init__(self, env: dict[str, str], url: str, args: list[str], log: Path) -> None:
-        self.url, self.log = url, log
-        self.err = log.open("w")
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "toaster", "--db", url, "serve", "--ros1", *args],
-            cwd=log.parent,  # files the node writes (plot_fact/) land beside its log
-            env=env,
-            stdout=subprocess.PIPE,
-            stderr=self.err,
-            text=True,
-            start_new_session=True,
-        )
-        deadline = time.monotonic() + 60
-        while "(Ctrl-C stops)" not in self.stderr():  # printed once the bridge is up
-            if self.proc.poll() is not None or time.monotonic() > deadline:
-                self.close()
-                pytest.fail(f"the toaster node did not start: {self.stderr()[-2000:]}")
-            time.sleep(0.05)
-
-    def stderr(self) -> str:
-        self.err.flush()
-        return self.log.read_text()
-
-    def alive(self) -> bool:
-        return self.proc.poll() is None
-
-    def close(self) -> str:
-        """Stop it (SIGTERM, as a service manager would); its closing summary (stderr)."""
-        if self.proc.poll() is None:
-            os.killpg(self.proc.pid, signal.SIGTERM)
-            try:
-                self.proc.wait(15)
-            except subprocess.TimeoutExpired:
-                os.killpg(self.proc.pid, signal.SIGKILL)
-                self.proc.wait(5)
-        self.err.close()
-        if self.proc.stdout:
-            self.proc.stdout.close()
-        return self.log.read_text()
-
-
 @pytest.fixture(scope="module")
 def node_args() -> list[str]:
     """The options of the module's node after ``serve --ros1`` (a module overrides it)."""
@@ -149,7 +89,8 @@ def node(
     """The module's ``toaster serve --ros1`` on a SQLite file in a folder of its own (its log
     there too), stopped at the end; it must have stopped cleanly, with no traceback."""
     tmp = tmp_path_factory.mktemp("ros1_node")
-    proc = NodeProcess(ros_env, f"sqlite:///{tmp / 'toaster.db'}", node_args, tmp / "node.log")
+    url = f"sqlite:///{tmp / 'toaster.db'}"
+    proc = NodeProcess(ros_env, url, "--ros1", node_args, tmp / "node.log")
     yield proc
     out = proc.close()
     assert "stopped after" in out, out[-2000:]
@@ -164,35 +105,11 @@ def db(node: NodeProcess) -> Iterator[toaster.Database]:
     database.close()
 
 
-class RosClient:
+class RosClient(LineClient):
     """The rospy client process: call services, publish, read topics."""
 
     def __init__(self, env: dict[str, str]) -> None:
-        self.proc = subprocess.Popen(
-            [SYSTEM_PYTHON, str(HERE / "client.py")],
-            env=env,
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            start_new_session=True,
-        )
-        first = self._read()
-        assert first.get("ready"), first
-
-    def _read(self) -> dict[str, Any]:
-        assert self.proc.stdout is not None
-        line = self.proc.stdout.readline()
-        if not line:
-            err = self.proc.stderr.read() if self.proc.stderr else ""
-            pytest.fail(f"the ROS client died: {err[-2000:]}")
-        return json.loads(line)
-
-    def send(self, op: str, **fields: Any) -> dict[str, Any]:
-        assert self.proc.stdin is not None
-        self.proc.stdin.write(json.dumps({"op": op, **fields}) + "\n")
-        self.proc.stdin.flush()
-        return self._read()
+        super().__init__([SYSTEM_PYTHON, str(HERE / "client.py")], env, "ROS client")
 
     def call(self, service: str, srv_type: str, **request: Any) -> dict[str, Any]:
         """The response fields; fails the test when the service answered an error."""
@@ -233,23 +150,6 @@ class RosClient:
         answer = self.send("latest", topic=topic, after=after, timeout=TIMEOUT)
         assert answer["ok"], answer
         return answer
-
-    def close(self) -> None:
-        if self.proc.poll() is None:
-            try:
-                self.send_quit()
-                self.proc.wait(10)
-            except (OSError, subprocess.TimeoutExpired):
-                os.killpg(self.proc.pid, signal.SIGKILL)
-                self.proc.wait(5)
-        for pipe in (self.proc.stdin, self.proc.stdout, self.proc.stderr):
-            if pipe is not None:
-                pipe.close()
-
-    def send_quit(self) -> None:
-        assert self.proc.stdin is not None
-        self.proc.stdin.write(json.dumps({"op": "quit"}) + "\n")
-        self.proc.stdin.flush()
 
 
 @pytest.fixture(scope="module")

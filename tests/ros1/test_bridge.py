@@ -12,7 +12,8 @@ from typing import Any
 import pytest
 
 import toaster
-from tests.ros1.conftest import NodeProcess, RosClient, wait_for
+from tests.processes import NodeProcess, wait_for
+from tests.ros1.conftest import RosClient
 from toaster import queries as q
 
 SELF = "toaster"

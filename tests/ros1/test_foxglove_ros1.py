@@ -12,7 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from tests.ros1.conftest import NodeProcess, RosClient, wait_for
+from tests.processes import NodeProcess, wait_for
+from tests.ros1.conftest import RosClient
 from tests.ros1.test_bridge import pose_msg
 
 pytest.importorskip("foxglove")

@@ -18,7 +18,8 @@ import yaml
 from click.testing import CliRunner
 
 import toaster
-from tests.ros1.conftest import TIMEOUT, NodeProcess, RosClient, require_ros, wait_for
+from tests.processes import TIMEOUT, NodeProcess, wait_for
+from tests.ros1.conftest import RosClient, require_ros
 from toaster import queries as q
 from toaster.cli import cli
 from toaster.producers.registry import NAMES as PRODUCERS

@@ -11,7 +11,8 @@ from pathlib import Path
 import pytest
 
 import toaster
-from tests.ros1.conftest import TIMEOUT, RosClient, wait_for
+from tests.processes import TIMEOUT, wait_for
+from tests.ros1.conftest import RosClient
 
 pytestmark = pytest.mark.slow
 SCENARIO = Path(toaster.__file__).parent / "examples" / "scenario_spatial_sally_anne.yaml"

@@ -17,7 +17,8 @@ import yaml  # type: ignore[import-untyped]
 from click.testing import CliRunner
 
 import toaster
-from tests.ros1.conftest import NodeProcess, require_ros
+from tests.processes import NodeProcess
+from tests.ros1.conftest import require_ros
 from toaster.cli import cli
 from toaster.outputs.markers import AREAS_TOPIC, MARKER_TOPICS
 from toaster.ros1 import RVIZ_CONFIG

@@ -9,7 +9,8 @@ import time
 
 import pytest
 
-from tests.ros1.conftest import TIMEOUT, NodeProcess, RosClient
+from tests.processes import TIMEOUT, NodeProcess
+from tests.ros1.conftest import RosClient
 
 pytestmark = pytest.mark.slow  # every test here takes seconds (see pyproject's markers)
 

@@ -8,23 +8,19 @@ Without cyclonedds (``toaster[ros2]``) the tests skip; under CI (``CI`` set) the
 
 from __future__ import annotations
 
-import json
 import os
 import random
-import signal
-import subprocess
 import sys
-import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 
 import toaster
+from tests.processes import LineClient, NodeProcess
 
 HERE = Path(__file__).resolve().parent
-TIMEOUT = 60.0  # generous: conditions are waited for, never a wall-clock window
 LOOPBACK = """<CycloneDDS><Domain Id="any"><General>
 <Interfaces><NetworkInterface address="127.0.0.1"/></Interfaces>
 <AllowMulticast>false</AllowMulticast></General>
@@ -32,18 +28,6 @@ LOOPBACK = """<CycloneDDS><Domain Id="any"><General>
 <MaxAutoParticipantIndex>40</MaxAutoParticipantIndex>
 <Peers><Peer address="127.0.0.1"/></Peers></Discovery></Domain></CycloneDDS>
 """
-
-
-def wait_for(what: Callable[[], Any], message: str = "", timeout: float = TIMEOUT) -> Any:
-    """``what()`` once it is true, asked every 50 ms; fails the test after ``timeout``."""
-    deadline = time.monotonic() + timeout
-    while True:
-        value = what()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            pytest.fail(f"timed out after {timeout:g} s waiting for {message or what}")
-        time.sleep(0.05)
 
 
 def require_cyclonedds() -> None:
@@ -70,86 +54,20 @@ def dds_env(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
     return env
 
 
-class NodeProcess:
-    """``toaster serve --ros2`` as users run it (its stderr kept for the warning lines)."""
-
-    def __init__(self, env: dict[str, str], url: str, args: list[str], log: Path) -> None:
-        self.url, self.log = url, log
-        self.err = log.open("w")
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "toaster", "--db", url, "serve", "--ros2", *args],
-            cwd=log.parent,
-            env=env,
-            stdout=subprocess.DEVNULL,
-            stderr=self.err,
-            text=True,
-            start_new_session=True,
-        )
-        deadline = time.monotonic() + TIMEOUT
-        while "(Ctrl-C stops)" not in self.stderr():  # printed once the bridge is up
-            if self.proc.poll() is not None or time.monotonic() > deadline:
-                self.close()
-                pytest.fail(f"the toaster node did not start: {self.stderr()[-2000:]}")
-            time.sleep(0.05)
-
-    def stderr(self) -> str:
-        self.err.flush()
-        return self.log.read_text()
-
-    def close(self) -> str:
-        """Stop it (SIGTERM, as a service manager would); its closing summary (stderr)."""
-        if self.proc.poll() is None:
-            os.killpg(self.proc.pid, signal.SIGTERM)
-            try:
-                self.proc.wait(20)
-            except subprocess.TimeoutExpired:
-                os.killpg(self.proc.pid, signal.SIGKILL)
-                self.proc.wait(5)
-        self.err.close()
-        return self.log.read_text()
-
-
-class Peer:
+class Peer(LineClient):
     """The ROS 2 peer process (``peer.py``): publish, read topics, call services."""
 
     def __init__(self, env: dict[str, str]) -> None:
         peer_env = dict(env)
         peer_env.pop("PYTHONPATH", None)  # no toaster in the peer
-        self.proc = subprocess.Popen(
-            [sys.executable, str(HERE / "peer.py"), env["ROS_DOMAIN_ID"]],
-            env=peer_env,
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            start_new_session=True,
-        )
-        first = self._read()
-        assert first.get("ready"), first
-
-    def _read(self) -> dict[str, Any]:
-        assert self.proc.stdout is not None
-        line = self.proc.stdout.readline()
-        if not line:
-            err = self.proc.stderr.read() if self.proc.stderr else ""
-            pytest.fail(f"the ROS 2 peer died: {err[-2000:]}")
-        return json.loads(line)
+        argv = [sys.executable, str(HERE / "peer.py"), env["ROS_DOMAIN_ID"]]
+        super().__init__(argv, peer_env, "ROS 2 peer")
 
     def send(self, op: str, **fields: Any) -> dict[str, Any]:
-        assert self.proc.stdin is not None
-        self.proc.stdin.write(json.dumps({"op": op, **fields}) + "\n")
-        self.proc.stdin.flush()
-        answer = self._read()
+        """Its answer; fails the test when the peer answered an error."""
+        answer = super().send(op, **fields)
         assert "error" not in answer, answer
         return answer
-
-    def close(self) -> None:
-        if self.proc.poll() is None:
-            os.killpg(self.proc.pid, signal.SIGKILL)
-            self.proc.wait(5)
-        for stream in (self.proc.stdin, self.proc.stdout, self.proc.stderr):
-            if stream is not None:
-                stream.close()
 
 
 @pytest.fixture(scope="module")
@@ -164,7 +82,8 @@ def node(
 ) -> Iterator[NodeProcess]:
     """The module's ``toaster serve --ros2``, stopped at the end; it must stop cleanly."""
     tmp = tmp_path_factory.mktemp("ros2_node")
-    proc = NodeProcess(dds_env, f"sqlite:///{tmp / 'toaster.db'}", node_args, tmp / "node.log")
+    url = f"sqlite:///{tmp / 'toaster.db'}"
+    proc = NodeProcess(dds_env, url, "--ros2", node_args, tmp / "node.log")
     yield proc
     out = proc.close()
     assert "stopped after" in out, out[-2000:]

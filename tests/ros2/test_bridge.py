@@ -12,7 +12,8 @@ from typing import Any
 import pytest
 
 import toaster
-from tests.ros2.conftest import NodeProcess, Peer, wait_for
+from tests.processes import NodeProcess, wait_for
+from tests.ros2.conftest import Peer
 from toaster import queries as q
 
 pytestmark = pytest.mark.slow

@@ -15,7 +15,8 @@ from typing import Any
 import pytest
 
 import toaster
-from tests.ros2.conftest import TIMEOUT, Peer, wait_for
+from tests.processes import TIMEOUT, wait_for
+from tests.ros2.conftest import Peer
 from tests.ros2.test_bridge import FACT_LIST
 from toaster import queries as q
 

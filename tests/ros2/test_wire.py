@@ -323,7 +323,8 @@ def test_the_binding_s_raw_calls(types: Any, monkeypatch: pytest.MonkeyPatch) ->
 
     from cyclonedds.sub import DataReader
 
-    from tests.ros2.conftest import LOOPBACK, wait_for
+    from tests.processes import wait_for
+    from tests.ros2.conftest import LOOPBACK
     from toaster.ros2.dds import Dds, raw_calls, reader_qos
 
     write, take = raw_calls()
