@@ -415,6 +415,10 @@ class Channels:
             motion = markers.motion_markers(world, motion_facts, t_ns)
             self.motion.log(scene_update(t_ns, motion), log_time=t_ns)
 
+    def views_wanted(self) -> bool:
+        """Whether one of the channels :meth:`frame` draws has a sink."""
+        return any(c.has_sinks() for c in (self.tf, self.scene, self.areas, self.motion))
+
     def wanted(self, *topics: str) -> bool:
         """Whether one of the JSON ``topics`` has a sink."""
         return any(self.json[topic].has_sinks() for topic in topics)
