@@ -258,6 +258,11 @@ class FoxgloveServer:
         import foxglove
         from toaster.foxglove.services import node_services
 
+        # The SDK's Rust threads forward their log records to Python logging, taking the GIL
+        # while they hold a client's lock; a Python thread logging a message holds the GIL
+        # while it waits for that lock: a deadlock seen with a slow client (FOXGLOVE_LOG_LEVEL
+        # still sets a level to debug with)
+        foxglove.set_log_level(logging.CRITICAL)  # CRITICAL: nothing is logged
         self.node = node
         self.context = foxglove.Context()
         self.channels = Channels(self.context)
