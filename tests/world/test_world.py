@@ -267,3 +267,19 @@ def load_scenario_text(tmp_path, doc):
     path = tmp_path / "s.yaml"
     path.write_text(yaml.safe_dump(doc))
     return load_scenario(path)
+
+
+def test_a_snapshot_keeps_its_state_while_the_world_moves_on():
+    world = World()
+    world.add_entity("bob", "human")
+    world.set_pose("bob", (1.0, 2.0, 0.0), 1)
+    world.commit()
+    view = world.snapshot()
+    world.set_pose("bob", (5.0, 5.0, 0.0), 2)
+    world.add_entity("cup", "object")
+    world.set_pose("cup", (0.5, 0.0, 0.8), 2)
+    world.commit()
+    assert view.n == 1 and view.ids == ["bob"] and "cup" not in view.index
+    assert view.pos[view.index["bob"]].tolist() == [1.0, 2.0, 0.0]
+    assert int(view.t_ns[0]) == 1
+    assert world.pos[world.index["bob"]].tolist() == [5.0, 5.0, 0.0]

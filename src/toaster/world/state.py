@@ -14,6 +14,7 @@ Disabled sources are ignored (the original's ``manage_stream``).
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -60,6 +61,23 @@ class EntityPose(NamedTuple):
     t_ns: int | None = None
 
 
+#: World's per-row columns (numpy arrays of at least ``n`` rows)
+_COLUMNS = (
+    "kind",
+    "owner",
+    "pos",
+    "rpy",
+    "local_pos",
+    "local_rpy",
+    "size",
+    "t_ns",
+    "conf",
+    "active",
+    "held_by",
+    "_agreed",
+)
+
+
 class World:
     """Current state of all entities (columns) with a per-entity time-bounded history."""
 
@@ -98,6 +116,22 @@ class World:
             np.zeros(0, object),
             np.zeros(0, object),
         )
+
+    def snapshot(self) -> World:
+        """A copy of the current state for a reader on another thread (the Foxglove
+        publisher): the columns of the live rows and the id lists copied, so that the ticks
+        that follow do not change it; the history is shared (not for reading)."""
+        view = copy.copy(self)
+        n = view.n = self.n
+        view._cap = n
+        for name in _COLUMNS:
+            setattr(view, name, getattr(self, name)[:n].copy())
+        view.ids, view.index = list(self.ids), dict(self.index)
+        view.kind_text, view.names = list(self.kind_text), list(self.names)
+        view.joint_names, view.mobility = list(self.joint_names), list(self.mobility)
+        view.sources_enabled, view.roles = dict(self.sources_enabled), dict(self.roles)
+        view.closed = dict(self.closed)
+        return view
 
     # -- entities ---------------------------------------------------------------------------
     def _grow(self) -> None:

@@ -420,6 +420,10 @@ class Channels:
         fixed: list[Any] = [self.scene, self.areas, self.motion, self.tf, self.log]
         return any(c.has_sinks() for c in [*fixed, *self.json.values()])
 
+    def views_wanted(self) -> bool:
+        """Whether one of the channels :meth:`frame` draws has a sink."""
+        return any(c.has_sinks() for c in (self.tf, self.scene, self.areas, self.motion))
+
     def wanted(self, *topics: str) -> bool:
         """Whether one of the JSON ``topics`` has a sink."""
         return any(self.json[topic].has_sinks() for topic in topics)
