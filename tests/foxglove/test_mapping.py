@@ -4,12 +4,14 @@ encodes (with the schema the channel carries), and the false-belief marks."""
 from __future__ import annotations
 
 import base64
+import json
 import math
+import random
 
 import pytest
 
 from toaster.model import Fact
-from toaster.outputs.foxglove import beliefs_message, scene_update
+from toaster.outputs.foxglove import beliefs_message, facts_json, facts_message, scene_update
 from toaster.outputs.markers import area_markers, motion_markers
 from toaster.outputs.recording.msgs import Scene
 from toaster.world.state import EntityPose
@@ -81,3 +83,25 @@ def test_false_beliefs_are_those_the_self_agent_does_not_hold_with_that_value() 
     nested = beliefs_message(5, "ANNE>SALLY", sally, robot)
     assert nested["chain"] == ["ANNE", "SALLY"]
     assert beliefs_message(5, "ROBOT", robot, robot, is_self=True)["false_beliefs"] == 0
+
+
+def test_facts_json_is_the_messages_json() -> None:
+    """The live /toaster/facts text is what ``json.dumps`` makes of :func:`facts_message`,
+    hostile strings, numbers and None included."""
+    rng = random.Random(7)
+    texts = ["", "a", 'q"uote', "back\\slash", "tab\tnl\n", "é ü 中", "\x7f\x01", "</script>"]
+    facts = [
+        Fact(
+            rng.choice(texts) + str(i),
+            rng.choice(texts) or "P",
+            rng.choice(texts),
+            rng.choice(texts) or "true",
+            rng.choice([None, 0.0, -1.5, 1e-300, 123456789.123, float(i), math.nan, -math.inf, 2]),
+            rng.choice([0.0, 0.25, 1.0, 1 / 3]),
+        )
+        for i in range(200)
+    ]
+    for t_ns in (0, 1_700_000_000_123_456_789):
+        for chosen in (facts, facts[:1], []):
+            expected = json.dumps(facts_message(t_ns, 'r"1', "area_manager", chosen))
+            assert facts_json(t_ns, 'r"1', "area_manager", chosen) == expected.encode()

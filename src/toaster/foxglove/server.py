@@ -28,7 +28,7 @@ from toaster.outputs.foxglove import (
     HEALTH_TOPIC,
     Channels,
     beliefs_message,
-    facts_message,
+    facts_json,
     health_message,
 )
 from toaster.world.state import World
@@ -93,9 +93,9 @@ class FoxgloveOutput:
             self._motion = facts.get("agent_monitor", [])
         if not self.channels.wanted(FACTS_TOPIC):
             return
-        put = self.channels.put
+        put = self.channels.put_json
         for producer, held in facts.items():
-            put(FACTS_TOPIC, facts_message(t_ns, self.node.self_id, producer, held))
+            put(FACTS_TOPIC, facts_json(t_ns, self.node.self_id, producer, held), t_ns)
 
     def publish(self, t_ns: int, facts: Mapping[str, list[Fact]], world: World) -> None:
         """The rest of a tick, handed to the publisher: the views every VIEW_EVERY ticks,
