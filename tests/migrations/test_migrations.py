@@ -325,7 +325,7 @@ RELEASED_FROZEN = {
     "0030_units.json": "4a1d0593e6673c06be4f1d358ca9ce085976337ec04ec5435adaeb8e441a5a35",
     "0030/inbox.json": "260ffefd8d7e3ef1a849df2588cf323ddae1bd15afffd75833703a350687ff86",
     "0031_units.json": "9ce49b444942606d0b07a844633cc02e5cdd026be7fe64be47363228756b6b47",
-    "0031/pipeline.json": "46892a8517d64014bdcdf06a772bf363ec20aa1582bb1bdf3b13f7a28ab438c4",
+    "0031/pipeline.json": "e8d529dd206d79ccdfd2f0a80743e84431418cefbbd53b8df7f9226399f7fd4f",
 }
 
 

@@ -127,6 +127,11 @@ def _pg_block(block: Block) -> list[str]:
     if block is PIPELINE:  # the run locks its holders and takes their clock (pipeline.CLOCK)
         mine = {"mine": "id = ANY(mine)"}
         body += [
+            # its robot's row first, alone: which holders are its own is read in the next
+            # statement's snapshot, taken once the robot's run before it has committed (read
+            # in the snapshot of a statement that then waited for that run, they missed the
+            # people its facts had just named: their rows were written unlocked)
+            "PERFORM 1 FROM holders WHERE id = NEW.self_id FOR NO KEY UPDATE;",
             f"mine := ARRAY({MINE} ORDER BY h.id FOR NO KEY UPDATE);",
             *[sqltext.expand(s.format(**mine), "postgresql") + ";" for s in CLOCK],
             f"NEW.t_ns := {CLOCK_NS.format(**mine)};",

@@ -6,7 +6,10 @@ robot's facts name only: a producer's first tick naming nobody (things in contai
 no clock, and another producer of the same robot whose run was at an earlier time then read,
 at that time, a self fact that began later: a holder took it with an event no interval began
 at (tests/db/test_many_writers.py, two producers per robot on PostgreSQL). The store reads the
-self's clock as well when it stamps a snapshot a little behind it.
+self's clock as well when it stamps a snapshot a little behind it. On PostgreSQL a run locks its
+robot's row alone first, then reads which holders are its own in the next statement: read in
+the snapshot of a statement that then waited for the robot's previous run, they missed the
+people that run's facts had just named, and their rows were written without their clocks.
 
 Revision ID: 0031
 Revises: 0030
